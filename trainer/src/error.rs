@@ -1,0 +1,73 @@
+//! Errors for bad input: every one names the file and the line, field or element at fault.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Where in an input file a problem is.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Location {
+    /// The file as a whole.
+    File,
+    /// A 1-based line number.
+    Line(usize),
+    /// A dotted field path in a structured file, e.g. `material.youngs`.
+    Field(String),
+    /// A 0-based element (or vertex, stencil) index.
+    Element(usize),
+}
+
+/// A problem with an input file (mesh, scene, artifact, dataset).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputError {
+    /// The file the problem is in (or a description such as `<procedural box>`).
+    pub file: PathBuf,
+    /// Where in the file.
+    pub location: Location,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl InputError {
+    /// Builds an error at `location` of `file`.
+    pub fn new(file: impl AsRef<Path>, location: Location, message: impl Into<String>) -> Self {
+        InputError {
+            file: file.as_ref().to_path_buf(),
+            location,
+            message: message.into(),
+        }
+    }
+    /// Error at a 1-based line.
+    pub fn line(file: impl AsRef<Path>, line: usize, message: impl Into<String>) -> Self {
+        Self::new(file, Location::Line(line), message)
+    }
+    /// Error at a named field.
+    pub fn field(
+        file: impl AsRef<Path>,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        Self::new(file, Location::Field(field.into()), message)
+    }
+    /// Error at a 0-based element index.
+    pub fn element(file: impl AsRef<Path>, element: usize, message: impl Into<String>) -> Self {
+        Self::new(file, Location::Element(element), message)
+    }
+    /// Error about the file as a whole.
+    pub fn file(file: impl AsRef<Path>, message: impl Into<String>) -> Self {
+        Self::new(file, Location::File, message)
+    }
+}
+
+impl fmt::Display for InputError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let file = self.file.display();
+        match &self.location {
+            Location::File => write!(f, "{file}: {}", self.message),
+            Location::Line(l) => write!(f, "{file}:{l}: {}", self.message),
+            Location::Field(name) => write!(f, "{file}: field `{name}`: {}", self.message),
+            Location::Element(e) => write!(f, "{file}: element {e}: {}", self.message),
+        }
+    }
+}
+
+impl std::error::Error for InputError {}

@@ -1,0 +1,8 @@
+//! mochi trainer: full-space finite-element simulation, datasets, training and evaluation.
+
+pub mod energy;
+pub mod error;
+pub mod material;
+pub mod mesh;
+
+pub use error::{InputError, Location};

@@ -1,0 +1,1 @@
+//! Mesh file readers (filled in).
