@@ -4,5 +4,6 @@ pub mod energy;
 pub mod error;
 pub mod material;
 pub mod mesh;
+pub mod solver;
 
 pub use error::{InputError, Location};

@@ -77,6 +77,10 @@ impl Local {
     /// Zeroes the first `n` gradient entries and `n * n` Hessian entries.
     pub fn clear(&mut self, n: usize) {
         self.grad[..n].fill(0.0);
+        self.clear_hessian(n);
+    }
+    /// Zeroes the first `n * n` Hessian entries.
+    pub fn clear_hessian(&mut self, n: usize) {
         self.hess[..n * n].fill(0.0);
     }
 }

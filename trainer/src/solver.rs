@@ -1,0 +1,581 @@
+//! Full-space time stepping as optimisation: implicit Euler and BDF2 incremental
+//! potentials minimised by Newton's method with backtracking line search.
+//!
+//! Dirichlet boundary conditions eliminate the prescribed degrees of freedom: those
+//! vertices are placed at their scripted positions and only the free DOF are solved for.
+//! The free-free Hessian block is assembled (in parallel) into a fixed sparse pattern and
+//! factorised with faer's sparse Cholesky, whose symbolic analysis is computed once and
+//! reused across iterations and steps.
+
+use crate::energy::{self, inertia::Inertia, StencilEnergy, MAX_DOF};
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{MatMut, Side};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// Time integration scheme.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Integrator {
+    /// First-order implicit (backward) Euler.
+    #[default]
+    ImplicitEuler,
+    /// Second-order backward differentiation formula (first step uses implicit Euler).
+    Bdf2,
+}
+
+/// Newton solver settings.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct NewtonSettings {
+    /// Converged when `max |dx| / (dt * L)` falls below this, with `dx` the Newton step and
+    /// `L` the rest bounding-box diagonal (for static solves, `max |dx| / L`).
+    pub tolerance: f64,
+    /// Newton iterations per step before giving up (the step is still taken).
+    pub max_iterations: usize,
+}
+
+impl Default for NewtonSettings {
+    fn default() -> Self {
+        NewtonSettings {
+            tolerance: 1e-4,
+            max_iterations: 50,
+        }
+    }
+}
+
+/// What one solve did.
+#[derive(Clone, Debug, Default)]
+pub struct StepReport {
+    /// Newton iterations taken.
+    pub iterations: usize,
+    /// Scaled Newton step norm of each iteration (the convergence measure).
+    pub step_norms: Vec<f64>,
+    /// Whether the tolerance was met.
+    pub converged: bool,
+    /// Objective value at the solution.
+    pub objective: f64,
+    /// Wall-clock seconds of the solve.
+    pub seconds: f64,
+}
+
+/// Why a step could not be taken.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum StepError {
+    /// A boundary-condition target was NaN or infinite.
+    #[error("boundary condition target for vertex {vertex} is not finite ({value})")]
+    NonFiniteBoundary {
+        /// The prescribed vertex.
+        vertex: usize,
+        /// The offending coordinate.
+        value: f64,
+    },
+    /// The wrong number of boundary-condition targets was given.
+    #[error("expected {expected} boundary-condition coordinates, got {got}")]
+    BoundaryLength {
+        /// Prescribed vertices times dim.
+        expected: usize,
+        /// What was passed.
+        got: usize,
+    },
+    /// The state became NaN or infinite (e.g. a singular system).
+    #[error("the solver produced a non-finite state at Newton iteration {iteration}")]
+    Diverged {
+        /// Iteration at which it happened.
+        iteration: usize,
+    },
+}
+
+/// A full-space simulator of one body.
+pub struct Simulator {
+    dim: usize,
+    dt: f64,
+    integrator: Integrator,
+    settings: NewtonSettings,
+    length_scale: f64,
+    inertia: Inertia,
+    potentials: Vec<Box<dyn StencilEnergy>>,
+    fixed_vertices: Vec<usize>,
+    free_index: Vec<usize>,
+    num_free: usize,
+    hessian: HessianPattern,
+    x: Vec<f64>,
+    v: Vec<f64>,
+    x_prev: Vec<f64>,
+    v_prev: Vec<f64>,
+    steps: usize,
+}
+
+const NOT_FREE: usize = usize::MAX;
+
+impl Simulator {
+    /// Builds a simulator starting at rest at `x0`.
+    ///
+    /// `potentials` are the conservative terms (elastic, gravity, collision); the inertia
+    /// term is built from `masses`. Vertices in `fixed_vertices` follow the targets passed
+    /// to [`Simulator::step`]. `length_scale` (the rest bounding-box diagonal) makes the
+    /// convergence tolerance unit-free.
+    pub fn new(
+        dim: usize,
+        x0: Vec<f64>,
+        masses: Vec<f64>,
+        potentials: Vec<Box<dyn StencilEnergy>>,
+        fixed_vertices: Vec<usize>,
+        dt: f64,
+        integrator: Integrator,
+        settings: NewtonSettings,
+        length_scale: f64,
+    ) -> Self {
+        let n = x0.len();
+        let mut fixed = vec![false; n];
+        for &v in &fixed_vertices {
+            fixed[v * dim..(v + 1) * dim].fill(true);
+        }
+        let mut free_index = vec![NOT_FREE; n];
+        let mut num_free = 0;
+        for (k, f) in fixed.iter().enumerate() {
+            if !f {
+                free_index[k] = num_free;
+                num_free += 1;
+            }
+        }
+        let inertia = Inertia::new(dim, masses);
+        let terms: Vec<&dyn StencilEnergy> = std::iter::once(&inertia as &dyn StencilEnergy)
+            .chain(potentials.iter().map(|p| p.as_ref()))
+            .collect();
+        let hessian = HessianPattern::new(&terms, &free_index, num_free);
+        Simulator {
+            dim,
+            dt,
+            integrator,
+            settings,
+            length_scale,
+            inertia,
+            potentials,
+            fixed_vertices,
+            free_index,
+            num_free,
+            hessian,
+            v: vec![0.0; n],
+            x_prev: x0.clone(),
+            v_prev: vec![0.0; n],
+            x: x0,
+            steps: 0,
+        }
+    }
+
+    /// Current positions.
+    pub fn positions(&self) -> &[f64] {
+        &self.x
+    }
+    /// Current velocities.
+    pub fn velocities(&self) -> &[f64] {
+        &self.v
+    }
+    /// Vertices whose positions are prescribed, in the order targets are given.
+    pub fn fixed_vertices(&self) -> &[usize] {
+        &self.fixed_vertices
+    }
+    /// Number of free degrees of freedom.
+    pub fn num_free_dofs(&self) -> usize {
+        self.num_free
+    }
+    /// Time step.
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+    /// Lumped vertex masses.
+    pub fn masses(&self) -> &[f64] {
+        self.inertia.masses()
+    }
+    /// The conservative energy terms.
+    pub fn potentials(&self) -> &[Box<dyn StencilEnergy>] {
+        &self.potentials
+    }
+    /// Mutable access to the conservative terms (e.g. to move obstacles).
+    pub fn potentials_mut(&mut self) -> &mut [Box<dyn StencilEnergy>] {
+        &mut self.potentials
+    }
+
+    /// Resets the state to positions `x` at rest.
+    pub fn reset(&mut self, x: &[f64]) {
+        self.x.copy_from_slice(x);
+        self.x_prev.copy_from_slice(x);
+        self.v.fill(0.0);
+        self.v_prev.fill(0.0);
+        self.steps = 0;
+    }
+
+    /// Kinetic energy and the value of each potential at the current state.
+    pub fn energies(&self) -> Vec<(&'static str, f64)> {
+        let mut out = vec![("kinetic", self.inertia.kinetic_energy(&self.v))];
+        out.extend(
+            self.potentials
+                .iter()
+                .map(|p| (p.name(), energy::value(p.as_ref(), &self.x))),
+        );
+        out
+    }
+
+    /// Total mechanical energy (kinetic plus all potentials) at the current state.
+    pub fn total_energy(&self) -> f64 {
+        self.energies().iter().map(|(_, e)| e).sum()
+    }
+
+    /// Advances one time step with the prescribed vertices moved to `targets`
+    /// (`dim` numbers per vertex of [`Simulator::fixed_vertices`]).
+    pub fn step(&mut self, targets: &[f64]) -> Result<StepReport, StepError> {
+        self.check_targets(targets)?;
+        let start = Instant::now();
+        let h = self.dt;
+        let bdf2 = self.integrator == Integrator::Bdf2 && self.steps > 0;
+        // Predicted positions and the weight of the potentials in the incremental potential.
+        let (xhat, weight): (Vec<f64>, f64) = if bdf2 {
+            let xhat = (0..self.x.len())
+                .map(|k| {
+                    (4.0 * self.x[k] - self.x_prev[k]) / 3.0
+                        + h * (8.0 * self.v[k] - 2.0 * self.v_prev[k]) / 9.0
+                })
+                .collect();
+            (xhat, 4.0 / 9.0 * h * h)
+        } else {
+            (
+                (0..self.x.len())
+                    .map(|k| self.x[k] + h * self.v[k])
+                    .collect(),
+                h * h,
+            )
+        };
+        self.inertia.set_target(&xhat);
+        let mut x = xhat;
+        self.place_fixed(&mut x, targets);
+        let mut report = self.minimize(&mut x, 1.0, weight, h * self.length_scale)?;
+        let v_new: Vec<f64> = if bdf2 {
+            (0..x.len())
+                .map(|k| (3.0 * x[k] - 4.0 * self.x[k] + self.x_prev[k]) / (2.0 * h))
+                .collect()
+        } else {
+            (0..x.len()).map(|k| (x[k] - self.x[k]) / h).collect()
+        };
+        self.x_prev = std::mem::replace(&mut self.x, x);
+        self.v_prev = std::mem::replace(&mut self.v, v_new);
+        self.steps += 1;
+        report.seconds = start.elapsed().as_secs_f64();
+        Ok(report)
+    }
+
+    /// Finds a static equilibrium of the potentials (no inertia) with the prescribed
+    /// vertices at `targets`, starting from the current positions; velocities are zeroed.
+    pub fn solve_static(&mut self, targets: &[f64]) -> Result<StepReport, StepError> {
+        self.check_targets(targets)?;
+        let start = Instant::now();
+        let mut x = self.x.clone();
+        self.place_fixed(&mut x, targets);
+        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale)?;
+        self.reset(&x);
+        report.seconds = start.elapsed().as_secs_f64();
+        Ok(report)
+    }
+
+    fn check_targets(&self, targets: &[f64]) -> Result<(), StepError> {
+        let expected = self.fixed_vertices.len() * self.dim;
+        if targets.len() != expected {
+            return Err(StepError::BoundaryLength {
+                expected,
+                got: targets.len(),
+            });
+        }
+        if let Some(k) = targets.iter().position(|t| !t.is_finite()) {
+            return Err(StepError::NonFiniteBoundary {
+                vertex: self.fixed_vertices[k / self.dim],
+                value: targets[k],
+            });
+        }
+        Ok(())
+    }
+
+    fn place_fixed(&self, x: &mut [f64], targets: &[f64]) {
+        let d = self.dim;
+        for (i, &v) in self.fixed_vertices.iter().enumerate() {
+            x[v * d..(v + 1) * d].copy_from_slice(&targets[i * d..(i + 1) * d]);
+        }
+    }
+
+    /// Objective `w_inertia * inertia + w_potential * sum(potentials)` and its gradient.
+    fn objective(
+        &self,
+        x: &[f64],
+        w_inertia: f64,
+        w_potential: f64,
+        grad: Option<&mut Vec<f64>>,
+    ) -> f64 {
+        match grad {
+            None => {
+                let mut e = 0.0;
+                if w_inertia != 0.0 {
+                    e += w_inertia * energy::value(&self.inertia, x);
+                }
+                e + w_potential
+                    * self
+                        .potentials
+                        .iter()
+                        .map(|p| energy::value(p.as_ref(), x))
+                        .sum::<f64>()
+            }
+            Some(g) => {
+                g.clear();
+                g.resize(x.len(), 0.0);
+                let mut e = 0.0;
+                if w_inertia != 0.0 {
+                    e += energy::add_gradient(&self.inertia, w_inertia, x, g);
+                }
+                for p in &self.potentials {
+                    e += energy::add_gradient(p.as_ref(), w_potential, x, g);
+                }
+                e
+            }
+        }
+    }
+
+    /// Newton with backtracking line search over the free DOF of `x`.
+    fn minimize(
+        &mut self,
+        x: &mut [f64],
+        w_inertia: f64,
+        w_potential: f64,
+        norm_scale: f64,
+    ) -> Result<StepReport, StepError> {
+        let mut report = StepReport::default();
+        let mut grad = Vec::new();
+        let mut rhs = vec![0.0; self.num_free];
+        let mut trial = x.to_vec();
+        for iteration in 0..self.settings.max_iterations {
+            let e = self.objective(x, w_inertia, w_potential, Some(&mut grad));
+            if !e.is_finite() {
+                return Err(StepError::Diverged { iteration });
+            }
+            report.objective = e;
+            if self.num_free == 0 {
+                report.converged = true;
+                break;
+            }
+            self.assemble(x, w_inertia, w_potential);
+            for (k, &f) in self.free_index.iter().enumerate() {
+                if f != NOT_FREE {
+                    rhs[f] = -grad[k];
+                }
+            }
+            self.hessian.solve(&mut rhs);
+            let dir = &rhs;
+            let step_norm = dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) / norm_scale;
+            if !step_norm.is_finite() {
+                return Err(StepError::Diverged { iteration });
+            }
+            report.step_norms.push(step_norm);
+            report.iterations = iteration + 1;
+            // Backtracking line search on the objective (Armijo condition).
+            let slope: f64 = self
+                .free_index
+                .iter()
+                .enumerate()
+                .filter(|(_, &f)| f != NOT_FREE)
+                .map(|(k, &f)| grad[k] * dir[f])
+                .sum();
+            let mut alpha = 1.0;
+            loop {
+                for (k, &f) in self.free_index.iter().enumerate() {
+                    if f != NOT_FREE {
+                        trial[k] = x[k] + alpha * dir[f];
+                    }
+                }
+                let et = self.objective(&trial, w_inertia, w_potential, None);
+                if et.is_finite() && et <= e + 1e-4 * alpha * slope.min(0.0) {
+                    break;
+                }
+                alpha *= 0.5;
+                if alpha < 1e-12 {
+                    alpha = 0.0;
+                    break;
+                }
+            }
+            for (k, &f) in self.free_index.iter().enumerate() {
+                if f != NOT_FREE {
+                    x[k] += alpha * dir[f];
+                }
+            }
+            if step_norm < self.settings.tolerance || alpha == 0.0 {
+                report.converged = step_norm < self.settings.tolerance;
+                report.objective = self.objective(x, w_inertia, w_potential, None);
+                break;
+            }
+        }
+        if x.iter().any(|c| !c.is_finite()) {
+            return Err(StepError::Diverged {
+                iteration: report.iterations,
+            });
+        }
+        Ok(report)
+    }
+
+    /// Assembles the PSD-projected free-free Hessian of the objective.
+    fn assemble(&mut self, x: &[f64], w_inertia: f64, w_potential: f64) {
+        self.hessian.values.fill(0.0);
+        let terms = std::iter::once((&self.inertia as &dyn StencilEnergy, w_inertia))
+            .chain(self.potentials.iter().map(|p| (p.as_ref(), w_potential)));
+        for (term, (energy, weight)) in terms.enumerate() {
+            if weight == 0.0 {
+                continue;
+            }
+            let slots = &self.hessian.slots[term];
+            let values = &mut self.hessian.values;
+            energy::for_each_hessian(energy, x, true, |s, _, local| {
+                let range = slots.offsets[s]..slots.offsets[s + 1];
+                for (slot, h) in slots.slots[range].iter().zip(&local.hess) {
+                    if *slot != NO_SLOT {
+                        values[*slot as usize] += weight * h;
+                    }
+                }
+            });
+        }
+    }
+}
+
+const NO_SLOT: u32 = u32::MAX;
+
+/// Where each entry of each stencil's local Hessian lands in the sparse matrix.
+struct StencilSlots {
+    /// `offsets[s]..offsets[s + 1]` indexes `slots` for stencil `s` (row-major `n x n`).
+    offsets: Vec<usize>,
+    /// Index into the CSC value array, or `NO_SLOT` for fixed DOF / upper triangle.
+    slots: Vec<u32>,
+}
+
+/// Lower-triangular CSC pattern of the free-free Hessian, its values, the slot maps of
+/// every energy term, and the cached symbolic Cholesky factorisation.
+struct HessianPattern {
+    n: usize,
+    col_ptr: Vec<u32>,
+    row_idx: Vec<u32>,
+    values: Vec<f64>,
+    slots: Vec<StencilSlots>,
+    symbolic: Option<SymbolicLlt<u32>>,
+}
+
+impl HessianPattern {
+    fn new(terms: &[&dyn StencilEnergy], free_index: &[usize], n: usize) -> Self {
+        let dofs = |e: &dyn StencilEnergy, s: usize| -> Vec<usize> {
+            let d = e.dim();
+            e.stencil(s)
+                .iter()
+                .flat_map(|&v| (0..d).map(move |i| free_index[v * d + i]))
+                .collect()
+        };
+        let mut columns: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for term in terms {
+            for s in 0..term.len() {
+                let ds = dofs(*term, s);
+                for &r in &ds {
+                    for &c in &ds {
+                        if r != NOT_FREE && c != NOT_FREE && r >= c {
+                            columns[c].push(r as u32);
+                        }
+                    }
+                }
+            }
+        }
+        let mut col_ptr = vec![0u32];
+        let mut row_idx = Vec::new();
+        for col in &mut columns {
+            col.sort_unstable();
+            col.dedup();
+            row_idx.extend_from_slice(col);
+            col_ptr.push(row_idx.len() as u32);
+        }
+        let slots = terms
+            .iter()
+            .map(|term| {
+                let mut offsets = vec![0];
+                let mut slots = Vec::new();
+                for s in 0..term.len() {
+                    let ds = dofs(*term, s);
+                    debug_assert!(ds.len() <= MAX_DOF);
+                    for &r in &ds {
+                        for &c in &ds {
+                            slots.push(if r != NOT_FREE && c != NOT_FREE && r >= c {
+                                let col = &row_idx[col_ptr[c] as usize..col_ptr[c + 1] as usize];
+                                col_ptr[c]
+                                    + col
+                                        .binary_search(&(r as u32))
+                                        .expect("pattern holds every stencil entry")
+                                        as u32
+                            } else {
+                                NO_SLOT
+                            });
+                        }
+                    }
+                    offsets.push(slots.len());
+                }
+                StencilSlots { offsets, slots }
+            })
+            .collect();
+        let nnz = row_idx.len();
+        HessianPattern {
+            n,
+            col_ptr,
+            row_idx,
+            values: vec![0.0; nnz],
+            slots,
+            symbolic: None,
+        }
+    }
+
+    /// Solves `H d = rhs` in place with a sparse Cholesky factorisation of the assembled
+    /// values. If `H` is not numerically positive definite, a growing multiple of the
+    /// identity (relative to the largest diagonal entry) is added until it is.
+    fn solve(&mut self, rhs: &mut [f64]) {
+        let pattern = SymbolicSparseColMatRef::new_checked(
+            self.n,
+            self.n,
+            &self.col_ptr,
+            None,
+            &self.row_idx,
+        );
+        let symbolic = self
+            .symbolic
+            .get_or_insert_with(|| {
+                SymbolicLlt::try_new(pattern, Side::Lower)
+                    .expect("symbolic Cholesky of a valid pattern")
+            })
+            .clone();
+        let diag_max = (0..self.n)
+            .map(|c| self.values[self.col_ptr[c] as usize])
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+            .max(f64::MIN_POSITIVE);
+        let mut shift = 0.0;
+        let mut values = self.values.clone();
+        loop {
+            if shift > 0.0 {
+                values.copy_from_slice(&self.values);
+                for c in 0..self.n {
+                    values[self.col_ptr[c] as usize] += shift;
+                }
+            }
+            let matrix = SparseColMatRef::new(pattern, &values);
+            match Llt::try_new_with_symbolic(symbolic.clone(), matrix, Side::Lower) {
+                Ok(llt) => {
+                    llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
+                    return;
+                }
+                Err(_) => {
+                    shift = if shift == 0.0 {
+                        1e-10 * diag_max
+                    } else {
+                        shift * 100.0
+                    }
+                }
+            }
+        }
+    }
+}
