@@ -1,5 +1,6 @@
 //! mochi trainer: full-space finite-element simulation, datasets, training and evaluation.
 
+pub mod bc;
 pub mod energy;
 pub mod error;
 pub mod material;

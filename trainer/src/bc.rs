@@ -1,0 +1,349 @@
+//! Boundary conditions: handles (sets of prescribed vertices) moved rigidly by
+//! piecewise-constant linear and angular velocities, and the random motions that datasets
+//! sample from speed ranges with a seed.
+
+use nalgebra::{UnitQuaternion, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+type V3 = Vector3<f64>;
+
+/// Numbers per handle in the boundary-condition signal: linear velocity (3), angular
+/// velocity (3), translation (3) and rotation vector (3) of the handle's pose.
+pub const SIGNAL_PER_HANDLE: usize = 12;
+
+/// A piece of motion: constant linear and angular velocity (about the moving pivot).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Segment {
+    /// Duration in frames.
+    pub frames: usize,
+    /// Linear velocity of the pivot (units / s).
+    #[serde(default)]
+    pub velocity: [f64; 3],
+    /// Angular velocity about the pivot (rad / s, world axes).
+    #[serde(default)]
+    pub angular_velocity: [f64; 3],
+}
+
+/// A rigid pose relative to a handle's reference placement.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pose {
+    /// Translation of the pivot.
+    pub translation: V3,
+    /// Rotation about the pivot.
+    pub rotation: UnitQuaternion<f64>,
+}
+
+impl Pose {
+    /// No motion.
+    pub fn identity() -> Self {
+        Pose {
+            translation: V3::zeros(),
+            rotation: UnitQuaternion::identity(),
+        }
+    }
+    /// Moves the reference point `p` of a handle pivoting about `pivot`.
+    pub fn apply(&self, p: V3, pivot: V3) -> V3 {
+        pivot + self.translation + self.rotation * (p - pivot)
+    }
+    /// The pose after moving for `dt` seconds with the velocities of `segment`.
+    pub fn advanced(&self, segment: &Segment, dt: f64) -> Pose {
+        Pose {
+            translation: self.translation + V3::from(segment.velocity) * dt,
+            rotation: UnitQuaternion::from_scaled_axis(V3::from(segment.angular_velocity) * dt) * self.rotation,
+        }
+    }
+}
+
+/// A set of prescribed vertices that moves rigidly.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Handle {
+    /// Name from the scene.
+    pub name: String,
+    /// Prescribed vertices.
+    pub vertices: Vec<usize>,
+    /// Their positions at the identity pose (3D; z = 0 for 2D meshes).
+    pub reference: Vec<[f64; 3]>,
+    /// Point the handle rotates about (at the identity pose).
+    pub pivot: [f64; 3],
+}
+
+impl Handle {
+    /// Writes the handle's vertex positions at `pose` into `out` (`dim` per vertex).
+    pub fn place(&self, pose: &Pose, dim: usize, out: &mut Vec<f64>) {
+        let pivot = V3::from(self.pivot);
+        for r in &self.reference {
+            let p = pose.apply(V3::from(*r), pivot);
+            out.extend_from_slice(&p.as_slice()[..dim]);
+        }
+    }
+}
+
+/// One handle's motion over a sequence: its pose and velocities at every frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Track {
+    /// Pose at frames `0..=frames` (frame 0 is the identity).
+    pub poses: Vec<Pose>,
+    /// Linear and angular velocity over the step that ends at each frame (zero at frame 0).
+    pub velocities: Vec<[f64; 6]>,
+}
+
+impl Track {
+    /// Integrates `segments` over `frames` steps of `dt`; after the last segment the
+    /// handle holds still.
+    pub fn from_segments(segments: &[Segment], frames: usize, dt: f64) -> Track {
+        let mut poses = vec![Pose::identity()];
+        let mut velocities = vec![[0.0; 6]];
+        let rest = Segment {
+            frames: usize::MAX,
+            velocity: [0.0; 3],
+            angular_velocity: [0.0; 3],
+        };
+        let mut active = segments.iter().flat_map(|s| std::iter::repeat_n(s, s.frames)).chain(std::iter::repeat(&rest));
+        for _ in 0..frames {
+            let seg = active.next().unwrap_or(&rest);
+            poses.push(poses.last().expect("starts non-empty").advanced(seg, dt));
+            let mut v = [0.0; 6];
+            v[..3].copy_from_slice(&seg.velocity);
+            v[3..].copy_from_slice(&seg.angular_velocity);
+            velocities.push(v);
+        }
+        Track { poses, velocities }
+    }
+}
+
+/// The boundary conditions of one sequence: one track per handle.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BcSequence {
+    /// Tracks, in the scene's handle order.
+    pub tracks: Vec<Track>,
+}
+
+impl BcSequence {
+    /// Number of frames after the initial one.
+    pub fn frames(&self) -> usize {
+        self.tracks.first().map_or(0, |t| t.poses.len() - 1)
+    }
+
+    /// Target positions of all handle vertices at `frame` (handles concatenated).
+    pub fn targets(&self, handles: &[Handle], frame: usize, dim: usize) -> Vec<f64> {
+        let mut out = Vec::new();
+        for (h, t) in handles.iter().zip(&self.tracks) {
+            h.place(&t.poses[frame], dim, &mut out);
+        }
+        out
+    }
+
+    /// The boundary-condition signal at `frame`: per handle, linear and angular velocity,
+    /// translation and rotation vector ([`SIGNAL_PER_HANDLE`] numbers).
+    pub fn signal(&self, frame: usize) -> Vec<f64> {
+        let mut out = Vec::with_capacity(self.tracks.len() * SIGNAL_PER_HANDLE);
+        for t in &self.tracks {
+            out.extend_from_slice(&t.velocities[frame]);
+            let pose = &t.poses[frame];
+            out.extend_from_slice(pose.translation.as_slice());
+            out.extend_from_slice(pose.rotation.scaled_axis().as_slice());
+        }
+        out
+    }
+}
+
+/// How a handle moves in sampled sequences (scene field `handles.motion`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionSpec {
+    /// Range of segment lengths in frames.
+    #[serde(default = "default_segment_frames")]
+    pub segment_frames: [usize; 2],
+    /// Translation directions to choose from (a random sign is applied).
+    #[serde(default)]
+    pub directions: Vec<[f64; 3]>,
+    /// Rotation axes to choose from (a random sign is applied).
+    #[serde(default)]
+    pub rotation_axes: Vec<[f64; 3]>,
+    /// Probability that a segment rotates rather than translates.
+    #[serde(default)]
+    pub rotation_share: f64,
+    /// Training range of linear speeds (units / s).
+    #[serde(default)]
+    pub speed: [f64; 2],
+    /// Training range of angular speeds (rad / s).
+    #[serde(default)]
+    pub angular_speed: [f64; 2],
+    /// Follow every segment by its reverse, so the handle returns where it started.
+    #[serde(default = "default_true")]
+    pub back_and_forth: bool,
+}
+
+fn default_segment_frames() -> [usize; 2] {
+    [15, 30]
+}
+fn default_true() -> bool {
+    true
+}
+
+impl MotionSpec {
+    /// Checks ranges and directions; returns the offending field name and a message.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let [lo, hi] = self.segment_frames;
+        if lo == 0 || hi < lo {
+            return Err(("segment_frames", format!("needs 1 <= min <= max, got [{lo}, {hi}]")));
+        }
+        for (field, range) in [("speed", self.speed), ("angular_speed", self.angular_speed)] {
+            if !range.iter().all(|v| v.is_finite() && *v >= 0.0) || range[1] < range[0] {
+                return Err((field, format!("needs finite 0 <= min <= max, got {range:?}")));
+            }
+        }
+        for (field, dirs) in [("directions", &self.directions), ("rotation_axes", &self.rotation_axes)] {
+            if dirs.iter().any(|d| !d.iter().all(|c| c.is_finite()) || V3::from(*d).norm() < 1e-12) {
+                return Err((field, "every entry must be a finite non-zero vector".into()));
+            }
+        }
+        if !(0.0..=1.0).contains(&self.rotation_share) {
+            return Err(("rotation_share", format!("must be in [0, 1], got {}", self.rotation_share)));
+        }
+        if self.rotation_share > 0.0 && self.rotation_axes.is_empty() {
+            return Err(("rotation_axes", "rotation_share > 0 needs at least one axis".into()));
+        }
+        if self.rotation_share < 1.0 && self.directions.is_empty() && !self.rotation_axes.is_empty() {
+            return Err(("directions", "translating segments need at least one direction".into()));
+        }
+        Ok(())
+    }
+
+    /// Linear and angular speed at `level`: 0 is the bottom of the training ranges, 1 the
+    /// top; levels above 1 extrapolate beyond the training range.
+    pub fn speeds_at(&self, level: f64) -> (f64, f64) {
+        let lerp = |r: [f64; 2]| r[0] + level * (r[1] - r[0]);
+        (lerp(self.speed), lerp(self.angular_speed))
+    }
+
+    /// Samples segments covering `frames`, using `speeds(frame) = (linear, angular)` for a
+    /// segment starting at `frame`, with directions and lengths drawn from `rng`.
+    pub fn sample(&self, frames: usize, speeds: &dyn Fn(usize) -> (f64, f64), rng: &mut ChaCha8Rng) -> Vec<Segment> {
+        let mut segments = Vec::new();
+        let mut frame = 0;
+        if self.directions.is_empty() && self.rotation_axes.is_empty() {
+            return segments;
+        }
+        while frame < frames {
+            let len = rng.random_range(self.segment_frames[0]..=self.segment_frames[1]);
+            let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            let (lin, ang) = speeds(frame);
+            let rotate = !self.rotation_axes.is_empty() && (self.directions.is_empty() || rng.random_bool(self.rotation_share));
+            let mut seg = Segment {
+                frames: len,
+                velocity: [0.0; 3],
+                angular_velocity: [0.0; 3],
+            };
+            if rotate {
+                let axis = V3::from(self.rotation_axes[rng.random_range(0..self.rotation_axes.len())]).normalize();
+                seg.angular_velocity = (axis * sign * ang).into();
+            } else {
+                let dir = V3::from(self.directions[rng.random_range(0..self.directions.len())]).normalize();
+                seg.velocity = (dir * sign * lin).into();
+            }
+            segments.push(seg);
+            frame += len;
+            if self.back_and_forth && frame < frames {
+                let (lin2, ang2) = speeds(frame);
+                let scale = |v: [f64; 3], s: f64, s0: f64| {
+                    let f = if s0 > 0.0 { s / s0 } else { 0.0 };
+                    [-v[0] * f, -v[1] * f, -v[2] * f]
+                };
+                segments.push(Segment {
+                    frames: len,
+                    velocity: scale(seg.velocity, lin2, lin),
+                    angular_velocity: scale(seg.angular_velocity, ang2, ang),
+                });
+                frame += len;
+            }
+        }
+        segments
+    }
+}
+
+/// A seeded random generator for motion sampling (ChaCha8: same stream on every platform).
+pub fn rng(seed: u64) -> ChaCha8Rng {
+    ChaCha8Rng::seed_from_u64(seed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn constant_rotation_track_matches_closed_form() {
+        let seg = Segment {
+            frames: 30,
+            velocity: [0.3, 0.0, 0.0],
+            angular_velocity: [0.0, 0.0, 1.2],
+        };
+        let dt = 1.0 / 30.0;
+        let track = Track::from_segments(&[seg], 40, dt);
+        let p = track.poses[30];
+        assert!((p.translation.x - 0.3).abs() < 1e-12);
+        assert!((p.rotation.angle() - 1.2).abs() < 1e-12);
+        // After the script ends the handle holds still.
+        assert_eq!(track.poses[40], track.poses[30]);
+        assert_eq!(track.velocities[35], [0.0; 6]);
+        let h = Handle {
+            name: "h".into(),
+            vertices: vec![0],
+            reference: vec![[1.0, 0.0, 0.0]],
+            pivot: [0.0; 3],
+        };
+        let seq = BcSequence { tracks: vec![track] };
+        let t = seq.targets(&[h], 30, 3);
+        assert!((t[0] - (0.3 + 1.2f64.cos())).abs() < 1e-12 && (t[1] - 1.2f64.sin()).abs() < 1e-12);
+        assert_eq!(seq.signal(10).len(), SIGNAL_PER_HANDLE);
+    }
+
+    #[test]
+    fn back_and_forth_motion_returns_and_is_seeded() {
+        let spec = MotionSpec {
+            segment_frames: [5, 9],
+            directions: vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            rotation_axes: vec![[0.0, 0.0, 1.0]],
+            rotation_share: 0.3,
+            speed: [0.1, 0.5],
+            angular_speed: [0.5, 1.0],
+            back_and_forth: true,
+        };
+        spec.validate().unwrap();
+        let speeds = |_| spec.speeds_at(0.5);
+        let a = spec.sample(100, &speeds, &mut rng(3));
+        let b = spec.sample(100, &speeds, &mut rng(3));
+        let c = spec.sample(100, &speeds, &mut rng(4));
+        assert_eq!(a, b);
+        assert_ne!(a, c);
+        let total: usize = a.iter().map(|s| s.frames).sum();
+        let track = Track::from_segments(&a, total, 0.1);
+        let end = track.poses[total];
+        assert!(end.translation.norm() < 1e-12 && end.rotation.angle() < 1e-9, "{end:?}");
+        for s in &a {
+            let v = V3::from(s.velocity).norm();
+            let w = V3::from(s.angular_velocity).norm();
+            assert!((v - 0.3).abs() < 1e-12 || (w - 0.75).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn invalid_motion_names_the_field() {
+        let mut spec = MotionSpec {
+            segment_frames: [5, 2],
+            directions: vec![],
+            rotation_axes: vec![],
+            rotation_share: 0.0,
+            speed: [0.0, 1.0],
+            angular_speed: [0.0, 0.0],
+            back_and_forth: true,
+        };
+        assert_eq!(spec.validate().unwrap_err().0, "segment_frames");
+        spec.segment_frames = [2, 5];
+        spec.speed = [f64::NAN, 1.0];
+        assert_eq!(spec.validate().unwrap_err().0, "speed");
+    }
+}
