@@ -1,0 +1,230 @@
+//! Datasets: boundary-condition sequences sampled from a scene's motion ranges, simulated
+//! in full space and written as trajectories. Training speeds are evenly spaced over the
+//! scene's ranges; test speeds are held out between them, beyond the top of the range,
+//! and include a sudden speed drop.
+
+use crate::bc::{self, BcSequence, Track};
+use crate::scene::{DatasetSpec, Problem, Start};
+use crate::solver::{StepError, StepReport};
+use crate::trajectory::Trajectory;
+use indicatif::ProgressBar;
+use std::time::Instant;
+
+/// Train or test.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Split {
+    /// Used for training.
+    Train,
+    /// Held out for evaluation.
+    Test,
+}
+
+impl Split {
+    /// Lower-case name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Split::Train => "train",
+            Split::Test => "test",
+        }
+    }
+}
+
+/// How fast the handles move over a sequence: from each `start_frame`, speeds are the
+/// scene's speeds at `level` (0 bottom, 1 top of the training range) times `factor`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpeedPlan {
+    /// `(start_frame, level, factor)`, sorted by start frame, the first at frame 0.
+    pub pieces: Vec<(usize, f64, f64)>,
+}
+
+impl SpeedPlan {
+    /// One constant level.
+    pub fn constant(level: f64) -> Self {
+        SpeedPlan {
+            pieces: vec![(0, level, 1.0)],
+        }
+    }
+    /// The `(level, factor)` in force at `frame`.
+    pub fn at(&self, frame: usize) -> (f64, f64) {
+        let piece = self.pieces.iter().rev().find(|p| p.0 <= frame).unwrap_or(&self.pieces[0]);
+        (piece.1, piece.2)
+    }
+}
+
+/// One sequence of a dataset.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SequencePlan {
+    /// File stem, e.g. `train-03`.
+    pub name: String,
+    /// Train or test.
+    pub split: Split,
+    /// What is special about it, for reports.
+    pub description: String,
+    /// Speeds over time.
+    pub speeds: SpeedPlan,
+    /// Seed of its directions and segment lengths.
+    pub seed: u64,
+}
+
+/// The train and test sequences of a dataset.
+pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
+    let mut plans = Vec::new();
+    let n = spec.train;
+    let train_level = |k: usize| if n == 1 { 0.5 } else { k as f64 / (n - 1) as f64 };
+    for k in 0..n {
+        let level = train_level(k);
+        plans.push(SequencePlan {
+            name: format!("train-{k:02}"),
+            split: Split::Train,
+            description: format!("speed level {level:.2}"),
+            speeds: SpeedPlan::constant(level),
+            seed: spec.seed.wrapping_mul(1000).wrapping_add(k as u64),
+        });
+    }
+    let half = spec.frames / 2;
+    let mut tests = Vec::new();
+    if spec.test >= 1 {
+        tests.push((
+            format!("sudden drop from {:.2}x the top speed to a tenth of it", spec.beyond),
+            SpeedPlan {
+                pieces: vec![(0, 1.0, spec.beyond), (half, 1.0, spec.beyond / 10.0)],
+            },
+        ));
+    }
+    if spec.test >= 2 {
+        tests.push((format!("{:.2}x the top training speed", spec.beyond), SpeedPlan { pieces: vec![(0, 1.0, spec.beyond)] }));
+    }
+    let held_out = spec.test.saturating_sub(2);
+    for j in 0..held_out {
+        // Midpoints between training levels (or evenly inside the range for one level).
+        let level = if n >= 2 {
+            let gap = ((j * (n - 1)) / held_out.max(1)).min(n - 2);
+            (train_level(gap) + train_level(gap + 1)) / 2.0
+        } else {
+            (j as f64 + 0.5) / held_out as f64
+        };
+        tests.push((format!("held-out speed level {level:.2}"), SpeedPlan::constant(level)));
+    }
+    for (k, (description, speeds)) in tests.into_iter().enumerate() {
+        plans.push(SequencePlan {
+            name: format!("test-{k:02}"),
+            split: Split::Test,
+            description,
+            speeds,
+            seed: spec.seed.wrapping_mul(1000).wrapping_add(500 + k as u64),
+        });
+    }
+    plans
+}
+
+impl Problem {
+    /// The boundary conditions of a sequence: scripted handles follow their script;
+    /// handles with a motion sample it with the plan's speeds; others stay put.
+    pub fn sequence(&self, speeds: &SpeedPlan, frames: usize, seed: u64) -> BcSequence {
+        let dt = self.scene.dt;
+        let tracks = self
+            .scene
+            .handles
+            .iter()
+            .enumerate()
+            .map(|(k, spec)| {
+                let segments = if !spec.script.is_empty() {
+                    spec.script.clone()
+                } else if let Some(motion) = &spec.motion {
+                    let at = |frame: usize| {
+                        let (level, factor) = speeds.at(frame);
+                        let (lin, ang) = motion.speeds_at(level);
+                        (lin * factor, ang * factor)
+                    };
+                    motion.sample(frames, &at, &mut bc::rng(seed.wrapping_add(7919 * k as u64)))
+                } else {
+                    Vec::new()
+                };
+                Track::from_segments(&segments, frames, dt)
+            })
+            .collect();
+        BcSequence { tracks }
+    }
+
+    /// Simulates `seq` from the scene's initial state and records the trajectory.
+    pub fn run(&mut self, seq: &BcSequence, progress: Option<&ProgressBar>) -> Result<Trajectory, StepError> {
+        let dim = self.mesh.dim;
+        self.simulator.reset(&self.mesh.rest.clone());
+        let targets0 = seq.targets(&self.handles, 0, dim);
+        if self.scene.start == Start::Static {
+            self.simulator.solve_static(&targets0)?;
+        } else {
+            let mut x0 = self.mesh.rest.clone();
+            for (i, &v) in self.simulator.fixed_vertices().iter().enumerate() {
+                x0[v * dim..(v + 1) * dim].copy_from_slice(&targets0[i * dim..(i + 1) * dim]);
+            }
+            self.simulator.reset(&x0);
+        }
+        let energies = self.simulator.energies();
+        let mut traj = Trajectory {
+            scene: self.scene.name.clone(),
+            dt: self.scene.dt,
+            dim,
+            positions: vec![self.simulator.positions().to_vec()],
+            bc_signal: vec![seq.signal(0)],
+            energy_names: energies.iter().map(|(n, _)| n.to_string()).collect(),
+            energies: vec![energies.iter().map(|(_, e)| *e).collect()],
+            newton_iterations: vec![0],
+            step_seconds: vec![0.0],
+            meta: vec![
+                ("handles".into(), self.handles.iter().map(|h| h.name.as_str()).collect::<Vec<_>>().join(",")),
+                ("bc_signal_layout".into(), "per handle: velocity(3), angular_velocity(3), translation(3), rotation_vector(3)".into()),
+            ],
+        };
+        for frame in 1..=seq.frames() {
+            let start = Instant::now();
+            let report: StepReport = self.simulator.step(&seq.targets(&self.handles, frame, dim))?;
+            let seconds = start.elapsed().as_secs_f64();
+            traj.positions.push(self.simulator.positions().to_vec());
+            traj.bc_signal.push(seq.signal(frame));
+            traj.energies.push(self.simulator.energies().iter().map(|(_, e)| *e).collect());
+            traj.newton_iterations.push(report.iterations as u32);
+            traj.step_seconds.push(seconds);
+            if let Some(p) = progress {
+                p.inc(1);
+            }
+        }
+        Ok(traj)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plan_holds_out_test_speeds_and_goes_beyond_the_range() {
+        let spec = DatasetSpec {
+            train: 5,
+            test: 5,
+            frames: 100,
+            seed: 3,
+            beyond: 1.5,
+        };
+        let plans = plan(&spec);
+        let train: Vec<f64> = plans.iter().filter(|p| p.split == Split::Train).map(|p| p.speeds.at(0).0).collect();
+        assert_eq!(train, vec![0.0, 0.25, 0.5, 0.75, 1.0]);
+        let tests: Vec<&SequencePlan> = plans.iter().filter(|p| p.split == Split::Test).collect();
+        assert_eq!(tests.len(), 5);
+        // Sudden drop at half time.
+        assert_eq!(tests[0].speeds.at(0), (1.0, 1.5));
+        assert_eq!(tests[0].speeds.at(50), (1.0, 0.15));
+        // Beyond the top of the range.
+        assert_eq!(tests[1].speeds.at(10), (1.0, 1.5));
+        // Held-out levels differ from every training level.
+        for t in &tests[2..] {
+            let (level, factor) = t.speeds.at(0);
+            assert_eq!(factor, 1.0);
+            assert!(train.iter().all(|l| (l - level).abs() > 0.1), "level {level} too close to training");
+        }
+        let mut seeds: Vec<u64> = plans.iter().map(|p| p.seed).collect();
+        seeds.sort();
+        seeds.dedup();
+        assert_eq!(seeds.len(), plans.len());
+    }
+}

@@ -1,0 +1,712 @@
+//! Scenes: TOML files describing a body (mesh, material), its environment (time step,
+//! gravity, obstacles, loads), its boundary conditions (handles and their motions) and
+//! how datasets are sampled. `Scene::build` turns one into a ready [`Problem`].
+
+use crate::bc::{Handle, MotionSpec, Segment};
+use crate::energy::external::{Collision, ConstantForce, Obstacle};
+use crate::energy::inertia::lumped_masses;
+use crate::energy::rod::{RodBend, RodStretch};
+use crate::energy::shell::{ShellBending, ShellMembrane};
+use crate::energy::tet::TetElastic;
+use crate::energy::tri2d::Tri2dElastic;
+use crate::energy::StencilEnergy;
+use crate::error::InputError;
+use crate::material::{ElementMaterial, Model};
+use crate::mesh::{self, Elements, Mesh};
+use crate::solver::{Integrator, NewtonSettings, Simulator};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Directory of the scenes shipped with mochi.
+pub fn shipped_scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
+}
+
+/// Names of the shipped scenes, sorted.
+pub fn shipped_scene_names() -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(shipped_scenes_dir())
+        .map(|dir| {
+            dir.filter_map(|e| e.ok())
+                .filter_map(|e| {
+                    let p = e.path();
+                    (p.extension()? == "toml").then(|| p.file_stem()?.to_str().map(String::from))?
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    names.sort();
+    names
+}
+
+/// A scene as written in its TOML file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Scene name (used for output files).
+    pub name: String,
+    /// One-line description.
+    #[serde(default)]
+    pub description: String,
+    /// Time step in seconds (default 1/30).
+    #[serde(default = "default_dt")]
+    pub dt: f64,
+    /// Gravitational acceleration.
+    #[serde(default)]
+    pub gravity: [f64; 3],
+    /// Time integration scheme.
+    #[serde(default)]
+    pub integrator: Integrator,
+    /// Newton settings.
+    #[serde(default)]
+    pub newton: NewtonSettings,
+    /// Geometry.
+    pub mesh: MeshSpec,
+    /// Material.
+    pub material: MaterialSpec,
+    /// Collision energy parameters (used when there are obstacles).
+    #[serde(default)]
+    pub collision: CollisionSpec,
+    /// Analytic obstacles.
+    #[serde(default)]
+    pub obstacles: Vec<Obstacle>,
+    /// Prescribed vertex sets and their motions.
+    #[serde(default)]
+    pub handles: Vec<HandleSpec>,
+    /// Constant loads.
+    #[serde(default)]
+    pub loads: Vec<LoadSpec>,
+    /// Initial state: at rest in the rest shape, or in static equilibrium.
+    #[serde(default)]
+    pub start: Start,
+    /// Dataset sampling.
+    #[serde(default)]
+    pub dataset: DatasetSpec,
+    /// The file this scene was read from (set on load; relative mesh paths resolve
+    /// against its directory).
+    #[serde(skip)]
+    pub source: PathBuf,
+}
+
+fn default_dt() -> f64 {
+    1.0 / 30.0
+}
+
+/// Where the geometry comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum MeshSpec {
+    /// Tetrahedral grid of a box.
+    Box {
+        /// Lower corner.
+        min: [f64; 3],
+        /// Upper corner.
+        max: [f64; 3],
+        /// Cells per axis (6 tets per cell).
+        cells: [usize; 3],
+    },
+    /// Triangulated cloth grid.
+    ClothGrid {
+        /// Side lengths along the two axes.
+        size: [f64; 2],
+        /// Vertices along the two axes.
+        verts: [usize; 2],
+        /// Corner position.
+        #[serde(default)]
+        origin: [f64; 3],
+        /// The two in-plane axes.
+        #[serde(default = "default_cloth_axes")]
+        axes: [[f64; 3]; 2],
+    },
+    /// A group of straight rods hanging from roots on a grid.
+    Rods {
+        /// Number of rods.
+        count: usize,
+        /// Vertices per rod.
+        verts_per_rod: usize,
+        /// Rod length.
+        length: f64,
+        /// Distance between neighbouring roots.
+        spacing: f64,
+        /// Direction from root to tip.
+        #[serde(default = "default_rod_direction")]
+        direction: [f64; 3],
+        /// Centre of the root grid.
+        #[serde(default)]
+        origin: [f64; 3],
+    },
+    /// A mesh file: MEDIT `.mesh`, TetGen/Triangle `.node` (+ `.ele`), or `.obj`.
+    File {
+        /// Path, relative to the scene file.
+        path: PathBuf,
+        /// Centre on the bounding box and divide by the largest extent first.
+        #[serde(default)]
+        normalize: bool,
+        /// Per-axis scale applied after normalisation.
+        #[serde(default)]
+        scale: Option<Vec<f64>>,
+        /// How to read an OBJ file (`cloth` or `rods`); ignored for other formats.
+        #[serde(default)]
+        kind: Option<String>,
+    },
+}
+
+fn default_cloth_axes() -> [[f64; 3]; 2] {
+    [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+}
+fn default_rod_direction() -> [f64; 3] {
+    [0.0, -1.0, 0.0]
+}
+
+/// Material of the body, optionally varying by region.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Constitutive model of solids and membranes.
+    #[serde(default)]
+    pub model: Model,
+    /// Young's modulus (Pa).
+    pub youngs: f64,
+    /// Poisson ratio.
+    pub poisson: f64,
+    /// Density (kg / m^3).
+    pub density: f64,
+    /// Cloth thickness (m); required for cloth.
+    #[serde(default)]
+    pub thickness: Option<f64>,
+    /// Rod radius (m); required for rods.
+    #[serde(default)]
+    pub radius: Option<f64>,
+    /// Regions overriding parameters for elements whose centroid lies in a box.
+    #[serde(default)]
+    pub regions: Vec<RegionSpec>,
+}
+
+/// A region of different material (heterogeneous bodies).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionSpec {
+    /// Box the element centroids must lie in.
+    #[serde(rename = "box")]
+    pub bounds: BoxSpec,
+    /// Young's modulus override.
+    #[serde(default)]
+    pub youngs: Option<f64>,
+    /// Poisson ratio override.
+    #[serde(default)]
+    pub poisson: Option<f64>,
+    /// Density override.
+    #[serde(default)]
+    pub density: Option<f64>,
+}
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxSpec {
+    /// Lower corner.
+    pub min: [f64; 3],
+    /// Upper corner.
+    pub max: [f64; 3],
+}
+
+impl BoxSpec {
+    fn contains(&self, p: [f64; 3]) -> bool {
+        (0..3).all(|i| p[i] >= self.min[i] && p[i] <= self.max[i])
+    }
+}
+
+/// Which vertices a handle or load acts on.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Selection {
+    /// Vertices inside a box.
+    Box(BoxSpec),
+    /// Explicit 0-based vertex indices.
+    Indices(Vec<usize>),
+    /// The first `n` vertices of every rod.
+    RodRoots(usize),
+    /// The rest vertex nearest to each point.
+    Nearest(Vec<[f64; 3]>),
+    /// Vertices within `tolerance` (relative to the extent) of one end of an axis.
+    Side {
+        /// Axis 0, 1 or 2.
+        axis: usize,
+        /// `min` or `max`.
+        end: End,
+        /// Relative tolerance (default 1e-3).
+        #[serde(default = "default_side_tolerance")]
+        tolerance: f64,
+    },
+}
+
+fn default_side_tolerance() -> f64 {
+    1e-3
+}
+
+/// One end of an axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum End {
+    /// Smallest coordinate.
+    Min,
+    /// Largest coordinate.
+    Max,
+}
+
+/// A handle: prescribed vertices moved rigidly.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandleSpec {
+    /// Name.
+    pub name: String,
+    /// The vertices.
+    pub select: Selection,
+    /// Per-axis scale of the handle's reference placement about the centre of the mesh's
+    /// rest bounding box (e.g. to compress a bar between its two clamped ends).
+    #[serde(default)]
+    pub reference_scale: Option<[f64; 3]>,
+    /// Rotation pivot (default: centroid of the selected rest vertices).
+    #[serde(default)]
+    pub pivot: Option<[f64; 3]>,
+    /// How sampled sequences move it (absent: it stays put).
+    #[serde(default)]
+    pub motion: Option<MotionSpec>,
+    /// A fixed script used instead of sampling when present.
+    #[serde(default)]
+    pub script: Vec<Segment>,
+}
+
+/// A constant force spread over selected vertices.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadSpec {
+    /// The vertices.
+    pub select: Selection,
+    /// Total force (N).
+    pub force: [f64; 3],
+}
+
+/// Collision energy parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CollisionSpec {
+    /// Stiffness (acceleration scale per unit penetration squared).
+    pub stiffness: f64,
+    /// Distance at which the energy starts acting.
+    pub margin: f64,
+}
+
+impl Default for CollisionSpec {
+    fn default() -> Self {
+        CollisionSpec {
+            stiffness: 1e5,
+            margin: 0.01,
+        }
+    }
+}
+
+/// Initial state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Start {
+    /// The rest shape, at rest.
+    #[default]
+    Rest,
+    /// Static equilibrium with the handles at their frame-0 placement.
+    Static,
+}
+
+/// How `mochi dataset` samples sequences.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DatasetSpec {
+    /// Training sequences (speed levels evenly spaced over the training range).
+    pub train: usize,
+    /// Test sequences (held-out speeds between training levels, speeds beyond the range,
+    /// and a sudden speed change).
+    pub test: usize,
+    /// Frames per sequence.
+    pub frames: usize,
+    /// Random seed.
+    pub seed: u64,
+    /// Largest test speed as a multiple of the top of the training range.
+    pub beyond: f64,
+}
+
+impl Default for DatasetSpec {
+    fn default() -> Self {
+        DatasetSpec {
+            train: 6,
+            test: 4,
+            frames: 120,
+            seed: 1,
+            beyond: 1.5,
+        }
+    }
+}
+
+impl Scene {
+    /// Finds a scene by name among the shipped scenes, or by path.
+    pub fn resolve(name_or_path: &str) -> Result<PathBuf, InputError> {
+        let as_path = Path::new(name_or_path);
+        if as_path.is_file() {
+            return Ok(as_path.to_path_buf());
+        }
+        let shipped = shipped_scenes_dir().join(format!("{name_or_path}.toml"));
+        if shipped.is_file() {
+            return Ok(shipped);
+        }
+        Err(InputError::file(
+            as_path,
+            format!(
+                "no such scene file, and not a shipped scene name (shipped: {})",
+                shipped_scene_names().join(", ")
+            ),
+        ))
+    }
+
+    /// Loads a scene by name or path.
+    pub fn load(name_or_path: &str) -> Result<Scene, InputError> {
+        let path = Scene::resolve(name_or_path)?;
+        let text = std::fs::read_to_string(&path).map_err(|e| InputError::file(&path, format!("cannot read: {e}")))?;
+        Scene::parse(&text, &path)
+    }
+
+    /// Parses and validates scene text; `path` is used in errors and to resolve mesh files.
+    pub fn parse(text: &str, path: &Path) -> Result<Scene, InputError> {
+        let mut scene: Scene = toml::from_str(text).map_err(|e| {
+            let line = e.span().map(|s| text[..s.start.min(text.len())].lines().count().max(1)).unwrap_or(1);
+            InputError::line(path, line, e.message().to_string())
+        })?;
+        scene.source = path.to_path_buf();
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    fn field_error(&self, field: impl Into<String>, message: impl Into<String>) -> InputError {
+        InputError::field(&self.source, field, message)
+    }
+
+    /// Checks values that TOML types cannot: ranges, finiteness, required fields.
+    pub fn validate(&self) -> Result<(), InputError> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(self.dt) {
+            return Err(self.field_error("dt", format!("must be positive and finite, got {}", self.dt)));
+        }
+        if !self.gravity.iter().all(|g| g.is_finite()) {
+            return Err(self.field_error("gravity", "must be finite"));
+        }
+        if !positive(self.newton.tolerance) || self.newton.max_iterations == 0 {
+            return Err(self.field_error("newton", "tolerance must be positive and max_iterations at least 1"));
+        }
+        let m = &self.material;
+        check_material(m.youngs, m.poisson, m.density).map_err(|(f, msg)| self.field_error(format!("material.{f}"), msg))?;
+        for (k, r) in m.regions.iter().enumerate() {
+            let e = ElementMaterial {
+                youngs: r.youngs.unwrap_or(m.youngs),
+                poisson: r.poisson.unwrap_or(m.poisson),
+                density: r.density.unwrap_or(m.density),
+            };
+            check_material(e.youngs, e.poisson, e.density)
+                .map_err(|(f, msg)| self.field_error(format!("material.regions[{k}].{f}"), msg))?;
+        }
+        match &self.mesh {
+            MeshSpec::ClothGrid { .. } if !m.thickness.is_some_and(positive) => {
+                return Err(self.field_error("material.thickness", "cloth needs a positive thickness"));
+            }
+            MeshSpec::Rods { .. } if !m.radius.is_some_and(positive) => {
+                return Err(self.field_error("material.radius", "rods need a positive radius"));
+            }
+            _ => {}
+        }
+        if !positive(self.collision.stiffness) || !(self.collision.margin.is_finite() && self.collision.margin >= 0.0) {
+            return Err(self.field_error("collision", "stiffness must be positive and margin non-negative"));
+        }
+        for (k, o) in self.obstacles.iter().enumerate() {
+            o.validate().map_err(|msg| self.field_error(format!("obstacles[{k}]"), msg))?;
+        }
+        for (k, h) in self.handles.iter().enumerate() {
+            if let Some(motion) = &h.motion {
+                motion
+                    .validate()
+                    .map_err(|(f, msg)| self.field_error(format!("handles[{k}].motion.{f}"), msg))?;
+            }
+            let finite = |v: &[f64]| v.iter().all(|c| c.is_finite());
+            if h.reference_scale.is_some_and(|s| !finite(&s)) || h.pivot.is_some_and(|p| !finite(&p)) {
+                return Err(self.field_error(format!("handles[{k}]"), "reference_scale and pivot must be finite"));
+            }
+            for (j, s) in h.script.iter().enumerate() {
+                if !finite(&s.velocity) || !finite(&s.angular_velocity) {
+                    return Err(self.field_error(format!("handles[{k}].script[{j}]"), "velocities must be finite"));
+                }
+            }
+        }
+        for (k, l) in self.loads.iter().enumerate() {
+            if !l.force.iter().all(|c| c.is_finite()) {
+                return Err(self.field_error(format!("loads[{k}].force"), "must be finite"));
+            }
+        }
+        let d = &self.dataset;
+        if d.train == 0 || d.frames == 0 || !(d.beyond.is_finite() && d.beyond >= 1.0) {
+            return Err(self.field_error("dataset", "needs train >= 1, frames >= 1 and beyond >= 1"));
+        }
+        Ok(())
+    }
+
+    /// Builds the mesh described by the scene.
+    pub fn build_mesh(&self) -> Result<Mesh, InputError> {
+        build_mesh(&self.mesh, &self.source)
+    }
+
+    /// Builds the mesh, energies, handles and simulator.
+    pub fn build(&self) -> Result<Problem, InputError> {
+        let mesh = self.build_mesh()?;
+        let materials = self.element_materials(&mesh);
+        let densities: Vec<f64> = materials.iter().map(|m| m.density).collect();
+        let thickness = self.material.thickness.unwrap_or(1.0);
+        let radius = self.material.radius.unwrap_or(1.0);
+        let masses = lumped_masses(&mesh, &densities, thickness, radius);
+        let src = &self.source;
+        let model = self.material.model;
+        let rest = &mesh.rest;
+        let mut potentials: Vec<Box<dyn StencilEnergy>> = match &mesh.elements {
+            Elements::Tets(t) => vec![Box::new(TetElastic::new(model, rest, t, &materials, src)?)],
+            Elements::Triangles(t) => vec![Box::new(Tri2dElastic::new(model, rest, t, &materials, src)?)],
+            Elements::Shell(t) => vec![
+                Box::new(ShellMembrane::new(rest, t, &materials, thickness, src)?),
+                Box::new(ShellBending::new(rest, t, &materials, thickness, src)?),
+            ],
+            Elements::Rods(s) => vec![
+                Box::new(RodStretch::new(rest, s, &materials, radius, src)?),
+                Box::new(RodBend::new(rest, s, &materials, radius, src)?),
+            ],
+        };
+        let dim = mesh.dim;
+        if self.gravity.iter().any(|g| *g != 0.0) {
+            potentials.push(Box::new(ConstantForce::gravity(dim, &masses, self.gravity)));
+        }
+        for (k, load) in self.loads.iter().enumerate() {
+            let verts = self.select(&mesh, &load.select, &format!("loads[{k}].select"))?;
+            potentials.push(Box::new(ConstantForce::load(dim, verts, load.force)));
+        }
+        if !self.obstacles.is_empty() {
+            potentials.push(Box::new(Collision::new(
+                dim,
+                masses.clone(),
+                self.obstacles.clone(),
+                self.collision.stiffness,
+                self.collision.margin,
+            )));
+        }
+        let handles = self.build_handles(&mesh)?;
+        let fixed: Vec<usize> = handles.iter().flat_map(|h| h.vertices.iter().copied()).collect();
+        let simulator = Simulator::new(
+            dim,
+            mesh.rest.clone(),
+            masses,
+            potentials,
+            fixed,
+            self.dt,
+            self.integrator,
+            self.newton,
+            mesh.rest_diagonal(),
+        );
+        Ok(Problem {
+            scene: self.clone(),
+            mesh,
+            handles,
+            simulator,
+        })
+    }
+
+    /// Per-element materials (per strand for rods): the base material with region
+    /// overrides applied by element centroid.
+    fn element_materials(&self, mesh: &Mesh) -> Vec<ElementMaterial> {
+        let m = &self.material;
+        let base = ElementMaterial {
+            youngs: m.youngs,
+            poisson: m.poisson,
+            density: m.density,
+        };
+        if m.regions.is_empty() {
+            return vec![base];
+        }
+        let point = |v: usize| {
+            let mut p = [0.0; 3];
+            p[..mesh.dim].copy_from_slice(&mesh.rest[v * mesh.dim..(v + 1) * mesh.dim]);
+            p
+        };
+        let centroid = |verts: &[usize]| {
+            let mut c = [0.0; 3];
+            for &v in verts {
+                let p = point(v);
+                (0..3).for_each(|i| c[i] += p[i] / verts.len() as f64);
+            }
+            c
+        };
+        let groups: Vec<Vec<usize>> = match &mesh.elements {
+            Elements::Tets(t) => t.iter().map(|e| e.to_vec()).collect(),
+            Elements::Triangles(t) | Elements::Shell(t) => t.iter().map(|e| e.to_vec()).collect(),
+            Elements::Rods(s) => s.clone(),
+        };
+        groups
+            .iter()
+            .map(|verts| {
+                let c = centroid(verts);
+                let mut e = base;
+                for r in m.regions.iter().filter(|r| r.bounds.contains(c)) {
+                    e.youngs = r.youngs.unwrap_or(e.youngs);
+                    e.poisson = r.poisson.unwrap_or(e.poisson);
+                    e.density = r.density.unwrap_or(e.density);
+                }
+                e
+            })
+            .collect()
+    }
+
+    /// Resolves a selection to sorted vertex indices; an empty selection is an error.
+    pub fn select(&self, mesh: &Mesh, sel: &Selection, field: &str) -> Result<Vec<usize>, InputError> {
+        let n = mesh.num_vertices();
+        let dim = mesh.dim;
+        let coord = |v: usize, i: usize| if i < dim { mesh.rest[v * dim + i] } else { 0.0 };
+        let mut verts: Vec<usize> = match sel {
+            Selection::Box(b) => (0..n).filter(|&v| b.contains([coord(v, 0), coord(v, 1), coord(v, 2)])).collect(),
+            Selection::Indices(ids) => {
+                if let Some(&bad) = ids.iter().find(|&&v| v >= n) {
+                    return Err(self.field_error(field, format!("vertex index {bad} out of range (mesh has {n})")));
+                }
+                ids.clone()
+            }
+            Selection::RodRoots(k) => match &mesh.elements {
+                Elements::Rods(strands) => strands.iter().flat_map(|s| s.iter().take(*k).copied()).collect(),
+                _ => return Err(self.field_error(field, "rod-roots selects vertices of rods, but the mesh is not rods")),
+            },
+            Selection::Nearest(points) => points
+                .iter()
+                .map(|p| {
+                    let dist2 = |v: usize| (0..3).map(|i| (coord(v, i) - p[i]).powi(2)).sum::<f64>();
+                    (0..n).min_by(|&a, &b| dist2(a).total_cmp(&dist2(b))).unwrap_or(0)
+                })
+                .collect(),
+            Selection::Side { axis, end, tolerance } => {
+                if *axis >= dim {
+                    return Err(self.field_error(field, format!("axis {axis} does not exist in {dim}D")));
+                }
+                let (lo, hi) = mesh.bounding_box(&mesh.rest);
+                let extent = (hi[*axis] - lo[*axis]).max(f64::MIN_POSITIVE);
+                let target = if *end == End::Min { lo[*axis] } else { hi[*axis] };
+                (0..n).filter(|&v| (coord(v, *axis) - target).abs() <= tolerance * extent).collect()
+            }
+        };
+        verts.sort_unstable();
+        verts.dedup();
+        if verts.is_empty() {
+            return Err(self.field_error(field, "selects no vertices"));
+        }
+        Ok(verts)
+    }
+
+    fn build_handles(&self, mesh: &Mesh) -> Result<Vec<Handle>, InputError> {
+        let mut taken = vec![false; mesh.num_vertices()];
+        let mut handles = Vec::new();
+        for (k, spec) in self.handles.iter().enumerate() {
+            let vertices = self.select(mesh, &spec.select, &format!("handles[{k}].select"))?;
+            if let Some(&v) = vertices.iter().find(|&&v| taken[v]) {
+                return Err(self.field_error(format!("handles[{k}].select"), format!("vertex {v} already belongs to another handle")));
+            }
+            vertices.iter().for_each(|&v| taken[v] = true);
+            let rest: Vec<[f64; 3]> = vertices
+                .iter()
+                .map(|&v| {
+                    let mut p = [0.0; 3];
+                    p[..mesh.dim].copy_from_slice(&mesh.rest[v * mesh.dim..(v + 1) * mesh.dim]);
+                    p
+                })
+                .collect();
+            let centroid = |pts: &[[f64; 3]]| {
+                let mut c = [0.0; 3];
+                pts.iter().for_each(|p| (0..3).for_each(|i| c[i] += p[i] / pts.len() as f64));
+                c
+            };
+            let (lo, hi) = mesh.bounding_box(&mesh.rest);
+            let center = [0, 1, 2].map(|i| 0.5 * (lo[i] + hi[i]));
+            let scale = spec.reference_scale.unwrap_or([1.0; 3]);
+            let reference: Vec<[f64; 3]> = rest.iter().map(|p| [0, 1, 2].map(|i| center[i] + scale[i] * (p[i] - center[i]))).collect();
+            let pivot = spec.pivot.unwrap_or_else(|| centroid(&reference));
+            handles.push(Handle {
+                name: spec.name.clone(),
+                vertices,
+                reference,
+                pivot,
+            });
+        }
+        Ok(handles)
+    }
+}
+
+fn check_material(youngs: f64, poisson: f64, density: f64) -> Result<(), (&'static str, String)> {
+    if !(youngs.is_finite() && youngs > 0.0) {
+        return Err(("youngs", format!("must be positive and finite, got {youngs}")));
+    }
+    if !(poisson.is_finite() && poisson > -1.0 && poisson < 0.5) {
+        return Err(("poisson", format!("must be in (-1, 0.5), got {poisson}")));
+    }
+    if !(density.is_finite() && density > 0.0) {
+        return Err(("density", format!("must be positive and finite, got {density}")));
+    }
+    Ok(())
+}
+
+fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
+    match spec {
+        MeshSpec::Box { min, max, cells } => mesh::procedural::box_tets(*min, *max, *cells),
+        MeshSpec::ClothGrid { size, verts, origin, axes } => mesh::procedural::cloth_grid(*size, *verts, *origin, (axes[0], axes[1])),
+        MeshSpec::Rods {
+            count,
+            verts_per_rod,
+            length,
+            spacing,
+            direction,
+            origin,
+        } => mesh::procedural::rod_group(*count, *verts_per_rod, *length, *spacing, *origin, *direction),
+        MeshSpec::File {
+            path,
+            normalize,
+            scale,
+            kind,
+        } => {
+            let full = scene_file.parent().unwrap_or(Path::new(".")).join(path);
+            let kind = match kind.as_deref() {
+                None => mesh::io::MeshKind::Auto,
+                Some("cloth") => mesh::io::MeshKind::Cloth,
+                Some("rods") => mesh::io::MeshKind::Rods,
+                Some(other) => {
+                    return Err(InputError::field(scene_file, "mesh.kind", format!("unknown kind `{other}` (cloth or rods)")));
+                }
+            };
+            let mut mesh = mesh::io::load(&full, kind)?;
+            if *normalize {
+                mesh = mesh.normalized();
+            }
+            if let Some(s) = scale {
+                if s.len() != mesh.dim || !s.iter().all(|c| c.is_finite() && *c > 0.0) {
+                    return Err(InputError::field(scene_file, "mesh.scale", format!("needs {} positive factors", mesh.dim)));
+                }
+                mesh = mesh.scaled(s);
+            }
+            Ok(mesh)
+        }
+    }
+}
+
+/// A scene built and ready to simulate.
+pub struct Problem {
+    /// The scene it came from.
+    pub scene: Scene,
+    /// The body.
+    pub mesh: Mesh,
+    /// Prescribed vertex sets, in the simulator's fixed-vertex order.
+    pub handles: Vec<Handle>,
+    /// The full-space simulator.
+    pub simulator: Simulator,
+}

@@ -1,0 +1,117 @@
+//! Shipped scenes build; malformed scenes are refused with errors naming file and line or field.
+
+use mochi_trainer::error::Location;
+use mochi_trainer::mesh::Elements;
+use mochi_trainer::scene::{shipped_scene_names, Scene};
+use std::path::Path;
+
+#[test]
+fn every_shipped_scene_builds_at_its_documented_size() {
+    let names = shipped_scene_names();
+    for expected in ["beam", "beam-xl", "bistable", "cloth", "load3d", "rods"] {
+        assert!(names.iter().any(|n| n == expected), "missing scene {expected}: {names:?}");
+    }
+    for name in names {
+        let scene = Scene::load(&name).unwrap_or_else(|e| panic!("{e}"));
+        let problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+        let n = problem.mesh.num_vertices();
+        assert!(!problem.handles.is_empty(), "{name} has handles");
+        match name.as_str() {
+            "beam" => assert!((1400..1700).contains(&n), "beam has {n} vertices"),
+            "beam-xl" => assert!((3100..3500).contains(&n), "beam-xl has {n} vertices"),
+            "cloth" => {
+                assert_eq!(n, 576);
+                assert!(matches!(problem.mesh.elements, Elements::Shell(_)));
+                assert_eq!(problem.handles[0].vertices.len(), 2, "two pinned corners");
+            }
+            "rods" => match &problem.mesh.elements {
+                Elements::Rods(strands) => {
+                    assert!(strands.len() >= 16);
+                    assert!(strands.iter().all(|s| s.len() == 30));
+                }
+                other => panic!("rods scene has {other:?}"),
+            },
+            "bistable" => {
+                assert_eq!(problem.mesh.dim, 2);
+                assert_eq!(n, 431);
+            }
+            "load3d" => assert_eq!(n, 365),
+            _ => {}
+        }
+    }
+}
+
+fn parse_err(text: &str) -> String {
+    let err = Scene::parse(text, Path::new("bad.toml")).and_then(|s| s.build().map(|_| s)).expect_err("must be refused");
+    let msg = err.to_string();
+    assert!(msg.starts_with("bad.toml"), "error names the file: {msg}");
+    msg
+}
+
+const GOOD: &str = r#"
+name = "ok"
+[mesh]
+type = "box"
+min = [0.0, 0.0, 0.0]
+max = [1.0, 0.2, 0.2]
+cells = [4, 1, 1]
+[material]
+youngs = 1e5
+poisson = 0.3
+density = 1000.0
+[[handles]]
+name = "clamp"
+select = { side = { axis = 0, end = "min" } }
+"#;
+
+#[test]
+fn good_scene_parses() {
+    Scene::parse(GOOD, Path::new("good.toml")).unwrap().build().unwrap();
+}
+
+#[test]
+fn syntax_and_type_errors_name_the_line() {
+    let text = GOOD.replace("poisson = 0.3", "poisson = \"soft\"");
+    let err = Scene::parse(&text, Path::new("bad.toml")).unwrap_err();
+    assert_eq!(err.location, Location::Line(10), "{err}");
+    let text = GOOD.replace("density = 1000.0", "density = 1000.0\nstiffness = 3");
+    let msg = parse_err(&text);
+    assert!(msg.contains(":12:") && msg.contains("stiffness"), "{msg}");
+    let msg = parse_err(&GOOD.replace("youngs = 1e5\n", ""));
+    assert!(msg.contains("youngs"), "{msg}");
+}
+
+#[test]
+fn bad_values_name_the_field() {
+    for (from, to, field) in [
+        ("poisson = 0.3", "poisson = 0.5", "material.poisson"),
+        ("youngs = 1e5", "youngs = nan", "material.youngs"),
+        ("density = 1000.0", "density = -1.0", "material.density"),
+        ("name = \"ok\"", "name = \"ok\"\ndt = 0.0", "dt"),
+        ("name = \"ok\"", "name = \"ok\"\ngravity = [0.0, inf, 0.0]", "gravity"),
+        ("end = \"min\"", "end = \"min\", tolerance = -1.0", "handles[0].select"),
+        ("select = { side = { axis = 0, end = \"min\" } }", "select = { indices = [0, 99] }", "handles[0].select"),
+        ("select = { side = { axis = 0, end = \"min\" } }", "select = { rod-roots = 2 }", "handles[0].select"),
+    ] {
+        let text = GOOD.replace(from, to);
+        assert_ne!(text, GOOD, "replacement {from} applies");
+        let msg = parse_err(&text);
+        assert!(msg.contains(&format!("field `{field}`")), "expected field {field}: {msg}");
+    }
+}
+
+#[test]
+fn missing_mesh_file_names_the_file() {
+    let text = GOOD.replace(
+        "type = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 0.2, 0.2]\ncells = [4, 1, 1]",
+        "type = \"file\"\npath = \"nowhere.mesh\"",
+    );
+    let err = Scene::parse(&text, Path::new("bad.toml")).unwrap().build().err().expect("missing file");
+    assert!(err.to_string().contains("nowhere.mesh"), "{err}");
+}
+
+#[test]
+fn unknown_scene_name_lists_the_shipped_ones() {
+    let err = Scene::load("no-such-scene").unwrap_err();
+    assert!(err.to_string().contains("beam"), "{err}");
+}
