@@ -1,8 +1,11 @@
 //! mochi trainer: full-space finite-element simulation, datasets, training and evaluation.
 
+pub mod chart;
 pub mod energy;
 pub mod error;
 pub mod material;
 pub mod mesh;
+pub mod render;
+pub mod trajectory;
 
 pub use error::{InputError, Location};
