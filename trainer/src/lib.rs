@@ -1,12 +1,15 @@
 //! mochi trainer: full-space finite-element simulation, datasets, training and evaluation.
 
 pub mod bc;
+pub mod chart;
 pub mod dataset;
 pub mod energy;
 pub mod error;
 pub mod material;
-pub mod scene;
 pub mod mesh;
+pub mod render;
+pub mod scene;
 pub mod solver;
+pub mod trajectory;
 
 pub use error::{InputError, Location};
