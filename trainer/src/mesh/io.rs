@@ -182,9 +182,20 @@ impl Sourced<'_> {
 // ---------------------------------------------------------------------------------------------
 // MEDIT .mesh
 
-/// A MEDIT token: a number (including `nan`/`inf`, which coordinates then reject) or a keyword.
-fn is_medit_number(token: &str) -> bool {
-    token.parse::<f64>().is_ok()
+/// Whether a MEDIT token is a number (`nan` and `inf` included: coordinates reject them later
+/// with a clearer message) or else a keyword (starting with a letter); anything else is an error.
+fn medit_is_number(file: &Path, line: usize, token: &str) -> Result<bool, InputError> {
+    if token.parse::<f64>().is_ok() {
+        Ok(true)
+    } else if token.starts_with(|c: char| c.is_ascii_alphabetic()) {
+        Ok(false)
+    } else {
+        Err(InputError::line(
+            file,
+            line,
+            format!("`{token}` is neither a number nor a keyword"),
+        ))
+    }
 }
 
 /// One record of a MEDIT section: the line it starts on and its numbers.
@@ -199,132 +210,30 @@ struct Section<'a> {
     records: Vec<Record<'a>>,
 }
 
+/// The sections of a MEDIT file that mochi reads.
+#[derive(Default)]
+struct MeditSections<'a> {
+    dimension: Option<usize>,
+    vertices: Option<Section<'a>>,
+    tetrahedra: Option<Section<'a>>,
+    triangles: Option<Section<'a>>,
+}
+
 /// Reads a MEDIT `.mesh` file: `Dimension`, `Vertices` (coordinates and a reference),
 /// `Tetrahedra` (4 indices and a reference), `Triangles` (3 and a reference), optional `Edges`
 /// and any other sections (skipped), `End`. Keywords are case-insensitive, records may span
-/// lines, `#` starts a comment, indices are 1-based.
+/// lines, `#` starts a comment, indices are 1-based. `Auto` reads tets in 3D and triangles in
+/// 2D; 3D triangles are read only as `Cloth`.
 fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputError> {
-    let mut tokens: Vec<(usize, &str)> = Vec::new();
-    for (line, words) in content_lines(text) {
-        tokens.extend(words.into_iter().map(|w| (line, w)));
-    }
-    let mut dimension: Option<usize> = None;
-    let mut vertices: Option<Section> = None;
-    let mut tetrahedra: Option<Section> = None;
-    let mut triangles: Option<Section> = None;
-    let mut i = 0;
-    while i < tokens.len() {
-        let (keyword_line, keyword) = tokens[i];
-        if is_medit_number(keyword) {
-            return Err(InputError::line(
-                file,
-                keyword_line,
-                format!("expected a keyword, found the number `{keyword}`"),
-            ));
-        }
-        if !keyword.starts_with(|c: char| c.is_ascii_alphabetic()) {
-            return Err(InputError::line(
-                file,
-                keyword_line,
-                format!("`{keyword}` is neither a number nor a keyword"),
-            ));
-        }
-        // The section's numbers run to the next keyword.
-        let mut end = i + 1;
-        while let Some(&(line, token)) = tokens.get(end) {
-            if token.starts_with(|c: char| c.is_ascii_alphabetic()) && !is_medit_number(token) {
-                break;
-            }
-            if !is_medit_number(token) {
-                return Err(InputError::line(
-                    file,
-                    line,
-                    format!("`{token}` is neither a number nor a keyword"),
-                ));
-            }
-            end += 1;
-        }
-        let numbers = &tokens[i + 1..end];
-        let next = tokens.get(end).copied();
-        let lower = keyword.to_ascii_lowercase();
-        match lower.as_str() {
-            "end" => break,
-            "meshversionformatted" if numbers.len() != 1 => {
-                return Err(InputError::line(
-                    file,
-                    keyword_line,
-                    "`MeshVersionFormatted` takes one number",
-                ));
-            }
-            "dimension" => {
-                if dimension.is_some() {
-                    return Err(InputError::line(file, keyword_line, "second `Dimension`"));
-                }
-                let d = match numbers {
-                    [(line, token)] => parse_count(file, *line, token, "dimension")?,
-                    _ => {
-                        return Err(InputError::line(
-                            file,
-                            keyword_line,
-                            "`Dimension` takes one number (2 or 3)",
-                        ))
-                    }
-                };
-                if d != 2 && d != 3 {
-                    return Err(InputError::line(
-                        file,
-                        keyword_line,
-                        format!("dimension {d} is not supported (2 or 3)"),
-                    ));
-                }
-                dimension = Some(d);
-            }
-            "vertices" | "tetrahedra" | "triangles" => {
-                let (slot, width, record) = match lower.as_str() {
-                    "vertices" => {
-                        let Some(d) = dimension else {
-                            return Err(InputError::line(
-                                file,
-                                keyword_line,
-                                "`Vertices` before `Dimension`: the number of coordinates \
-                                 is unknown",
-                            ));
-                        };
-                        (&mut vertices, d + 1, "vertex (coordinates and a reference)")
-                    }
-                    "tetrahedra" => (
-                        &mut tetrahedra,
-                        5,
-                        "tetrahedron (4 vertex indices and a reference)",
-                    ),
-                    _ => (
-                        &mut triangles,
-                        4,
-                        "triangle (3 vertex indices and a reference)",
-                    ),
-                };
-                if slot.is_some() {
-                    return Err(InputError::line(
-                        file,
-                        keyword_line,
-                        format!("second `{keyword}` section"),
-                    ));
-                }
-                *slot = Some(medit_section(
-                    file,
-                    keyword,
-                    keyword_line,
-                    numbers,
-                    next,
-                    width,
-                    record,
-                )?);
-            }
-            // Edges, Corners, Ridges, Normals, ...: not needed for simulation.
-            _ => {}
-        }
-        i = end;
-    }
+    let tokens: Vec<(usize, &str)> = content_lines(text)
+        .flat_map(|(line, words)| words.into_iter().map(move |w| (line, w)))
+        .collect();
+    let MeditSections {
+        dimension,
+        vertices,
+        tetrahedra,
+        triangles,
+    } = medit_sections(&tokens, file)?;
 
     let Some(dim) = dimension else {
         return Err(InputError::file(file, "no `Dimension`"));
@@ -366,11 +275,13 @@ fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputErr
             None => {
                 return Err(InputError::file(
                     file,
-                    format!(
-                        "no tetrahedra (the file has {} triangles: load it as MeshKind::Cloth \
-                         to simulate them as cloth)",
-                        count(&triangles)
-                    ),
+                    match count(&triangles) {
+                        0 => "no tetrahedra".to_string(),
+                        n => format!(
+                            "no tetrahedra (the file has {n} triangles: load it as \
+                             MeshKind::Cloth to simulate them as cloth)"
+                        ),
+                    },
                 ))
             }
         }
@@ -427,6 +338,119 @@ fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputErr
         first_vertex: 1,
     }
     .finish()
+}
+
+/// Splits MEDIT tokens (line, text) into sections, checking each one's counts.
+fn medit_sections<'a>(
+    tokens: &'a [(usize, &'a str)],
+    file: &Path,
+) -> Result<MeditSections<'a>, InputError> {
+    let mut sections = MeditSections::default();
+    let mut i = 0;
+    while i < tokens.len() {
+        let (keyword_line, keyword) = tokens[i];
+        if medit_is_number(file, keyword_line, keyword)? {
+            return Err(InputError::line(
+                file,
+                keyword_line,
+                format!("expected a keyword, found the number `{keyword}`"),
+            ));
+        }
+        // The section's numbers run to the next keyword.
+        let mut end = i + 1;
+        while let Some(&(line, token)) = tokens.get(end) {
+            if !medit_is_number(file, line, token)? {
+                break;
+            }
+            end += 1;
+        }
+        let numbers = &tokens[i + 1..end];
+        let next = tokens.get(end).copied();
+        let lower = keyword.to_ascii_lowercase();
+        match lower.as_str() {
+            "end" => break,
+            "meshversionformatted" if numbers.len() != 1 => {
+                return Err(InputError::line(
+                    file,
+                    keyword_line,
+                    "`MeshVersionFormatted` takes one number",
+                ));
+            }
+            "dimension" => {
+                if sections.dimension.is_some() {
+                    return Err(InputError::line(file, keyword_line, "second `Dimension`"));
+                }
+                let d = match numbers {
+                    [(line, token)] => parse_count(file, *line, token, "dimension")?,
+                    _ => {
+                        return Err(InputError::line(
+                            file,
+                            keyword_line,
+                            "`Dimension` takes one number (2 or 3)",
+                        ))
+                    }
+                };
+                if d != 2 && d != 3 {
+                    return Err(InputError::line(
+                        file,
+                        keyword_line,
+                        format!("dimension {d} is not supported (2 or 3)"),
+                    ));
+                }
+                sections.dimension = Some(d);
+            }
+            "vertices" | "tetrahedra" | "triangles" => {
+                let (slot, width, record) = match lower.as_str() {
+                    "vertices" => {
+                        let Some(d) = sections.dimension else {
+                            return Err(InputError::line(
+                                file,
+                                keyword_line,
+                                "`Vertices` before `Dimension`: the number of coordinates \
+                                 is unknown",
+                            ));
+                        };
+                        (
+                            &mut sections.vertices,
+                            d + 1,
+                            "vertex (coordinates and a reference)",
+                        )
+                    }
+                    "tetrahedra" => (
+                        &mut sections.tetrahedra,
+                        5,
+                        "tetrahedron (4 vertex indices and a reference)",
+                    ),
+                    _ => (
+                        &mut sections.triangles,
+                        4,
+                        "triangle (3 vertex indices and a reference)",
+                    ),
+                };
+                if slot.is_some() {
+                    return Err(InputError::line(
+                        file,
+                        keyword_line,
+                        format!("second `{keyword}` section"),
+                    ));
+                }
+                *slot = Some(medit_section(
+                    file,
+                    keyword,
+                    keyword_line,
+                    numbers,
+                    next,
+                    width,
+                    record,
+                )?);
+            }
+            // Edges, Corners, Ridges, Normals, ...: not needed for simulation.
+            _ => {}
+        }
+        i = end;
+    }
+
+    Ok(sections)
 }
 
 /// Splits a MEDIT section's numbers (count first) into records of `width` numbers, reporting
@@ -524,28 +548,35 @@ fn parse_node_ele(
     ele_file: &Path,
     kind: MeshKind,
 ) -> Result<Mesh, InputError> {
-    let (dim, first, rest, vertex_lines) = parse_node(node_text, node_file)?;
-    let wanted = match (kind, dim) {
-        (MeshKind::Auto | MeshKind::Solid, 3) | (MeshKind::Auto | MeshKind::Planar, 2) => dim,
-        _ => {
-            return Err(InputError::line(
-                node_file,
-                1,
-                format!(
-                    "a {dim}D .node file ({}) cannot be read as {}; load it as {}",
-                    if dim == 3 { "TetGen" } else { "Triangle" },
-                    kind.describe(),
-                    if dim == 3 {
-                        "MeshKind::Solid"
-                    } else {
-                        "MeshKind::Planar"
-                    }
-                ),
-            ))
-        }
-    };
+    let NodeFile {
+        header_line,
+        dim,
+        first,
+        rest,
+        vertex_lines,
+    } = parse_node(node_text, node_file)?;
+    let kind_fits = matches!(
+        (kind, dim),
+        (MeshKind::Auto | MeshKind::Solid, 3) | (MeshKind::Auto | MeshKind::Planar, 2)
+    );
+    if !kind_fits {
+        return Err(InputError::line(
+            node_file,
+            header_line,
+            format!(
+                "a {dim}D .node file ({}) cannot be read as {}; load it as {}",
+                if dim == 3 { "TetGen" } else { "Triangle" },
+                kind.describe(),
+                if dim == 3 {
+                    "MeshKind::Solid"
+                } else {
+                    "MeshKind::Planar"
+                }
+            ),
+        ));
+    }
     let num_vertices = vertex_lines.len();
-    let (indices, element_lines) = parse_ele(ele_text, ele_file, wanted + 1, first, num_vertices)?;
+    let (indices, element_lines) = parse_ele(ele_text, ele_file, dim + 1, first, num_vertices)?;
     let elements = if dim == 3 {
         Elements::Tets(indices)
     } else {
@@ -566,8 +597,21 @@ fn parse_node_ele(
     .finish()
 }
 
-/// Parses a `.node` file: (dimension, first index, coordinates, line of each vertex).
-fn parse_node(text: &str, file: &Path) -> Result<(usize, i64, Vec<f64>, Vec<usize>), InputError> {
+/// The contents of a `.node` file.
+struct NodeFile {
+    header_line: usize,
+    /// 2 or 3.
+    dim: usize,
+    /// The number of the first vertex (0 or 1 as a rule).
+    first: i64,
+    /// Coordinates, `dim` per vertex.
+    rest: Vec<f64>,
+    /// The line of each vertex.
+    vertex_lines: Vec<usize>,
+}
+
+/// Parses a `.node` file.
+fn parse_node(text: &str, file: &Path) -> Result<NodeFile, InputError> {
     let mut lines = content_lines(text);
     let Some((header_line, header)) = lines.next() else {
         return Err(InputError::file(file, "empty .node file: no header"));
@@ -689,7 +733,13 @@ fn parse_node(text: &str, file: &Path) -> Result<(usize, i64, Vec<f64>, Vec<usiz
             ),
         ));
     }
-    Ok((dim, first, rest, vertex_lines))
+    Ok(NodeFile {
+        header_line,
+        dim,
+        first,
+        rest,
+        vertex_lines,
+    })
 }
 
 /// Parses an `.ele` file of `per_element`-vertex elements (3 or 4) into 0-based elements
@@ -900,18 +950,22 @@ fn parse_obj(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputError
             ))
         }
         _ if !faces.is_empty() && !polylines.is_empty() => {
-            let (later, other) = if first_line(&faces) > first_line(&polylines) {
-                (first_line(&faces), "lines (`l`)")
+            let (face_line, polyline_line) = (first_line(&faces), first_line(&polylines));
+            let (later, message) = if face_line > polyline_line {
+                (
+                    face_line,
+                    format!("a face (`f`) after lines (`l`, from line {polyline_line})"),
+                )
             } else {
-                (first_line(&polylines), "faces (`f`)")
+                (
+                    polyline_line,
+                    format!("a line (`l`) after faces (`f`, from line {face_line})"),
+                )
             };
             return Err(InputError::line(
                 file,
                 later,
-                format!(
-                    "the file holds both faces and lines; this one follows {other} \
-                     (a body is either cloth or rods)"
-                ),
+                format!("{message}: a body is either cloth or rods, not both"),
             ));
         }
         MeshKind::Cloth if faces.is_empty() => {
@@ -1305,7 +1359,7 @@ mod tests {
         assert_file_error(
             load_text("no_tets.mesh", no_tets, MeshKind::Solid),
             "no_tets.mesh",
-            "no tetrahedra (the file has 0 triangles",
+            "no tetrahedra",
         );
         let no_vertices = "Dimension 3\nTetrahedra\n1\n1 2 3 4 0\n";
         assert_file_error(
@@ -1525,6 +1579,16 @@ mod tests {
     }
 
     #[test]
+    fn node_kind_mismatch_names_the_header_line() {
+        assert_line_error(
+            load_node_ele(SQUARE_NODE, SQUARE_ELE, MeshKind::Cloth),
+            "sq.node",
+            2,
+            "a 2D .node file (Triangle) cannot be read as cloth (3D triangles)",
+        );
+    }
+
+    #[test]
     fn node_ele_tetgen_loads() {
         let node = "5 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 1\n";
         let ele = "2 4 0\n1 1 2 3 4\n2 2 3 4 5\n";
@@ -1725,7 +1789,7 @@ mod tests {
             (
                 "f 1 2 3\nf 1 3 4\nl 1 2\n",
                 7,
-                "the file holds both faces and lines; this one follows faces (`f`)",
+                "a line (`l`) after faces (`f`, from line 5): a body is either cloth or rods",
             ),
             (
                 "f 1 2\n",
