@@ -4,6 +4,13 @@
 pub mod io;
 pub mod procedural;
 
+use std::collections::HashMap;
+use std::path::Path;
+
+use nalgebra::{Vector2, Vector3};
+
+use crate::error::InputError;
+
 /// The elements of a body, which also say what kind of body it is.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Elements {
@@ -87,6 +94,557 @@ impl Mesh {
     }
 }
 
+/// An element counts as degenerate when its volume (area, length) is at most this fraction of
+/// its longest edge cubed (squared; of the mesh's bounding-box diagonal for rod segments).
+const DEGENERATE_RELATIVE: f64 = 1e-12;
+
+/// Faces of a tet, opposite each vertex, outward for a positively oriented tet.
+const TET_FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
+
+/// Edges of a triangle, in its winding order.
+const TRIANGLE_EDGES: [[usize; 2]; 3] = [[0, 1], [1, 2], [2, 0]];
+
+impl Mesh {
+    /// The mesh centred on its bounding-box centre and divided by its largest bounding-box
+    /// extent (as the peer project prepares every mesh), so it fits a unit box around the origin.
+    /// A mesh whose extent is zero or not finite is only centred (if it can be).
+    pub fn normalized(&self) -> Mesh {
+        if self.num_vertices() == 0 {
+            return self.clone();
+        }
+        let (lo, hi) = self.bounding_box(&self.rest);
+        let extent = (0..self.dim).map(|i| hi[i] - lo[i]).fold(0.0, f64::max);
+        let scale = if extent > 0.0 && extent.is_finite() {
+            1.0 / extent
+        } else {
+            1.0
+        };
+        let centre: Vec<f64> = (0..self.dim).map(|i| 0.5 * (lo[i] + hi[i])).collect();
+        let rest = self
+            .rest
+            .chunks_exact(self.dim)
+            .flat_map(|p| p.iter().zip(&centre).map(|(c, m)| (c - m) * scale))
+            .collect();
+        Mesh {
+            rest,
+            ..self.clone()
+        }
+    }
+
+    /// The mesh with axis `i` of every rest position multiplied by `factors[i]`. Missing factors
+    /// count as 1 and extra ones are ignored (so `[1.0, 0.5, 1.0]` halves y of a 2D mesh too).
+    /// When the factors mirror the mesh (their product is negative) every element's winding is
+    /// flipped so that orientations stay positive. Zero factors give a degenerate mesh, which
+    /// [`Mesh::validate`] reports.
+    pub fn scaled(&self, factors: &[f64]) -> Mesh {
+        let factor = |i: usize| factors.get(i).copied().unwrap_or(1.0);
+        let rest = self
+            .rest
+            .chunks_exact(self.dim)
+            .flat_map(|p| p.iter().enumerate().map(move |(i, c)| c * factor(i)))
+            .collect();
+        let mut elements = self.elements.clone();
+        if (0..self.dim).map(factor).product::<f64>() < 0.0 {
+            flip_orientation(&mut elements);
+        }
+        Mesh {
+            dim: self.dim,
+            rest,
+            elements,
+        }
+    }
+
+    /// The mesh with every tet (2D triangle) flipped when none is positively oriented and some
+    /// are negatively oriented: a file convention, not an error. Mixed orientations are left as
+    /// they are for [`Mesh::validate`] to report. Cloth and rods are returned unchanged.
+    pub fn with_positive_orientation(mut self) -> Mesh {
+        if let Some(measures) = self.signed_measures() {
+            let any_positive = measures.iter().any(|&m| m > 0.0);
+            let any_negative = measures.iter().any(|&m| m < 0.0);
+            if any_negative && !any_positive {
+                flip_orientation(&mut self.elements);
+            }
+        }
+        self
+    }
+
+    /// Checks that the mesh can be simulated; errors name `source` and the vertex or element.
+    ///
+    /// Checked: coordinates per vertex match the element kind; at least one vertex and one
+    /// element; finite coordinates; vertex indices in range and not repeated within an element;
+    /// rods of at least 2 vertices; every vertex used by some element (a vertex of no element
+    /// would have no mass, so it is an error rather than silently dropped: the numbering stays
+    /// that of the file); no degenerate (zero volume, area or length) elements; tets and 2D
+    /// triangles all positively oriented; no face (edge) shared by more than two tets
+    /// (triangles); no two elements on the same side of a shared face; cloth triangles wound
+    /// consistently across shared edges. Element indices of rods are rod indices.
+    pub fn validate(&self, source: &Path) -> Result<(), InputError> {
+        let naming = Naming {
+            first_vertex: 0,
+            element_lines: None,
+        };
+        self.check(&naming)
+            .map_err(|problem| match problem.culprit {
+                Culprit::Element(e) => InputError::element(source, e, problem.message),
+                Culprit::Whole | Culprit::Vertex(_) => InputError::file(source, problem.message),
+            })
+    }
+
+    /// [`Mesh::validate`] with vertices and elements named as `naming` says.
+    pub(crate) fn check(&self, naming: &Naming) -> Result<(), Problem> {
+        let expected_dim = match self.elements {
+            Elements::Triangles(_) => 2,
+            _ => 3,
+        };
+        if self.dim != expected_dim {
+            return Err(Problem::whole(format!(
+                "{} need {expected_dim} coordinates per vertex, the mesh has {}",
+                self.element_noun_plural(),
+                self.dim
+            )));
+        }
+        if !self.rest.chunks_exact(self.dim).remainder().is_empty() {
+            return Err(Problem::whole(format!(
+                "{} coordinates is not a whole number of {}D vertices",
+                self.rest.len(),
+                self.dim
+            )));
+        }
+        let num_vertices = self.num_vertices();
+        if num_vertices == 0 {
+            return Err(Problem::whole("the mesh has no vertices"));
+        }
+        let elements = self.element_slices();
+        if elements.is_empty() {
+            return Err(Problem::whole(format!(
+                "the mesh has no {}",
+                self.element_noun_plural()
+            )));
+        }
+        for (v, p) in self.rest.chunks_exact(self.dim).enumerate() {
+            if !p.iter().all(|c| c.is_finite()) {
+                return Err(Problem::vertex(
+                    v,
+                    format!(
+                        "vertex {} has a non-finite coordinate {p:?}",
+                        naming.vertex(v)
+                    ),
+                ));
+            }
+        }
+        self.check_indices(&elements, naming)?;
+        self.check_measures(&elements)?;
+        match &self.elements {
+            Elements::Tets(_) => check_shared_facets(&elements, &TET_FACES, self.kind(), naming),
+            Elements::Triangles(_) | Elements::Shell(_) => {
+                check_shared_facets(&elements, &TRIANGLE_EDGES, self.kind(), naming)
+            }
+            Elements::Rods(_) => Ok(()),
+        }
+    }
+
+    /// Index checks: in range, not repeated in an element, rods long enough, every vertex used.
+    fn check_indices(&self, elements: &[&[usize]], naming: &Naming) -> Result<(), Problem> {
+        let noun = self.element_noun();
+        let num_vertices = self.num_vertices();
+        let mut used = vec![false; num_vertices];
+        for (e, vertices) in elements.iter().enumerate() {
+            if vertices.len() < 2 {
+                return Err(Problem::element(
+                    e,
+                    format!(
+                        "{noun} has {} vertices, at least 2 are needed",
+                        vertices.len()
+                    ),
+                ));
+            }
+            for (k, &v) in vertices.iter().enumerate() {
+                if v >= num_vertices {
+                    return Err(Problem::element(
+                        e,
+                        format!(
+                            "{noun} refers to vertex {}, but the vertices are {}..={}",
+                            naming.vertex(v),
+                            naming.vertex(0),
+                            naming.vertex(num_vertices - 1)
+                        ),
+                    ));
+                }
+                if vertices[..k].contains(&v) {
+                    return Err(Problem::element(
+                        e,
+                        format!("{noun} repeats vertex {}", naming.vertex(v)),
+                    ));
+                }
+                used[v] = true;
+            }
+        }
+        if let Some(v) = used.iter().position(|&u| !u) {
+            let unused = used.iter().filter(|&&u| !u).count();
+            return Err(Problem::vertex(
+                v,
+                format!(
+                    "vertex {} is used by no element, so it would have no mass \
+                     ({unused} unused vertices in all)",
+                    naming.vertex(v)
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Degenerate elements, and orientation of tets and 2D triangles. Indices must be in range.
+    fn check_measures(&self, elements: &[&[usize]]) -> Result<(), Problem> {
+        let noun = self.element_noun();
+        let kind = self.kind();
+        let diagonal = self.rest_diagonal();
+        let mut signed = Vec::with_capacity(elements.len());
+        for (e, vertices) in elements.iter().enumerate() {
+            let points: Vec<Vector3<f64>> = vertices.iter().map(|&v| self.point(v)).collect();
+            // Longest edge of a tet or triangle (all its vertex pairs are edges).
+            let longest_edge = if kind == Kind::Rods {
+                0.0
+            } else {
+                points
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(i, p)| points[..i].iter().map(move |q| (p - q).norm()))
+                    .fold(0.0, f64::max)
+            };
+            let (measure, what, tolerance) = match kind {
+                Kind::Tets => (
+                    tet_signed_volume(&points),
+                    "signed volume",
+                    DEGENERATE_RELATIVE * longest_edge.powi(3),
+                ),
+                Kind::Triangles => (
+                    triangle_signed_area(&points),
+                    "signed area",
+                    DEGENERATE_RELATIVE * longest_edge.powi(2),
+                ),
+                Kind::Shell => (
+                    0.5 * (points[1] - points[0])
+                        .cross(&(points[2] - points[0]))
+                        .norm(),
+                    "area",
+                    DEGENERATE_RELATIVE * longest_edge.powi(2),
+                ),
+                Kind::Rods => {
+                    let shortest = points
+                        .windows(2)
+                        .map(|s| (s[1] - s[0]).norm())
+                        .fold(f64::INFINITY, f64::min);
+                    (shortest, "shortest segment", DEGENERATE_RELATIVE * diagonal)
+                }
+            };
+            if measure.abs() <= tolerance {
+                let scale = if kind == Kind::Rods {
+                    format!("mesh diagonal {diagonal:e}")
+                } else {
+                    format!("longest edge {longest_edge:e}")
+                };
+                return Err(Problem::element(
+                    e,
+                    format!("{noun} is degenerate: {what} {measure:e} ({scale})"),
+                ));
+            }
+            signed.push(measure);
+        }
+        if matches!(kind, Kind::Tets | Kind::Triangles) {
+            let negative = signed.iter().filter(|&&m| m < 0.0).count();
+            let positive = signed.len() - negative;
+            if positive == 0 {
+                return Err(Problem::whole(format!(
+                    "all {negative} {} are negatively oriented \
+                     (Mesh::with_positive_orientation flips them)",
+                    self.element_noun_plural()
+                )));
+            }
+            if negative > 0 {
+                // Name the first element of the minority orientation (negative on a tie).
+                let minority_negative = negative <= positive;
+                let e = signed
+                    .iter()
+                    .position(|&m| (m < 0.0) == minority_negative)
+                    .unwrap_or(0);
+                let what = if kind == Kind::Tets {
+                    "signed volume"
+                } else {
+                    "signed area"
+                };
+                return Err(Problem::element(
+                    e,
+                    format!(
+                        "{noun} is inverted relative to the others: {what} {:e} \
+                         ({positive} {} positive, {negative} negative)",
+                        signed[e],
+                        self.element_noun_plural()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Signed volumes (areas) of the tets (2D triangles); `None` for cloth and rods or when
+    /// an index is out of range.
+    fn signed_measures(&self) -> Option<Vec<f64>> {
+        let elements = self.element_slices();
+        let kind = self.kind();
+        if !matches!(kind, Kind::Tets | Kind::Triangles) || self.dim != kind.dim() {
+            return None;
+        }
+        let n = self.num_vertices();
+        if elements.iter().flat_map(|e| e.iter()).any(|&v| v >= n) {
+            return None;
+        }
+        Some(
+            elements
+                .iter()
+                .map(|vertices| {
+                    let points: Vec<Vector3<f64>> =
+                        vertices.iter().map(|&v| self.point(v)).collect();
+                    match kind {
+                        Kind::Tets => tet_signed_volume(&points),
+                        _ => triangle_signed_area(&points),
+                    }
+                })
+                .collect(),
+        )
+    }
+
+    /// Rest position of vertex `v` (in range) padded to 3D.
+    fn point(&self, v: usize) -> Vector3<f64> {
+        let p = &self.rest[v * self.dim..(v + 1) * self.dim];
+        Vector3::new(p[0], p[1], p.get(2).copied().unwrap_or(0.0))
+    }
+
+    /// The vertex lists of all elements (rods: whole polylines).
+    fn element_slices(&self) -> Vec<&[usize]> {
+        match &self.elements {
+            Elements::Tets(t) => t.iter().map(|e| e.as_slice()).collect(),
+            Elements::Triangles(t) | Elements::Shell(t) => t.iter().map(|e| e.as_slice()).collect(),
+            Elements::Rods(r) => r.iter().map(|e| e.as_slice()).collect(),
+        }
+    }
+
+    fn kind(&self) -> Kind {
+        match self.elements {
+            Elements::Tets(_) => Kind::Tets,
+            Elements::Triangles(_) => Kind::Triangles,
+            Elements::Shell(_) => Kind::Shell,
+            Elements::Rods(_) => Kind::Rods,
+        }
+    }
+
+    fn element_noun(&self) -> &'static str {
+        self.kind().noun()
+    }
+
+    fn element_noun_plural(&self) -> &'static str {
+        self.kind().noun_plural()
+    }
+}
+
+/// What an [`Elements`] holds, without the data.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Kind {
+    Tets,
+    Triangles,
+    Shell,
+    Rods,
+}
+
+impl Kind {
+    fn dim(self) -> usize {
+        if self == Kind::Triangles {
+            2
+        } else {
+            3
+        }
+    }
+
+    fn noun(self) -> &'static str {
+        match self {
+            Kind::Tets => "tetrahedron",
+            Kind::Triangles | Kind::Shell => "triangle",
+            Kind::Rods => "rod",
+        }
+    }
+
+    fn noun_plural(self) -> &'static str {
+        match self {
+            Kind::Tets => "tetrahedra",
+            Kind::Triangles | Kind::Shell => "triangles",
+            Kind::Rods => "rods",
+        }
+    }
+}
+
+/// How validation messages name vertices and elements: as numbered in the source file.
+pub(crate) struct Naming<'a> {
+    /// The number vertex 0 has in the source (0, 1, or a `.node` file's first index).
+    pub first_vertex: usize,
+    /// The source line of each element, if it came from a file.
+    pub element_lines: Option<&'a [usize]>,
+}
+
+impl Naming<'_> {
+    fn vertex(&self, v: usize) -> usize {
+        v.saturating_add(self.first_vertex)
+    }
+
+    fn element(&self, e: usize) -> String {
+        match self.element_lines.and_then(|lines| lines.get(e)) {
+            Some(line) => format!("the element on line {line}"),
+            None => format!("element {e}"),
+        }
+    }
+}
+
+/// What a validation problem is about.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Culprit {
+    /// The mesh as a whole.
+    Whole,
+    /// A 0-based vertex.
+    Vertex(usize),
+    /// A 0-based element (rod, for rods).
+    Element(usize),
+}
+
+/// A validation problem, before it is placed in a file.
+#[derive(Clone, Debug)]
+pub(crate) struct Problem {
+    pub culprit: Culprit,
+    pub message: String,
+}
+
+impl Problem {
+    fn whole(message: impl Into<String>) -> Self {
+        Problem {
+            culprit: Culprit::Whole,
+            message: message.into(),
+        }
+    }
+    fn vertex(v: usize, message: String) -> Self {
+        Problem {
+            culprit: Culprit::Vertex(v),
+            message,
+        }
+    }
+    fn element(e: usize, message: String) -> Self {
+        Problem {
+            culprit: Culprit::Element(e),
+            message,
+        }
+    }
+}
+
+/// Checks the facets (faces of tets, edges of triangles) that elements share: no facet in more
+/// than two elements, and the two elements on opposite sides (tets, 2D triangles) or wound
+/// consistently (cloth). `local` lists each element's facets in outward (winding) order.
+fn check_shared_facets<const K: usize>(
+    elements: &[&[usize]],
+    local: &[[usize; K]],
+    kind: Kind,
+    naming: &Naming,
+) -> Result<(), Problem> {
+    let facet_noun = if K == 3 { "face" } else { "edge" };
+    // Sorted facet -> (elements holding it, orientation parity of the first).
+    let mut seen: HashMap<[usize; K], (Vec<usize>, bool)> = HashMap::new();
+    for (e, vertices) in elements.iter().enumerate() {
+        for corners in local {
+            let facet = corners.map(|c| vertices[c]);
+            let (key, parity) = sorted_with_parity(facet);
+            let entry = seen.entry(key).or_insert_with(|| (Vec::new(), parity));
+            let named = || {
+                key.iter()
+                    .map(|&v| naming.vertex(v).to_string())
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            match entry.0.as_slice() {
+                [] => {}
+                [other] if entry.1 == parity => {
+                    let message = if kind == Kind::Shell {
+                        format!(
+                            "triangle is wound against {} across their shared edge ({}); \
+                             cloth triangles must all be wound the same way",
+                            naming.element(*other),
+                            named()
+                        )
+                    } else {
+                        format!(
+                            "{} overlaps {}: both lie on the same side of their shared \
+                             {facet_noun} ({})",
+                            kind.noun(),
+                            naming.element(*other),
+                            named()
+                        )
+                    };
+                    return Err(Problem::element(e, message));
+                }
+                [_] => {}
+                [first, second, ..] => {
+                    return Err(Problem::element(
+                        e,
+                        format!(
+                            "{facet_noun} ({}) is shared by more than two {}: also by {} and {}",
+                            named(),
+                            kind.noun_plural(),
+                            naming.element(*first),
+                            naming.element(*second)
+                        ),
+                    ));
+                }
+            }
+            entry.0.push(e);
+        }
+    }
+    Ok(())
+}
+
+/// The facet's vertices sorted, and whether sorting took an odd number of swaps.
+fn sorted_with_parity<const K: usize>(mut facet: [usize; K]) -> ([usize; K], bool) {
+    let mut odd = false;
+    for i in 1..K {
+        let mut j = i;
+        while j > 0 && facet[j - 1] > facet[j] {
+            facet.swap(j - 1, j);
+            odd = !odd;
+            j -= 1;
+        }
+    }
+    (facet, odd)
+}
+
+/// Reverses the orientation of every tet and triangle; rods are unchanged.
+fn flip_orientation(elements: &mut Elements) {
+    match elements {
+        Elements::Tets(tets) => tets.iter_mut().for_each(|t| t.swap(2, 3)),
+        Elements::Triangles(tris) | Elements::Shell(tris) => {
+            tris.iter_mut().for_each(|t| t.swap(1, 2))
+        }
+        Elements::Rods(_) => {}
+    }
+}
+
+// TODO(merge): use energy::tet::signed_volume
+/// Signed volume of the tet `p[0..4]`, positive when `p[3]` is on the side of `p[0], p[1], p[2]`
+/// that their counter-clockwise winding points to.
+fn tet_signed_volume(p: &[Vector3<f64>]) -> f64 {
+    (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&(p[3] - p[0])) / 6.0
+}
+
+// TODO(merge): use energy::tri2d::signed_area
+/// Signed area of the 2D triangle `p[0..3]` (z ignored), positive when counter-clockwise.
+fn triangle_signed_area(p: &[Vector3<f64>]) -> f64 {
+    let a = Vector2::new(p[1].x - p[0].x, p[1].y - p[0].y);
+    let b = Vector2::new(p[2].x - p[0].x, p[2].y - p[0].y);
+    0.5 * a.perp(&b)
+}
+
 /// Boundary faces of a tet mesh, oriented with outward normals for positively oriented tets.
 pub fn boundary_faces(tets: &[[usize; 4]]) -> Vec<[usize; 3]> {
     use std::collections::HashMap;
@@ -108,4 +666,163 @@ pub fn boundary_faces(tets: &[[usize; 4]]) -> Vec<[usize; 3]> {
         .collect();
     faces.sort_unstable();
     faces
+}
+
+#[cfg(test)]
+mod tests {
+    use super::procedural::{box_tets, cloth_grid};
+    use super::*;
+    use crate::error::Location;
+
+    fn unit_tet() -> Mesh {
+        Mesh {
+            dim: 3,
+            rest: vec![0., 0., 0., 1., 0., 0., 0., 1., 0., 0., 0., 1.],
+            elements: Elements::Tets(vec![[0, 1, 2, 3]]),
+        }
+    }
+
+    fn total_volume(mesh: &Mesh) -> f64 {
+        mesh.signed_measures().unwrap().iter().sum()
+    }
+
+    #[test]
+    fn normalized_centres_and_fits_the_largest_extent() {
+        let mesh = box_tets([1.0, -2.0, 3.0], [5.0, 0.0, 4.0], [2, 1, 1]).unwrap();
+        let normal = mesh.normalized();
+        let (lo, hi) = normal.bounding_box(&normal.rest);
+        assert_eq!(lo, [-0.5, -0.25, -0.125]);
+        assert_eq!(hi, [0.5, 0.25, 0.125]);
+        assert_eq!(normal.elements, mesh.elements);
+        // 2D meshes stay 2D.
+        let bar = Mesh {
+            dim: 2,
+            rest: vec![0.0, 0.0, 8.0, 0.0, 8.0, 1.0],
+            elements: Elements::Triangles(vec![[0, 1, 2]]),
+        };
+        assert_eq!(
+            bar.normalized().rest,
+            vec![-0.5, -0.0625, 0.5, -0.0625, 0.5, 0.0625]
+        );
+    }
+
+    #[test]
+    fn scaled_per_axis_and_mirrored_stays_positive() {
+        let mesh = unit_tet();
+        let stretched = mesh.scaled(&[2.0, 3.0]);
+        assert_eq!(
+            stretched.rest,
+            vec![0., 0., 0., 2., 0., 0., 0., 3., 0., 0., 0., 1.]
+        );
+        approx::assert_relative_eq!(total_volume(&stretched), 1.0, max_relative = 1e-15);
+        let mirrored = mesh.scaled(&[-1.0, 1.0, 1.0, 7.0]);
+        assert_eq!(mirrored.elements, Elements::Tets(vec![[0, 1, 3, 2]]));
+        approx::assert_relative_eq!(total_volume(&mirrored), 1.0 / 6.0, max_relative = 1e-15);
+        mirrored.validate(Path::new("mirrored")).unwrap();
+        let flat = mesh.scaled(&[1.0, 0.0, 1.0]);
+        let err = flat.validate(Path::new("flat")).unwrap_err();
+        assert_eq!(err.location, Location::Element(0));
+        assert!(
+            err.to_string()
+                .starts_with("flat: element 0: tetrahedron is degenerate"),
+            "{err}"
+        );
+        // Mirrored cloth keeps its (mirrored) facing.
+        let cloth = cloth_grid([1.0, 1.0], [2, 2], [0.0; 3], ([1., 0., 0.], [0., 1., 0.])).unwrap();
+        let Elements::Shell(t) = &cloth.scaled(&[1.0, 1.0, -1.0]).elements else {
+            unreachable!()
+        };
+        assert_eq!(t[0], [0, 3, 1]);
+    }
+
+    #[test]
+    fn with_positive_orientation_flips_only_when_all_are_inverted() {
+        let inverted = Mesh {
+            elements: Elements::Tets(vec![[0, 2, 1, 3]]),
+            ..unit_tet()
+        };
+        assert!(total_volume(&inverted) < 0.0);
+        let err = inverted.validate(Path::new("x")).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("all 1 tetrahedra are negatively oriented"),
+            "{err}"
+        );
+        let fixed = inverted.with_positive_orientation();
+        assert!(total_volume(&fixed) > 0.0);
+        fixed.validate(Path::new("x")).unwrap();
+        // Mixed orientations are left for validate to report.
+        let mut mixed = box_tets([0.0; 3], [1.0; 3], [1, 1, 1]).unwrap();
+        if let Elements::Tets(tets) = &mut mixed.elements {
+            tets[4].swap(0, 1);
+        }
+        let still = mixed.clone().with_positive_orientation();
+        assert_eq!(still, mixed);
+        let err = mixed.validate(Path::new("box")).unwrap_err();
+        assert_eq!(err.location, Location::Element(4), "{err}");
+        assert!(
+            err.message.contains("inverted relative to the others"),
+            "{err}"
+        );
+        // Out-of-range indices do not panic.
+        let mut broken = unit_tet();
+        broken.elements = Elements::Tets(vec![[0, 1, 2, 9]]);
+        assert_eq!(broken.clone().with_positive_orientation(), broken);
+    }
+
+    #[test]
+    fn validate_names_vertices_and_elements() {
+        let path = Path::new("m");
+        let mut mesh = unit_tet();
+        mesh.rest.extend([5.0, 5.0, 5.0]);
+        let err = mesh.validate(path).unwrap_err();
+        assert_eq!(err.location, Location::File);
+        assert!(
+            err.message.starts_with("vertex 4 is used by no element"),
+            "{err}"
+        );
+        mesh.rest[4] = f64::NAN;
+        let err = mesh.validate(path).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "m: vertex 1 has a non-finite coordinate [1.0, NaN, 0.0]"
+        );
+        let mut mesh = unit_tet();
+        mesh.elements = Elements::Tets(vec![[0, 1, 2, 3], [0, 1, 2, 4]]);
+        let err = mesh.validate(path).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "m: element 1: tetrahedron refers to vertex 4, but the vertices are 0..=3"
+        );
+        mesh.elements = Elements::Triangles(vec![[0, 1, 2]]);
+        let err = mesh.validate(path).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("triangles need 2 coordinates per vertex, the mesh has 3"),
+            "{err}"
+        );
+        mesh.elements = Elements::Rods(vec![vec![0, 1, 2, 3], vec![3]]);
+        let err = mesh.validate(path).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "m: element 1: rod has 1 vertices, at least 2 are needed"
+        );
+        mesh.elements = Elements::Rods(vec![vec![0, 1, 2, 0, 3]]);
+        let err = mesh.validate(path).unwrap_err();
+        assert_eq!(err.to_string(), "m: element 0: rod repeats vertex 0");
+        mesh.elements = Elements::Rods(vec![]);
+        let err = mesh.validate(path).unwrap_err();
+        assert_eq!(err.to_string(), "m: the mesh has no rods");
+        mesh.rest.clear();
+        let err = mesh.validate(path).unwrap_err();
+        assert_eq!(err.to_string(), "m: the mesh has no vertices");
+    }
+
+    #[test]
+    fn sorted_with_parity_counts_swaps() {
+        assert_eq!(sorted_with_parity([3, 1, 2]), ([1, 2, 3], false));
+        assert_eq!(sorted_with_parity([1, 3, 2]), ([1, 2, 3], true));
+        assert_eq!(sorted_with_parity([3, 2, 1]), ([1, 2, 3], true));
+        assert_eq!(sorted_with_parity([2, 1]), ([1, 2], true));
+    }
 }
