@@ -668,7 +668,25 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
             spacing,
             direction,
             origin,
-        } => mesh::procedural::rod_group(*count, *verts_per_rod, *length, *spacing, *origin, *direction),
+        } => {
+            // Roots on a near-square grid centred on `origin`, across the rods' direction.
+            let d = nalgebra::Vector3::from(*direction);
+            let helper = if d.x.abs() < 0.9 * d.norm() { nalgebra::Vector3::x() } else { nalgebra::Vector3::y() };
+            let e1 = helper.cross(&d).try_normalize(1e-12).unwrap_or(nalgebra::Vector3::z());
+            let e2 = d.cross(&e1).try_normalize(1e-12).unwrap_or(nalgebra::Vector3::x());
+            let columns = (*count as f64).sqrt().ceil().max(1.0) as usize;
+            let rows = count.div_ceil(columns);
+            let corner = nalgebra::Vector3::from(*origin)
+                - e1 * (*spacing * (columns - 1) as f64 / 2.0)
+                - e2 * (*spacing * (rows.max(1) - 1) as f64 / 2.0);
+            let roots = mesh::procedural::RootGrid {
+                origin: corner.into(),
+                axes: (e1.into(), e2.into()),
+                columns,
+                spacing: *spacing,
+            };
+            mesh::procedural::rod_group(*count, *verts_per_rod, *length, &roots, *direction)
+        }
         MeshSpec::File {
             path,
             normalize,
