@@ -15,6 +15,7 @@ pub mod external;
 pub mod inertia;
 pub mod rod;
 pub mod shell;
+mod simplex;
 pub mod tet;
 pub mod tri2d;
 
