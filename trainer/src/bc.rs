@@ -101,7 +101,10 @@ impl Track {
             velocity: [0.0; 3],
             angular_velocity: [0.0; 3],
         };
-        let mut active = segments.iter().flat_map(|s| std::iter::repeat_n(s, s.frames)).chain(std::iter::repeat(&rest));
+        let mut active = segments
+            .iter()
+            .flat_map(|s| std::iter::repeat_n(s, s.frames))
+            .chain(std::iter::repeat(&rest));
         for _ in 0..frames {
             let seg = active.next().unwrap_or(&rest);
             poses.push(poses.last().expect("starts non-empty").advanced(seg, dt));
@@ -197,12 +200,18 @@ impl MotionSpec {
             }
         }
         for (field, dirs) in [("directions", &self.directions), ("rotation_axes", &self.rotation_axes)] {
-            if dirs.iter().any(|d| !d.iter().all(|c| c.is_finite()) || V3::from(*d).norm() < 1e-12) {
+            if dirs
+                .iter()
+                .any(|d| !d.iter().all(|c| c.is_finite()) || V3::from(*d).norm() < 1e-12)
+            {
                 return Err((field, "every entry must be a finite non-zero vector".into()));
             }
         }
         if !(0.0..=1.0).contains(&self.rotation_share) {
-            return Err(("rotation_share", format!("must be in [0, 1], got {}", self.rotation_share)));
+            return Err((
+                "rotation_share",
+                format!("must be in [0, 1], got {}", self.rotation_share),
+            ));
         }
         if self.rotation_share > 0.0 && self.rotation_axes.is_empty() {
             return Err(("rotation_axes", "rotation_share > 0 needs at least one axis".into()));
@@ -232,7 +241,8 @@ impl MotionSpec {
             let len = rng.random_range(self.segment_frames[0]..=self.segment_frames[1]);
             let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
             let (lin, ang) = speeds(frame);
-            let rotate = !self.rotation_axes.is_empty() && (self.directions.is_empty() || rng.random_bool(self.rotation_share));
+            let rotate =
+                !self.rotation_axes.is_empty() && (self.directions.is_empty() || rng.random_bool(self.rotation_share));
             let mut seg = Segment {
                 frames: len,
                 velocity: [0.0; 3],

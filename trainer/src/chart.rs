@@ -66,8 +66,7 @@ pub fn line_chart(
         x_label,
         y_label,
     };
-    render(path, &labels, all, false, log_y, &body)
-        .with_context(|| format!("writing chart {}", path.display()))
+    render(path, &labels, all, false, log_y, &body).with_context(|| format!("writing chart {}", path.display()))
 }
 
 /// Writes a scatter chart of labelled points, coloured by group, as a PNG of [`CHART_SIZE`]
@@ -93,17 +92,15 @@ pub fn scatter_chart(
         x_label,
         y_label,
     };
-    render(path, &labels, all, log_x, log_y, &body)
-        .with_context(|| format!("writing chart {}", path.display()))
+    render(path, &labels, all, log_x, log_y, &body).with_context(|| format!("writing chart {}", path.display()))
 }
 
 /// Registers the built-in font as plotters' `sans-serif` family (once per process).
 pub(crate) fn register_font() -> anyhow::Result<()> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     const DEJAVU_SANS: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-    let ok = *REGISTERED.get_or_init(|| {
-        plotters::style::register_font("sans-serif", FontStyle::Normal, DEJAVU_SANS).is_ok()
-    });
+    let ok = *REGISTERED
+        .get_or_init(|| plotters::style::register_font("sans-serif", FontStyle::Normal, DEJAVU_SANS).is_ok());
     if ok {
         Ok(())
     } else {
@@ -185,12 +182,7 @@ fn render(
     body: &Body,
 ) -> anyhow::Result<()> {
     register_font()?;
-    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-    );
+    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for (x, y) in points {
         (x_lo, x_hi) = (x_lo.min(x), x_hi.max(x));
         (y_lo, y_hi) = (y_lo.min(y), y_hi.max(y));
@@ -207,13 +199,7 @@ fn render(
         (false, false) => draw(path, labels, x0..x1, y0..y1, body),
         (false, true) => draw(path, labels, x0..x1, (y0..y1).log_scale(), body),
         (true, false) => draw(path, labels, (x0..x1).log_scale(), y0..y1, body),
-        (true, true) => draw(
-            path,
-            labels,
-            (x0..x1).log_scale(),
-            (y0..y1).log_scale(),
-            body,
-        ),
+        (true, true) => draw(path, labels, (x0..x1).log_scale(), (y0..y1).log_scale(), body),
     }
 }
 
@@ -250,14 +236,13 @@ where
             for (i, s) in series.iter().enumerate() {
                 let color = palette(i);
                 let markers = if s.points.len() <= 40 { 3 } else { 0 };
-                let line = LineSeries::new(s.points.iter().copied(), color.stroke_width(2))
-                    .point_size(markers);
+                let line = LineSeries::new(s.points.iter().copied(), color.stroke_width(2)).point_size(markers);
                 let drawn = chart.draw_series(line)?;
                 if !s.name.is_empty() {
                     legend = true;
-                    drawn.label(s.name.as_str()).legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(3))
-                    });
+                    drawn
+                        .label(s.name.as_str())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(3)));
                 }
             }
         }
@@ -306,8 +291,7 @@ mod tests {
 
     /// Decodes a PNG and returns (width, height, RGB(A) bytes, channels).
     pub(crate) fn decode_png(path: &Path) -> (u32, u32, Vec<u8>, usize) {
-        let decoder =
-            png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+        let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
         let mut reader = decoder.read_info().unwrap();
         let mut buf = vec![0; reader.output_buffer_size()];
         let info = reader.next_frame(&mut buf).unwrap();
@@ -360,10 +344,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("scatter.png");
         let mut points = Vec::new();
-        for (g, method) in ["ours", "vanilla subspace", "full space"]
-            .iter()
-            .enumerate()
-        {
+        for (g, method) in ["ours", "vanilla subspace", "full space"].iter().enumerate() {
             for (k, latent) in [8, 16, 32].iter().enumerate() {
                 points.push(LabelledPoint {
                     group: method.to_string(),
@@ -373,16 +354,7 @@ mod tests {
                 });
             }
         }
-        scatter_chart(
-            &path,
-            "Speed vs accuracy",
-            "ms / frame",
-            "error",
-            &points,
-            true,
-            true,
-        )
-        .unwrap();
+        scatter_chart(&path, "Speed vs accuracy", "ms / frame", "error", &points, true, true).unwrap();
         keep(&path);
         for g in 0..3 {
             let c = palette(g);

@@ -46,7 +46,12 @@ impl SpeedPlan {
     }
     /// The `(level, factor)` in force at `frame`.
     pub fn at(&self, frame: usize) -> (f64, f64) {
-        let piece = self.pieces.iter().rev().find(|p| p.0 <= frame).unwrap_or(&self.pieces[0]);
+        let piece = self
+            .pieces
+            .iter()
+            .rev()
+            .find(|p| p.0 <= frame)
+            .unwrap_or(&self.pieces[0]);
         (piece.1, piece.2)
     }
 }
@@ -92,7 +97,12 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
         ));
     }
     if spec.test >= 2 {
-        tests.push((format!("{:.2}x the top training speed", spec.beyond), SpeedPlan { pieces: vec![(0, 1.0, spec.beyond)] }));
+        tests.push((
+            format!("{:.2}x the top training speed", spec.beyond),
+            SpeedPlan {
+                pieces: vec![(0, 1.0, spec.beyond)],
+            },
+        ));
     }
     let held_out = spec.test.saturating_sub(2);
     for j in 0..held_out {
@@ -172,8 +182,18 @@ impl Problem {
             newton_iterations: vec![0],
             step_seconds: vec![0.0],
             meta: vec![
-                ("handles".into(), self.handles.iter().map(|h| h.name.as_str()).collect::<Vec<_>>().join(",")),
-                ("bc_signal_layout".into(), "per handle: velocity(3), angular_velocity(3), translation(3), rotation_vector(3)".into()),
+                (
+                    "handles".into(),
+                    self.handles
+                        .iter()
+                        .map(|h| h.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(","),
+                ),
+                (
+                    "bc_signal_layout".into(),
+                    "per handle: velocity(3), angular_velocity(3), translation(3), rotation_vector(3)".into(),
+                ),
             ],
         };
         for frame in 1..=seq.frames() {
@@ -182,7 +202,8 @@ impl Problem {
             let seconds = start.elapsed().as_secs_f64();
             traj.positions.push(self.simulator.positions().to_vec());
             traj.bc_signal.push(seq.signal(frame));
-            traj.energies.push(self.simulator.energies().iter().map(|(_, e)| *e).collect());
+            traj.energies
+                .push(self.simulator.energies().iter().map(|(_, e)| *e).collect());
             traj.newton_iterations.push(report.iterations as u32);
             traj.step_seconds.push(seconds);
             if let Some(p) = progress {
@@ -207,7 +228,11 @@ mod tests {
             beyond: 1.5,
         };
         let plans = plan(&spec);
-        let train: Vec<f64> = plans.iter().filter(|p| p.split == Split::Train).map(|p| p.speeds.at(0).0).collect();
+        let train: Vec<f64> = plans
+            .iter()
+            .filter(|p| p.split == Split::Train)
+            .map(|p| p.speeds.at(0).0)
+            .collect();
         assert_eq!(train, vec![0.0, 0.25, 0.5, 0.75, 1.0]);
         let tests: Vec<&SequencePlan> = plans.iter().filter(|p| p.split == Split::Test).collect();
         assert_eq!(tests.len(), 5);
@@ -220,7 +245,10 @@ mod tests {
         for t in &tests[2..] {
             let (level, factor) = t.speeds.at(0);
             assert_eq!(factor, 1.0);
-            assert!(train.iter().all(|l| (l - level).abs() > 0.1), "level {level} too close to training");
+            assert!(
+                train.iter().all(|l| (l - level).abs() > 0.1),
+                "level {level} too close to training"
+            );
         }
         let mut seeds: Vec<u64> = plans.iter().map(|p| p.seed).collect();
         seeds.sort();

@@ -41,11 +41,7 @@ impl InputError {
         Self::new(file, Location::Line(line), message)
     }
     /// Error at a named field.
-    pub fn field(
-        file: impl AsRef<Path>,
-        field: impl Into<String>,
-        message: impl Into<String>,
-    ) -> Self {
+    pub fn field(file: impl AsRef<Path>, field: impl Into<String>, message: impl Into<String>) -> Self {
         Self::new(file, Location::Field(field.into()), message)
     }
     /// Error at a 0-based element index.

@@ -10,7 +10,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "mochi", version, about = "Soft bodies in real time: simulate, learn, freeze, run")]
+#[command(
+    name = "mochi",
+    version,
+    about = "Soft bodies in real time: simulate, learn, freeze, run"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -93,7 +97,9 @@ fn run(cli: Cli) -> Result<()> {
             png_frames,
         } => simulate(&scene, frames, out, level, seed, obj, obj_every, &png_frames),
         Command::Dataset { scene, out } => make_dataset(&scene, out),
-        Command::Bench { what: Bench::Sim { scenes, frames } } => bench_sim(scenes, frames),
+        Command::Bench {
+            what: Bench::Sim { scenes, frames },
+        } => bench_sim(scenes, frames),
         Command::Scenes => {
             for name in shipped_scene_names() {
                 let scene = Scene::load(&name)?;
@@ -136,7 +142,9 @@ fn simulate(
     let mut problem = scene.build()?;
     let seq = problem.sequence(&SpeedPlan::constant(level), frames, seed.unwrap_or(scene.dataset.seed));
     let bar = progress_bar(frames as u64, format!("simulate {}", scene.name));
-    let traj = problem.run(&seq, Some(&bar)).with_context(|| format!("simulating scene `{}`", scene.name))?;
+    let traj = problem
+        .run(&seq, Some(&bar))
+        .with_context(|| format!("simulating scene `{}`", scene.name))?;
     bar.finish();
     let out = out.unwrap_or_else(|| default_out(&scene, "simulate.npz"));
     if let Some(dir) = out.parent() {
@@ -164,9 +172,11 @@ fn simulate(
         }
         let shown: Vec<&[f64]> = png_frames.iter().map(|&f| traj.positions[f].as_slice()).collect();
         let png = out.with_extension("png");
-        let mut opts = render::RenderOptions::default();
-        opts.title = format!("{}: frames {:?}", scene.name, png_frames);
-        opts.highlight = problem.simulator.fixed_vertices().to_vec();
+        let opts = render::RenderOptions {
+            title: format!("{}: frames {:?}", scene.name, png_frames),
+            highlight: problem.simulator.fixed_vertices().to_vec(),
+            ..Default::default()
+        };
         render::render_png(&png, &problem.mesh, &shown, &opts)?;
         println!("preview -> {}", png.display());
     }
@@ -187,7 +197,9 @@ fn make_dataset(name: &str, out: Option<PathBuf>) -> Result<()> {
     for plan in &plans {
         bar.set_message(format!("{} {}", scene.name, plan.name));
         let seq = problem.sequence(&plan.speeds, frames, plan.seed);
-        let mut traj = problem.run(&seq, Some(&bar)).with_context(|| format!("simulating {} of `{}`", plan.name, scene.name))?;
+        let mut traj = problem
+            .run(&seq, Some(&bar))
+            .with_context(|| format!("simulating {} of `{}`", plan.name, scene.name))?;
         traj.meta.push(("split".into(), plan.split.as_str().into()));
         traj.meta.push(("sequence".into(), plan.description.clone()));
         traj.meta.push(("seed".into(), plan.seed.to_string()));
@@ -216,13 +228,22 @@ fn mean(v: &[f64]) -> f64 {
 }
 
 fn bench_sim(scenes: Vec<String>, frames: usize) -> Result<()> {
-    let scenes = if scenes.is_empty() { shipped_scene_names() } else { scenes };
-    println!("{:10} {:>8} {:>10} {:>12} {:>10}", "scene", "DOF", "ms/step", "Newton it.", "max it.");
+    let scenes = if scenes.is_empty() {
+        shipped_scene_names()
+    } else {
+        scenes
+    };
+    println!(
+        "{:10} {:>8} {:>10} {:>12} {:>10}",
+        "scene", "DOF", "ms/step", "Newton it.", "max it."
+    );
     for name in scenes {
         let scene = Scene::load(&name)?;
         let mut problem = scene.build()?;
         let seq = problem.sequence(&SpeedPlan::constant(0.5), frames, scene.dataset.seed);
-        let traj = problem.run(&seq, None).with_context(|| format!("simulating `{name}`"))?;
+        let traj = problem
+            .run(&seq, None)
+            .with_context(|| format!("simulating `{name}`"))?;
         let iters: Vec<f64> = traj.newton_iterations[1..].iter().map(|&i| i as f64).collect();
         println!(
             "{:10} {:>8} {:>10.2} {:>12.2} {:>10}",

@@ -125,10 +125,7 @@ impl Mesh {
             .chunks_exact(self.dim)
             .flat_map(|p| p.iter().zip(&centre).map(|(c, m)| (c - m) * scale))
             .collect();
-        Mesh {
-            rest,
-            ..self.clone()
-        }
+        Mesh { rest, ..self.clone() }
     }
 
     /// The mesh with axis `i` of every rest position multiplied by `factors[i]`. Missing factors
@@ -183,11 +180,10 @@ impl Mesh {
             first_vertex: 0,
             element_lines: None,
         };
-        self.check(&naming)
-            .map_err(|problem| match problem.culprit {
-                Culprit::Element(e) => InputError::element(source, e, problem.message),
-                Culprit::Whole | Culprit::Vertex(_) => InputError::file(source, problem.message),
-            })
+        self.check(&naming).map_err(|problem| match problem.culprit {
+            Culprit::Element(e) => InputError::element(source, e, problem.message),
+            Culprit::Whole | Culprit::Vertex(_) => InputError::file(source, problem.message),
+        })
     }
 
     /// [`Mesh::validate`] with vertices and elements named as `naming` says.
@@ -225,10 +221,7 @@ impl Mesh {
             if !p.iter().all(|c| c.is_finite()) {
                 return Err(Problem::vertex(
                     v,
-                    format!(
-                        "vertex {} has a non-finite coordinate {p:?}",
-                        naming.vertex(v)
-                    ),
+                    format!("vertex {} has a non-finite coordinate {p:?}", naming.vertex(v)),
                 ));
             }
         }
@@ -252,10 +245,7 @@ impl Mesh {
             if vertices.len() < 2 {
                 return Err(Problem::element(
                     e,
-                    format!(
-                        "{noun} has {} vertices, at least 2 are needed",
-                        vertices.len()
-                    ),
+                    format!("{noun} has {} vertices, at least 2 are needed", vertices.len()),
                 ));
             }
             for (k, &v) in vertices.iter().enumerate() {
@@ -323,9 +313,7 @@ impl Mesh {
                     DEGENERATE_RELATIVE * longest_edge.powi(2),
                 ),
                 Kind::Shell => (
-                    0.5 * (points[1] - points[0])
-                        .cross(&(points[2] - points[0]))
-                        .norm(),
+                    0.5 * (points[1] - points[0]).cross(&(points[2] - points[0])).norm(),
                     "area",
                     DEGENERATE_RELATIVE * longest_edge.powi(2),
                 ),
@@ -363,10 +351,7 @@ impl Mesh {
             if negative > 0 {
                 // Name the first element of the minority orientation (negative on a tie).
                 let minority_negative = negative <= positive;
-                let e = signed
-                    .iter()
-                    .position(|&m| (m < 0.0) == minority_negative)
-                    .unwrap_or(0);
+                let e = signed.iter().position(|&m| (m < 0.0) == minority_negative).unwrap_or(0);
                 let what = if kind == Kind::Tets {
                     "signed volume"
                 } else {
@@ -402,8 +387,7 @@ impl Mesh {
             elements
                 .iter()
                 .map(|vertices| {
-                    let points: Vec<Vector3<f64>> =
-                        vertices.iter().map(|&v| self.point(v)).collect();
+                    let points: Vec<Vector3<f64>> = vertices.iter().map(|&v| self.point(v)).collect();
                     match kind {
                         Kind::Tets => tet_signed_volume(&points),
                         _ => triangle_signed_area(&points),
@@ -623,9 +607,7 @@ fn sorted_with_parity<const K: usize>(mut facet: [usize; K]) -> ([usize; K], boo
 fn flip_orientation(elements: &mut Elements) {
     match elements {
         Elements::Tets(tets) => tets.iter_mut().for_each(|t| t.swap(2, 3)),
-        Elements::Triangles(tris) | Elements::Shell(tris) => {
-            tris.iter_mut().for_each(|t| t.swap(1, 2))
-        }
+        Elements::Triangles(tris) | Elements::Shell(tris) => tris.iter_mut().for_each(|t| t.swap(1, 2)),
         Elements::Rods(_) => {}
     }
 }
@@ -659,11 +641,7 @@ pub fn boundary_faces(tets: &[[usize; 4]]) -> Vec<[usize; 3]> {
             count.entry(key).or_insert((0, face)).0 += 1;
         }
     }
-    let mut faces: Vec<[usize; 3]> = count
-        .into_values()
-        .filter(|(c, _)| *c == 1)
-        .map(|(_, f)| f)
-        .collect();
+    let mut faces: Vec<[usize; 3]> = count.into_values().filter(|(c, _)| *c == 1).map(|(_, f)| f).collect();
     faces.sort_unstable();
     faces
 }
@@ -700,20 +678,14 @@ mod tests {
             rest: vec![0.0, 0.0, 8.0, 0.0, 8.0, 1.0],
             elements: Elements::Triangles(vec![[0, 1, 2]]),
         };
-        assert_eq!(
-            bar.normalized().rest,
-            vec![-0.5, -0.0625, 0.5, -0.0625, 0.5, 0.0625]
-        );
+        assert_eq!(bar.normalized().rest, vec![-0.5, -0.0625, 0.5, -0.0625, 0.5, 0.0625]);
     }
 
     #[test]
     fn scaled_per_axis_and_mirrored_stays_positive() {
         let mesh = unit_tet();
         let stretched = mesh.scaled(&[2.0, 3.0]);
-        assert_eq!(
-            stretched.rest,
-            vec![0., 0., 0., 2., 0., 0., 0., 3., 0., 0., 0., 1.]
-        );
+        assert_eq!(stretched.rest, vec![0., 0., 0., 2., 0., 0., 0., 3., 0., 0., 0., 1.]);
         approx::assert_relative_eq!(total_volume(&stretched), 1.0, max_relative = 1e-15);
         let mirrored = mesh.scaled(&[-1.0, 1.0, 1.0, 7.0]);
         assert_eq!(mirrored.elements, Elements::Tets(vec![[0, 1, 3, 2]]));
@@ -744,8 +716,7 @@ mod tests {
         assert!(total_volume(&inverted) < 0.0);
         let err = inverted.validate(Path::new("x")).unwrap_err();
         assert!(
-            err.to_string()
-                .contains("all 1 tetrahedra are negatively oriented"),
+            err.to_string().contains("all 1 tetrahedra are negatively oriented"),
             "{err}"
         );
         let fixed = inverted.with_positive_orientation();
@@ -760,10 +731,7 @@ mod tests {
         assert_eq!(still, mixed);
         let err = mixed.validate(Path::new("box")).unwrap_err();
         assert_eq!(err.location, Location::Element(4), "{err}");
-        assert!(
-            err.message.contains("inverted relative to the others"),
-            "{err}"
-        );
+        assert!(err.message.contains("inverted relative to the others"), "{err}");
         // Out-of-range indices do not panic.
         let mut broken = unit_tet();
         broken.elements = Elements::Tets(vec![[0, 1, 2, 9]]);
@@ -777,10 +745,7 @@ mod tests {
         mesh.rest.extend([5.0, 5.0, 5.0]);
         let err = mesh.validate(path).unwrap_err();
         assert_eq!(err.location, Location::File);
-        assert!(
-            err.message.starts_with("vertex 4 is used by no element"),
-            "{err}"
-        );
+        assert!(err.message.starts_with("vertex 4 is used by no element"), "{err}");
         mesh.rest[4] = f64::NAN;
         let err = mesh.validate(path).unwrap_err();
         assert_eq!(

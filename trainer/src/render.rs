@@ -136,9 +136,7 @@ fn check_mesh(mesh: &Mesh) -> anyhow::Result<()> {
     let bad = |e: usize| anyhow!("element {e} refers to a vertex beyond the {n} of the mesh");
     match &mesh.elements {
         Elements::Tets(t) => t.iter().position(|e| e.iter().any(|&v| v >= n)),
-        Elements::Triangles(t) | Elements::Shell(t) => {
-            t.iter().position(|e| e.iter().any(|&v| v >= n))
-        }
+        Elements::Triangles(t) | Elements::Shell(t) => t.iter().position(|e| e.iter().any(|&v| v >= n)),
         Elements::Rods(r) => r.iter().position(|e| e.iter().any(|&v| v >= n)),
     }
     .map_or(Ok(()), |e| Err(bad(e)))
@@ -155,11 +153,7 @@ fn check_frame(mesh: &Mesh, x: &[f64]) -> anyhow::Result<()> {
         );
     }
     if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-        bail!(
-            "vertex {} has a non-finite coordinate {}",
-            i / mesh.dim,
-            x[i]
-        );
+        bail!("vertex {} has a non-finite coordinate {}", i / mesh.dim, x[i]);
     }
     Ok(())
 }
@@ -256,10 +250,7 @@ impl Camera {
         };
         let up = axis(up_axis);
         let (eye, screen_up) = match view {
-            View::ThreeQuarter => (
-                normalize(add3(add3(scale3(right, 0.75), scale3(up, 0.6)), front)),
-                up,
-            ),
+            View::ThreeQuarter => (normalize(add3(add3(scale3(right, 0.75), scale3(up, 0.6)), front)), up),
             View::Front => (front, up),
             View::Side => (right, up),
             View::Top => (up, scale3(front, -1.0)),
@@ -328,21 +319,11 @@ impl Framing {
 
 /// Writes a PNG preview of one or more frames (flat positions, `mesh.dim` per vertex) side
 /// by side, one panel each, framed alike so that motion shows.
-pub fn render_png(
-    path: &Path,
-    mesh: &Mesh,
-    frames: &[&[f64]],
-    opts: &RenderOptions,
-) -> anyhow::Result<()> {
+pub fn render_png(path: &Path, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOptions) -> anyhow::Result<()> {
     draw_preview(path, mesh, frames, opts).with_context(|| format!("rendering {}", path.display()))
 }
 
-fn draw_preview(
-    path: &Path,
-    mesh: &Mesh,
-    frames: &[&[f64]],
-    opts: &RenderOptions,
-) -> anyhow::Result<()> {
+fn draw_preview(path: &Path, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOptions) -> anyhow::Result<()> {
     if frames.is_empty() {
         bail!("no frames to draw");
     }
@@ -376,19 +357,8 @@ fn draw_preview(
     };
     let panels = body.split_evenly((1, frames.len()));
     let (pw, ph) = panels[0].dim_in_pixel();
-    let top = if opts.panel_labels.is_empty() {
-        8.0
-    } else {
-        26.0
-    };
-    let framing = frame_all(
-        &camera,
-        mesh.dim,
-        frames,
-        &shown,
-        (pw as f64, ph as f64),
-        top,
-    );
+    let top = if opts.panel_labels.is_empty() { 8.0 } else { 26.0 };
+    let framing = frame_all(&camera, mesh.dim, frames, &shown, (pw as f64, ph as f64), top);
 
     for (i, (panel, x)) in panels.iter().zip(frames).enumerate() {
         let (pw, ph) = panel.dim_in_pixel();
@@ -402,9 +372,7 @@ fn draw_preview(
         match &mesh.elements {
             Elements::Rods(rods) => draw_rods(panel, &camera, &framing, mesh.dim, x, rods)?,
             Elements::Triangles(_) => draw_flat(panel, &camera, &framing, x, &triangles)?,
-            Elements::Tets(_) | Elements::Shell(_) => {
-                draw_shaded(panel, &camera, &framing, x, &triangles)?
-            }
+            Elements::Tets(_) | Elements::Shell(_) => draw_shaded(panel, &camera, &framing, x, &triangles)?,
         }
         for &v in &opts.highlight {
             let (s, t, _) = camera.project(point(x, mesh.dim, v));
@@ -424,14 +392,7 @@ fn draw_preview(
 
 /// One framing for all panels: the projected bounding box of the drawn vertices of every
 /// frame, fitted into a panel with a margin.
-fn frame_all(
-    camera: &Camera,
-    dim: usize,
-    frames: &[&[f64]],
-    shown: &[usize],
-    panel: (f64, f64),
-    top: f64,
-) -> Framing {
+fn frame_all(camera: &Camera, dim: usize, frames: &[&[f64]], shown: &[usize], panel: (f64, f64), top: f64) -> Framing {
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for x in frames {
         for &v in shown {
@@ -450,11 +411,7 @@ fn frame_all(
     );
     let span = (hi[0] - lo[0], hi[1] - lo[1]);
     let scale = (usable.0 / span.0.max(1e-12)).min(usable.1 / span.1.max(1e-12));
-    let scale = if span.0.max(span.1) < 1e-12 {
-        1.0
-    } else {
-        scale
-    };
+    let scale = if span.0.max(span.1) < 1e-12 { 1.0 } else { scale };
     Framing {
         scale,
         center: ((lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0),
@@ -555,11 +512,7 @@ fn draw_rods(
         .iter()
         .enumerate()
         .map(|(i, rod)| {
-            let depth = rod
-                .iter()
-                .map(|&v| camera.project(point(x, dim, v)).2)
-                .sum::<f64>()
-                / rod.len().max(1) as f64;
+            let depth = rod.iter().map(|&v| camera.project(point(x, dim, v)).2).sum::<f64>() / rod.len().max(1) as f64;
             (depth, i)
         })
         .collect();
@@ -601,14 +554,7 @@ mod tests {
             let c = |dx: usize, dy: usize, dz: usize| id(cx + dx, dy, dz);
             // Six tets around the diagonal c(0,0,0)-c(1,1,1).
             let (a, b) = (c(0, 0, 0), c(1, 1, 1));
-            let ring = [
-                c(1, 0, 0),
-                c(1, 1, 0),
-                c(0, 1, 0),
-                c(0, 1, 1),
-                c(0, 0, 1),
-                c(1, 0, 1),
-            ];
+            let ring = [c(1, 0, 0), c(1, 1, 0), c(0, 1, 0), c(0, 1, 1), c(0, 0, 1), c(1, 0, 1)];
             for k in 0..6 {
                 tets.push([a, ring[k], ring[(k + 1) % 6], b]);
             }
@@ -654,11 +600,7 @@ mod tests {
         let mut rest = Vec::new();
         for j in 0..n {
             for i in 0..n {
-                rest.extend_from_slice(&[
-                    i as f64 / (n - 1) as f64,
-                    0.0,
-                    j as f64 / (n - 1) as f64,
-                ]);
+                rest.extend_from_slice(&[i as f64 / (n - 1) as f64, 0.0, j as f64 / (n - 1) as f64]);
             }
         }
         let mut tris = Vec::new();
@@ -695,11 +637,7 @@ mod tests {
             for k in 0..10 {
                 strand.push(rest.len() / 3);
                 let a = k as f64 * 0.3;
-                rest.extend_from_slice(&[
-                    r as f64 * 0.5 + 0.2 * a.sin(),
-                    -(k as f64) * 0.2,
-                    0.1 * a.cos(),
-                ]);
+                rest.extend_from_slice(&[r as f64 * 0.5 + 0.2 * a.sin(), -(k as f64) * 0.2, 0.1 * a.cos()]);
             }
             strands.push(strand);
         }
@@ -748,12 +686,7 @@ mod tests {
     }
 
     /// Renders and checks size and that a good share of pixels differs from the background.
-    fn check_render(
-        name: &str,
-        mesh: &Mesh,
-        frames: &[&[f64]],
-        opts: &RenderOptions,
-    ) -> Vec<[u8; 3]> {
+    fn check_render(name: &str, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOptions) -> Vec<[u8; 3]> {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join(name);
         render_png(&path, mesh, frames, opts).unwrap();
@@ -761,10 +694,7 @@ mod tests {
         assert_eq!((w, h), (opts.width, opts.height));
         let bg = [BACKGROUND.0, BACKGROUND.1, BACKGROUND.2];
         let drawn = pixels.iter().filter(|&&p| p != bg).count();
-        assert!(
-            drawn > pixels.len() / 50,
-            "{name}: only {drawn} pixels drawn"
-        );
+        assert!(drawn > pixels.len() / 50, "{name}: only {drawn} pixels drawn");
         if let Ok(keep) = std::env::var("MOCHI_KEEP_PREVIEWS") {
             std::fs::copy(&path, Path::new(&keep).join(name)).unwrap();
         }
@@ -832,16 +762,12 @@ mod tests {
         assert_eq!(text.lines().filter(|l| l.starts_with("f ")).count(), 32);
 
         let frames: Vec<Vec<f64>> = (0..7).map(|_| plate.rest.clone()).collect();
-        let written =
-            write_obj_sequence(&dir.path().join("seq"), "plate", &plate, &frames, 3).unwrap();
+        let written = write_obj_sequence(&dir.path().join("seq"), "plate", &plate, &frames, 3).unwrap();
         let names: Vec<String> = written
             .iter()
             .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
             .collect();
-        assert_eq!(
-            names,
-            ["plate_00000.obj", "plate_00003.obj", "plate_00006.obj"]
-        );
+        assert_eq!(names, ["plate_00000.obj", "plate_00003.obj", "plate_00006.obj"]);
         assert!(write_obj_sequence(dir.path(), "p", &plate, &frames, 0).is_err());
 
         let mut bad = plate.rest.clone();
@@ -862,10 +788,7 @@ mod tests {
             ..RenderOptions::default()
         };
         let pixels = check_render("cloth.png", &mesh, &refs, &opts);
-        assert!(
-            count(&pixels, HIGHLIGHT) > 3 * 12 * 5,
-            "pins drawn in every panel"
-        );
+        assert!(count(&pixels, HIGHLIGHT) > 3 * 12 * 5, "pins drawn in every panel");
     }
 
     #[test]
@@ -974,10 +897,7 @@ mod tests {
         let centre = at(100, 104);
         assert!(centre[2] > centre[0], "centre {centre:?} should be blue");
         let corner = at(30, 40);
-        assert!(
-            corner[0] > corner[2],
-            "far square {corner:?} should be orange"
-        );
+        assert!(corner[0] > corner[2], "far square {corner:?} should be orange");
     }
 
     #[test]

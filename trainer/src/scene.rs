@@ -375,7 +375,9 @@ impl Scene {
     /// Parses and validates scene text; `path` is used in errors and to resolve mesh files.
     pub fn parse(text: &str, path: &Path) -> Result<Scene, InputError> {
         let mut scene: Scene = toml::from_str(text).map_err(|e| {
-            let line = e.span().map(|s| text[..s.start.min(text.len())].lines().count().max(1)).unwrap_or(1);
+            let line = e
+                .span()
+                .map_or(1, |s| text[..s.start.min(text.len())].matches('\n').count() + 1);
             InputError::line(path, line, e.message().to_string())
         })?;
         scene.source = path.to_path_buf();
@@ -400,7 +402,8 @@ impl Scene {
             return Err(self.field_error("newton", "tolerance must be positive and max_iterations at least 1"));
         }
         let m = &self.material;
-        check_material(m.youngs, m.poisson, m.density).map_err(|(f, msg)| self.field_error(format!("material.{f}"), msg))?;
+        check_material(m.youngs, m.poisson, m.density)
+            .map_err(|(f, msg)| self.field_error(format!("material.{f}"), msg))?;
         for (k, r) in m.regions.iter().enumerate() {
             let e = ElementMaterial {
                 youngs: r.youngs.unwrap_or(m.youngs),
@@ -419,11 +422,12 @@ impl Scene {
             }
             _ => {}
         }
-        if !positive(self.collision.stiffness) || !(self.collision.margin.is_finite() && self.collision.margin >= 0.0) {
+        if !(positive(self.collision.stiffness) && self.collision.margin.is_finite() && self.collision.margin >= 0.0) {
             return Err(self.field_error("collision", "stiffness must be positive and margin non-negative"));
         }
         for (k, o) in self.obstacles.iter().enumerate() {
-            o.validate().map_err(|msg| self.field_error(format!("obstacles[{k}]"), msg))?;
+            o.validate()
+                .map_err(|msg| self.field_error(format!("obstacles[{k}]"), msg))?;
         }
         for (k, h) in self.handles.iter().enumerate() {
             if let Some(motion) = &h.motion {
@@ -570,7 +574,9 @@ impl Scene {
         let dim = mesh.dim;
         let coord = |v: usize, i: usize| if i < dim { mesh.rest[v * dim + i] } else { 0.0 };
         let mut verts: Vec<usize> = match sel {
-            Selection::Box(b) => (0..n).filter(|&v| b.contains([coord(v, 0), coord(v, 1), coord(v, 2)])).collect(),
+            Selection::Box(b) => (0..n)
+                .filter(|&v| b.contains([coord(v, 0), coord(v, 1), coord(v, 2)]))
+                .collect(),
             Selection::Indices(ids) => {
                 if let Some(&bad) = ids.iter().find(|&&v| v >= n) {
                     return Err(self.field_error(field, format!("vertex index {bad} out of range (mesh has {n})")));
@@ -579,7 +585,9 @@ impl Scene {
             }
             Selection::RodRoots(k) => match &mesh.elements {
                 Elements::Rods(strands) => strands.iter().flat_map(|s| s.iter().take(*k).copied()).collect(),
-                _ => return Err(self.field_error(field, "rod-roots selects vertices of rods, but the mesh is not rods")),
+                _ => {
+                    return Err(self.field_error(field, "rod-roots selects vertices of rods, but the mesh is not rods"))
+                }
             },
             Selection::Nearest(points) => points
                 .iter()
@@ -595,7 +603,9 @@ impl Scene {
                 let (lo, hi) = mesh.bounding_box(&mesh.rest);
                 let extent = (hi[*axis] - lo[*axis]).max(f64::MIN_POSITIVE);
                 let target = if *end == End::Min { lo[*axis] } else { hi[*axis] };
-                (0..n).filter(|&v| (coord(v, *axis) - target).abs() <= tolerance * extent).collect()
+                (0..n)
+                    .filter(|&v| (coord(v, *axis) - target).abs() <= tolerance * extent)
+                    .collect()
             }
         };
         verts.sort_unstable();
@@ -612,7 +622,10 @@ impl Scene {
         for (k, spec) in self.handles.iter().enumerate() {
             let vertices = self.select(mesh, &spec.select, &format!("handles[{k}].select"))?;
             if let Some(&v) = vertices.iter().find(|&&v| taken[v]) {
-                return Err(self.field_error(format!("handles[{k}].select"), format!("vertex {v} already belongs to another handle")));
+                return Err(self.field_error(
+                    format!("handles[{k}].select"),
+                    format!("vertex {v} already belongs to another handle"),
+                ));
             }
             vertices.iter().for_each(|&v| taken[v] = true);
             let rest: Vec<[f64; 3]> = vertices
@@ -625,13 +638,17 @@ impl Scene {
                 .collect();
             let centroid = |pts: &[[f64; 3]]| {
                 let mut c = [0.0; 3];
-                pts.iter().for_each(|p| (0..3).for_each(|i| c[i] += p[i] / pts.len() as f64));
+                pts.iter()
+                    .for_each(|p| (0..3).for_each(|i| c[i] += p[i] / pts.len() as f64));
                 c
             };
             let (lo, hi) = mesh.bounding_box(&mesh.rest);
             let center = [0, 1, 2].map(|i| 0.5 * (lo[i] + hi[i]));
             let scale = spec.reference_scale.unwrap_or([1.0; 3]);
-            let reference: Vec<[f64; 3]> = rest.iter().map(|p| [0, 1, 2].map(|i| center[i] + scale[i] * (p[i] - center[i]))).collect();
+            let reference: Vec<[f64; 3]> = rest
+                .iter()
+                .map(|p| [0, 1, 2].map(|i| center[i] + scale[i] * (p[i] - center[i])))
+                .collect();
             let pivot = spec.pivot.unwrap_or_else(|| centroid(&reference));
             handles.push(Handle {
                 name: spec.name.clone(),
@@ -660,7 +677,12 @@ fn check_material(youngs: f64, poisson: f64, density: f64) -> Result<(), (&'stat
 fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
     match spec {
         MeshSpec::Box { min, max, cells } => mesh::procedural::box_tets(*min, *max, *cells),
-        MeshSpec::ClothGrid { size, verts, origin, axes } => mesh::procedural::cloth_grid(*size, *verts, *origin, (axes[0], axes[1])),
+        MeshSpec::ClothGrid {
+            size,
+            verts,
+            origin,
+            axes,
+        } => mesh::procedural::cloth_grid(*size, *verts, *origin, (axes[0], axes[1])),
         MeshSpec::Rods {
             count,
             verts_per_rod,
@@ -671,7 +693,11 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
         } => {
             // Roots on a near-square grid centred on `origin`, across the rods' direction.
             let d = nalgebra::Vector3::from(*direction);
-            let helper = if d.x.abs() < 0.9 * d.norm() { nalgebra::Vector3::x() } else { nalgebra::Vector3::y() };
+            let helper = if d.x.abs() < 0.9 * d.norm() {
+                nalgebra::Vector3::x()
+            } else {
+                nalgebra::Vector3::y()
+            };
             let e1 = helper.cross(&d).try_normalize(1e-12).unwrap_or(nalgebra::Vector3::z());
             let e2 = d.cross(&e1).try_normalize(1e-12).unwrap_or(nalgebra::Vector3::x());
             let columns = (*count as f64).sqrt().ceil().max(1.0) as usize;
@@ -699,7 +725,11 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
                 Some("cloth") => mesh::io::MeshKind::Cloth,
                 Some("rods") => mesh::io::MeshKind::Rods,
                 Some(other) => {
-                    return Err(InputError::field(scene_file, "mesh.kind", format!("unknown kind `{other}` (cloth or rods)")));
+                    return Err(InputError::field(
+                        scene_file,
+                        "mesh.kind",
+                        format!("unknown kind `{other}` (cloth or rods)"),
+                    ));
                 }
             };
             let mut mesh = mesh::io::load(&full, kind)?;
@@ -708,7 +738,11 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
             }
             if let Some(s) = scale {
                 if s.len() != mesh.dim || !s.iter().all(|c| c.is_finite() && *c > 0.0) {
-                    return Err(InputError::field(scene_file, "mesh.scale", format!("needs {} positive factors", mesh.dim)));
+                    return Err(InputError::field(
+                        scene_file,
+                        "mesh.scale",
+                        format!("needs {} positive factors", mesh.dim),
+                    ));
                 }
                 mesh = mesh.scaled(s);
             }

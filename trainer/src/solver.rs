@@ -35,6 +35,20 @@ pub struct NewtonSettings {
     pub tolerance: f64,
     /// Newton iterations per step before giving up (the step is still taken).
     pub max_iterations: usize,
+    /// Which Hessian Newton uses.
+    pub hessian: HessianMode,
+}
+
+/// Which Hessian Newton uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum HessianMode {
+    /// The exact Hessian when it is positive definite (checked by its Cholesky
+    /// factorisation), the per-stencil PSD projection otherwise.
+    #[default]
+    ExactIfDefinite,
+    /// Always project every stencil Hessian to PSD (eigenvalue clamping).
+    Projected,
 }
 
 impl Default for NewtonSettings {
@@ -42,6 +56,7 @@ impl Default for NewtonSettings {
         NewtonSettings {
             tolerance: 1e-4,
             max_iterations: 50,
+            hessian: HessianMode::default(),
         }
     }
 }
@@ -55,6 +70,8 @@ pub struct StepReport {
     pub step_norms: Vec<f64>,
     /// Whether the tolerance was met.
     pub converged: bool,
+    /// Iterations whose exact Hessian was indefinite, so the projected one was used.
+    pub projected_iterations: usize,
     /// Objective value at the solution.
     pub objective: f64,
     /// Wall-clock seconds of the solve.
@@ -234,19 +251,11 @@ impl Simulator {
         // Predicted positions and the weight of the potentials in the incremental potential.
         let (xhat, weight): (Vec<f64>, f64) = if bdf2 {
             let xhat = (0..self.x.len())
-                .map(|k| {
-                    (4.0 * self.x[k] - self.x_prev[k]) / 3.0
-                        + h * (8.0 * self.v[k] - 2.0 * self.v_prev[k]) / 9.0
-                })
+                .map(|k| (4.0 * self.x[k] - self.x_prev[k]) / 3.0 + h * (8.0 * self.v[k] - 2.0 * self.v_prev[k]) / 9.0)
                 .collect();
             (xhat, 4.0 / 9.0 * h * h)
         } else {
-            (
-                (0..self.x.len())
-                    .map(|k| self.x[k] + h * self.v[k])
-                    .collect(),
-                h * h,
-            )
+            ((0..self.x.len()).map(|k| self.x[k] + h * self.v[k]).collect(), h * h)
         };
         self.inertia.set_target(&xhat);
         let mut x = xhat;
@@ -304,13 +313,7 @@ impl Simulator {
     }
 
     /// Objective `w_inertia * inertia + w_potential * sum(potentials)` and its gradient.
-    fn objective(
-        &self,
-        x: &[f64],
-        w_inertia: f64,
-        w_potential: f64,
-        grad: Option<&mut Vec<f64>>,
-    ) -> f64 {
+    fn objective(&self, x: &[f64], w_inertia: f64, w_potential: f64, grad: Option<&mut Vec<f64>>) -> f64 {
         match grad {
             None => {
                 let mut e = 0.0;
@@ -361,13 +364,22 @@ impl Simulator {
                 report.converged = true;
                 break;
             }
-            self.assemble(x, w_inertia, w_potential);
             for (k, &f) in self.free_index.iter().enumerate() {
                 if f != NOT_FREE {
                     rhs[f] = -grad[k];
                 }
             }
-            self.hessian.solve(&mut rhs);
+            // Exact Newton where the exact Hessian is positive definite (quadratic
+            // convergence); otherwise per-stencil PSD projection (always a descent direction).
+            let exact_first = self.settings.hessian == HessianMode::ExactIfDefinite;
+            self.assemble(x, w_inertia, w_potential, !exact_first);
+            if !(exact_first && self.hessian.try_solve(&mut rhs)) {
+                if exact_first {
+                    self.assemble(x, w_inertia, w_potential, true);
+                    report.projected_iterations += 1;
+                }
+                self.hessian.solve(&mut rhs);
+            }
             let dir = &rhs;
             let step_norm = dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) / norm_scale;
             if !step_norm.is_finite() {
@@ -383,6 +395,12 @@ impl Simulator {
                 .filter(|(_, &f)| f != NOT_FREE)
                 .map(|(k, &f)| grad[k] * dir[f])
                 .sum();
+            // At the round-off floor the predicted decrease is below what the objective can
+            // resolve: the iterate cannot get better, so stop there.
+            if -slope <= 1e-14 * e.abs() {
+                report.converged = true;
+                break;
+            }
             let mut alpha = 1.0;
             loop {
                 for (k, &f) in self.free_index.iter().enumerate() {
@@ -419,8 +437,9 @@ impl Simulator {
         Ok(report)
     }
 
-    /// Assembles the PSD-projected free-free Hessian of the objective.
-    fn assemble(&mut self, x: &[f64], w_inertia: f64, w_potential: f64) {
+    /// Assembles the free-free Hessian of the objective, optionally with every stencil
+    /// Hessian projected to PSD.
+    fn assemble(&mut self, x: &[f64], w_inertia: f64, w_potential: f64, project: bool) {
         self.hessian.values.fill(0.0);
         let terms = std::iter::once((&self.inertia as &dyn StencilEnergy, w_inertia))
             .chain(self.potentials.iter().map(|p| (p.as_ref(), w_potential)));
@@ -430,7 +449,7 @@ impl Simulator {
             }
             let slots = &self.hessian.slots[term];
             let values = &mut self.hessian.values;
-            energy::for_each_hessian(energy, x, true, |s, _, local| {
+            energy::for_each_hessian(energy, x, project, |s, _, local| {
                 let range = slots.offsets[s]..slots.offsets[s + 1];
                 for (slot, h) in slots.slots[range].iter().zip(&local.hess) {
                     if *slot != NO_SLOT {
@@ -460,7 +479,7 @@ struct HessianPattern {
     row_idx: Vec<u32>,
     values: Vec<f64>,
     slots: Vec<StencilSlots>,
-    symbolic: Option<SymbolicLlt<u32>>,
+    symbolic: SymbolicLlt<u32>,
 }
 
 impl HessianPattern {
@@ -521,13 +540,34 @@ impl HessianPattern {
             })
             .collect();
         let nnz = row_idx.len();
+        // The symbolic analysis (ordering, elimination tree, fill) depends only on the
+        // pattern: computed once here, reused by every numeric factorisation.
+        let symbolic = SymbolicLlt::try_new(
+            SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx),
+            Side::Lower,
+        )
+        .expect("symbolic Cholesky of a valid pattern");
         HessianPattern {
             n,
             col_ptr,
             row_idx,
             values: vec![0.0; nnz],
             slots,
-            symbolic: None,
+            symbolic,
+        }
+    }
+
+    /// Solves `H d = rhs` in place if the assembled `H` is positive definite; returns
+    /// false (leaving `rhs` untouched) if its Cholesky factorisation fails.
+    fn try_solve(&mut self, rhs: &mut [f64]) -> bool {
+        let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
+        let symbolic = self.symbolic.clone();
+        match Llt::try_new_with_symbolic(symbolic, SparseColMatRef::new(pattern, &self.values), Side::Lower) {
+            Ok(llt) => {
+                llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
+                true
+            }
+            Err(_) => false,
         }
     }
 
@@ -535,20 +575,8 @@ impl HessianPattern {
     /// values. If `H` is not numerically positive definite, a growing multiple of the
     /// identity (relative to the largest diagonal entry) is added until it is.
     fn solve(&mut self, rhs: &mut [f64]) {
-        let pattern = SymbolicSparseColMatRef::new_checked(
-            self.n,
-            self.n,
-            &self.col_ptr,
-            None,
-            &self.row_idx,
-        );
-        let symbolic = self
-            .symbolic
-            .get_or_insert_with(|| {
-                SymbolicLlt::try_new(pattern, Side::Lower)
-                    .expect("symbolic Cholesky of a valid pattern")
-            })
-            .clone();
+        let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
+        let symbolic = self.symbolic.clone();
         let diag_max = (0..self.n)
             .map(|c| self.values[self.col_ptr[c] as usize])
             .fold(0.0f64, |m, v| m.max(v.abs()))
@@ -568,13 +596,7 @@ impl HessianPattern {
                     llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
                     return;
                 }
-                Err(_) => {
-                    shift = if shift == 0.0 {
-                        1e-10 * diag_max
-                    } else {
-                        shift * 100.0
-                    }
-                }
+                Err(_) => shift = if shift == 0.0 { 1e-10 * diag_max } else { shift * 100.0 },
             }
         }
     }

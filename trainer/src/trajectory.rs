@@ -74,16 +74,12 @@ impl Trajectory {
 
     /// The value of the first metadata entry named `key`.
     pub fn meta_value(&self, key: &str) -> Option<&str> {
-        self.meta
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.as_str())
+        self.meta.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
     }
 
     /// Checks that lengths are consistent and values finite; the message names the field.
     pub fn validate(&self) -> Result<(), String> {
-        self.check()
-            .map_err(|(field, msg)| format!("{field}: {msg}"))
+        self.check().map_err(|(field, msg)| format!("{field}: {msg}"))
     }
 
     /// Like [`Self::validate`], with the field and the message apart.
@@ -92,17 +88,11 @@ impl Trajectory {
             return Err(("positions", format!("dim must be 2 or 3, not {}", self.dim)));
         }
         if !(self.dt.is_finite() && self.dt > 0.0) {
-            return Err((
-                "dt",
-                format!("must be finite and positive, not {}", self.dt),
-            ));
+            return Err(("dt", format!("must be finite and positive, not {}", self.dt)));
         }
         let frames = self.positions.len();
         if frames == 0 {
-            return Err((
-                "positions",
-                "no frames (frame 0 is the initial state)".into(),
-            ));
+            return Err(("positions", "no frames (frame 0 is the initial state)".into()));
         }
         let width = self.positions[0].len();
         if width == 0 || !width.is_multiple_of(self.dim) {
@@ -120,17 +110,10 @@ impl Trajectory {
         check_table("energies", &self.energies, frames, self.energy_names.len())?;
         check_len("newton_iterations", self.newton_iterations.len(), frames)?;
         check_len("step_seconds", self.step_seconds.len(), frames)?;
-        if let Some(i) = self
-            .step_seconds
-            .iter()
-            .position(|s| !(s.is_finite() && *s >= 0.0))
-        {
+        if let Some(i) = self.step_seconds.iter().position(|s| !(s.is_finite() && *s >= 0.0)) {
             return Err((
                 "step_seconds",
-                format!(
-                    "frame {i}: {} is not a finite, non-negative time",
-                    self.step_seconds[i]
-                ),
+                format!("frame {i}: {} is not a finite, non-negative time", self.step_seconds[i]),
             ));
         }
         check_text("scene", &self.scene)?;
@@ -194,12 +177,7 @@ impl Trajectory {
             &[frames],
             self.newton_iterations.iter().copied(),
         )?;
-        put(
-            &mut npz,
-            "step_seconds",
-            &[frames],
-            self.step_seconds.iter().copied(),
-        )?;
+        put(&mut npz, "step_seconds", &[frames], self.step_seconds.iter().copied())?;
         put_strings(
             &mut npz,
             "meta",
@@ -311,10 +289,7 @@ fn check_table(
     check_len(field, table.len(), frames)?;
     for (f, row) in table.iter().enumerate() {
         if row.len() != width {
-            return Err((
-                field,
-                format!("frame {f} has {} values, expected {width}", row.len()),
-            ));
+            return Err((field, format!("frame {f} has {} values, expected {width}", row.len())));
         }
         if let Some(i) = row.iter().position(|v| !v.is_finite()) {
             return Err((field, format!("frame {f}, entry {i} is {}", row[i])));
@@ -413,17 +388,11 @@ struct NpzFile<'p> {
 
 impl<'p> NpzFile<'p> {
     fn open(path: &'p Path) -> Result<Self, InputError> {
-        let fail = |e: &dyn std::fmt::Display| {
-            InputError::file(path, format!("cannot open as an .npz archive: {e}"))
-        };
+        let fail = |e: &dyn std::fmt::Display| InputError::file(path, format!("cannot open as an .npz archive: {e}"));
         let file = File::open(path).map_err(|e| fail(&e))?;
         let file_len = file.metadata().map_err(|e| fail(&e))?.len();
         let zip = zip::ZipArchive::new(BufReader::new(file)).map_err(|e| fail(&e))?;
-        Ok(NpzFile {
-            path,
-            zip,
-            file_len,
-        })
+        Ok(NpzFile { path, zip, file_len })
     }
 
     /// Reads the whole entry of array `name` (checksum verified) and parses its header.
@@ -439,9 +408,7 @@ impl<'p> NpzFile<'p> {
         let packed = entry.compressed_size();
         let bound = match entry.compression() {
             CompressionMethod::Stored => packed,
-            _ => packed
-                .saturating_mul(MAX_DEFLATE_RATIO)
-                .saturating_add(1024),
+            _ => packed.saturating_mul(MAX_DEFLATE_RATIO).saturating_add(1024),
         };
         if packed > self.file_len || size > bound {
             return Err(err(format!(
@@ -478,8 +445,7 @@ impl<'p> NpyArray<'p> {
         let err = |msg: String| InputError::field(path, name, msg);
         let (header_end, shape, count) = pre_check_header(&bytes).map_err(err)?;
         let data_len = (bytes.len() - header_end) as u64;
-        let npy =
-            NpyFile::new(Cursor::new(bytes)).map_err(|e| err(format!("bad .npy header: {e}")))?;
+        let npy = NpyFile::new(Cursor::new(bytes)).map_err(|e| err(format!("bad .npy header: {e}")))?;
         if npy.shape() != shape.as_slice() {
             return Err(err("bad .npy header: unreadable shape".into()));
         }
@@ -494,12 +460,7 @@ impl<'p> NpyArray<'p> {
                 needed.map_or("too many".into(), |b| b.to_string())
             )));
         }
-        Ok(NpyArray {
-            path,
-            name,
-            shape,
-            npy,
-        })
+        Ok(NpyArray { path, name, shape, npy })
     }
 
     fn error(&self, msg: String) -> InputError {
@@ -525,8 +486,7 @@ impl<'p> NpyArray<'p> {
             )));
         }
         for (d, &s) in dims.iter_mut().zip(&self.shape) {
-            *d =
-                usize::try_from(s).map_err(|_| self.error(format!("axis length {s} too large")))?;
+            *d = usize::try_from(s).map_err(|_| self.error(format!("axis length {s} too large")))?;
         }
         Ok(dims)
     }
@@ -551,13 +511,9 @@ impl<'p> NpyArray<'p> {
                 "Fortran-ordered arrays are not supported",
             ));
         }
-        self.npy.into_vec::<T>().map_err(|e| {
-            InputError::field(
-                path,
-                name,
-                format!("expected {what} data, found dtype {descr}: {e}"),
-            )
-        })
+        self.npy
+            .into_vec::<T>()
+            .map_err(|e| InputError::field(path, name, format!("expected {what} data, found dtype {descr}: {e}")))
     }
 }
 
@@ -651,9 +607,7 @@ mod tests {
         t.write_npz(&path).unwrap();
         let back = Trajectory::read_npz(&path).unwrap();
         assert_eq!(back, t);
-        let bits = |t: &Trajectory| -> Vec<u64> {
-            t.positions.iter().flatten().map(|v| v.to_bits()).collect()
-        };
+        let bits = |t: &Trajectory| -> Vec<u64> { t.positions.iter().flatten().map(|v| v.to_bits()).collect() };
         assert_eq!(bits(&back), bits(&t));
         assert_eq!(back.dt.to_bits(), t.dt.to_bits());
         assert_eq!(back.meta_value("split"), Some("train"));
@@ -763,8 +717,7 @@ mod tests {
                 .unwrap();
             w.extend([1.0f32, 2.0]).unwrap();
             w.finish().unwrap();
-            zout.start_file(format!("{name}.npy"), entry_options())
-                .unwrap();
+            zout.start_file(format!("{name}.npy"), entry_options()).unwrap();
             io::Write::write_all(&mut zout, &npy).unwrap();
             zout.finish().unwrap();
             let e = Trajectory::read_npz(&path).unwrap_err();

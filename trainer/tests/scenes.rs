@@ -9,7 +9,10 @@ use std::path::Path;
 fn every_shipped_scene_builds_at_its_documented_size() {
     let names = shipped_scene_names();
     for expected in ["beam", "beam-xl", "bistable", "cloth", "load3d", "rods"] {
-        assert!(names.iter().any(|n| n == expected), "missing scene {expected}: {names:?}");
+        assert!(
+            names.iter().any(|n| n == expected),
+            "missing scene {expected}: {names:?}"
+        );
     }
     for name in names {
         let scene = Scene::load(&name).unwrap_or_else(|e| panic!("{e}"));
@@ -42,7 +45,9 @@ fn every_shipped_scene_builds_at_its_documented_size() {
 }
 
 fn parse_err(text: &str) -> String {
-    let err = Scene::parse(text, Path::new("bad.toml")).and_then(|s| s.build().map(|_| s)).expect_err("must be refused");
+    let err = Scene::parse(text, Path::new("bad.toml"))
+        .and_then(|s| s.build().map(|_| s))
+        .expect_err("must be refused");
     let msg = err.to_string();
     assert!(msg.starts_with("bad.toml"), "error names the file: {msg}");
     msg
@@ -90,13 +95,24 @@ fn bad_values_name_the_field() {
         ("name = \"ok\"", "name = \"ok\"\ndt = 0.0", "dt"),
         ("name = \"ok\"", "name = \"ok\"\ngravity = [0.0, inf, 0.0]", "gravity"),
         ("end = \"min\"", "end = \"min\", tolerance = -1.0", "handles[0].select"),
-        ("select = { side = { axis = 0, end = \"min\" } }", "select = { indices = [0, 99] }", "handles[0].select"),
-        ("select = { side = { axis = 0, end = \"min\" } }", "select = { rod-roots = 2 }", "handles[0].select"),
+        (
+            "select = { side = { axis = 0, end = \"min\" } }",
+            "select = { indices = [0, 99] }",
+            "handles[0].select",
+        ),
+        (
+            "select = { side = { axis = 0, end = \"min\" } }",
+            "select = { rod-roots = 2 }",
+            "handles[0].select",
+        ),
     ] {
         let text = GOOD.replace(from, to);
         assert_ne!(text, GOOD, "replacement {from} applies");
         let msg = parse_err(&text);
-        assert!(msg.contains(&format!("field `{field}`")), "expected field {field}: {msg}");
+        assert!(
+            msg.contains(&format!("field `{field}`")),
+            "expected field {field}: {msg}"
+        );
     }
 }
 
@@ -106,7 +122,11 @@ fn missing_mesh_file_names_the_file() {
         "type = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 0.2, 0.2]\ncells = [4, 1, 1]",
         "type = \"file\"\npath = \"nowhere.mesh\"",
     );
-    let err = Scene::parse(&text, Path::new("bad.toml")).unwrap().build().err().expect("missing file");
+    let err = Scene::parse(&text, Path::new("bad.toml"))
+        .unwrap()
+        .build()
+        .err()
+        .expect("missing file");
     assert!(err.to_string().contains("nowhere.mesh"), "{err}");
 }
 

@@ -17,10 +17,7 @@ impl ConstantForce {
     /// Gravity with acceleration `g` on vertices of the given masses (first `dim`
     /// components of `g` are used).
     pub fn gravity(dim: usize, masses: &[f64], g: [f64; 3]) -> Self {
-        let forces = masses
-            .iter()
-            .flat_map(|m| (0..dim).map(move |i| m * g[i]))
-            .collect();
+        let forces = masses.iter().flat_map(|m| (0..dim).map(move |i| m * g[i])).collect();
         ConstantForce {
             name: "gravity",
             dim,
@@ -181,12 +178,12 @@ impl Obstacle {
                 }
             }
             Obstacle::Sphere { center, radius } => {
-                if !finite(center) || !(radius.is_finite() && *radius > 0.0) {
+                if !(finite(center) && radius.is_finite() && *radius > 0.0) {
                     return Err("sphere needs a finite centre and a positive radius".into());
                 }
             }
             Obstacle::Capsule { a, b, radius } => {
-                if !finite(a) || !finite(b) || !(radius.is_finite() && *radius > 0.0) {
+                if !(finite(a) && finite(b) && radius.is_finite() && *radius > 0.0) {
                     return Err("capsule needs finite end points and a positive radius".into());
                 }
             }
@@ -201,18 +198,12 @@ impl Obstacle {
                 let n = V3::from(*normal).normalize();
                 (n.dot(&(p - V3::from(*point))), n, M3::zeros())
             }
-            Obstacle::Sphere { center, radius } => {
-                ball_distance(p, V3::from(*center), *radius, None)
-            }
+            Obstacle::Sphere { center, radius } => ball_distance(p, V3::from(*center), *radius, None),
             Obstacle::Capsule { a, b, radius } => {
                 let (a, b) = (V3::from(*a), V3::from(*b));
                 let axis = b - a;
                 let len2 = axis.norm_squared();
-                let t = if len2 > 0.0 {
-                    (p - a).dot(&axis) / len2
-                } else {
-                    0.0
-                };
+                let t = if len2 > 0.0 { (p - a).dot(&axis) / len2 } else { 0.0 };
                 if t <= 0.0 {
                     ball_distance(p, a, *radius, None)
                 } else if t >= 1.0 {
@@ -259,13 +250,7 @@ pub struct Collision {
 
 impl Collision {
     /// Collision of every vertex against `obstacles`.
-    pub fn new(
-        dim: usize,
-        masses: Vec<f64>,
-        obstacles: Vec<Obstacle>,
-        stiffness: f64,
-        margin: f64,
-    ) -> Self {
+    pub fn new(dim: usize, masses: Vec<f64>, obstacles: Vec<Obstacle>, stiffness: f64, margin: f64) -> Self {
         let ids = (0..masses.len()).collect();
         Collision {
             dim,
@@ -343,12 +328,7 @@ mod tests {
             1e-6,
             1e-7,
         );
-        fd::assert_all_stencils(
-            &ConstantForce::load(3, vec![1], [0.0, 2.0, -1.0]),
-            &x,
-            1e-6,
-            1e-7,
-        );
+        fd::assert_all_stencils(&ConstantForce::load(3, vec![1], [0.0, 2.0, -1.0]), &x, 1e-6, 1e-7);
         let mut p = Penalty::new(3, 1e5, vec![1, 0]);
         p.set_targets(&[0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
         fd::assert_all_stencils(&p, &x, 1e-6, 1e-7);
@@ -403,10 +383,7 @@ mod tests {
         assert_eq!(c.eval(0, &[0.0, 0.5, 0.0], Want::Gradient, &mut out), 0.0);
         assert_eq!(out.grad[1], 0.0);
         assert!(c.eval(0, &[0.0, -0.05, 0.0], Want::Gradient, &mut out) > 0.0);
-        assert!(
-            out.grad[1] < 0.0,
-            "energy decreases when moving out of the obstacle"
-        );
+        assert!(out.grad[1] < 0.0, "energy decreases when moving out of the obstacle");
     }
 
     #[test]

@@ -41,18 +41,9 @@ pub fn check_stencil(energy: &dyn StencilEnergy, s: usize, x: &[f64], h: f64) ->
     }
     let gscale = grad[..n].iter().fold(1.0f64, |m, v| m.max(v.abs()));
     let hscale = hess[..n * n].iter().fold(1.0f64, |m, v| m.max(v.abs()));
-    let grad_error = (0..n)
-        .map(|k| (grad[k] - grad_fd[k]).abs())
-        .fold(0.0, f64::max)
-        / gscale;
-    let hess_error = (0..n * n)
-        .map(|k| (hess[k] - hess_fd[k]).abs())
-        .fold(0.0, f64::max)
-        / hscale;
-    FdReport {
-        grad_error,
-        hess_error,
-    }
+    let grad_error = (0..n).map(|k| (grad[k] - grad_fd[k]).abs()).fold(0.0, f64::max) / gscale;
+    let hess_error = (0..n * n).map(|k| (hess[k] - hess_fd[k]).abs()).fold(0.0, f64::max) / hscale;
+    FdReport { grad_error, hess_error }
 }
 
 /// Asserts that every stencil of `energy` passes [`check_stencil`] at the positions `x`

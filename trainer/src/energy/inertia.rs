@@ -115,8 +115,7 @@ pub fn lumped_masses(mesh: &Mesh, densities: &[f64], thickness: f64, radius: f64
                     u[0] * w[1] - u[1] * w[0],
                 ];
                 let area = 0.5 * (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
-                t.iter()
-                    .for_each(|&v| m[v] += density(e) * thickness * area / 3.0);
+                t.iter().for_each(|&v| m[v] += density(e) * thickness * area / 3.0);
             }
         }
         Elements::Rods(strands) => {
@@ -124,9 +123,7 @@ pub fn lumped_masses(mesh: &Mesh, densities: &[f64], thickness: f64, radius: f64
             for (k, strand) in strands.iter().enumerate() {
                 for w in strand.windows(2) {
                     let (a, b) = (p3(w[0]), p3(w[1]));
-                    let len =
-                        ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2))
-                            .sqrt();
+                    let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt();
                     let share = density(k) * section * len / 2.0;
                     m[w[0]] += share;
                     m[w[1]] += share;

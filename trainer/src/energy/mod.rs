@@ -107,12 +107,7 @@ pub trait StencilEnergy: Send + Sync {
 }
 
 /// Gathers the local positions of stencil `s` from the global vector `x`.
-pub fn gather(
-    energy: &dyn StencilEnergy,
-    s: usize,
-    x: &[f64],
-    local: &mut [f64; MAX_DOF],
-) -> usize {
+pub fn gather(energy: &dyn StencilEnergy, s: usize, x: &[f64], local: &mut [f64; MAX_DOF]) -> usize {
     let dim = energy.dim();
     let verts = energy.stencil(s);
     for (a, &v) in verts.iter().enumerate() {

@@ -31,8 +31,7 @@ use std::path::Path;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use super::shell::{
-    check_materials, check_positions, check_positive, material_of, scatter_relative, vertex,
-    write_block,
+    check_materials, check_positions, check_positive, material_of, scatter_relative, vertex, write_block,
 };
 use super::{Local, StencilEnergy, Want};
 use crate::error::InputError;
@@ -109,11 +108,7 @@ impl StencilEnergy for RodStretch {
             return value;
         }
         // A fully collapsed edge has no direction: no force, axial stiffness in all directions.
-        let direction = if length > 0.0 {
-            e / length
-        } else {
-            Vector3::zeros()
-        };
+        let direction = if length > 0.0 { e / length } else { Vector3::zeros() };
         let grad = direction * (p.axial * strain);
         out.grad[..3].copy_from_slice((-grad).as_slice());
         out.grad[3..6].copy_from_slice(grad.as_slice());
@@ -126,8 +121,7 @@ impl StencilEnergy for RodStretch {
         let block = if length > 0.0 {
             let along = direction * direction.transpose();
             let transverse_strain = if project { strain.max(0.0) } else { strain };
-            (along / p.rest_length + (Matrix3::identity() - along) * (transverse_strain / length))
-                * p.axial
+            (along / p.rest_length + (Matrix3::identity() - along) * (transverse_strain / length)) * p.axial
         } else {
             Matrix3::identity() * (p.axial / p.rest_length)
         };
@@ -289,10 +283,10 @@ impl StencilEnergy for RodBend {
         let (d2, id) = (d * d, Matrix3::identity());
         let e1xv = e1.cross(&v);
         let vxe0 = v.cross(&e0);
-        let k00 = -(e1xv * e1.transpose() + e1 * e1xv.transpose()) * (2.0 / d2)
-            + e1 * e1.transpose() * (2.0 * s_kv / d2);
-        let k11 = -(vxe0 * e0.transpose() + e0 * vxe0.transpose()) * (2.0 / d2)
-            + e0 * e0.transpose() * (2.0 * s_kv / d2);
+        let k00 =
+            -(e1xv * e1.transpose() + e1 * e1xv.transpose()) * (2.0 / d2) + e1 * e1.transpose() * (2.0 * s_kv / d2);
+        let k11 =
+            -(vxe0 * e0.transpose() + e0 * vxe0.transpose()) * (2.0 / d2) + e0 * e0.transpose() * (2.0 * s_kv / d2);
         let k01 = -v.cross_matrix() * (2.0 / d)
             - e1xv * e0.transpose() * (2.0 / d2)
             - id * (s_kv / d)
@@ -307,9 +301,7 @@ impl StencilEnergy for RodBend {
         };
         curvature_terms.fixed_view_mut::<3, 3>(0, 0).copy_from(&k00);
         curvature_terms.fixed_view_mut::<3, 3>(0, 3).copy_from(&k01);
-        curvature_terms
-            .fixed_view_mut::<3, 3>(3, 0)
-            .copy_from(&k01.transpose());
+        curvature_terms.fixed_view_mut::<3, 3>(3, 0).copy_from(&k01.transpose());
         curvature_terms.fixed_view_mut::<3, 3>(3, 3).copy_from(&k11);
         let metric = if shrink > 0.0 {
             let u = kb / kappa;
@@ -450,9 +442,7 @@ mod tests {
     }
 
     fn straight(n: usize, step: f64) -> Vec<f64> {
-        (0..n)
-            .flat_map(|j| [0.0, 0.0, -(j as f64) * step])
-            .collect()
+        (0..n).flat_map(|j| [0.0, 0.0, -(j as f64) * step]).collect()
     }
 
     #[test]
@@ -477,17 +467,11 @@ mod tests {
                         report.grad_error < 1e-6 && report.hess_error < 1e-6,
                         "angle {angle}, rest {rest_angle}: {report:?}"
                     );
-                    worst = (
-                        worst.0.max(report.grad_error),
-                        worst.1.max(report.hess_error),
-                    );
+                    worst = (worst.0.max(report.grad_error), worst.1.max(report.hess_error));
                 }
             }
         }
-        eprintln!(
-            "bend FD worst: gradient {:.1e}, Hessian {:.1e}",
-            worst.0, worst.1
-        );
+        eprintln!("bend FD worst: gradient {:.1e}, Hessian {:.1e}", worst.0, worst.1);
     }
 
     #[test]
@@ -501,10 +485,7 @@ mod tests {
             let length = rng.random_range(0.1..2.0);
             let x = bent_triple(&mut rng, 0.0, length, 1.0);
             let report = check_stencil(&stretch, 0, &x[..6], 1e-6);
-            assert!(
-                report.grad_error < 1e-7 && report.hess_error < 1e-7,
-                "{report:?}"
-            );
+            assert!(report.grad_error < 1e-7 && report.hess_error < 1e-7, "{report:?}");
         }
     }
 
@@ -516,10 +497,7 @@ mod tests {
         let strands = vec![(0..8).collect::<Vec<_>>()];
         let stretch = RodStretch::new(&rest, &strands, &[m], r, path()).unwrap();
         let bend = RodBend::new(&rest, &strands, &[m], r, path()).unwrap();
-        let x: Vec<f64> = rest
-            .iter()
-            .map(|c| c + rng.random_range(-0.05..0.05))
-            .collect();
+        let x: Vec<f64> = rest.iter().map(|c| c + rng.random_range(-0.05..0.05)).collect();
         assert_all_stencils(&stretch, &x, 1e-6, 1e-7);
         assert_all_stencils(&bend, &x, 1e-6, 1e-6);
     }
@@ -537,11 +515,7 @@ mod tests {
             let mut grad = vec![0.0; rest.len()];
             let e = add_gradient(energy, 1.0, &rest, &mut grad);
             let g = grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
-            assert!(
-                e.abs() < 1e-20 && g < 1e-9,
-                "{}: {e:e}, {g:e}",
-                energy.name()
-            );
+            assert!(e.abs() < 1e-20 && g < 1e-9, "{}: {e:e}, {g:e}", energy.name());
         }
     }
 
@@ -554,19 +528,12 @@ mod tests {
         let stretch = RodStretch::new(&rest, &strands, &[m], r, path()).unwrap();
         let bend = RodBend::new(&rest, &strands, &[m], r, path()).unwrap();
         for _ in 0..10 {
-            let x: Vec<f64> = rest
-                .iter()
-                .map(|c| c + rng.random_range(-0.03..0.03))
-                .collect();
+            let x: Vec<f64> = rest.iter().map(|c| c + rng.random_range(-0.03..0.03)).collect();
             let rotation = Rotation3::new(random_unit(&mut rng) * rng.random_range(0.0..3.0));
             let moved = transform(&x, &rotation, &Vector3::new(1.0, -2.0, 0.5));
             for energy in [&stretch as &dyn StencilEnergy, &bend] {
                 let (a, b) = (value(energy, &x), value(energy, &moved));
-                assert!(
-                    a > 0.0 && (a - b).abs() <= 1e-10 * a,
-                    "{}: {a} {b}",
-                    energy.name()
-                );
+                assert!(a > 0.0 && (a - b).abs() <= 1e-10 * a, "{}: {a} {b}", energy.name());
             }
         }
     }
@@ -658,11 +625,7 @@ mod tests {
                 assert!(min > -1e-10 * scale, "{}: {min}", energy.name());
             }
         }
-        assert_eq!(
-            negative_seen,
-            [true, true],
-            "the test should include indefinite cases"
-        );
+        assert_eq!(negative_seen, [true, true], "the test should include indefinite cases");
     }
 
     #[test]

@@ -64,9 +64,9 @@ impl ShellMembrane {
             let along = e1.normalize();
             let across = normal.normalize().cross(&along);
             let rest_edges = Matrix2::new(e1.norm(), e2.dot(&along), 0.0, e2.dot(&across));
-            let rest_inv = rest_edges.try_inverse().ok_or_else(|| {
-                InputError::element(source, t, "degenerate rest triangle (zero area)")
-            })?;
+            let rest_inv = rest_edges
+                .try_inverse()
+                .ok_or_else(|| InputError::element(source, t, "degenerate rest triangle (zero area)"))?;
             let m = material_of(materials, t);
             params.push(MembraneParams {
                 rest_inv,
@@ -211,12 +211,7 @@ impl ShellBending {
         let mut hinges = Vec::new();
         let mut params = Vec::new();
         for edge in interior_edges(tris, source)? {
-            let hinge = [
-                edge.ends[0],
-                edge.ends[1],
-                edge.opposite[0],
-                edge.opposite[1],
-            ];
+            let hinge = [edge.ends[0], edge.ends[1], edge.opposite[0], edge.opposite[1]];
             let [x0, x1, x2, x3] = hinge.map(|v| vertex(rest, v));
             let rest_length = (x1 - x0).norm();
             let rest_angle = dihedral_angle(&(x1 - x0), &(x2 - x0), &(x3 - x0));
@@ -283,8 +278,8 @@ impl StencilEnergy for ShellBending {
         match want.hessian() {
             None => scatter_relative(&HINGE_RELATIVE, &grad, None, out),
             Some(project) => {
-                let hess = (angle.grad * angle.grad.transpose() + angle.hess * delta)
-                    * (2.0 * p.stiffness * scale * scale);
+                let hess =
+                    (angle.grad * angle.grad.transpose() + angle.hess * delta) * (2.0 * p.stiffness * scale * scale);
                 scatter_relative(&HINGE_RELATIVE, &grad, Some((&hess, project)), out);
             }
         }
@@ -294,12 +289,7 @@ impl StencilEnergy for ShellBending {
 
 /// How the hinge's relative vectors `(x1 - x0, x2 - x0, x3 - x0)` depend on its vertices:
 /// row `a` holds the coefficients of vertex `a` in each.
-const HINGE_RELATIVE: [[f64; 3]; 4] = [
-    [-1.0, -1.0, -1.0],
-    [1.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0],
-    [0.0, 0.0, 1.0],
-];
+const HINGE_RELATIVE: [[f64; 3]; 4] = [[-1.0, -1.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 /// Signed dihedral angle of a hinge with edge `e = x1 - x0` and opposite vertices
 /// `x2 = x0 + a`, `x3 = x0 + b`: the angle between the face normals `n1 = e x a` and
@@ -370,11 +360,8 @@ impl DihedralAngle {
         let (tx, ty) = (-y / r2, x / r2);
         let (txx, tyy, txy) = (2.0 * x * y / r4, -2.0 * x * y / r4, (y * y - x * x) / r4);
         let dxdy = dx * dy.transpose();
-        let hess = hx * tx
-            + hy * ty
-            + dx * dx.transpose() * txx
-            + dy * dy.transpose() * tyy
-            + (dxdy + dxdy.transpose()) * txy;
+        let hess =
+            hx * tx + hy * ty + dx * dx.transpose() * txx + dy * dy.transpose() * tyy + (dxdy + dxdy.transpose()) * txy;
         DihedralAngle {
             theta,
             grad: dy * ty + dx * tx,
@@ -417,11 +404,7 @@ impl AngleParts {
 
     /// Gradient of det(e, a, b) with respect to (e, a, b).
     fn det_gradient(&self) -> SVector<f64, 9> {
-        stack3(
-            &self.a.cross(&self.b),
-            &self.b.cross(&self.e),
-            &self.e.cross(&self.a),
-        )
+        stack3(&self.a.cross(&self.b), &self.b.cross(&self.e), &self.e.cross(&self.a))
     }
 
     /// Gradients of `x` and `y`.
@@ -579,11 +562,7 @@ fn rest_triangle(
         .max(e2.norm_squared())
         .max((xs[2] - xs[1]).norm_squared());
     if e1.cross(&e2).norm() <= 1e-12 * longest {
-        return Err(InputError::element(
-            source,
-            t,
-            "degenerate rest triangle (zero area)",
-        ));
+        return Err(InputError::element(source, t, "degenerate rest triangle (zero area)"));
     }
     Ok(xs)
 }
@@ -597,10 +576,7 @@ pub(crate) fn check_positions(rest: &[f64], source: &Path) -> Result<usize, Inpu
         return Err(InputError::field(
             source,
             "vertices",
-            format!(
-                "{} coordinates is not a whole number of 3D points",
-                rest.len()
-            ),
+            format!("{} coordinates is not a whole number of 3D points", rest.len()),
         ));
     }
     if let Some(k) = rest.iter().position(|c| !c.is_finite()) {
@@ -649,10 +625,7 @@ pub(crate) fn check_materials(
             return Err(InputError::field(
                 source,
                 format!("materials[{k}].youngs"),
-                format!(
-                    "Young's modulus must be positive and finite, got {}",
-                    m.youngs
-                ),
+                format!("Young's modulus must be positive and finite, got {}", m.youngs),
             ));
         }
         if !(m.poisson.is_finite() && m.poisson > -1.0 && m.poisson < 0.5) {
@@ -687,16 +660,10 @@ fn stack3(p: &Vector3<f64>, q: &Vector3<f64>, r: &Vector3<f64>) -> SVector<f64, 
 
 /// Sets block `(p, q)` of a block-symmetric matrix to `block` and block `(q, p)` to its
 /// transpose.
-fn set_symmetric_block<const N: usize>(
-    m: &mut SMatrix<f64, N, N>,
-    p: usize,
-    q: usize,
-    block: &Matrix3<f64>,
-) {
+fn set_symmetric_block<const N: usize>(m: &mut SMatrix<f64, N, N>, p: usize, q: usize, block: &Matrix3<f64>) {
     m.fixed_view_mut::<3, 3>(3 * p, 3 * q).copy_from(block);
     if p != q {
-        m.fixed_view_mut::<3, 3>(3 * q, 3 * p)
-            .copy_from(&block.transpose());
+        m.fixed_view_mut::<3, 3>(3 * q, 3 * p).copy_from(&block.transpose());
     }
 }
 
@@ -759,16 +726,8 @@ pub(crate) fn project_stencil_hessian(hess: &mut [f64], n: usize) {
     // Orthonormal vectors orthogonal to (1, ..., 1) (Helmert basis): for a stencil of `v`
     // vertices, the first `v` rows of the first `v - 1` columns.
     const HELMERT: [[f64; 3]; 4] = [
-        [
-            FRAC_1_SQRT_2,
-            0.408_248_290_463_863,
-            0.288_675_134_594_812_9,
-        ],
-        [
-            -FRAC_1_SQRT_2,
-            0.408_248_290_463_863,
-            0.288_675_134_594_812_9,
-        ],
+        [FRAC_1_SQRT_2, 0.408_248_290_463_863, 0.288_675_134_594_812_9],
+        [-FRAC_1_SQRT_2, 0.408_248_290_463_863, 0.288_675_134_594_812_9],
         [0.0, -0.816_496_580_927_726, 0.288_675_134_594_812_9],
         [0.0, 0.0, -0.866_025_403_784_438_6],
     ];
@@ -787,9 +746,7 @@ pub(crate) fn project_stencil_hessian(hess: &mut [f64], n: usize) {
                             }
                         }
                     }
-                    reduced
-                        .fixed_view_mut::<3, 3>(3 * p, 3 * q)
-                        .copy_from(&block);
+                    reduced.fixed_view_mut::<3, 3>(3 * p, 3 * q).copy_from(&block);
                 }
             }
             let reduced = (reduced + reduced.transpose()) * 0.5;
@@ -804,9 +761,8 @@ pub(crate) fn project_stencil_hessian(hess: &mut [f64], n: usize) {
                 return;
             }
             let clamped = eig.eigenvalues.map(|l| l.max(0.0));
-            let projected = eig.eigenvectors
-                * SMatrix::<f64, $r, $r>::from_diagonal(&clamped)
-                * eig.eigenvectors.transpose();
+            let projected =
+                eig.eigenvectors * SMatrix::<f64, $r, $r>::from_diagonal(&clamped) * eig.eigenvectors.transpose();
             for a in 0..$v {
                 for b in 0..$v {
                     let mut block = Matrix3::zeros();
@@ -887,8 +843,7 @@ mod tests {
     }
 
     fn random_rigid(rng: &mut ChaCha8Rng) -> (Rotation3<f64>, Vector3<f64>) {
-        let axis = Vector3::new(rng.random(), rng.random(), rng.random::<f64>()) * 2.0
-            - Vector3::repeat(1.0);
+        let axis = Vector3::new(rng.random(), rng.random(), rng.random::<f64>()) * 2.0 - Vector3::repeat(1.0);
         let rotation = Rotation3::new(axis.normalize() * rng.random_range(0.0..PI));
         let shift = Vector3::new(rng.random(), rng.random(), rng.random::<f64>()) * 4.0;
         (rotation, shift)
@@ -904,9 +859,7 @@ mod tests {
     }
 
     fn perturb(x: &[f64], rng: &mut ChaCha8Rng, amount: f64) -> Vec<f64> {
-        x.iter()
-            .map(|c| c + amount * rng.random_range(-1.0..1.0))
-            .collect()
+        x.iter().map(|c| c + amount * rng.random_range(-1.0..1.0)).collect()
     }
 
     /// A hinge with edge (0,0,0)-(length,0,0), first opposite vertex in the +y half plane and
@@ -919,20 +872,7 @@ mod tests {
         );
         let (h1, h2) = (rng.random_range(0.3..1.5), rng.random_range(0.3..1.5));
         let (c, s) = (angle.cos(), angle.sin());
-        [
-            0.0,
-            0.0,
-            0.0,
-            length,
-            0.0,
-            0.0,
-            u1,
-            h1,
-            0.0,
-            u2,
-            -h2 * c,
-            -h2 * s,
-        ]
+        [0.0, 0.0, 0.0, length, 0.0, 0.0, u1, h1, 0.0, u2, -h2 * c, -h2 * s]
     }
 
     const HINGE_TRIS: [[usize; 3]; 2] = [[0, 1, 2], [1, 0, 3]];
@@ -967,10 +907,7 @@ mod tests {
         flat.chunks_exact(3)
             .flat_map(|p| {
                 let (s, t) = if axis_y { (p[0], p[1]) } else { (p[1], p[0]) };
-                let (across, up) = (
-                    radius * (s / radius).sin(),
-                    radius * (1.0 - (s / radius).cos()),
-                );
+                let (across, up) = (radius * (s / radius).sin(), radius * (1.0 - (s / radius).cos()));
                 if axis_y {
                     [across, t, up]
                 } else {
@@ -1026,10 +963,7 @@ mod tests {
                 }
             }
         }
-        eprintln!(
-            "hinge FD worst: gradient {:.1e}, Hessian {:.1e}",
-            worst.0, worst.1
-        );
+        eprintln!("hinge FD worst: gradient {:.1e}, Hessian {:.1e}", worst.0, worst.1);
     }
 
     #[test]
@@ -1041,10 +975,7 @@ mod tests {
             let x = transform(&x, &rotation, &shift);
             let [x0, x1, x2, x3] = [0, 1, 2, 3].map(|v| vertex(&x, v));
             let theta = dihedral_angle(&(x1 - x0), &(x2 - x0), &(x3 - x0));
-            assert!(
-                (theta.abs() - angle.abs()).abs() < 1e-12,
-                "{theta} vs {angle}"
-            );
+            assert!((theta.abs() - angle.abs()).abs() < 1e-12, "{theta} vs {angle}");
         }
     }
 
@@ -1062,11 +993,7 @@ mod tests {
                 let mut grad = vec![0.0; rest.len()];
                 let e = add_gradient(energy, 1.0, &rest, &mut grad);
                 let g = grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
-                assert!(
-                    e.abs() < 1e-20 && g < 1e-9,
-                    "{}: {e:e}, {g:e}",
-                    energy.name()
-                );
+                assert!(e.abs() < 1e-20 && g < 1e-9, "{}: {e:e}, {g:e}", energy.name());
             }
         }
     }
@@ -1085,11 +1012,7 @@ mod tests {
             let moved = transform(&x, &rotation, &shift);
             for energy in [&membrane as &dyn StencilEnergy, &bending] {
                 let (a, b) = (value(energy, &x), value(energy, &moved));
-                assert!(
-                    a > 0.0 && (a - b).abs() <= 1e-10 * a,
-                    "{}: {a} {b}",
-                    energy.name()
-                );
+                assert!(a > 0.0 && (a - b).abs() <= 1e-10 * a, "{}: {a} {b}", energy.name());
             }
         }
     }
@@ -1125,10 +1048,7 @@ mod tests {
             let bending = ShellBending::new(&rest, &HINGE_TRIS, &[m], t, path()).unwrap();
             let x = hinge(&mut rng, angle);
             let x = perturb(&x, &mut rng, 0.3);
-            for (k, energy) in [&membrane as &dyn StencilEnergy, &bending]
-                .iter()
-                .enumerate()
-            {
+            for (k, energy) in [&membrane as &dyn StencilEnergy, &bending].iter().enumerate() {
                 let mut local = [0.0; 12];
                 let n = crate::energy::gather(*energy, 0, &x, &mut local);
                 let mut out = Local::default();
@@ -1141,11 +1061,7 @@ mod tests {
                 assert!(min > -1e-10 * scale, "{}: {min}", energy.name());
             }
         }
-        assert_eq!(
-            negative_seen,
-            [true, true],
-            "the test should include indefinite cases"
-        );
+        assert_eq!(negative_seen, [true, true], "the test should include indefinite cases");
     }
 
     const CYLINDER_RADIUS: f64 = 0.8;
@@ -1163,10 +1079,7 @@ mod tests {
         let bending = ShellBending::new(&flat, &tris, &[m], t, path()).unwrap();
         let area = width * width / 2.0;
         let continuum = 0.5 * plate_stiffness(&m, t) / (radius * radius) * area;
-        (
-            value(&membrane, &x) / continuum,
-            value(&bending, &x) / continuum,
-        )
+        (value(&membrane, &x) / continuum, value(&bending, &x) / continuum)
     }
 
     #[test]
@@ -1185,10 +1098,7 @@ mod tests {
                     // energy of relative size ~h^4 / (48 R^2 t^2).
                     let (h, t) = (1.0 / n as f64, cloth().1);
                     let chord_estimate = h.powi(4) / (48.0 * (CYLINDER_RADIUS * t).powi(2));
-                    assert!(
-                        membrane < 1.2 * chord_estimate,
-                        "{membrane} vs {chord_estimate}"
-                    );
+                    assert!(membrane < 1.2 * chord_estimate, "{membrane} vs {chord_estimate}");
                     if n >= 40 {
                         assert!((bending - 1.0).abs() < 0.03, "{bending}");
                         assert!(membrane < 2e-3, "{membrane}");
@@ -1260,9 +1170,7 @@ mod tests {
             let continuum = 0.5 * plate_stiffness(&m, t) / (radius * radius) * area;
             let ratios: Vec<f64> = [0.0, 0.4, 1.0, FRAC_PI_2, 2.5]
                 .iter()
-                .map(|&axis| {
-                    value(&bending, &onto_tilted_cylinder(&flat, radius, axis)) / continuum
-                })
+                .map(|&axis| value(&bending, &onto_tilted_cylinder(&flat, radius, axis)) / continuum)
                 .collect();
             eprintln!("equilateral cylinder n={n}: bending/continuum {ratios:.4?}");
             for r in &ratios {
@@ -1298,10 +1206,7 @@ mod tests {
                 let mut want = h.clone();
                 project_psd(&mut want, n);
                 project_stencil_hessian(&mut h, n);
-                let err = h
-                    .iter()
-                    .zip(&want)
-                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                let err = h.iter().zip(&want).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
                 assert!(err < 1e-12 * full.amax(), "{vertices} vertices: {err:e}");
             }
         }
@@ -1377,9 +1282,7 @@ mod tests {
         for h in 0..bending.len() {
             assert_eq!(bending.rest_angle(h), 0.0);
             let s = bending.stencil(h);
-            let shared = tris
-                .iter()
-                .filter(|t| t.contains(&s[0]) && t.contains(&s[1]));
+            let shared = tris.iter().filter(|t| t.contains(&s[0]) && t.contains(&s[1]));
             assert_eq!(shared.count(), 2);
         }
     }

@@ -28,8 +28,7 @@ use std::f64::consts::FRAC_1_SQRT_2;
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{
-    Const, DefaultAllocator, DimDiff, DimMin, DimSub, Matrix2, Matrix3, SMatrix, SVector,
-    SymmetricEigen, SVD, U1,
+    Const, DefaultAllocator, DimDiff, DimMin, DimSub, Matrix2, Matrix3, SMatrix, SVector, SymmetricEigen, SVD, U1,
 };
 
 use super::{Local, Want};
@@ -117,14 +116,9 @@ where
                 }
                 p[a].copy_from_slice(&rest[v * D..(v + 1) * D]);
             }
-            let measure =
-                checked_rest_measure(&p, &names).map_err(|m| InputError::element(source, e, m))?;
+            let measure = checked_rest_measure(&p, &names).map_err(|m| InputError::element(source, e, m))?;
             let dm_inv = edge_matrix(&p).try_inverse().ok_or_else(|| {
-                InputError::element(
-                    source,
-                    e,
-                    format!("degenerate {}: singular rest shape", names.element),
-                )
+                InputError::element(source, e, format!("degenerate {}: singular rest shape", names.element))
             })?;
             let material = materials[if materials.len() == 1 { 0 } else { e }];
             measures.push(measure);
@@ -200,12 +194,7 @@ where
     /// Writes `measure * (dF/dx)^T hf (dF/dx)` into `out.hess`, using that
     /// `dF_ij / dx_(b,k) = delta_ik w_b[j]` with `w_b` row `b - 1` of `Dm^-1` for `b >= 1`
     /// and `w_0 = -sum_b w_b`.
-    fn write_local_hessian(
-        dm_inv: &SMatrix<f64, D, D>,
-        hf: &SMatrix<f64, N, N>,
-        measure: f64,
-        out: &mut Local,
-    ) {
+    fn write_local_hessian(dm_inv: &SMatrix<f64, D, D>, hf: &SMatrix<f64, N, N>, measure: f64, out: &mut Local) {
         let n = (D + 1) * D;
         let row_sum = dm_inv.row_sum();
         let weight = |b: usize, j: usize| {
@@ -261,10 +250,7 @@ fn check_materials(
     for (e, m) in materials.iter().enumerate() {
         let field = |name: &str| format!("materials[{e}].{name}");
         if !(m.youngs.is_finite() && m.youngs > 0.0) {
-            let msg = format!(
-                "Young's modulus must be positive and finite, got {}",
-                m.youngs
-            );
+            let msg = format!("Young's modulus must be positive and finite, got {}", m.youngs);
             return Err(InputError::field(source, field("youngs"), msg));
         }
         if !(m.poisson > -1.0 && m.poisson < 0.5) {
@@ -400,8 +386,7 @@ where
 {
     let volume_stiffness = snh_volume_stiffness(mu, lambda);
     let j = f.det();
-    let psi = 0.5 * mu * (f.norm_squared() - D as f64) - mu * (j - 1.0)
-        + 0.5 * volume_stiffness * (j - 1.0).powi(2);
+    let psi = 0.5 * mu * (f.norm_squared() - D as f64) - mu * (j - 1.0) + 0.5 * volume_stiffness * (j - 1.0).powi(2);
     if grad.is_none() && hess.is_none() {
         return psi;
     }
@@ -446,12 +431,7 @@ where
     };
     let k = snh_volume_stiffness(mu, lambda);
     let s = snh_dpsi_dj(mu, lambda, f.det());
-    let others = |i: usize, j: usize| -> f64 {
-        (0..D)
-            .filter(|&m| m != i && m != j)
-            .map(|m| sigma[m])
-            .product()
-    };
+    let others = |i: usize, j: usize| -> f64 { (0..D).filter(|&m| m != i && m != j).map(|m| sigma[m]).product() };
     let scaling = SMatrix::<f64, D, D>::from_fn(|i, j| {
         if i == j {
             mu + k * others(i, i).powi(2)
@@ -633,8 +613,7 @@ where
     Const<D>: DimMin<Const<D>, Output = Const<D>> + DimSub<U1>,
     DefaultAllocator: Allocator<DimDiff<Const<D>, U1>>,
 {
-    let svd =
-        SVD::<f64, Const<D>, Const<D>>::try_new(*f, true, true, f64::EPSILON, MAX_ITERATIONS)?;
+    let svd = SVD::<f64, Const<D>, Const<D>>::try_new(*f, true, true, f64::EPSILON, MAX_ITERATIONS)?;
     let (mut u, mut v) = (svd.u?, svd.v_t?.transpose());
     if u.determinant() < 0.0 {
         u.column_mut(D - 1).neg_mut();
@@ -648,9 +627,7 @@ where
 }
 
 /// See [`DeformationGradient::eigen_decomposition`].
-fn eigen_decomposition<const D: usize>(
-    m: &SMatrix<f64, D, D>,
-) -> Option<(SVector<f64, D>, SMatrix<f64, D, D>)>
+fn eigen_decomposition<const D: usize>(m: &SMatrix<f64, D, D>) -> Option<(SVector<f64, D>, SMatrix<f64, D, D>)>
 where
     Const<D>: DimSub<U1>,
     DefaultAllocator: Allocator<DimDiff<Const<D>, U1>>,
@@ -692,12 +669,7 @@ pub mod checks {
     pub fn deform(rest: &[f64], f: &DMatrix<f64>, t: &DVector<f64>) -> Vec<f64> {
         let dim = f.nrows();
         rest.chunks_exact(dim)
-            .flat_map(|p| {
-                (f * DVector::from_column_slice(p) + t)
-                    .data
-                    .as_vec()
-                    .clone()
-            })
+            .flat_map(|p| (f * DVector::from_column_slice(p) + t).data.as_vec().clone())
             .collect()
     }
 
@@ -719,9 +691,8 @@ pub mod checks {
     /// The `k`-th of a family of random deformation gradients cycling through mild,
     /// strongly compressed, inverted (det < 0) and arbitrary (large, either sign) ones.
     pub fn random_deformation(k: usize, dim: usize, rng: &mut ChaCha8Rng) -> DMatrix<f64> {
-        let mut stretches = |lo: f64, hi: f64| {
-            DMatrix::from_diagonal(&DVector::from_fn(dim, |_, _| rng.random_range(lo..hi)))
-        };
+        let mut stretches =
+            |lo: f64, hi: f64| DMatrix::from_diagonal(&DVector::from_fn(dim, |_, _| rng.random_range(lo..hi)));
         let mut sigma = match k % 4 {
             0 => stretches(0.7, 1.4),
             1 => stretches(0.02, 0.3),
@@ -776,11 +747,7 @@ pub mod checks {
         for k in 0..64 {
             let f = random_deformation(k, dim, rng);
             let x = deform(rest, &f, &random_translation(dim, rng));
-            let moved = deform(
-                rest,
-                &(random_rotation(dim, rng) * &f),
-                &random_translation(dim, rng),
-            );
+            let moved = deform(rest, &(random_rotation(dim, rng) * &f), &random_translation(dim, rng));
             let e = energy.eval(0, &x, Want::Value, &mut out);
             let e_moved = energy.eval(0, &moved, Want::Value, &mut out);
             assert!(
@@ -817,33 +784,21 @@ pub mod checks {
                 indefinite += 1;
             }
             let min = min_eigenvalue(&projected, n);
-            assert!(
-                min >= -1e-9 * scale,
-                "state {k}: projected min eigenvalue {min:e}"
-            );
+            assert!(min >= -1e-9 * scale, "state {k}: projected min eigenvalue {min:e}");
         }
-        assert!(
-            indefinite > 20,
-            "only {indefinite} indefinite exact Hessians"
-        );
+        assert!(indefinite > 20, "only {indefinite} indefinite exact Hessians");
         for _ in 0..20 {
             let f = random_rotation(dim, rng) * 1.01;
             let x = deform(rest, &f, &random_translation(dim, rng));
             let (exact, projected, n) = hessians(energy, &x);
             let scale = max_abs(&exact);
             let min = min_eigenvalue(&exact, n);
-            assert!(
-                min >= -1e-9 * scale,
-                "exact Hessian near rest: min eigenvalue {min:e}"
-            );
+            assert!(min >= -1e-9 * scale, "exact Hessian near rest: min eigenvalue {min:e}");
             let diff = exact
                 .iter()
                 .zip(&projected)
                 .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-            assert!(
-                diff <= 1e-12 * scale,
-                "projection changed a PSD Hessian by {diff:e}"
-            );
+            assert!(diff <= 1e-12 * scale, "projection changed a PSD Hessian by {diff:e}");
         }
     }
 
@@ -869,8 +824,7 @@ pub mod checks {
                 let f = DMatrix::identity(dim, dim) + &eps;
                 let x = deform(rest, &f, &random_translation(dim, rng));
                 let e = energy.eval(0, &x, Want::Value, &mut out);
-                let linear =
-                    measure * (0.5 * lambda * eps.trace().powi(2) + mu * eps.norm_squared());
+                let linear = measure * (0.5 * lambda * eps.trace().powi(2) + mu * eps.norm_squared());
                 assert!(
                     (e - linear).abs() <= 1e-3 * linear,
                     "strain {eps}: energy {e:e}, linear elasticity {linear:e}"
@@ -940,9 +894,6 @@ mod tests {
             .map(analytic_vs_numeric)
             .fold(0.0, f64::max);
         eprintln!("analytic vs numerical projection: 2D {worst2:.2e}, 3D {worst3:.2e}");
-        assert!(
-            worst2 < 1e-12 && worst3 < 1e-12,
-            "2D {worst2:e}, 3D {worst3:e}"
-        );
+        assert!(worst2 < 1e-12 && worst3 < 1e-12, "2D {worst2:e}, 3D {worst3:e}");
     }
 }

@@ -98,14 +98,7 @@ mod tests {
     }
 
     fn single(model: Model) -> TetElastic {
-        TetElastic::new(
-            model,
-            &REST,
-            &[[0, 1, 2, 3]],
-            &[material(100.0)],
-            Path::new("t"),
-        )
-        .unwrap()
+        TetElastic::new(model, &REST, &[[0, 1, 2, 3]], &[material(100.0)], Path::new("t")).unwrap()
     }
 
     fn rng() -> ChaCha8Rng {
@@ -114,12 +107,7 @@ mod tests {
 
     #[test]
     fn volumes_match_the_determinant_formula() {
-        let unit = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-        ];
+        let unit = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         assert!((signed_volume(unit) - 1.0 / 6.0).abs() < 1e-15);
         let flipped = [unit[0], unit[2], unit[1], unit[3]];
         assert!((signed_volume(flipped) + 1.0 / 6.0).abs() < 1e-15);
@@ -133,10 +121,7 @@ mod tests {
         for model in MODELS {
             let (g, h) = checks::max_fd_errors(&single(model), &REST, 400, 1e-6, &mut rng());
             eprintln!("{model:?}: max relative FD error: gradient {g:.2e}, Hessian {h:.2e}");
-            assert!(
-                g < 1e-7 && h < 1e-7,
-                "{model:?}: gradient {g:e}, Hessian {h:e}"
-            );
+            assert!(g < 1e-7 && h < 1e-7, "{model:?}: gradient {g:e}, Hessian {h:e}");
         }
     }
 
@@ -202,13 +187,7 @@ mod tests {
     }
 
     fn error(rest: &[f64], tets: &[[usize; 4]], materials: &[ElementMaterial]) -> InputError {
-        let result = TetElastic::new(
-            Model::StableNeoHookean,
-            rest,
-            tets,
-            materials,
-            Path::new("m"),
-        );
+        let result = TetElastic::new(Model::StableNeoHookean, rest, tets, materials, Path::new("m"));
         let error = result.err().expect("input should be rejected");
         eprintln!("{error}");
         error
@@ -249,11 +228,7 @@ mod tests {
         let e = error(&REST, &tets, &[material(f64::INFINITY)]);
         assert_eq!(e.location, Location::Field("materials[0].youngs".into()));
 
-        for (youngs, poisson, field) in [
-            (0.0, 0.3, "youngs"),
-            (1.0, 0.5, "poisson"),
-            (1.0, -1.0, "poisson"),
-        ] {
+        for (youngs, poisson, field) in [(0.0, 0.3, "youngs"), (1.0, 0.5, "poisson"), (1.0, -1.0, "poisson")] {
             let bad = ElementMaterial {
                 poisson,
                 ..material(youngs)

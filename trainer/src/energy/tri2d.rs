@@ -96,14 +96,7 @@ mod tests {
     }
 
     fn single(model: Model) -> Tri2dElastic {
-        Tri2dElastic::new(
-            model,
-            &REST,
-            &[[0, 1, 2]],
-            &[material(100.0)],
-            Path::new("t"),
-        )
-        .unwrap()
+        Tri2dElastic::new(model, &REST, &[[0, 1, 2]], &[material(100.0)], Path::new("t")).unwrap()
     }
 
     fn rng() -> ChaCha8Rng {
@@ -125,10 +118,7 @@ mod tests {
         for model in MODELS {
             let (g, h) = checks::max_fd_errors(&single(model), &REST, 400, 1e-6, &mut rng());
             eprintln!("{model:?}: max relative FD error: gradient {g:.2e}, Hessian {h:.2e}");
-            assert!(
-                g < 1e-7 && h < 1e-7,
-                "{model:?}: gradient {g:e}, Hessian {h:e}"
-            );
+            assert!(g < 1e-7 && h < 1e-7, "{model:?}: gradient {g:e}, Hessian {h:e}");
         }
     }
 
@@ -188,22 +178,13 @@ mod tests {
                 let base = uniform.eval(s, &xl[..n], Want::Value, &mut out);
                 let scaled = mixed.eval(s, &xl[..n], Want::Value, &mut out);
                 assert!(base > 0.0);
-                assert!(
-                    (scaled - factor * base).abs() <= 1e-12 * scaled,
-                    "triangle {s}"
-                );
+                assert!((scaled - factor * base).abs() <= 1e-12 * scaled, "triangle {s}");
             }
         }
     }
 
     fn error(rest: &[f64], tris: &[[usize; 3]], materials: &[ElementMaterial]) -> InputError {
-        let result = Tri2dElastic::new(
-            Model::StableNeoHookean,
-            rest,
-            tris,
-            materials,
-            Path::new("m"),
-        );
+        let result = Tri2dElastic::new(Model::StableNeoHookean, rest, tris, materials, Path::new("m"));
         let error = result.err().expect("input should be rejected");
         eprintln!("{error}");
         error

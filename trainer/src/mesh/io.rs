@@ -68,8 +68,7 @@ pub fn load(path: &Path, kind: MeshKind) -> Result<Mesh, InputError> {
 /// The file's text; bytes that are not UTF-8 become replacement characters (and then fail to
 /// parse as numbers if they are anywhere but in a comment).
 fn read_text(path: &Path) -> Result<String, InputError> {
-    let bytes =
-        std::fs::read(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
+    let bytes = std::fs::read(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
     Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
@@ -87,13 +86,9 @@ fn content_lines(text: &str) -> impl Iterator<Item = (usize, Vec<&str>)> {
 
 /// A finite coordinate.
 fn parse_coordinate(file: &Path, line: usize, token: &str) -> Result<f64, InputError> {
-    let value: f64 = token.parse().map_err(|_| {
-        InputError::line(
-            file,
-            line,
-            format!("`{token}` is not a number (coordinate)"),
-        )
-    })?;
+    let value: f64 = token
+        .parse()
+        .map_err(|_| InputError::line(file, line, format!("`{token}` is not a number (coordinate)")))?;
     if !value.is_finite() {
         return Err(InputError::line(
             file,
@@ -113,24 +108,14 @@ fn parse_integer(file: &Path, line: usize, token: &str, what: &str) -> Result<i6
 
 /// A non-negative count.
 fn parse_count(file: &Path, line: usize, token: &str, what: &str) -> Result<usize, InputError> {
-    token.parse().map_err(|_| {
-        InputError::line(
-            file,
-            line,
-            format!("`{token}` is not a non-negative integer ({what})"),
-        )
-    })
+    token
+        .parse()
+        .map_err(|_| InputError::line(file, line, format!("`{token}` is not a non-negative integer ({what})")))
 }
 
 /// The 0-based vertex that `index` names in a file numbering from `first` with `count`
 /// vertices.
-fn vertex_index(
-    file: &Path,
-    line: usize,
-    index: i64,
-    first: i64,
-    count: usize,
-) -> Result<usize, InputError> {
+fn vertex_index(file: &Path, line: usize, index: i64, first: i64, count: usize) -> Result<usize, InputError> {
     let last = first.saturating_add(count as i64).saturating_sub(1);
     let offset = index.checked_sub(first).filter(|&o| o >= 0);
     match offset.and_then(|o| usize::try_from(o).ok()) {
@@ -242,11 +227,7 @@ fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputErr
         return Err(InputError::file(file, "no `Vertices` section"));
     };
     if vertices.records.is_empty() {
-        return Err(InputError::line(
-            file,
-            vertices.keyword_line,
-            "`Vertices` is empty",
-        ));
+        return Err(InputError::line(file, vertices.keyword_line, "`Vertices` is empty"));
     }
     let tetrahedra = tetrahedra.filter(|s| !s.records.is_empty());
     let triangles = triangles.filter(|s| !s.records.is_empty());
@@ -291,10 +272,7 @@ fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputErr
             None => {
                 return Err(InputError::file(
                     file,
-                    format!(
-                        "no triangles (the file has {} tetrahedra)",
-                        count(&tetrahedra)
-                    ),
+                    format!("no triangles (the file has {} tetrahedra)", count(&tetrahedra)),
                 ))
             }
         }
@@ -326,11 +304,7 @@ fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputErr
         _ => Elements::Shell(indices.iter().map(|e| [e[0], e[1], e[2]]).collect()),
     };
     Sourced {
-        mesh: Mesh {
-            dim,
-            rest,
-            elements,
-        },
+        mesh: Mesh { dim, rest, elements },
         vertex_file: file,
         vertex_lines,
         element_file: file,
@@ -341,10 +315,7 @@ fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputErr
 }
 
 /// Splits MEDIT tokens (line, text) into sections, checking each one's counts.
-fn medit_sections<'a>(
-    tokens: &'a [(usize, &'a str)],
-    file: &Path,
-) -> Result<MeditSections<'a>, InputError> {
+fn medit_sections<'a>(tokens: &'a [(usize, &'a str)], file: &Path) -> Result<MeditSections<'a>, InputError> {
     let mut sections = MeditSections::default();
     let mut i = 0;
     while i < tokens.len() {
@@ -410,11 +381,7 @@ fn medit_sections<'a>(
                                  is unknown",
                             ));
                         };
-                        (
-                            &mut sections.vertices,
-                            d + 1,
-                            "vertex (coordinates and a reference)",
-                        )
+                        (&mut sections.vertices, d + 1, "vertex (coordinates and a reference)")
                     }
                     "tetrahedra" => (
                         &mut sections.tetrahedra,
@@ -506,9 +473,7 @@ fn medit_section<'a>(
             Some(n) if n < data.len() => InputError::line(
                 file,
                 data[n].0,
-                format!(
-                    "`{keyword}` of line {keyword_line} declares {count} records; this is one more"
-                ),
+                format!("`{keyword}` of line {keyword_line} declares {count} records; this is one more"),
             ),
             _ => InputError::line(
                 file,
@@ -527,10 +492,7 @@ fn medit_section<'a>(
             numbers: chunk,
         })
         .collect();
-    Ok(Section {
-        keyword_line,
-        records,
-    })
+    Ok(Section { keyword_line, records })
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -583,11 +545,7 @@ fn parse_node_ele(
         Elements::Triangles(indices.iter().map(|e| [e[0], e[1], e[2]]).collect())
     };
     Sourced {
-        mesh: Mesh {
-            dim,
-            rest,
-            elements,
-        },
+        mesh: Mesh { dim, rest, elements },
         vertex_file: node_file,
         vertex_lines,
         element_file: ele_file,
@@ -652,11 +610,7 @@ fn parse_node(text: &str, file: &Path) -> Result<NodeFile, InputError> {
         ));
     }
     if count == 0 {
-        return Err(InputError::line(
-            file,
-            header_line,
-            "the header declares no vertices",
-        ));
+        return Err(InputError::line(file, header_line, "the header declares no vertices"));
     }
     let width = 1usize
         .saturating_add(dim)
@@ -670,9 +624,7 @@ fn parse_node(text: &str, file: &Path) -> Result<NodeFile, InputError> {
             return Err(InputError::line(
                 file,
                 line,
-                format!(
-                    "the header (line {header_line}) declares {count} vertices; this is one more"
-                ),
+                format!("the header (line {header_line}) declares {count} vertices; this is one more"),
             ));
         }
         if tokens.len() != width {
@@ -714,11 +666,7 @@ fn parse_node(text: &str, file: &Path) -> Result<NodeFile, InputError> {
         }
         for token in &tokens[1 + dim..] {
             token.parse::<f64>().map_err(|_| {
-                InputError::line(
-                    file,
-                    line,
-                    format!("`{token}` is not a number (attribute or marker)"),
-                )
+                InputError::line(file, line, format!("`{token}` is not a number (attribute or marker)"))
             })?;
         }
         vertex_lines.push(line);
@@ -788,11 +736,7 @@ fn parse_ele(
         ));
     }
     if count == 0 {
-        return Err(InputError::line(
-            file,
-            header_line,
-            "the header declares no elements",
-        ));
+        return Err(InputError::line(file, header_line, "the header declares no elements"));
     }
     let width = (1 + nodes).saturating_add(attributes);
     let mut elements = Vec::new();
@@ -802,9 +746,7 @@ fn parse_ele(
             return Err(InputError::line(
                 file,
                 line,
-                format!(
-                    "the header (line {header_line}) declares {count} elements; this is one more"
-                ),
+                format!("the header (line {header_line}) declares {count} elements; this is one more"),
             ));
         }
         if tokens.len() != width {
@@ -825,9 +767,9 @@ fn parse_ele(
             *slot = vertex_index(file, line, index, first, num_vertices)?;
         }
         for token in &tokens[1 + nodes..] {
-            token.parse::<f64>().map_err(|_| {
-                InputError::line(file, line, format!("`{token}` is not a number (attribute)"))
-            })?;
+            token
+                .parse::<f64>()
+                .map_err(|_| InputError::line(file, line, format!("`{token}` is not a number (attribute)")))?;
         }
         elements.push(element);
         element_lines.push(line);
@@ -881,18 +823,14 @@ fn parse_obj(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputError
                     rest.push(parse_coordinate(file, line, token)?);
                 }
                 for token in &arguments[3..] {
-                    token.parse::<f64>().map_err(|_| {
-                        InputError::line(file, line, format!("`{token}` is not a number"))
-                    })?;
+                    token
+                        .parse::<f64>()
+                        .map_err(|_| InputError::line(file, line, format!("`{token}` is not a number")))?;
                 }
                 vertex_lines.push(line);
             }
             "f" | "l" => {
-                let (needed, what) = if statement == "f" {
-                    (3, "a face")
-                } else {
-                    (2, "a line")
-                };
+                let (needed, what) = if statement == "f" { (3, "a face") } else { (2, "a line") };
                 if arguments.len() < needed {
                     return Err(InputError::line(
                         file,
@@ -943,10 +881,7 @@ fn parse_obj(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputError
         MeshKind::Solid | MeshKind::Planar => {
             return Err(InputError::file(
                 file,
-                format!(
-                    ".obj files hold cloth (faces) or rods (lines), not {}",
-                    kind.describe()
-                ),
+                format!(".obj files hold cloth (faces) or rods (lines), not {}", kind.describe()),
             ))
         }
         _ if !faces.is_empty() && !polylines.is_empty() => {
@@ -1027,11 +962,7 @@ fn parse_obj(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputError
         Elements::Rods(rods)
     };
     Sourced {
-        mesh: Mesh {
-            dim: 3,
-            rest,
-            elements,
-        },
+        mesh: Mesh { dim: 3, rest, elements },
         vertex_file: file,
         vertex_lines,
         element_file: file,
@@ -1064,12 +995,7 @@ fn obj_statements(text: &str) -> Vec<(usize, Vec<&str>)> {
 }
 
 /// The vertex index (1-based, or negative) of a face or line reference `v[/vt[/vn]]`.
-fn obj_reference(
-    file: &Path,
-    line: usize,
-    argument: &str,
-    statement: &str,
-) -> Result<i64, InputError> {
+fn obj_reference(file: &Path, line: usize, argument: &str, statement: &str) -> Result<i64, InputError> {
     let parts: Vec<&str> = argument.split('/').collect();
     let max_parts = if statement == "f" { 3 } else { 2 };
     let malformed = || {
@@ -1086,11 +1012,7 @@ fn obj_reference(
             ),
         )
     };
-    if parts.len() > max_parts
-        || parts[1..]
-            .iter()
-            .any(|p| !p.is_empty() && p.parse::<i64>().is_err())
-    {
+    if parts.len() > max_parts || parts[1..].iter().any(|p| !p.is_empty() && p.parse::<i64>().is_err()) {
         return Err(malformed());
     }
     let index: i64 = parts[0].parse().map_err(|_| malformed())?;
@@ -1105,12 +1027,7 @@ fn obj_reference(
 }
 
 /// 0-based vertices of resolved 1-based references.
-fn obj_vertices(
-    file: &Path,
-    line: usize,
-    references: &[i64],
-    num_vertices: usize,
-) -> Result<Vec<usize>, InputError> {
+fn obj_vertices(file: &Path, line: usize, references: &[i64], num_vertices: usize) -> Result<Vec<usize>, InputError> {
     references
         .iter()
         .map(|&r| vertex_index(file, line, r, 1, num_vertices))
@@ -1128,9 +1045,7 @@ mod tests {
     use std::path::PathBuf;
 
     fn data(name: &str) -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("data")
-            .join(name)
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(name)
     }
 
     /// Writes `files` (name, text) into a fresh temporary directory and loads the first.
@@ -1204,10 +1119,7 @@ mod tests {
         approx::assert_relative_eq!(total, 5.920910101003435, max_relative = 1e-12);
         assert_eq!(mesh, load(&data("beam365.mesh"), MeshKind::Solid).unwrap());
         // First vertex and first tet as written (1-based `91 70 135 169`).
-        assert_eq!(
-            &mesh.rest[..3],
-            &[-0.610143, -0.6336986703486888, 0.03592465556080646]
-        );
+        assert_eq!(&mesh.rest[..3], &[-0.610143, -0.6336986703486888, 0.03592465556080646]);
         let Elements::Tets(tets) = &mesh.elements else {
             unreachable!()
         };
@@ -1270,10 +1182,7 @@ mod tests {
         for line in text[start..].lines() {
             let words: Vec<&str> = line.split_whitespace().collect();
             if words.len() == 5 {
-                flipped += &format!(
-                    "{} {} {} {} {}\n",
-                    words[0], words[1], words[3], words[2], words[4]
-                );
+                flipped += &format!("{} {} {} {} {}\n", words[0], words[1], words[3], words[2], words[4]);
             } else {
                 flipped += line;
                 flipped.push('\n');
@@ -1310,15 +1219,11 @@ mod tests {
     #[test]
     fn medit_small_file_loads() {
         let mesh = load_text("ok.mesh", &two_tets(&VERTICES, &TETS), MeshKind::Auto).unwrap();
-        assert_eq!(
-            mesh.elements,
-            Elements::Tets(vec![[0, 1, 2, 3], [1, 2, 3, 4]])
-        );
+        assert_eq!(mesh.elements, Elements::Tets(vec![[0, 1, 2, 3], [1, 2, 3, 4]]));
         assert!(tet_volumes(&mesh).iter().all(|&v| v > 0.0));
         // Keywords in any case, records spread over lines, comments, Edges and Triangles
         // sections, and a missing `End` are all fine.
-        let free =
-            "# a comment\nmeshversionformatted 2\nDIMENSION\n3\nvertices 5\n0 0 0 0 1 0 0 0\n\
+        let free = "# a comment\nmeshversionformatted 2\nDIMENSION\n3\nvertices 5\n0 0 0 0 1 0 0 0\n\
                     0 1 0 0 0 0 1 0 1 1 1 0 # five vertices\nEdges 1\n1 2 0\nTriangles 1 1 2 3 0\n\
                     tetrahedra 2\n1 2 3 4 0\n2 3 4\n5 0\n";
         assert_eq!(load_text("free.mesh", free, MeshKind::Solid).unwrap(), mesh);
@@ -1497,11 +1402,7 @@ mod tests {
         );
         // A vertex no tet uses is named at its own line.
         assert_line_error(
-            load_text(
-                "unused.mesh",
-                &two_tets(&VERTICES, &TETS[..1]),
-                MeshKind::Solid,
-            ),
+            load_text("unused.mesh", &two_tets(&VERTICES, &TETS[..1]), MeshKind::Solid),
             "unused.mesh",
             9,
             "vertex 5 is used by no element, so it would have no mass (1 unused vertices in all)",
@@ -1537,8 +1438,7 @@ mod tests {
             "planar.mesh",
             "a 2D MEDIT file cannot be read as a solid (tetrahedra); load it as MeshKind::Planar",
         );
-        let surface =
-            "Dimension 3\nVertices\n3\n0 0 0 0\n1 0 0 0\n0 1 0 0\nTriangles\n1\n1 2 3 0\nEnd\n";
+        let surface = "Dimension 3\nVertices\n3\n0 0 0 0\n1 0 0 0\n0 1 0 0\nTriangles\n1\n1 2 3 0\nEnd\n";
         let mesh = load_text("surface.mesh", surface, MeshKind::Cloth).unwrap();
         assert_eq!(mesh.elements, Elements::Shell(vec![[0, 1, 2]]));
         assert_file_error(
@@ -1568,10 +1468,7 @@ mod tests {
     fn node_ele_zero_based_with_attributes_loads() {
         let mesh = load_node_ele(SQUARE_NODE, SQUARE_ELE, MeshKind::Auto).unwrap();
         assert_eq!(mesh.rest, vec![0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0]);
-        assert_eq!(
-            mesh.elements,
-            Elements::Triangles(vec![[0, 1, 2], [0, 2, 3]])
-        );
+        assert_eq!(mesh.elements, Elements::Triangles(vec![[0, 1, 2], [0, 2, 3]]));
         // Clockwise triangles are all flipped.
         let clockwise = "2 3 1\n0 0 2 1 5\n1 0 3 2 5\n";
         let flipped = load_node_ele(SQUARE_NODE, clockwise, MeshKind::Planar).unwrap();
@@ -1593,10 +1490,7 @@ mod tests {
         let node = "5 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 1\n";
         let ele = "2 4 0\n1 1 2 3 4\n2 2 3 4 5\n";
         let mesh = load_files(&[("t.ele", ele), ("t.node", node)], MeshKind::Solid).unwrap();
-        assert_eq!(
-            mesh.elements,
-            Elements::Tets(vec![[0, 1, 2, 3], [1, 2, 3, 4]])
-        );
+        assert_eq!(mesh.elements, Elements::Tets(vec![[0, 1, 2, 3], [1, 2, 3, 4]]));
         assert_line_error(
             load_files(&[("t.node", node), ("t.ele", ele)], MeshKind::Planar),
             "t.node",
@@ -1606,10 +1500,7 @@ mod tests {
         );
         assert_line_error(
             load_files(
-                &[
-                    ("t.node", node),
-                    ("t.ele", "1 10 0\n1 1 2 3 4 5 6 7 8 9 10\n"),
-                ],
+                &[("t.node", node), ("t.ele", "1 10 0\n1 1 2 3 4 5 6 7 8 9 10\n")],
                 MeshKind::Solid,
             ),
             "t.ele",
@@ -1655,12 +1546,7 @@ mod tests {
             ("0 2 0 0\n", 1, "the header declares no vertices"),
         ];
         for (node, line, needle) in cases {
-            assert_line_error(
-                load_node_ele(node, SQUARE_ELE, MeshKind::Auto),
-                "sq.node",
-                line,
-                needle,
-            );
+            assert_line_error(load_node_ele(node, SQUARE_ELE, MeshKind::Auto), "sq.node", line, needle);
         }
         assert_file_error(
             load_files(&[("lonely.node", SQUARE_NODE)], MeshKind::Auto),
@@ -1692,11 +1578,7 @@ mod tests {
                 3,
                 "vertex index 4 is out of range: the vertices are 0..=3",
             ),
-            (
-                "2 3 1\n0 0 1 2 5\n1 0 2 2 5\n",
-                3,
-                "triangle repeats vertex 2",
-            ),
+            ("2 3 1\n0 0 1 2 5\n1 0 2 2 5\n", 3, "triangle repeats vertex 2"),
             (
                 "2 3 1\n0 0 1 2 5\n1 0 3 2 5\n",
                 3,
@@ -1709,12 +1591,7 @@ mod tests {
             ),
         ];
         for (ele, line, needle) in cases {
-            assert_line_error(
-                load_node_ele(SQUARE_NODE, ele, MeshKind::Auto),
-                "sq.ele",
-                line,
-                needle,
-            );
+            assert_line_error(load_node_ele(SQUARE_NODE, ele, MeshKind::Auto), "sq.ele", line, needle);
         }
         // A vertex no triangle uses is reported in the .node file.
         assert_line_error(
@@ -1726,10 +1603,7 @@ mod tests {
         // Collinear vertices.
         let node = "3 2\n1 0 0\n2 1 1\n3 2 2\n";
         assert_line_error(
-            load_files(
-                &[("line.node", node), ("line.ele", "1 3\n1 1 2 3\n")],
-                MeshKind::Auto,
-            ),
+            load_files(&[("line.node", node), ("line.ele", "1 3\n1 1 2 3\n")], MeshKind::Auto),
             "line.ele",
             2,
             "triangle is degenerate: signed area 0e0",
@@ -1754,20 +1628,14 @@ mod tests {
         // A pentagon is fanned from its first vertex.
         let pentagon = "v 0 0 0\nv 2 0 0\nv 3 1 0\nv 1 2 0\nv -1 1 0\nf 1 2 3 4 5\n";
         let mesh = load_text("pentagon.obj", pentagon, MeshKind::Cloth).unwrap();
-        assert_eq!(
-            mesh.elements,
-            Elements::Shell(vec![[0, 1, 2], [0, 2, 3], [0, 3, 4]])
-        );
+        assert_eq!(mesh.elements, Elements::Shell(vec![[0, 1, 2], [0, 2, 3], [0, 3, 4]]));
     }
 
     #[test]
     fn obj_rods() {
         let text = "v 0 0 0\nv 0 -1 0\nv 0 -2 0\nv 1 0 0\nv 1 -1 0\nl 1 2 3\nl 4/1 5/2\n";
         let mesh = load_text("rods.obj", text, MeshKind::Auto).unwrap();
-        assert_eq!(
-            mesh.elements,
-            Elements::Rods(vec![vec![0, 1, 2], vec![3, 4]])
-        );
+        assert_eq!(mesh.elements, Elements::Rods(vec![vec![0, 1, 2], vec![3, 4]]));
         assert_eq!(mesh.num_elements(), 3);
         assert_eq!(mesh, load_text("rods.obj", text, MeshKind::Rods).unwrap());
         assert_file_error(
@@ -1791,26 +1659,10 @@ mod tests {
                 7,
                 "a line (`l`) after faces (`f`, from line 5): a body is either cloth or rods",
             ),
-            (
-                "f 1 2\n",
-                5,
-                "a face needs at least 3 vertices, this one has 2",
-            ),
-            (
-                "l 1\n",
-                5,
-                "a line needs at least 2 vertices, this one has 1",
-            ),
-            (
-                "f 1 2 0\n",
-                5,
-                "vertex reference `0`: .obj indices start at 1, not 0",
-            ),
-            (
-                "f 1 2 5\n",
-                5,
-                "vertex index 5 is out of range: the vertices are 1..=4",
-            ),
+            ("f 1 2\n", 5, "a face needs at least 3 vertices, this one has 2"),
+            ("l 1\n", 5, "a line needs at least 2 vertices, this one has 1"),
+            ("f 1 2 0\n", 5, "vertex reference `0`: .obj indices start at 1, not 0"),
+            ("f 1 2 5\n", 5, "vertex index 5 is out of range: the vertices are 1..=4"),
             (
                 "f 1 2 -5\n",
                 5,
@@ -1832,12 +1684,7 @@ mod tests {
         ];
         for (faces, line, needle) in cases {
             let text = format!("{square}{faces}");
-            assert_line_error(
-                load_text("bad.obj", &text, MeshKind::Auto),
-                "bad.obj",
-                line,
-                needle,
-            );
+            assert_line_error(load_text("bad.obj", &text, MeshKind::Auto), "bad.obj", line, needle);
         }
         assert_line_error(
             load_text("v.obj", "v 0 0\n", MeshKind::Auto),
@@ -1852,11 +1699,7 @@ mod tests {
             "coordinate `inf` is not finite",
         );
         assert_line_error(
-            load_text(
-                "flat.obj",
-                "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n",
-                MeshKind::Auto,
-            ),
+            load_text("flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", MeshKind::Auto),
             "flat.obj",
             4,
             "triangle is degenerate: area 0e0",
@@ -1934,9 +1777,7 @@ mod tests {
         let mut parsed = 0;
         for _ in 0..3000 {
             let len = rng.random_range(0..80);
-            let text: Vec<&str> = (0..len)
-                .map(|_| WORDS[rng.random_range(0..WORDS.len())])
-                .collect();
+            let text: Vec<&str> = (0..len).map(|_| WORDS[rng.random_range(0..WORDS.len())]).collect();
             parsed += parse_all(&text.join(" ")).iter().filter(|&&ok| ok).count();
         }
         // Soup is almost never a valid mesh; what matters is that nothing panicked.
@@ -1957,30 +1798,17 @@ mod tests {
             let cut = rng.random_range(0..mesh_text.len());
             match parse_medit(&mesh_text[..cut], file, MeshKind::Auto) {
                 Ok(mesh) => assert_eq!(mesh, full_mesh, "cut at {cut}"),
-                Err(e) => assert!(
-                    matches!(e.location, Location::Line(_) | Location::File),
-                    "{e}"
-                ),
+                Err(e) => assert!(matches!(e.location, Location::Line(_) | Location::File), "{e}"),
             }
             // Node and ele files cut after a whole line lack records; cut inside the last
             // line they may still be a valid (different) mesh, so anywhere else: no panic.
             let line_end = |text: &str, at: usize| text[..at].rfind('\n').map_or(0, |i| i + 1);
             let cut = line_end(&node_text, rng.random_range(0..node_text.len()));
-            assert!(
-                parse_node_ele(&node_text[..cut], file, &ele_text, file, MeshKind::Auto).is_err()
-            );
+            assert!(parse_node_ele(&node_text[..cut], file, &ele_text, file, MeshKind::Auto).is_err());
             let cut = line_end(&ele_text, rng.random_range(0..ele_text.len()));
-            assert!(
-                parse_node_ele(&node_text, file, &ele_text[..cut], file, MeshKind::Auto).is_err()
-            );
+            assert!(parse_node_ele(&node_text, file, &ele_text[..cut], file, MeshKind::Auto).is_err());
             let cut = rng.random_range(0..ele_text.len());
-            let _ = parse_node_ele(
-                &node_text[..cut],
-                file,
-                &ele_text[..cut],
-                file,
-                MeshKind::Auto,
-            );
+            let _ = parse_node_ele(&node_text[..cut], file, &ele_text[..cut], file, MeshKind::Auto);
             // A few random bytes overwritten: any result, but no panic.
             let mut bytes = mesh_text.clone().into_bytes();
             for _ in 0..rng.random_range(1..4) {
@@ -1991,13 +1819,7 @@ mod tests {
             let mut bytes = ele_text.clone().into_bytes();
             let at = rng.random_range(0..bytes.len());
             bytes[at] = b"0123456789 -\n"[rng.random_range(0..13)];
-            let _ = parse_node_ele(
-                &node_text,
-                file,
-                &String::from_utf8_lossy(&bytes),
-                file,
-                MeshKind::Auto,
-            );
+            let _ = parse_node_ele(&node_text, file, &String::from_utf8_lossy(&bytes), file, MeshKind::Auto);
         }
     }
 }

@@ -141,16 +141,13 @@ pub fn cloth_grid(
     let origin = finite_point(CLOTH, "origin", origin)?;
     let (u, v) = plane_axes(CLOTH, "axes", axes)?;
     let [nu, nv] = verts;
-    let vertex_count = nu
-        .checked_mul(nv)
-        .filter(|&n| n <= MAX_VERTICES)
-        .ok_or_else(|| {
-            InputError::field(
-                CLOTH,
-                "verts",
-                format!("{verts:?} is more than {MAX_VERTICES} vertices"),
-            )
-        })?;
+    let vertex_count = nu.checked_mul(nv).filter(|&n| n <= MAX_VERTICES).ok_or_else(|| {
+        InputError::field(
+            CLOTH,
+            "verts",
+            format!("{verts:?} is more than {MAX_VERTICES} vertices"),
+        )
+    })?;
 
     let mut rest = Vec::with_capacity(3 * vertex_count);
     for j in 0..nv {
@@ -351,11 +348,7 @@ mod tests {
             .map(|t| tet_signed_volume(&t.map(|v| mesh.point(v))))
             .collect();
         assert!(volumes.iter().all(|&v| v > 0.0));
-        approx::assert_relative_eq!(
-            volumes.iter().sum::<f64>(),
-            2.0 * 0.5 * 1.5,
-            max_relative = 1e-12
-        );
+        approx::assert_relative_eq!(volumes.iter().sum::<f64>(), 2.0 * 0.5 * 1.5, max_relative = 1e-12);
         // Every face is in one tet (boundary) or two (interior).
         let mut faces: HashMap<[usize; 3], usize> = HashMap::new();
         for t in tets {
@@ -394,34 +387,17 @@ mod tests {
             shown.contains("<procedural box>: field `cells`: at least 1 cell per axis"),
             "{shown}"
         );
-        field_error(
-            box_tets([0.0, f64::NAN, 0.0], [1.0; 3], [1; 3]),
-            BOX,
-            "lo/hi",
-        );
+        field_error(box_tets([0.0, f64::NAN, 0.0], [1.0; 3], [1; 3]), BOX, "lo/hi");
         field_error(box_tets([0.0; 3], [1.0, 0.0, 1.0], [1; 3]), BOX, "hi");
-        field_error(
-            box_tets([0.0; 3], [1.0; 3], [usize::MAX, 2, 2]),
-            BOX,
-            "cells",
-        );
+        field_error(box_tets([0.0; 3], [1.0; 3], [usize::MAX, 2, 2]), BOX, "cells");
         // A box too thin for its cells has degenerate tets.
         let err = box_tets([0.0; 3], [1.0, 1.0, 1e-14], [1; 3]).unwrap_err();
-        assert!(
-            err.to_string().contains("tetrahedron is degenerate"),
-            "{err}"
-        );
+        assert!(err.to_string().contains("tetrahedron is degenerate"), "{err}");
     }
 
     #[test]
     fn cloth_grid_layout_and_alternating_diagonals() {
-        let mesh = cloth_grid(
-            [2.0, 1.0],
-            [5, 3],
-            [1.0, 2.0, 3.0],
-            ([0.0, 0.0, 2.0], [1.0, 0.0, 0.0]),
-        )
-        .unwrap();
+        let mesh = cloth_grid([2.0, 1.0], [5, 3], [1.0, 2.0, 3.0], ([0.0, 0.0, 2.0], [1.0, 0.0, 0.0])).unwrap();
         assert_eq!(mesh.num_vertices(), 15);
         assert_eq!(mesh.num_elements(), 2 * 4 * 2);
         // Vertex (i, j) = origin + 0.5 i z + 0.5 j x; vertex 7 is (2, 1).
@@ -446,37 +422,17 @@ mod tests {
     #[test]
     fn cloth_parameter_errors() {
         let axes = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
-        field_error(
-            cloth_grid([1.0, f64::NAN], [3, 3], [0.0; 3], axes),
-            CLOTH,
-            "size",
-        );
-        field_error(
-            cloth_grid([1.0, 0.0], [3, 3], [0.0; 3], axes),
-            CLOTH,
-            "size",
-        );
-        let shown = field_error(
-            cloth_grid([1.0, 1.0], [1, 3], [0.0; 3], axes),
-            CLOTH,
-            "verts",
-        );
-        assert!(
-            shown.contains("<procedural cloth>: field `verts`"),
-            "{shown}"
-        );
+        field_error(cloth_grid([1.0, f64::NAN], [3, 3], [0.0; 3], axes), CLOTH, "size");
+        field_error(cloth_grid([1.0, 0.0], [3, 3], [0.0; 3], axes), CLOTH, "size");
+        let shown = field_error(cloth_grid([1.0, 1.0], [1, 3], [0.0; 3], axes), CLOTH, "verts");
+        assert!(shown.contains("<procedural cloth>: field `verts`"), "{shown}");
         field_error(
             cloth_grid([1.0, 1.0], [3, 3], [f64::INFINITY, 0.0, 0.0], axes),
             CLOTH,
             "origin",
         );
         field_error(
-            cloth_grid(
-                [1.0, 1.0],
-                [3, 3],
-                [0.0; 3],
-                ([1.0, 0.0, 0.0], [-2.0, 0.0, 0.0]),
-            ),
+            cloth_grid([1.0, 1.0], [3, 3], [0.0; 3], ([1.0, 0.0, 0.0], [-2.0, 0.0, 0.0])),
             CLOTH,
             "axes",
         );
@@ -524,10 +480,7 @@ mod tests {
         let mut bad = grid();
         bad.spacing = 0.0;
         let shown = field_error(rod_group(2, 4, 1.0, &bad, down), RODS, "roots.spacing");
-        assert!(
-            shown.contains("<procedural rods>: field `roots.spacing`"),
-            "{shown}"
-        );
+        assert!(shown.contains("<procedural rods>: field `roots.spacing`"), "{shown}");
         // One rod needs no spacing.
         assert!(rod_group(1, 4, 1.0, &bad, down).is_ok());
         bad = grid();
