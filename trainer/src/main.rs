@@ -78,6 +78,10 @@ enum Bench {
 }
 
 fn main() {
+    // Assembly runs in parallel (rayon); the sparse factorisation runs sequentially: at these
+    // sizes on small machines faer's parallel factorisation spends more time synchronising
+    // than it saves (beam: 80 -> 61 ms/step on 2 cores, `mochi bench sim beam`).
+    faer::set_global_parallelism(faer::Par::Seq);
     if let Err(e) = run(Cli::parse()) {
         eprintln!("error: {e:#}");
         std::process::exit(1);
