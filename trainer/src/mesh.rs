@@ -7,7 +7,7 @@ pub mod procedural;
 use std::collections::HashMap;
 use std::path::Path;
 
-use nalgebra::{Vector2, Vector3};
+use nalgebra::Vector3;
 
 use crate::error::InputError;
 
@@ -612,19 +612,14 @@ fn flip_orientation(elements: &mut Elements) {
     }
 }
 
-// TODO(merge): use energy::tet::signed_volume
-/// Signed volume of the tet `p[0..4]`, positive when `p[3]` is on the side of `p[0], p[1], p[2]`
-/// that their counter-clockwise winding points to.
+/// Signed volume of the tet `p[0..4]` (the energy module's definition).
 fn tet_signed_volume(p: &[Vector3<f64>]) -> f64 {
-    (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&(p[3] - p[0])) / 6.0
+    crate::energy::tet::signed_volume([0, 1, 2, 3].map(|i| p[i].into()))
 }
 
-// TODO(merge): use energy::tri2d::signed_area
-/// Signed area of the 2D triangle `p[0..3]` (z ignored), positive when counter-clockwise.
+/// Signed area of the 2D triangle `p[0..3]`, z ignored (the energy module's definition).
 fn triangle_signed_area(p: &[Vector3<f64>]) -> f64 {
-    let a = Vector2::new(p[1].x - p[0].x, p[1].y - p[0].y);
-    let b = Vector2::new(p[2].x - p[0].x, p[2].y - p[0].y);
-    0.5 * a.perp(&b)
+    crate::energy::tri2d::signed_area([0, 1, 2].map(|i| [p[i].x, p[i].y]))
 }
 
 /// Boundary faces of a tet mesh, oriented with outward normals for positively oriented tets.
