@@ -296,3 +296,70 @@ fn nan_boundary_conditions_are_refused_without_losing_the_state() {
     let err = problem.simulator.step(&targets[1..]).unwrap_err();
     assert!(matches!(err, StepError::BoundaryLength { .. }), "{err}");
 }
+
+#[test]
+fn stiffer_region_reduces_deflection_and_a_neutral_region_changes_nothing() {
+    let loaded = BEAM.replace(
+        "name = \"vibrating-beam\"",
+        "name = \"beam\"\ngravity = [0.0, -1.0, 0.0]",
+    );
+    // A region covering the root half of the beam (x <= 0.5).
+    let region = |youngs: f64| {
+        loaded.replace(
+            "density = 1000.0",
+            &format!("density = 1000.0\n[[material.regions]]\nbox = {{ min = [-1.0, -1.0, -1.0], max = [0.5, 1.0, 1.0] }}\nyoungs = {youngs:e}"),
+        )
+    };
+    let homogeneous = static_tip_deflection(&mut build(&loaded), 1);
+    let neutral = static_tip_deflection(&mut build(&region(1e6)), 1);
+    let stiff = static_tip_deflection(&mut build(&region(1e7)), 1);
+    assert!(
+        (neutral - homogeneous).abs() <= 1e-9 * homogeneous.abs(),
+        "{neutral} vs {homogeneous}"
+    );
+    // Euler-Bernoulli under a uniform load: the root half contributes 15/16 of the tip
+    // deflection, so making it 10x stiffer leaves 15/160 + 1/16 = 0.156 of it.
+    let ratio = stiff / homogeneous;
+    assert!((ratio - 0.156).abs() < 0.05, "deflection ratio {ratio}");
+}
+
+#[test]
+fn falling_block_comes_to_rest_on_a_plane_obstacle() {
+    let mut p = build(
+        r#"
+name = "drop"
+gravity = [0.0, -9.81, 0.0]
+[mesh]
+type = "box"
+min = [-0.1, 0.05, -0.1]
+max = [0.1, 0.15, 0.1]
+cells = [2, 1, 2]
+[material]
+youngs = 1e5
+poisson = 0.3
+density = 500.0
+[collision]
+stiffness = 1e6
+margin = 0.005
+[[obstacles]]
+type = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+"#,
+    );
+    let dim = 3;
+    let mut min_y = f64::INFINITY;
+    for _ in 0..45 {
+        let report = p.simulator.step(&[]).expect("step");
+        assert!(report.converged);
+        let x = p.simulator.positions();
+        min_y = min_y.min((0..x.len() / dim).map(|v| x[v * dim + 1]).fold(f64::INFINITY, f64::min));
+    }
+    // Never sinks noticeably into the plane, and ends at rest on it (within the margin).
+    assert!(min_y > -0.01, "penetration {min_y}");
+    let x = p.simulator.positions();
+    let bottom = (0..x.len() / dim).map(|v| x[v * dim + 1]).fold(f64::INFINITY, f64::min);
+    assert!(bottom < 0.005 && bottom > -0.005, "resting on the plane: {bottom}");
+    let speed = p.simulator.velocities().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(speed < 0.05, "comes to rest: {speed}");
+}
