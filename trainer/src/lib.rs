@@ -5,6 +5,7 @@ pub mod chart;
 pub mod dataset;
 pub mod energy;
 pub mod error;
+pub mod loss;
 pub mod material;
 pub mod mesh;
 pub mod render;

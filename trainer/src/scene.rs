@@ -465,11 +465,37 @@ impl Scene {
     /// Builds the mesh, energies, handles and simulator.
     pub fn build(&self) -> Result<Problem, InputError> {
         let mesh = self.build_mesh()?;
-        let materials = self.element_materials(&mesh);
+        let Energies { masses, potentials } = self.build_energies(&mesh)?;
+        let handles = self.build_handles(&mesh)?;
+        let fixed: Vec<usize> = handles.iter().flat_map(|h| h.vertices.iter().copied()).collect();
+        let simulator = Simulator::new(
+            mesh.dim,
+            mesh.rest.clone(),
+            masses,
+            potentials,
+            fixed,
+            self.dt,
+            self.integrator,
+            self.newton,
+            mesh.rest_diagonal(),
+        );
+        Ok(Problem {
+            scene: self.clone(),
+            mesh,
+            handles,
+            simulator,
+        })
+    }
+
+    /// Lumped masses and the conservative energy terms of the scene's body: elastic terms
+    /// for its element kind, gravity, loads and obstacle collision. The solver and the
+    /// training losses both build their energies here, so there is one definition.
+    pub fn build_energies(&self, mesh: &Mesh) -> Result<Energies, InputError> {
+        let materials = self.element_materials(mesh);
         let densities: Vec<f64> = materials.iter().map(|m| m.density).collect();
         let thickness = self.material.thickness.unwrap_or(1.0);
         let radius = self.material.radius.unwrap_or(1.0);
-        let masses = lumped_masses(&mesh, &densities, thickness, radius);
+        let masses = lumped_masses(mesh, &densities, thickness, radius);
         let src = &self.source;
         let model = self.material.model;
         let rest = &mesh.rest;
@@ -490,7 +516,7 @@ impl Scene {
             potentials.push(Box::new(ConstantForce::gravity(dim, &masses, self.gravity)));
         }
         for (k, load) in self.loads.iter().enumerate() {
-            let verts = self.select(&mesh, &load.select, &format!("loads[{k}].select"))?;
+            let verts = self.select(mesh, &load.select, &format!("loads[{k}].select"))?;
             potentials.push(Box::new(ConstantForce::load(dim, verts, load.force)));
         }
         if !self.obstacles.is_empty() {
@@ -502,25 +528,7 @@ impl Scene {
                 self.collision.margin,
             )));
         }
-        let handles = self.build_handles(&mesh)?;
-        let fixed: Vec<usize> = handles.iter().flat_map(|h| h.vertices.iter().copied()).collect();
-        let simulator = Simulator::new(
-            dim,
-            mesh.rest.clone(),
-            masses,
-            potentials,
-            fixed,
-            self.dt,
-            self.integrator,
-            self.newton,
-            mesh.rest_diagonal(),
-        );
-        Ok(Problem {
-            scene: self.clone(),
-            mesh,
-            handles,
-            simulator,
-        })
+        Ok(Energies { masses, potentials })
     }
 
     /// Per-element materials (per strand for rods): the base material with region
@@ -749,6 +757,14 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
             Ok(mesh)
         }
     }
+}
+
+/// The energy terms of a scene's body (see [`Scene::build_energies`]).
+pub struct Energies {
+    /// Lumped vertex masses.
+    pub masses: Vec<f64>,
+    /// Conservative terms: elastic, gravity, loads, collision.
+    pub potentials: Vec<Box<dyn StencilEnergy>>,
 }
 
 /// A scene built and ready to simulate.
