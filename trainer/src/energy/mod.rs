@@ -123,8 +123,8 @@ pub fn value(energy: &dyn StencilEnergy, x: &[f64]) -> f64 {
         .map_init(
             || (Local::default(), [0.0; MAX_DOF]),
             |(out, xl), s| {
-                gather(energy, s, x, xl);
-                energy.eval(s, xl, Want::Value, out)
+                let n = gather(energy, s, x, xl);
+                energy.eval(s, &xl[..n], Want::Value, out)
             },
         )
         .sum()
