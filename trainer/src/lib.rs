@@ -3,10 +3,12 @@
 pub mod bc;
 pub mod chart;
 pub mod dataset;
+pub mod encoding;
 pub mod energy;
 pub mod error;
 pub mod material;
 pub mod mesh;
+pub mod pca;
 pub mod render;
 pub mod scene;
 pub mod solver;
