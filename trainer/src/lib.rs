@@ -3,11 +3,13 @@
 pub mod bc;
 pub mod chart;
 pub mod dataset;
+pub mod encoding;
 pub mod energy;
 pub mod error;
 pub mod loss;
 pub mod material;
 pub mod mesh;
+pub mod pca;
 pub mod render;
 pub mod scene;
 pub mod solver;

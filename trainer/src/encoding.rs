@@ -1,0 +1,725 @@
+//! Encoding of full-space states relative to their boundary conditions (Li et al. 2025,
+//! Sec. 3.2; DESIGN.md decision 3), so that networks never have to learn the rigid motion
+//! of the handles.
+//!
+//! Handle (prescribed) vertices are left out of the encoded vector `q`; decoding puts them
+//! at their boundary-condition targets. Every other vertex `v` is stored, in ascending
+//! vertex order, `dim` numbers each, as
+//!
+//! ```text
+//! q_v = R^T (x_v - o_v)          decoded as          x_v = R q_v + o_v
+//! ```
+//!
+//! where the [`Frame`] of a state holds the rotation `R` and the origins `o`:
+//!
+//! - `o_v` is the root vertex of `v`'s strand for rods whose every root is prescribed
+//!   ([`Origins::StrandRoots`]), and otherwise (cloth, solids, 2D, anything else) the
+//!   centroid `c` of the current handle-vertex positions ([`Origins::HandleCentroid`]);
+//! - `R` is the best-fit proper rotation (Kabsch) carrying the handles' reference
+//!   positions (their frame-0 targets) to their current targets, when the scene's handles
+//!   can rotate, and the identity otherwise (e.g. the cloth's two pinned corners are
+//!   collinear, so their rotation is ill-determined; translation alone is removed there).
+//!
+//! Both `R` and the origins depend only on the handle targets, so decoding is one affine map
+//! per vertex that a runtime without allocation can repeat. For a single rigid handle,
+//! `R` equals the handle's pose rotation and `c` is the pose applied to the reference
+//! centroid, so such a runtime need not run an SVD. In 2D, `R` is the upper-left 2x2 block
+//! and the third components of the origins are zero.
+
+use faer::Mat;
+use nalgebra::{DMatrix, Matrix3, Vector3};
+
+use crate::bc::Handle;
+use crate::error::InputError;
+use crate::mesh::{Elements, Mesh};
+use crate::scene::{HandleSpec, Problem};
+use crate::trajectory::Trajectory;
+
+/// Spread of the handle points along a principal direction, relative to the largest, below
+/// which that direction counts as absent.
+const DEGENERATE_SPREAD: f64 = 1e-10;
+
+/// Something wrong with the inputs of an [`Encoding`].
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum EncodingError {
+    /// A vector has the wrong length.
+    #[error("{what}: expected {expected} values, found {found}")]
+    Length {
+        /// Which input.
+        what: &'static str,
+        /// Length the encoding needs.
+        expected: usize,
+        /// Length given.
+        found: usize,
+    },
+    /// The handles do not describe prescribed vertices of the mesh.
+    #[error("handle `{handle}`: {message}")]
+    BadHandle {
+        /// Handle name.
+        handle: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A point of the rotation fit holds a NaN or infinity.
+    #[error("the points of the rotation fit hold a non-finite value")]
+    NotFinite,
+    /// The SVD of the rotation fit did not converge.
+    #[error("the SVD of the rotation fit did not converge: {0}")]
+    NoConvergence(String),
+    /// Rotation was asked for, but the handle vertices cannot determine one (3D needs
+    /// them to span a plane, 2D a line).
+    #[error("the {count} handle vertices span {span} dimension(s), too few to fix a rotation")]
+    DegenerateHandles {
+        /// Number of handle vertices.
+        count: usize,
+        /// Dimension of the affine space they span (0: a point, 1: a line).
+        span: usize,
+    },
+}
+
+fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), EncodingError> {
+    if expected == found {
+        Ok(())
+    } else {
+        Err(EncodingError::Length { what, expected, found })
+    }
+}
+
+/// Where the origins `o_v` of the encoded vertices come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Origins {
+    /// One origin for every vertex: the centroid of the current handle targets (the
+    /// origin is 0 when there are no handles).
+    HandleCentroid,
+    /// One origin per rod strand: the target of its root vertex. `root_slots[s]` is the
+    /// position of strand `s`'s root in the handle-target list.
+    StrandRoots {
+        /// Per strand, the index of its root among the handle vertices.
+        root_slots: Vec<usize>,
+    },
+}
+
+/// The frame of one state: rotation and origins (see the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    /// `R`; the identity when the handles do not rotate (upper-left 2x2 used in 2D).
+    pub rotation: Matrix3<f64>,
+    /// The origins, indexed by [`Encoding::origin_of`] (z = 0 in 2D).
+    pub origins: Vec<Vector3<f64>>,
+}
+
+/// How the states of one body are encoded relative to its boundary conditions.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Encoding {
+    dim: usize,
+    num_vertices: usize,
+    /// Prescribed vertices in handle-target order (handles concatenated).
+    handle_vertices: Vec<usize>,
+    /// Their frame-0 targets (`dim` per vertex), the reference of the rotation fit.
+    reference: Vec<f64>,
+    rotates: bool,
+    /// Encoded vertices, ascending.
+    free_vertices: Vec<usize>,
+    /// Per encoded vertex, the index of its origin in [`Frame::origins`].
+    origin_of: Vec<usize>,
+    origins: Origins,
+}
+
+impl Encoding {
+    /// The encoding of a built scene: rotation is removed when some handle can rotate
+    /// (see [`handles_rotate`]).
+    pub fn new(problem: &Problem) -> Result<Encoding, InputError> {
+        let rotates = handles_rotate(&problem.scene.handles);
+        Encoding::from_parts(&problem.mesh, &problem.handles, rotates)
+            .map_err(|e| InputError::field(&problem.scene.source, "handles", e.to_string()))
+    }
+
+    /// The encoding of `mesh` with prescribed `handles`; `rotates` says whether to remove
+    /// the handles' rotation (it needs handle vertices that are not collinear in 3D, or
+    /// not all one point in 2D).
+    pub fn from_parts(mesh: &Mesh, handles: &[Handle], rotates: bool) -> Result<Encoding, EncodingError> {
+        let dim = mesh.dim;
+        let num_vertices = mesh.num_vertices();
+        let mut slot_of = vec![None; num_vertices];
+        let mut handle_vertices = Vec::new();
+        let mut reference = Vec::new();
+        for h in handles {
+            let bad = |message: String| EncodingError::BadHandle {
+                handle: h.name.clone(),
+                message,
+            };
+            if h.reference.len() != h.vertices.len() {
+                return Err(bad(format!(
+                    "{} reference positions for {} vertices",
+                    h.reference.len(),
+                    h.vertices.len()
+                )));
+            }
+            for (&v, r) in h.vertices.iter().zip(&h.reference) {
+                match slot_of.get(v) {
+                    None => return Err(bad(format!("vertex {v} out of range (mesh has {num_vertices})"))),
+                    Some(Some(_)) => return Err(bad(format!("vertex {v} is prescribed twice"))),
+                    Some(None) => slot_of[v] = Some(handle_vertices.len()),
+                }
+                handle_vertices.push(v);
+                reference.extend_from_slice(&r[..dim]);
+            }
+        }
+        if rotates {
+            check_spread(&reference, dim)?;
+        }
+        let free_vertices: Vec<usize> = (0..num_vertices).filter(|&v| slot_of[v].is_none()).collect();
+        let (origins, origin_of) = match strand_roots(mesh, &slot_of, &free_vertices) {
+            Some((root_slots, strand_of)) => (Origins::StrandRoots { root_slots }, strand_of),
+            None => (Origins::HandleCentroid, vec![0; free_vertices.len()]),
+        };
+        Ok(Encoding {
+            dim,
+            num_vertices,
+            handle_vertices,
+            reference,
+            rotates,
+            free_vertices,
+            origin_of,
+            origins,
+        })
+    }
+
+    /// Coordinates per vertex.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+    /// Length of a full state (`dim` per mesh vertex).
+    pub fn state_len(&self) -> usize {
+        self.num_vertices * self.dim
+    }
+    /// Length of an encoded vector (`dim` per encoded vertex).
+    pub fn encoded_len(&self) -> usize {
+        self.free_vertices.len() * self.dim
+    }
+    /// Length of the handle targets (`dim` per prescribed vertex).
+    pub fn targets_len(&self) -> usize {
+        self.handle_vertices.len() * self.dim
+    }
+    /// Whether the handles' rotation is removed.
+    pub fn rotates(&self) -> bool {
+        self.rotates
+    }
+    /// The encoded vertices, in encoded order (ascending).
+    pub fn free_vertices(&self) -> &[usize] {
+        &self.free_vertices
+    }
+    /// The prescribed vertices, in handle-target order.
+    pub fn handle_vertices(&self) -> &[usize] {
+        &self.handle_vertices
+    }
+    /// Per encoded vertex, the index of its origin in [`Frame::origins`].
+    pub fn origin_of(&self) -> &[usize] {
+        &self.origin_of
+    }
+    /// Where the origins come from.
+    pub fn origins(&self) -> &Origins {
+        &self.origins
+    }
+
+    /// The handle targets of a full state: the positions of its prescribed vertices.
+    pub fn handle_targets(&self, x: &[f64]) -> Result<Vec<f64>, EncodingError> {
+        check_len("state", self.state_len(), x.len())?;
+        let d = self.dim;
+        Ok(self
+            .handle_vertices
+            .iter()
+            .flat_map(|&v| &x[v * d..(v + 1) * d])
+            .copied()
+            .collect())
+    }
+
+    /// The frame fixed by the handle targets (`dim` per prescribed vertex, handle order).
+    pub fn frame(&self, handle_targets: &[f64]) -> Result<Frame, EncodingError> {
+        check_len("handle targets", self.targets_len(), handle_targets.len())?;
+        let point = |slot: usize| pad(&handle_targets[slot * self.dim..(slot + 1) * self.dim]);
+        let rotation = if self.rotates {
+            best_fit_rotation(&self.reference, handle_targets, self.dim)?
+        } else {
+            Matrix3::identity()
+        };
+        let origins = match &self.origins {
+            Origins::HandleCentroid => vec![centroid(handle_targets, self.dim)],
+            Origins::StrandRoots { root_slots } => root_slots.iter().map(|&s| point(s)).collect(),
+        };
+        Ok(Frame { rotation, origins })
+    }
+
+    fn check_frame(&self, frame: &Frame) -> Result<(), EncodingError> {
+        let expected = match &self.origins {
+            Origins::HandleCentroid => 1,
+            Origins::StrandRoots { root_slots } => root_slots.len(),
+        };
+        check_len("frame origins", expected, frame.origins.len())
+    }
+
+    /// Encodes the full state `x` in `frame`: `q_v = R^T (x_v - o_v)` for every encoded vertex.
+    pub fn encode(&self, x: &[f64], frame: &Frame) -> Result<Vec<f64>, EncodingError> {
+        check_len("state", self.state_len(), x.len())?;
+        self.check_frame(frame)?;
+        let d = self.dim;
+        let rt = frame.rotation.transpose();
+        let mut q = Vec::with_capacity(self.encoded_len());
+        for (&v, &o) in self.free_vertices.iter().zip(&self.origin_of) {
+            let local = rt * (pad(&x[v * d..(v + 1) * d]) - frame.origins[o]);
+            q.extend_from_slice(&local.as_slice()[..d]);
+        }
+        Ok(q)
+    }
+
+    /// Encodes a full state in the frame of its own prescribed vertices.
+    pub fn encode_state(&self, x: &[f64]) -> Result<Vec<f64>, EncodingError> {
+        let frame = self.frame(&self.handle_targets(x)?)?;
+        self.encode(x, &frame)
+    }
+
+    /// Encodes every frame of a trajectory of this body (each in the frame of its own
+    /// prescribed vertices).
+    pub fn encode_trajectory(&self, trajectory: &Trajectory) -> Result<Vec<Vec<f64>>, EncodingError> {
+        check_len("trajectory coordinates per vertex", self.dim, trajectory.dim)?;
+        trajectory.positions.iter().map(|x| self.encode_state(x)).collect()
+    }
+
+    /// Decodes `q` into the full state `out`: `x_v = R q_v + o_v` for encoded vertices,
+    /// the targets for prescribed ones. `frame` must be `self.frame(handle_targets)`.
+    pub fn decode_into(
+        &self,
+        q: &[f64],
+        frame: &Frame,
+        handle_targets: &[f64],
+        out: &mut [f64],
+    ) -> Result<(), EncodingError> {
+        check_len("encoded vector", self.encoded_len(), q.len())?;
+        check_len("handle targets", self.targets_len(), handle_targets.len())?;
+        check_len("output state", self.state_len(), out.len())?;
+        self.check_frame(frame)?;
+        let d = self.dim;
+        for (k, (&v, &o)) in self.free_vertices.iter().zip(&self.origin_of).enumerate() {
+            let world = frame.rotation * pad(&q[k * d..(k + 1) * d]) + frame.origins[o];
+            out[v * d..(v + 1) * d].copy_from_slice(&world.as_slice()[..d]);
+        }
+        for (slot, &v) in self.handle_vertices.iter().enumerate() {
+            out[v * d..(v + 1) * d].copy_from_slice(&handle_targets[slot * d..(slot + 1) * d]);
+        }
+        Ok(())
+    }
+
+    /// Decodes `q` with the handles at `handle_targets` into a new full state.
+    pub fn decode(&self, q: &[f64], handle_targets: &[f64]) -> Result<Vec<f64>, EncodingError> {
+        let frame = self.frame(handle_targets)?;
+        let mut out = vec![0.0; self.state_len()];
+        self.decode_into(q, &frame, handle_targets, &mut out)?;
+        Ok(out)
+    }
+}
+
+/// Whether any handle can rotate: it has a script with a non-zero angular velocity, or a
+/// sampled motion that can pick a rotating segment (rotation axes, and either no
+/// translation directions or a positive `rotation_share`).
+pub fn handles_rotate(handles: &[HandleSpec]) -> bool {
+    handles.iter().any(|h| {
+        let scripted = h.script.iter().any(|s| s.angular_velocity.iter().any(|w| *w != 0.0));
+        let sampled = h
+            .motion
+            .as_ref()
+            .is_some_and(|m| !m.rotation_axes.is_empty() && (m.directions.is_empty() || m.rotation_share > 0.0));
+        scripted || sampled
+    })
+}
+
+/// The proper rotation `R` (det +1) minimising `sum |R (p_i - p̄) - (q_i - q̄)|^2` (Kabsch)
+/// between point sets `reference` (p) and `current` (q), `dim` (2 or 3) numbers per point.
+/// A 2D rotation is returned in the upper-left block of a 3x3 matrix.
+///
+/// The SVD is faer's: nalgebra 0.35's SVD returned singular vectors off by 4e-3 for the
+/// nearly repeated singular values of a symmetric handle (the 4 x 4 grid of rod roots),
+/// where faer's is accurate to round-off.
+pub fn best_fit_rotation(reference: &[f64], current: &[f64], dim: usize) -> Result<Matrix3<f64>, EncodingError> {
+    if !(dim == 2 || dim == 3) {
+        return Err(EncodingError::Length {
+            what: "coordinates per point (2 or 3)",
+            expected: 3,
+            found: dim,
+        });
+    }
+    check_len("current points", reference.len(), current.len())?;
+    check_len(
+        "reference points",
+        reference.len().next_multiple_of(dim),
+        reference.len(),
+    )?;
+    if !reference.iter().chain(current).all(|c| c.is_finite()) {
+        return Err(EncodingError::NotFinite);
+    }
+    let (p_bar, q_bar) = (centroid(reference, dim), centroid(current, dim));
+    // Cross-covariance H = sum (p - p̄)(q - q̄)^T; with H = U S V^T, R = V diag(1, .., det) U^T.
+    let mut h = [[0.0; 3]; 3];
+    for (p, q) in reference.chunks_exact(dim).zip(current.chunks_exact(dim)) {
+        for i in 0..dim {
+            for j in 0..dim {
+                h[i][j] += (p[i] - p_bar[i]) * (q[j] - q_bar[j]);
+            }
+        }
+    }
+    let svd = Mat::<f64>::from_fn(dim, dim, |i, j| h[i][j])
+        .svd()
+        .map_err(|e| EncodingError::NoConvergence(format!("{e:?}")))?;
+    let (u, v) = (svd.U(), svd.V());
+    let rotation = |last_sign: f64| {
+        let mut r = Matrix3::identity();
+        for i in 0..dim {
+            for j in 0..dim {
+                r[(i, j)] = (0..dim)
+                    .map(|k| {
+                        let sign = if k == dim - 1 { last_sign } else { 1.0 };
+                        sign * v[(i, k)] * u[(j, k)]
+                    })
+                    .sum();
+            }
+        }
+        r
+    };
+    let r = rotation(1.0);
+    // A reflection fits better: flip the direction of the smallest singular value.
+    Ok(if r.determinant() < 0.0 { rotation(-1.0) } else { r })
+}
+
+/// Fails when the reference points are too flat to fix a rotation (3D: collinear; 2D: one point).
+fn check_spread(reference: &[f64], dim: usize) -> Result<(), EncodingError> {
+    let c = centroid(reference, dim);
+    let mut cov = DMatrix::<f64>::zeros(dim, dim);
+    for p in reference.chunks_exact(dim) {
+        for i in 0..dim {
+            for j in 0..dim {
+                cov[(i, j)] += (p[i] - c[i]) * (p[j] - c[j]);
+            }
+        }
+    }
+    // Spread along the principal directions; 3D needs two of them, 2D one.
+    let spread: Vec<f64> = cov.symmetric_eigenvalues().iter().map(|e| e.max(0.0).sqrt()).collect();
+    let largest = spread.iter().copied().fold(0.0, f64::max);
+    let span = spread.iter().filter(|&&s| s > DEGENERATE_SPREAD * largest).count();
+    if span < dim - 1 {
+        return Err(EncodingError::DegenerateHandles {
+            count: reference.len() / dim,
+            span,
+        });
+    }
+    Ok(())
+}
+
+/// For rods whose every root is prescribed and whose every free vertex lies on a strand:
+/// the handle slot of each strand's root, and the strand of each free vertex.
+fn strand_roots(mesh: &Mesh, slot_of: &[Option<usize>], free: &[usize]) -> Option<(Vec<usize>, Vec<usize>)> {
+    let Elements::Rods(strands) = &mesh.elements else {
+        return None;
+    };
+    let root_slots = strands
+        .iter()
+        .map(|s| s.first().and_then(|&root| slot_of.get(root).copied().flatten()))
+        .collect::<Option<Vec<usize>>>()?;
+    let mut strand_of_vertex = vec![None; mesh.num_vertices()];
+    for (k, s) in strands.iter().enumerate() {
+        for &v in s {
+            if let Some(strand) = strand_of_vertex.get_mut(v) {
+                strand.get_or_insert(k);
+            }
+        }
+    }
+    let strand_of = free
+        .iter()
+        .map(|&v| strand_of_vertex[v])
+        .collect::<Option<Vec<usize>>>()?;
+    Some((root_slots, strand_of))
+}
+
+/// A point of `dim` (2 or 3) coordinates as a 3-vector (z = 0 in 2D).
+fn pad(p: &[f64]) -> Vector3<f64> {
+    let mut out = Vector3::zeros();
+    out.as_mut_slice()[..p.len()].copy_from_slice(p);
+    out
+}
+
+/// Centroid of points given `dim` numbers each (the origin for no points).
+fn centroid(points: &[f64], dim: usize) -> Vector3<f64> {
+    let n = points.len() / dim;
+    if n == 0 {
+        return Vector3::zeros();
+    }
+    points.chunks_exact(dim).map(pad).sum::<Vector3<f64>>() / n as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::SpeedPlan;
+    use crate::scene::Scene;
+    use nalgebra::{Rotation3, UnitQuaternion};
+
+    /// A built scene and a short simulated trajectory of it.
+    fn simulate(name: &str, frames: usize) -> (Problem, Trajectory) {
+        let mut problem = Scene::load(name).unwrap().build().unwrap();
+        let seq = problem.sequence(&SpeedPlan::constant(0.5), frames, 1);
+        let traj = problem.run(&seq, None).unwrap();
+        (problem, traj)
+    }
+
+    fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+        assert_eq!(a.len(), b.len());
+        a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    }
+
+    /// Applies `x -> rotation x + shift` to every vertex of a flat state.
+    fn moved(x: &[f64], dim: usize, rotation: &Matrix3<f64>, shift: Vector3<f64>) -> Vec<f64> {
+        x.chunks_exact(dim)
+            .flat_map(|p| {
+                let y = rotation * pad(p) + shift;
+                y.as_slice()[..dim].to_vec()
+            })
+            .collect()
+    }
+
+    fn round_trip_is_exact(enc: &Encoding, states: &[Vec<f64>]) {
+        for x in states {
+            let q = enc.encode_state(x).unwrap();
+            assert_eq!(q.len(), enc.encoded_len());
+            let back = enc.decode(&q, &enc.handle_targets(x).unwrap()).unwrap();
+            assert!(
+                max_abs_diff(&back, x) < 1e-12,
+                "round trip error {}",
+                max_abs_diff(&back, x)
+            );
+        }
+    }
+
+    #[test]
+    fn encoding_round_trip_is_exact_on_simulated_beam_and_rods() {
+        let (beam, traj) = simulate("beam", 10);
+        let enc = Encoding::new(&beam).unwrap();
+        assert!(enc.rotates());
+        assert_eq!(enc.origins(), &Origins::HandleCentroid);
+        let clamp = beam.handles[0].vertices.len();
+        assert_eq!(enc.encoded_len(), (beam.mesh.num_vertices() - clamp) * 3);
+        round_trip_is_exact(&enc, &traj.positions);
+        // At frame 0 the clamp is at its reference: R = I and q_v = x_v - (clamp centroid).
+        let encoded = enc.encode_trajectory(&traj).unwrap();
+        assert_eq!(encoded.len(), traj.num_frames());
+        let c = centroid(&enc.handle_targets(&traj.positions[0]).unwrap(), 3);
+        for (k, &v) in enc.free_vertices().iter().enumerate() {
+            for i in 0..3 {
+                assert!((encoded[0][k * 3 + i] - (traj.positions[0][v * 3 + i] - c[i])).abs() < 1e-15);
+            }
+        }
+
+        let (rods, traj) = simulate("rods", 10);
+        let enc = Encoding::new(&rods).unwrap();
+        assert!(!enc.rotates());
+        let Origins::StrandRoots { root_slots } = enc.origins() else {
+            panic!("rods encode relative to their roots");
+        };
+        assert_eq!(root_slots.len(), 16);
+        // Two prescribed vertices per strand, 28 encoded.
+        assert_eq!(enc.encoded_len(), 16 * 28 * 3);
+        round_trip_is_exact(&enc, &traj.positions);
+        // The encoding is the offset from the strand root, exactly as the paper has it.
+        let Elements::Rods(strands) = &rods.mesh.elements else {
+            unreachable!()
+        };
+        let x = traj.positions.last().unwrap();
+        let q = enc.encode_state(x).unwrap();
+        let (root, tip) = (strands[3][0], *strands[3].last().unwrap());
+        let k = enc.free_vertices().iter().position(|&v| v == tip).unwrap();
+        for i in 0..3 {
+            assert_eq!(q[k * 3 + i], x[tip * 3 + i] - x[root * 3 + i]);
+        }
+        // The root moved, so a root-relative code differs from the raw position.
+        assert!((x[root * 3] - rods.mesh.rest[root * 3]).abs() > 1e-3);
+    }
+
+    #[test]
+    fn encoding_ignores_rigid_motion_of_state_and_handles_together() {
+        let (beam, traj) = simulate("beam", 8);
+        let enc = Encoding::new(&beam).unwrap();
+        let rotation = *Rotation3::from_scaled_axis(Vector3::new(0.3, -1.1, 0.7)).matrix();
+        let shift = Vector3::new(0.4, -2.0, 1.5);
+        for x in &traj.positions {
+            let q = enc.encode_state(x).unwrap();
+            let q_moved = enc.encode_state(&moved(x, 3, &rotation, shift)).unwrap();
+            assert!(max_abs_diff(&q, &q_moved) < 1e-12, "{}", max_abs_diff(&q, &q_moved));
+        }
+        // Rods with their roots' rotation removed as well.
+        let (rods, traj) = simulate("rods", 4);
+        let enc = Encoding::from_parts(&rods.mesh, &rods.handles, true).unwrap();
+        let x = traj.positions.last().unwrap();
+        let q = enc.encode_state(x).unwrap();
+        let q_moved = enc.encode_state(&moved(x, 3, &rotation, shift)).unwrap();
+        assert!(
+            max_abs_diff(&q, &q_moved) < 1e-12,
+            "rods {}",
+            max_abs_diff(&q, &q_moved)
+        );
+        round_trip_is_exact(&enc, &traj.positions);
+    }
+
+    /// States of a scene with its handles at the targets of a sampled sequence and the
+    /// other vertices displaced from rest by a smooth pattern (no simulation).
+    fn displaced_states(problem: &Problem, frames: usize) -> Vec<Vec<f64>> {
+        let dim = problem.mesh.dim;
+        let seq = problem.sequence(&SpeedPlan::constant(1.0), frames, 2);
+        (0..=frames)
+            .map(|f| {
+                let mut x: Vec<f64> = (problem.mesh.rest.iter().enumerate())
+                    .map(|(i, r)| r + 0.01 * (i as f64 * 0.37 + f as f64).sin())
+                    .collect();
+                let targets = seq.targets(&problem.handles, f, dim);
+                let fixed = problem.handles.iter().flat_map(|h| &h.vertices);
+                for (slot, &v) in fixed.enumerate() {
+                    x[v * dim..(v + 1) * dim].copy_from_slice(&targets[slot * dim..(slot + 1) * dim]);
+                }
+                x
+            })
+            .collect()
+    }
+
+    #[test]
+    fn encoding_ignores_translation_in_every_scene() {
+        for name in crate::scene::shipped_scene_names() {
+            let problem = Scene::load(&name).unwrap().build().unwrap();
+            // 3D scenes use simulated states. 2D ones use displaced states: in debug builds
+            // `energy::value` trips a debug assertion on 2D elements (it passes all
+            // MAX_DOF gathered values to `eval`), and `Problem::run` calls it.
+            let states = if problem.mesh.dim == 3 {
+                simulate(&name, 2).1.positions
+            } else {
+                displaced_states(&problem, 5)
+            };
+            let enc = Encoding::new(&problem).unwrap();
+            let dim = enc.dim();
+            let shift = Vector3::new(0.7, -0.3, if dim == 3 { 1.9 } else { 0.0 });
+            for x in &states {
+                let q = enc.encode_state(x).unwrap();
+                let q_moved = enc.encode_state(&moved(x, dim, &Matrix3::identity(), shift)).unwrap();
+                assert!(
+                    max_abs_diff(&q, &q_moved) < 1e-12,
+                    "{name}: {}",
+                    max_abs_diff(&q, &q_moved)
+                );
+            }
+            round_trip_is_exact(&enc, &states);
+        }
+    }
+
+    #[test]
+    fn encoding_kabsch_recovers_a_known_rotation() {
+        let points: Vec<f64> = (0..7)
+            .flat_map(|i| {
+                let t = i as f64;
+                [t.sin(), (1.3 * t).cos() * 2.0, 0.5 * t - 1.0]
+            })
+            .collect();
+        let rotation = *UnitQuaternion::from_scaled_axis(Vector3::new(-0.4, 2.2, 0.9))
+            .to_rotation_matrix()
+            .matrix();
+        let current = moved(&points, 3, &rotation, Vector3::new(3.0, 1.0, -2.0));
+        let fit = best_fit_rotation(&points, &current, 3).unwrap();
+        assert!((fit - rotation).abs().max() < 1e-12, "{fit} vs {rotation}");
+        assert!((fit.determinant() - 1.0).abs() < 1e-12);
+
+        // Coplanar points (a clamped face) still fix a proper rotation.
+        let planar: Vec<f64> = (0..9).flat_map(|i| [0.0, (i % 3) as f64, (i / 3) as f64]).collect();
+        let current = moved(&planar, 3, &rotation, Vector3::zeros());
+        let fit = best_fit_rotation(&planar, &current, 3).unwrap();
+        assert!((fit - rotation).abs().max() < 1e-12);
+
+        // 2D: a rotation by 2 rad about z.
+        let flat: Vec<f64> = vec![0.0, 0.0, 1.0, 0.0, 0.3, 0.8];
+        let r2 = *Rotation3::from_axis_angle(&Vector3::z_axis(), 2.0).matrix();
+        let current = moved(&flat, 2, &r2, Vector3::new(1.0, -1.0, 0.0));
+        let fit = best_fit_rotation(&flat, &current, 2).unwrap();
+        assert!((fit - r2).abs().max() < 1e-12, "{fit}");
+    }
+
+    fn is_length<T>(result: Result<T, EncodingError>) -> bool {
+        matches!(result, Err(EncodingError::Length { .. }))
+    }
+
+    #[test]
+    fn encoding_bad_input_is_an_error() {
+        let problem = Scene::load("beam").unwrap().build().unwrap();
+        let enc = Encoding::new(&problem).unwrap();
+        let x = problem.mesh.rest.clone();
+        let targets = enc.handle_targets(&x).unwrap();
+        let frame = enc.frame(&targets).unwrap();
+        assert!(is_length(enc.encode(&x[1..], &frame)));
+        assert!(is_length(enc.encode_state(&x[..6])));
+        assert!(is_length(enc.frame(&targets[1..])));
+        let q = enc.encode(&x, &frame).unwrap();
+        let mut out = vec![0.0; x.len()];
+        assert!(is_length(enc.decode_into(&q[1..], &frame, &targets, &mut out)));
+        assert!(is_length(enc.decode_into(&q, &frame, &targets[3..], &mut out)));
+        assert!(is_length(enc.decode_into(&q, &frame, &targets, &mut out[1..])));
+        let mut no_origin = frame.clone();
+        no_origin.origins.clear();
+        assert!(is_length(enc.decode_into(&q, &no_origin, &targets, &mut out)));
+        assert!(is_length(best_fit_rotation(&[0.0; 6], &[0.0; 3], 3)));
+        assert!(is_length(best_fit_rotation(&[0.0; 4], &[0.0; 4], 3)));
+        let mut traj = Trajectory {
+            scene: "beam".into(),
+            dt: 0.1,
+            dim: 2,
+            positions: vec![x.clone()],
+            bc_signal: vec![vec![]],
+            energy_names: vec![],
+            energies: vec![vec![]],
+            newton_iterations: vec![0],
+            step_seconds: vec![0.0],
+            meta: vec![],
+        };
+        assert!(is_length(enc.encode_trajectory(&traj)));
+        traj.dim = 3;
+        traj.positions.push(x[3..].to_vec());
+        assert!(is_length(enc.encode_trajectory(&traj)));
+
+        // The cloth's two corners cannot fix a rotation.
+        let cloth = Scene::load("cloth").unwrap().build().unwrap();
+        assert!(!Encoding::new(&cloth).unwrap().rotates());
+        assert_eq!(
+            Encoding::from_parts(&cloth.mesh, &cloth.handles, true),
+            Err(EncodingError::DegenerateHandles { count: 2, span: 1 })
+        );
+        // Handles that do not fit the mesh.
+        let mut handles = problem.handles.clone();
+        handles[0].vertices[0] = problem.mesh.num_vertices();
+        assert!(matches!(
+            Encoding::from_parts(&problem.mesh, &handles, true),
+            Err(EncodingError::BadHandle { .. })
+        ));
+        let mut handles = problem.handles.clone();
+        handles.push(handles[0].clone());
+        assert!(matches!(
+            Encoding::from_parts(&problem.mesh, &handles, false),
+            Err(EncodingError::BadHandle { .. })
+        ));
+        let mut handles = problem.handles.clone();
+        handles[0].reference.pop();
+        assert!(matches!(
+            Encoding::from_parts(&problem.mesh, &handles, false),
+            Err(EncodingError::BadHandle { .. })
+        ));
+    }
+
+    #[test]
+    fn encoding_without_handles_is_the_identity() {
+        let problem = Scene::load("beam").unwrap().build().unwrap();
+        let enc = Encoding::from_parts(&problem.mesh, &[], false).unwrap();
+        assert_eq!(enc.encoded_len(), problem.mesh.rest.len());
+        let q = enc.encode_state(&problem.mesh.rest).unwrap();
+        assert_eq!(q, problem.mesh.rest);
+        assert_eq!(enc.decode(&q, &[]).unwrap(), problem.mesh.rest);
+    }
+}
