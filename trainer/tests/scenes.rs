@@ -135,3 +135,16 @@ fn unknown_scene_name_lists_the_shipped_ones() {
     let err = Scene::load("no-such-scene").unwrap_err();
     assert!(err.to_string().contains("beam"), "{err}");
 }
+
+#[test]
+fn every_shipped_scene_simulates_a_few_frames() {
+    use mochi_trainer::dataset::SpeedPlan;
+    for name in shipped_scene_names() {
+        let scene = Scene::load(&name).unwrap();
+        let mut problem = scene.build().unwrap();
+        let seq = problem.sequence(&SpeedPlan::constant(1.0), 2, scene.dataset.seed);
+        let traj = problem.run(&seq, None).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(traj.positions.len(), 3);
+        assert!(traj.positions.iter().flatten().all(|c| c.is_finite()), "{name}");
+    }
+}
