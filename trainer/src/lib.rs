@@ -7,9 +7,11 @@ pub mod energy;
 pub mod error;
 pub mod material;
 pub mod mesh;
+pub mod model;
 pub mod render;
 pub mod scene;
 pub mod solver;
+pub mod train;
 pub mod trajectory;
 
 pub use error::{InputError, Location};
