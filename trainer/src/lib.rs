@@ -9,10 +9,12 @@ pub mod error;
 pub mod loss;
 pub mod material;
 pub mod mesh;
+pub mod model;
 pub mod pca;
 pub mod render;
 pub mod scene;
 pub mod solver;
+pub mod train;
 pub mod trajectory;
 
 pub use error::{InputError, Location};
