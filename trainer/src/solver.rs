@@ -575,29 +575,27 @@ impl HessianPattern {
     /// values. If `H` is not numerically positive definite, a growing multiple of the
     /// identity (relative to the largest diagonal entry) is added until it is.
     fn solve(&mut self, rhs: &mut [f64]) {
+        if self.try_solve(rhs) {
+            return;
+        }
         let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
-        let symbolic = self.symbolic.clone();
         let diag_max = (0..self.n)
             .map(|c| self.values[self.col_ptr[c] as usize])
             .fold(0.0f64, |m, v| m.max(v.abs()))
             .max(f64::MIN_POSITIVE);
-        let mut shift = 0.0;
+        let mut shift = 1e-10 * diag_max;
         let mut values = self.values.clone();
         loop {
-            if shift > 0.0 {
-                values.copy_from_slice(&self.values);
-                for c in 0..self.n {
-                    values[self.col_ptr[c] as usize] += shift;
-                }
+            values.copy_from_slice(&self.values);
+            for c in 0..self.n {
+                values[self.col_ptr[c] as usize] += shift;
             }
             let matrix = SparseColMatRef::new(pattern, &values);
-            match Llt::try_new_with_symbolic(symbolic.clone(), matrix, Side::Lower) {
-                Ok(llt) => {
-                    llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
-                    return;
-                }
-                Err(_) => shift = if shift == 0.0 { 1e-10 * diag_max } else { shift * 100.0 },
+            if let Ok(llt) = Llt::try_new_with_symbolic(self.symbolic.clone(), matrix, Side::Lower) {
+                llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
+                return;
             }
+            shift *= 100.0;
         }
     }
 }
