@@ -4,10 +4,13 @@
 //! and include a sudden speed drop.
 
 use crate::bc::{self, BcSequence, Track};
+use crate::error::InputError;
 use crate::scene::{DatasetSpec, Problem, Start};
 use crate::solver::{StepError, StepReport};
 use crate::trajectory::Trajectory;
-use indicatif::ProgressBar;
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Train or test.
@@ -86,7 +89,7 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
             seed: spec.seed.wrapping_mul(1000).wrapping_add(k as u64),
         });
     }
-    let half = spec.frames / 2;
+    let half = spec.frames_of(Split::Test) / 2;
     let mut tests = Vec::new();
     if spec.test >= 1 {
         tests.push((
@@ -214,6 +217,128 @@ impl Problem {
     }
 }
 
+/// A progress bar counting frames, labelled `message`.
+pub fn frames_bar(len: u64, message: String) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} frames, {elapsed} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_message(message);
+    bar
+}
+
+/// What [`generate`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GenerateReport {
+    /// Sequences simulated (those already on disk are not counted).
+    pub sequences: usize,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Seconds per full-space step, over all simulated frames.
+    pub step_seconds: Vec<f64>,
+    /// Newton iterations per step.
+    pub newton_iterations: Vec<f64>,
+}
+
+/// The file of sequence `plan` in dataset directory `dir`.
+pub fn sequence_path(dir: &Path, plan: &SequencePlan) -> PathBuf {
+    dir.join(format!("{}.npz", plan.name))
+}
+
+/// Simulates the sequences of `problem`'s dataset (only those of `split` when given) into
+/// `dir`, skipping files that already exist unless `overwrite`.
+pub fn generate(
+    problem: &mut Problem,
+    dir: &Path,
+    split: Option<Split>,
+    overwrite: bool,
+    progress: bool,
+) -> anyhow::Result<GenerateReport> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let spec = problem.scene.dataset;
+    let todo: Vec<SequencePlan> = plan(&spec)
+        .into_iter()
+        .filter(|p| split.is_none_or(|s| s == p.split))
+        .filter(|p| overwrite || !sequence_path(dir, p).exists())
+        .collect();
+    let total: usize = todo.iter().map(|p| spec.frames_of(p.split)).sum();
+    let name = problem.scene.name.clone();
+    let bar = if progress {
+        frames_bar(total as u64, format!("dataset {name}"))
+    } else {
+        ProgressBar::hidden()
+    };
+    let start = Instant::now();
+    let mut report = GenerateReport::default();
+    for plan in &todo {
+        bar.set_message(format!("{name} {}", plan.name));
+        let seq = problem.sequence(&plan.speeds, spec.frames_of(plan.split), plan.seed);
+        let mut traj = problem
+            .run(&seq, Some(&bar))
+            .with_context(|| format!("simulating {} of `{name}`", plan.name))?;
+        traj.meta.push(("split".into(), plan.split.as_str().into()));
+        traj.meta.push(("sequence".into(), plan.description.clone()));
+        traj.meta.push(("seed".into(), plan.seed.to_string()));
+        traj.write_npz(&sequence_path(dir, plan))?;
+        report.step_seconds.extend_from_slice(&traj.step_seconds[1..]);
+        report
+            .newton_iterations
+            .extend(traj.newton_iterations[1..].iter().map(|&i| i as f64));
+        report.sequences += 1;
+    }
+    bar.finish_and_clear();
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// Reads the sequences of `split` of `problem`'s dataset from `dir`, in plan order, checking
+/// that each belongs to the scene and has the planned length.
+pub fn load(problem: &Problem, dir: &Path, split: Split) -> Result<Vec<(SequencePlan, Trajectory)>, InputError> {
+    let spec = problem.scene.dataset;
+    let mut out = Vec::new();
+    for plan in plan(&spec).into_iter().filter(|p| p.split == split) {
+        let path = sequence_path(dir, &plan);
+        if !path.exists() {
+            return Err(InputError::file(
+                &path,
+                format!(
+                    "missing; generate it with `mochi dataset {}`",
+                    problem.scene.source.display()
+                ),
+            ));
+        }
+        let traj = Trajectory::read_npz(&path)?;
+        let frames = spec.frames_of(split);
+        if traj.num_frames() != frames + 1 || traj.dim != problem.mesh.dim {
+            return Err(InputError::file(
+                &path,
+                format!(
+                    "holds {} frames of {}D states; the scene plans {} frames of {}D (regenerate with `mochi dataset`)",
+                    traj.num_frames(),
+                    traj.dim,
+                    frames + 1,
+                    problem.mesh.dim
+                ),
+            ));
+        }
+        if traj.positions[0].len() != problem.mesh.rest.len() {
+            return Err(InputError::field(
+                &path,
+                "positions",
+                format!(
+                    "states have {} values, the scene's mesh has {}",
+                    traj.positions[0].len(),
+                    problem.mesh.rest.len()
+                ),
+            ));
+        }
+        out.push((plan, traj));
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -226,6 +351,7 @@ mod tests {
             frames: 100,
             seed: 3,
             beyond: 1.5,
+            test_frames: None,
         };
         let plans = plan(&spec);
         let train: Vec<f64> = plans

@@ -201,6 +201,11 @@ impl Encoding {
     pub fn targets_len(&self) -> usize {
         self.handle_vertices.len() * self.dim
     }
+    /// The identity-pose handle targets (`dim` per prescribed vertex), the reference of the
+    /// rotation fit.
+    pub fn reference(&self) -> &[f64] {
+        &self.reference
+    }
     /// Whether the handles' rotation is removed.
     pub fn rotates(&self) -> bool {
         self.rotates

@@ -1,11 +1,15 @@
 //! mochi trainer: full-space finite-element simulation, datasets, training and evaluation.
 
+pub mod artifact;
 pub mod bc;
 pub mod chart;
 pub mod dataset;
 pub mod encoding;
 pub mod energy;
 pub mod error;
+pub mod eval;
+pub mod framing;
+pub mod latent;
 pub mod loss;
 pub mod material;
 pub mod mesh;

@@ -2,10 +2,9 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use mochi_trainer::dataset::{self, SpeedPlan, Split};
-use mochi_trainer::render;
 use mochi_trainer::scene::{shipped_scene_names, Scene};
+use mochi_trainer::{eval, latent, render};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -56,6 +55,35 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Train a latent model: dataset (if missing), autoencoder, integrators, artifact.
+    Train {
+        /// Scene name or path.
+        scene: String,
+        /// Output directory; default out/SCENE.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Continue from the checkpoints of an interrupted run.
+        #[arg(long)]
+        resume: bool,
+        /// Train only this latent size instead of choosing among the scene's candidates.
+        #[arg(long)]
+        latent: Option<usize>,
+    },
+    /// Evaluate trained models on the held-out test sequences (with their supervised baselines).
+    Eval {
+        /// Artifacts (`SCENE.mochi`) of one scene; `SCENE.supervised.mochi` beside each is added.
+        #[arg(required = true)]
+        artifacts: Vec<PathBuf>,
+        /// Output directory for report.md and charts; default: eval/ beside the first artifact.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Frames of the stability rollout.
+        #[arg(long, default_value_t = eval::STABILITY_FRAMES)]
+        frames: usize,
+        /// Frames of accuracy measurement at the start of each test sequence.
+        #[arg(long, default_value_t = eval::ACCURACY_FRAMES)]
+        accuracy_frames: usize,
+    },
     /// Timings.
     Bench {
         #[command(subcommand)]
@@ -101,6 +129,18 @@ fn run(cli: Cli) -> Result<()> {
             png_frames,
         } => simulate(&scene, frames, out, level, seed, obj, obj_every, &png_frames),
         Command::Dataset { scene, out } => make_dataset(&scene, out),
+        Command::Train {
+            scene,
+            out,
+            resume,
+            latent,
+        } => train_scene(&scene, out, resume, latent),
+        Command::Eval {
+            artifacts,
+            out,
+            frames,
+            accuracy_frames,
+        } => eval_models(&artifacts, out, frames, accuracy_frames),
         Command::Bench {
             what: Bench::Sim { scenes, frames },
         } => bench_sim(scenes, frames),
@@ -112,17 +152,6 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
-}
-
-fn progress_bar(len: u64, message: String) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} frames, {elapsed} (eta {eta})")
-            .expect("valid progress template")
-            .progress_chars("=> "),
-    );
-    bar.set_message(message);
-    bar
 }
 
 fn default_out(scene: &Scene, file: &str) -> PathBuf {
@@ -145,7 +174,7 @@ fn simulate(
     let scene = Scene::load(name)?;
     let mut problem = scene.build()?;
     let seq = problem.sequence(&SpeedPlan::constant(level), frames, seed.unwrap_or(scene.dataset.seed));
-    let bar = progress_bar(frames as u64, format!("simulate {}", scene.name));
+    let bar = dataset::frames_bar(frames as u64, format!("simulate {}", scene.name));
     let traj = problem
         .run(&seq, Some(&bar))
         .with_context(|| format!("simulating scene `{}`", scene.name))?;
@@ -191,39 +220,77 @@ fn make_dataset(name: &str, out: Option<PathBuf>) -> Result<()> {
     let scene = Scene::load(name)?;
     let mut problem = scene.build()?;
     let dir = out.unwrap_or_else(|| default_out(&scene, "dataset"));
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let report = dataset::generate(&mut problem, &dir, None, true, true)?;
     let plans = dataset::plan(&scene.dataset);
-    let frames = scene.dataset.frames;
-    let bar = progress_bar((plans.len() * frames) as u64, format!("dataset {}", scene.name));
-    let start = Instant::now();
-    let mut step_seconds = Vec::new();
-    let mut iterations = Vec::new();
-    for plan in &plans {
-        bar.set_message(format!("{} {}", scene.name, plan.name));
-        let seq = problem.sequence(&plan.speeds, frames, plan.seed);
-        let mut traj = problem
-            .run(&seq, Some(&bar))
-            .with_context(|| format!("simulating {} of `{}`", plan.name, scene.name))?;
-        traj.meta.push(("split".into(), plan.split.as_str().into()));
-        traj.meta.push(("sequence".into(), plan.description.clone()));
-        traj.meta.push(("seed".into(), plan.seed.to_string()));
-        traj.write_npz(&dir.join(format!("{}.npz", plan.name)))?;
-        step_seconds.extend_from_slice(&traj.step_seconds[1..]);
-        iterations.extend(traj.newton_iterations[1..].iter().map(|&i| i as f64));
-    }
-    bar.finish();
     let count = |s: Split| plans.iter().filter(|p| p.split == s).count();
     println!(
-        "{}: {} train + {} test sequences of {} frames in {:.1} s; {:.2} ms/step, {:.2} Newton iterations/step -> {}",
+        "{}: {} train sequences of {} frames + {} test sequences of {} frames in {:.1} s; {:.2} ms/step, {:.2} Newton iterations/step -> {}",
         scene.name,
         count(Split::Train),
+        scene.dataset.frames_of(Split::Train),
         count(Split::Test),
-        frames,
-        start.elapsed().as_secs_f64(),
-        1e3 * mean(&step_seconds),
-        mean(&iterations),
+        scene.dataset.frames_of(Split::Test),
+        report.seconds,
+        1e3 * mean(&report.step_seconds),
+        mean(&report.newton_iterations),
         dir.display()
     );
+    Ok(())
+}
+
+fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, latent_size: Option<usize>) -> Result<()> {
+    let scene = Scene::load(name)?;
+    if latent_size == Some(0) {
+        bail!("--latent must be at least 1");
+    }
+    let mut problem = scene.build()?;
+    let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
+    let options = latent::TrainOptions {
+        out_dir: out_dir.clone(),
+        resume,
+        progress: true,
+        latent: latent_size,
+    };
+    let start = Instant::now();
+    let outcome = latent::train_scene(&mut problem, &options)?;
+    let summary = &outcome.model.summary;
+    println!("\n{}: latent size {}", scene.name, outcome.model.latent);
+    for t in &summary.trials {
+        let ae = t
+            .autoencoder_error
+            .map_or("not trained".to_string(), |e| format!("{e:.2e}"));
+        println!(
+            "  size {:2}: PCA error {:.2e}, autoencoder error {ae}",
+            t.size, t.pca_error
+        );
+    }
+    for (stage, seconds) in &summary.stage_seconds {
+        println!("  {stage:32} {seconds:8.1} s");
+    }
+    let (model, baseline) = latent::artifact_paths(&out_dir, &scene.name);
+    println!(
+        "  total {:.1} s -> {} and {}",
+        start.elapsed().as_secs_f64(),
+        model.display(),
+        baseline.display()
+    );
+    Ok(())
+}
+
+fn eval_models(artifacts: &[PathBuf], out: Option<PathBuf>, frames: usize, accuracy_frames: usize) -> Result<()> {
+    if frames == 0 || accuracy_frames == 0 {
+        bail!("--frames and --accuracy-frames must be at least 1");
+    }
+    let out_dir = out.unwrap_or_else(|| artifacts[0].parent().unwrap_or(Path::new(".")).join("eval"));
+    let options = eval::EvalOptions {
+        out_dir: out_dir.clone(),
+        stability_frames: frames,
+        accuracy_frames,
+        progress: true,
+    };
+    eval::evaluate(artifacts, &options)?;
+    let report = std::fs::read_to_string(out_dir.join("report.md"))?;
+    println!("\n{report}\ncharts and report -> {}", out_dir.display());
     Ok(())
 }
 

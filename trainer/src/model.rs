@@ -271,6 +271,13 @@ impl Dense {
             .broadcast_add(self.bias.as_tensor())
     }
 
+    /// As [`Dense::forward`], with the weights treated as constants: gradients still flow to
+    /// `x` but none are computed for the weights.
+    fn forward_frozen(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        x.matmul(&self.weight.as_tensor().detach().t()?)?
+            .broadcast_add(&self.bias.as_tensor().detach())
+    }
+
     fn export(&self) -> ModelResult<DenseLayer> {
         let (rows, cols) = self.weight.as_tensor().dims2()?;
         Ok(DenseLayer {
@@ -355,6 +362,18 @@ impl ResMlp {
             h = (h + r)?;
         }
         self.output.forward(&h.silu()?)
+    }
+
+    /// Runs the network with its weights held constant: backpropagation reaches `x` (and what
+    /// produced it) without computing weight gradients. Used to push the physics gradient
+    /// through the trained decoder into the integrator.
+    pub fn forward_frozen(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        let mut h = self.input.forward_frozen(x)?;
+        for block in &self.blocks {
+            let r = block.outer.forward_frozen(&block.inner.forward_frozen(&h)?.silu()?)?;
+            h = (h + r)?;
+        }
+        self.output.forward_frozen(&h.silu()?)
     }
 
     /// The trainable variables, named `{prefix}.input.weight`, `{prefix}.block{j}.inner.bias`,

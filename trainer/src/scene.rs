@@ -81,6 +81,9 @@ pub struct Scene {
     /// Dataset sampling.
     #[serde(default)]
     pub dataset: DatasetSpec,
+    /// Latent space and integrator training.
+    #[serde(default)]
+    pub latent: LatentSpec,
     /// The file this scene was read from (set on load; relative mesh paths resolve
     /// against its directory).
     #[serde(skip)]
@@ -331,6 +334,8 @@ pub struct DatasetSpec {
     pub seed: u64,
     /// Largest test speed as a multiple of the top of the training range.
     pub beyond: f64,
+    /// Frames per test sequence (default: `frames`); evaluation measures accuracy over these.
+    pub test_frames: Option<usize>,
 }
 
 impl Default for DatasetSpec {
@@ -341,7 +346,128 @@ impl Default for DatasetSpec {
             frames: 120,
             seed: 1,
             beyond: 1.5,
+            test_frames: None,
         }
+    }
+}
+
+impl DatasetSpec {
+    /// Frames of a sequence of `split`.
+    pub fn frames_of(&self, split: crate::dataset::Split) -> usize {
+        match split {
+            crate::dataset::Split::Train => self.frames,
+            crate::dataset::Split::Test => self.test_frames.unwrap_or(self.frames),
+        }
+    }
+}
+
+/// Sizes and schedule of one network trained by `mochi train`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NetworkSpec {
+    /// Width of the hidden layers.
+    pub hidden: usize,
+    /// Residual blocks.
+    pub blocks: usize,
+    /// Training epochs.
+    pub epochs: usize,
+    /// Samples per minibatch.
+    pub batch: usize,
+    /// Initial learning rate.
+    pub learning_rate: f64,
+    /// Learning rate at the last epoch (cosine decay from `learning_rate`).
+    pub final_learning_rate: f64,
+}
+
+/// How `mochi train` builds the latent space and its integrator (scene table `[latent]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LatentSpec {
+    /// Reconstruction tolerance: RMS vertex error of the autoencoder over the training frames
+    /// as a fraction of the rest bounding-box diagonal. The latent size is the smallest of
+    /// `sizes` that meets it.
+    pub tolerance: f64,
+    /// Candidate latent sizes, tried in ascending order.
+    pub sizes: Vec<usize>,
+    /// Autoencoder (Eq. 2).
+    pub autoencoder: NetworkSpec,
+    /// Latent integrator (Eq. 3), both the self-supervised one and the supervised baseline.
+    pub integrator: NetworkSpec,
+    /// Noise augmentation (Eq. 5): uniform noise on the input latents, as a fraction of the
+    /// batch standard deviation; 0 turns augmentation off.
+    pub noise: f64,
+    /// Penalty weight on the boundary conditions in the physics loss (Eq. 4).
+    pub bc_weight: f64,
+    /// Floor of the data-balancing speed (Eq. 6), in length units per second.
+    pub min_speed: f64,
+    /// Seed of initialisation, shuffling and noise.
+    pub seed: u64,
+}
+
+impl Default for LatentSpec {
+    fn default() -> Self {
+        LatentSpec {
+            tolerance: 2e-3,
+            sizes: vec![2, 4, 6, 8, 12, 16],
+            autoencoder: NetworkSpec {
+                hidden: 128,
+                blocks: 2,
+                epochs: 300,
+                batch: 32,
+                learning_rate: 1e-3,
+                final_learning_rate: 1e-5,
+            },
+            integrator: NetworkSpec {
+                hidden: 128,
+                blocks: 2,
+                epochs: 200,
+                batch: 32,
+                learning_rate: 1e-3,
+                final_learning_rate: 1e-5,
+            },
+            noise: 0.1,
+            bc_weight: crate::loss::PAPER_BC_WEIGHT,
+            min_speed: 1e-3,
+            seed: 0,
+        }
+    }
+}
+
+impl LatentSpec {
+    /// Checks ranges; returns the offending field (relative to `latent`) and a message.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(self.tolerance) {
+            return Err(("tolerance".into(), format!("must be positive, got {}", self.tolerance)));
+        }
+        if self.sizes.is_empty() || self.sizes.contains(&0) || !self.sizes.is_sorted() {
+            return Err(("sizes".into(), "needs positive sizes in ascending order".into()));
+        }
+        let largest = *self.sizes.last().unwrap_or(&0);
+        for (name, net) in [("autoencoder", &self.autoencoder), ("integrator", &self.integrator)] {
+            if net.hidden == 0 || net.epochs == 0 || net.batch == 0 {
+                return Err((name.into(), "hidden, epochs and batch must be at least 1".into()));
+            }
+            if !positive(net.learning_rate) || !positive(net.final_learning_rate) {
+                return Err((name.into(), "learning rates must be positive".into()));
+            }
+        }
+        if self.autoencoder.hidden < 2 * largest {
+            return Err((
+                "autoencoder.hidden".into(),
+                format!(
+                    "PCA initialisation needs at least twice the largest size ({})",
+                    2 * largest
+                ),
+            ));
+        }
+        if !(self.noise.is_finite() && self.noise >= 0.0) {
+            return Err(("noise".into(), "must be a non-negative number".into()));
+        }
+        if !positive(self.bc_weight) || !positive(self.min_speed) {
+            return Err(("bc_weight".into(), "bc_weight and min_speed must be positive".into()));
+        }
+        Ok(())
     }
 }
 
@@ -454,6 +580,12 @@ impl Scene {
         if d.train == 0 || d.frames == 0 || !(d.beyond.is_finite() && d.beyond >= 1.0) {
             return Err(self.field_error("dataset", "needs train >= 1, frames >= 1 and beyond >= 1"));
         }
+        if d.test_frames == Some(0) {
+            return Err(self.field_error("dataset.test_frames", "must be at least 1"));
+        }
+        self.latent
+            .validate()
+            .map_err(|(f, msg)| self.field_error(format!("latent.{f}"), msg))?;
         Ok(())
     }
 

@@ -36,6 +36,7 @@ use safetensors::tensor::{Dtype, TensorView};
 use safetensors::SafeTensors;
 
 use crate::error::{InputError, Location};
+use crate::framing;
 use crate::model::{rows_to_tensor, Autoencoder};
 
 /// Errors of a training run.
@@ -145,6 +146,11 @@ impl AdamW {
         Ok(AdamW { config, step: 0, slots })
     }
 
+    /// Changes the learning rate of the following steps.
+    pub fn set_lr(&mut self, lr: f64) {
+        self.config.lr = lr;
+    }
+
     /// Steps taken so far.
     pub fn steps_taken(&self) -> u64 {
         self.step
@@ -212,6 +218,9 @@ pub struct TrainConfig {
     pub seed: u64,
     /// Optimiser settings.
     pub optimizer: AdamWConfig,
+    /// Cosine decay of the learning rate from `optimizer.lr` at epoch 0 to this at the last
+    /// epoch; `None` keeps it constant.
+    pub final_lr: Option<f64>,
     /// Periodic checkpoints; `None` writes none (and `resume` then has nothing to resume).
     pub checkpoint: Option<CheckpointConfig>,
     /// Show a progress bar on the terminal.
@@ -219,6 +228,18 @@ pub struct TrainConfig {
 }
 
 impl TrainConfig {
+    /// The learning rate of `epoch`.
+    pub fn lr_at(&self, epoch: usize) -> f64 {
+        let start = self.optimizer.lr;
+        match self.final_lr {
+            Some(end) if self.epochs > 1 => {
+                let t = epoch.min(self.epochs - 1) as f64 / (self.epochs - 1) as f64;
+                end + 0.5 * (start - end) * (1.0 + (std::f64::consts::PI * t).cos())
+            }
+            _ => start,
+        }
+    }
+
     /// The checkpoint file of this run, if it checkpoints.
     pub fn checkpoint_path(&self) -> Option<PathBuf> {
         let c = self.checkpoint.as_ref()?;
@@ -302,6 +323,7 @@ where
 
     let bar = progress_bar(config, start_epoch);
     for epoch in start_epoch..config.epochs {
+        optimizer.set_lr(config.lr_at(epoch));
         let mut order: Vec<usize> = (0..data.len()).collect();
         order.shuffle(&mut epoch_rng(config.seed, 2 * epoch as u64));
         let mut rng = epoch_rng(config.seed, 2 * epoch as u64 + 1);
@@ -414,7 +436,6 @@ fn progress_bar(config: &TrainConfig, start_epoch: usize) -> ProgressBar {
 
 const MAGIC: &[u8; 8] = b"MOCHICKP";
 const FORMAT_VERSION: u32 = 1;
-const HEADER_LEN: usize = 8 + 4 + 8 + 4;
 
 /// What a checkpoint must agree on to be resumed by a run: everything that shapes the
 /// trajectory except the total epoch count.
@@ -437,6 +458,7 @@ impl RunIdentity {
             ("beta2", format!("{:?}", o.beta2)),
             ("eps", format!("{:?}", o.eps)),
             ("weight_decay", format!("{:?}", o.weight_decay)),
+            ("final_lr", format!("{:?}", config.final_lr)),
         ];
         RunIdentity { fields }
     }
@@ -466,19 +488,16 @@ fn save_checkpoint(path: &Path, run: &RunIdentity, optimizer: &AdamW, losses: &[
     let payload = safetensors::serialize(views, Some(metadata))
         .map_err(|e| TrainError::Invalid(format!("building checkpoint: {e}")))?;
 
-    let mut file = Vec::with_capacity(HEADER_LEN + payload.len());
-    file.extend_from_slice(MAGIC);
-    file.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-    file.extend_from_slice(&(payload.len() as u64).to_le_bytes());
-    file.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
-    file.extend_from_slice(&payload);
+    let file = framing::wrap(MAGIC, FORMAT_VERSION, &payload);
     write_atomically(path, &file).map_err(|source| TrainError::Write {
         path: path.to_path_buf(),
         source,
     })
 }
 
-fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+/// Writes `bytes` to `path` through a temporary file beside it, so a crash leaves either the
+/// old file or the new one.
+pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     if let Some(dir) = path.parent() {
         fs::create_dir_all(dir)?;
     }
@@ -497,32 +516,7 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 fn load_checkpoint(path: &Path, run: &RunIdentity, max_epochs: usize, optimizer: &mut AdamW) -> TrainResult<Vec<f64>> {
     let whole = |message: String| InputError::file(path, message);
     let bytes = fs::read(path).map_err(|e| whole(format!("cannot read checkpoint: {e}")))?;
-    if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
-        return Err(whole("not a mochi checkpoint (bad magic bytes)".into()).into());
-    }
-    if bytes.len() < HEADER_LEN {
-        return Err(whole(format!("checkpoint is truncated: {} bytes", bytes.len())).into());
-    }
-    let word = |range: std::ops::Range<usize>| -> u64 {
-        bytes[range].iter().rev().fold(0u64, |acc, &b| (acc << 8) | b as u64)
-    };
-    let version = word(8..12);
-    if version != FORMAT_VERSION as u64 {
-        let msg = format!("checkpoint format version {version}, this build reads {FORMAT_VERSION}");
-        return Err(whole(msg).into());
-    }
-    let payload_len = word(12..20);
-    let payload = &bytes[HEADER_LEN..];
-    if payload.len() as u64 != payload_len {
-        let msg = format!(
-            "checkpoint is truncated or padded: header says {payload_len} payload bytes, file has {}",
-            payload.len()
-        );
-        return Err(whole(msg).into());
-    }
-    if crc32fast::hash(payload) as u64 != word(20..24) {
-        return Err(whole("checkpoint is corrupted (CRC-32 mismatch)".into()).into());
-    }
+    let payload = framing::unwrap(&bytes, MAGIC, FORMAT_VERSION, "checkpoint").map_err(whole)?;
     let tensors =
         SafeTensors::deserialize(payload).map_err(|e| whole(format!("checkpoint payload is unreadable: {e}")))?;
     let (_, header) =
@@ -619,6 +613,7 @@ mod tests {
                 lr,
                 ..AdamWConfig::default()
             },
+            final_lr: None,
             checkpoint: None,
             progress: false,
         }

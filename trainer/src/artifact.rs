@@ -1,0 +1,327 @@
+//! Model artifacts (`SCENE.mochi`): everything the runtime needs to step and decode a trained
+//! model, as data (DESIGN.md, decision 4). The payload is postcard in the envelope of
+//! [`crate::framing`] (magic `MOCHIMDL`, format version, length, CRC-32), so corrupt, truncated
+//! or foreign files are refused before parsing, and every shape is validated after it.
+//!
+//! Networks are stored as flat lists of dense layers in the order of
+//! [`ExportedMlp::layers`]: `[input, inner_0, outer_0, ..., output]`, with
+//! `h = input(x); h += outer_j(swish(inner_j(h))); y = output(swish(h))`. Normalisations are
+//! folded into the first and last layers. The integrator predicts the increment
+//! `z_t - z_{t-1}` from `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::encoding::{Encoding, Origins};
+use crate::error::InputError;
+use crate::framing;
+use crate::model::{DenseLayer, ExportedIntegrator, ExportedMlp};
+
+/// First bytes of every artifact.
+pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
+/// Version of the artifact format written by this build.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// How an artifact's integrator was trained.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Method {
+    /// On the full-space incremental potential of the decoded state (Eq. 4-6).
+    SelfSupervised,
+    /// L2 on ground-truth latents (the baseline).
+    Supervised,
+}
+
+impl Method {
+    /// Name used in reports and charts.
+    pub fn label(self) -> &'static str {
+        match self {
+            Method::SelfSupervised => "self-supervised",
+            Method::Supervised => "supervised",
+        }
+    }
+}
+
+/// How full states are encoded relative to the boundary conditions (see [`Encoding`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EncodingData {
+    /// Whether the handles' best-fit rotation is removed.
+    pub rotates: bool,
+    /// Prescribed vertices, in handle-target order.
+    pub handle_vertices: Vec<u32>,
+    /// Their identity-pose targets (`dim` per vertex), the reference of the rotation fit.
+    pub reference: Vec<f32>,
+    /// Encoded vertices, in encoded order.
+    pub free_vertices: Vec<u32>,
+    /// Per encoded vertex, the index of its origin.
+    pub origin_of: Vec<u32>,
+    /// Empty: one origin, the centroid of the handle targets. Otherwise, per rod strand, the
+    /// slot of its root among the handle vertices.
+    pub root_slots: Vec<u32>,
+}
+
+impl EncodingData {
+    /// The data of `encoding`.
+    pub fn new(encoding: &Encoding) -> Self {
+        let u32s = |v: &[usize]| v.iter().map(|&i| i as u32).collect();
+        EncodingData {
+            rotates: encoding.rotates(),
+            handle_vertices: u32s(encoding.handle_vertices()),
+            reference: encoding.reference().iter().map(|&v| v as f32).collect(),
+            free_vertices: u32s(encoding.free_vertices()),
+            origin_of: u32s(encoding.origin_of()),
+            root_slots: match encoding.origins() {
+                Origins::HandleCentroid => Vec::new(),
+                Origins::StrandRoots { root_slots } => u32s(root_slots),
+            },
+        }
+    }
+}
+
+/// A handle: prescribed vertices moved rigidly about a pivot.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HandleData {
+    /// Name from the scene.
+    pub name: String,
+    /// Prescribed vertices.
+    pub vertices: Vec<u32>,
+    /// Their identity-pose positions, 3 per vertex.
+    pub reference: Vec<f32>,
+    /// Rotation pivot at the identity pose.
+    pub pivot: [f32; 3],
+}
+
+/// One latent size tried while choosing the latent space.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SizeTrial {
+    /// Latent size.
+    pub size: u32,
+    /// RMS vertex error / diagonal of PCA with this many components on the training frames.
+    pub pca_error: f64,
+    /// The same for the trained autoencoder; `None` when it was not trained (PCA far off).
+    pub autoencoder_error: Option<f64>,
+}
+
+/// How the model was made: sizes tried, time per stage, final losses.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrainingSummary {
+    /// Reconstruction tolerance of the scene.
+    pub tolerance: f64,
+    /// Every size tried, ascending.
+    pub trials: Vec<SizeTrial>,
+    /// Wall-clock seconds per stage, in order (`dataset`, `autoencoder k=..`, ...).
+    pub stage_seconds: Vec<(String, f64)>,
+    /// Mean loss of the integrator's last epoch.
+    pub final_loss: f64,
+    /// Training samples of the integrator (clean ones; noise doubles them).
+    pub samples: u64,
+    /// Largest distance of a vertex from its encoding origin over the training frames
+    /// (evaluation counts a rollout as diverged beyond this plus half the diagonal).
+    pub max_radius: f64,
+    /// Largest kinetic energy over the training frames.
+    pub max_kinetic_energy: f64,
+}
+
+/// A trained model.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Artifact {
+    /// Scene name.
+    pub scene: String,
+    /// The scene file it was trained from, and its text (evaluation rebuilds the scene).
+    pub scene_path: String,
+    /// Scene TOML text.
+    pub scene_toml: String,
+    /// How the integrator was trained.
+    pub method: Method,
+    /// Time step in seconds.
+    pub dt: f64,
+    /// Coordinates per vertex (2 or 3).
+    pub dim: u32,
+    /// Vertices of the full mesh.
+    pub num_vertices: u32,
+    /// Rest positions, `dim` per vertex.
+    pub rest: Vec<f32>,
+    /// Rest bounding-box diagonal (the unit of every reported error).
+    pub diagonal: f64,
+    /// State encoding relative to the boundary conditions.
+    pub encoding: EncodingData,
+    /// Handles, in boundary-condition signal order.
+    pub handles: Vec<HandleData>,
+    /// Boundary-condition signal numbers per frame (12 per handle).
+    pub bc_len: u32,
+    /// Vertices that are drawn (surface of a tet mesh, all otherwise), ascending.
+    pub surface_vertices: Vec<u32>,
+    /// Triangles to draw (full-mesh vertex indices); empty for rods.
+    pub surface_triangles: Vec<[u32; 3]>,
+    /// Polylines to draw for rods (full-mesh vertex indices).
+    pub polylines: Vec<Vec<u32>>,
+    /// Latent size.
+    pub latent: u32,
+    /// Latent of the scene's initial state.
+    pub initial_latent: Vec<f32>,
+    /// Per latent coordinate, the smallest and largest value in the training data.
+    pub latent_min: Vec<f32>,
+    /// See `latent_min`.
+    pub latent_max: Vec<f32>,
+    /// PCA of the encoded training frames: mean (encoded length) ...
+    pub pca_mean: Vec<f32>,
+    /// ... and `latent` components, row-major (`latent x encoded length`).
+    pub pca_basis: Vec<f32>,
+    /// Encoder: encoded state -> latent.
+    pub encoder: Vec<DenseLayer>,
+    /// Decoder: latent -> encoded state.
+    pub decoder: Vec<DenseLayer>,
+    /// Integrator: packed input -> latent increment.
+    pub integrator: Vec<DenseLayer>,
+    /// How it was made.
+    pub summary: TrainingSummary,
+}
+
+impl Artifact {
+    /// Length of an encoded state.
+    pub fn encoded_len(&self) -> usize {
+        self.encoding.free_vertices.len() * self.dim as usize
+    }
+
+    /// The encoder as a runnable network.
+    pub fn encoder(&self) -> Result<ExportedMlp, String> {
+        ExportedMlp::from_layers(self.encoder.clone()).map_err(|e| e.to_string())
+    }
+
+    /// The decoder as a runnable network.
+    pub fn decoder(&self) -> Result<ExportedMlp, String> {
+        ExportedMlp::from_layers(self.decoder.clone()).map_err(|e| e.to_string())
+    }
+
+    /// The integrator as a runnable network.
+    pub fn integrator(&self) -> Result<ExportedIntegrator, String> {
+        let mlp = ExportedMlp::from_layers(self.integrator.clone()).map_err(|e| e.to_string())?;
+        ExportedIntegrator::new(self.latent as usize, mlp).map_err(|e| e.to_string())
+    }
+
+    /// Checks every size and index, and that all numbers are finite; returns the offending
+    /// field and a message.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let err = |field: &str, msg: String| Err((field.to_string(), msg));
+        let dim = self.dim as usize;
+        let n = self.num_vertices as usize;
+        let k = self.latent as usize;
+        if !(dim == 2 || dim == 3) {
+            return err("dim", format!("must be 2 or 3, got {dim}"));
+        }
+        if !(self.dt.is_finite() && self.dt > 0.0) || !(self.diagonal.is_finite() && self.diagonal > 0.0) {
+            return err("dt", "time step and diagonal must be positive".into());
+        }
+        if self.rest.len() != n * dim {
+            return err(
+                "rest",
+                format!("{} values for {n} vertices of dimension {dim}", self.rest.len()),
+            );
+        }
+        let in_range = |v: &[u32]| v.iter().all(|&i| (i as usize) < n);
+        let e = &self.encoding;
+        if !in_range(&e.handle_vertices) || !in_range(&e.free_vertices) {
+            return err("encoding", "vertex index out of range".into());
+        }
+        if e.handle_vertices.len() + e.free_vertices.len() != n {
+            return err("encoding", "handle and free vertices do not partition the mesh".into());
+        }
+        if e.reference.len() != e.handle_vertices.len() * dim || e.origin_of.len() != e.free_vertices.len() {
+            return err("encoding", "reference or origin table has the wrong length".into());
+        }
+        let origins = if e.root_slots.is_empty() { 1 } else { e.root_slots.len() };
+        if e.origin_of.iter().any(|&o| o as usize >= origins)
+            || e.root_slots.iter().any(|&s| s as usize >= e.handle_vertices.len())
+        {
+            return err("encoding", "origin index out of range".into());
+        }
+        let handle_count: usize = self.handles.iter().map(|h| h.vertices.len()).sum();
+        if handle_count != e.handle_vertices.len()
+            || self.handles.iter().any(|h| h.reference.len() != 3 * h.vertices.len())
+        {
+            return err("handles", "handle vertices disagree with the encoding".into());
+        }
+        if self.bc_len as usize != crate::bc::SIGNAL_PER_HANDLE * self.handles.len() {
+            return err("bc_len", format!("{} for {} handles", self.bc_len, self.handles.len()));
+        }
+        if !in_range(&self.surface_vertices)
+            || self.surface_triangles.iter().any(|t| !in_range(t))
+            || self.polylines.iter().any(|p| !in_range(p))
+        {
+            return err("surface_vertices", "vertex index out of range".into());
+        }
+        let encoded = self.encoded_len();
+        for (field, v, len) in [
+            ("initial_latent", &self.initial_latent, k),
+            ("latent_min", &self.latent_min, k),
+            ("latent_max", &self.latent_max, k),
+            ("pca_mean", &self.pca_mean, encoded),
+            ("pca_basis", &self.pca_basis, k * encoded),
+        ] {
+            if v.len() != len {
+                return err(field, format!("has {} values, expected {len}", v.len()));
+            }
+        }
+        let nets = [
+            ("encoder", &self.encoder, encoded, k),
+            ("decoder", &self.decoder, k, encoded),
+            ("integrator", &self.integrator, 2 * k + 3 * self.bc_len as usize, k),
+        ];
+        for (field, layers, input, output) in nets {
+            let mlp = ExportedMlp::from_layers(layers.clone()).map_err(|e| (field.to_string(), e.to_string()))?;
+            let spec = mlp.spec();
+            if spec.input != input || spec.output != output {
+                return err(
+                    field,
+                    format!("maps {} -> {}, expected {input} -> {output}", spec.input, spec.output),
+                );
+            }
+        }
+        let all_finite = [&self.rest, &self.initial_latent, &self.pca_mean, &self.pca_basis]
+            .into_iter()
+            .flatten()
+            .chain(
+                self.encoder
+                    .iter()
+                    .chain(&self.decoder)
+                    .chain(&self.integrator)
+                    .flat_map(|l| l.weights.iter().chain(&l.bias)),
+            )
+            .all(|v| v.is_finite());
+        if !all_finite {
+            return err("weights", "hold a non-finite value".into());
+        }
+        Ok(())
+    }
+
+    /// The artifact as bytes (envelope + postcard payload).
+    pub fn to_bytes(&self) -> Result<Vec<u8>, String> {
+        let payload = postcard::to_allocvec(self).map_err(|e| format!("encoding artifact: {e}"))?;
+        Ok(framing::wrap(MAGIC, FORMAT_VERSION, &payload))
+    }
+
+    /// Parses and validates an artifact; `source` names it in errors.
+    pub fn from_bytes(bytes: &[u8], source: &Path) -> Result<Artifact, InputError> {
+        let payload =
+            framing::unwrap(bytes, MAGIC, FORMAT_VERSION, "model artifact").map_err(|m| InputError::file(source, m))?;
+        let artifact: Artifact = postcard::from_bytes(payload)
+            .map_err(|e| InputError::file(source, format!("model artifact payload is unreadable: {e}")))?;
+        artifact
+            .validate()
+            .map_err(|(field, msg)| InputError::field(source, field, msg))?;
+        Ok(artifact)
+    }
+
+    /// Writes the artifact atomically.
+    pub fn write(&self, path: &Path) -> anyhow::Result<()> {
+        let bytes = self.to_bytes().map_err(anyhow::Error::msg)?;
+        crate::train::write_atomically(path, &bytes)
+            .map_err(|e| anyhow::anyhow!("writing artifact {}: {e}", path.display()))
+    }
+
+    /// Reads and validates an artifact file.
+    pub fn read(path: &Path) -> Result<Artifact, InputError> {
+        let bytes = std::fs::read(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
+        Artifact::from_bytes(&bytes, path)
+    }
+}

@@ -1,0 +1,763 @@
+//! `mochi train`: from a scene's training trajectories to a latent model (Li et al. 2025,
+//! Sec. 3.2-3.3).
+//!
+//! 1. Encode every training frame relative to its boundary conditions ([`Encoding`]).
+//! 2. PCA of the encoded frames; its error for every size is reported.
+//! 3. Autoencoders for the candidate latent sizes in ascending order, each initialised with
+//!    the PCA (Fulton et al. 2019); the first whose RMS reconstruction error meets the
+//!    scene's tolerance is kept (sizes whose PCA error is far above it are skipped untrained).
+//! 4. The latent integrator, trained self-supervised on the full-space incremental potential
+//!    of the decoded prediction (Eq. 4), with noise augmentation (Eq. 5) and data balancing
+//!    (Eq. 6); and the same network trained supervised on ground-truth latents as a baseline.
+//!
+//! The physics gradient meets candle at the decoded state (DESIGN.md, decision 2): the
+//! simulator's energies give `g = dE/dx` in f64; the objective handed to backpropagation is
+//! `sum(q * stopgrad(R^T g))` over the decoded encoded state `q = D(I(...))`, whose gradient
+//! with respect to the integrator's weights is exactly `(dE/dx)^T dx/dtheta`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use candle_core::{Device, Tensor};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::artifact::{Artifact, EncodingData, HandleData, Method, SizeTrial, TrainingSummary};
+use crate::bc::SIGNAL_PER_HANDLE;
+use crate::dataset::{self, Split};
+use crate::encoding::{Encoding, Frame};
+use crate::loss::PhysicsLoss;
+use crate::mesh::Elements;
+use crate::model::{
+    rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, Integrator, IntegratorSpec, Normalisation,
+};
+use crate::pca::{self, Pca};
+use crate::scene::{NetworkSpec, Problem};
+use crate::train::{self, AdamWConfig, Batch, BatchLoss, CheckpointConfig, TrainConfig};
+use crate::trajectory::Trajectory;
+
+/// Where `mochi train` works and how it reports.
+#[derive(Clone, Debug)]
+pub struct TrainOptions {
+    /// Output directory: `dataset/`, `checkpoints/` and the artifacts go here.
+    pub out_dir: PathBuf,
+    /// Continue from checkpoints left by an interrupted run.
+    pub resume: bool,
+    /// Progress bars on the terminal.
+    pub progress: bool,
+    /// Only try this latent size (instead of the scene's candidates).
+    pub latent: Option<usize>,
+}
+
+/// The two artifacts of a training run.
+#[derive(Clone, Debug)]
+pub struct TrainOutcome {
+    /// Self-supervised model.
+    pub model: Artifact,
+    /// Supervised baseline (same autoencoder).
+    pub baseline: Artifact,
+    /// Loss per epoch of the self-supervised and the supervised integrator.
+    pub losses: (Vec<f64>, Vec<f64>),
+    /// Loss per epoch of the kept autoencoder.
+    pub autoencoder_losses: Vec<f64>,
+}
+
+/// The artifact paths of a scene in `out_dir`: the model and its supervised baseline.
+pub fn artifact_paths(out_dir: &Path, scene: &str) -> (PathBuf, PathBuf) {
+    (
+        out_dir.join(format!("{scene}.mochi")),
+        out_dir.join(format!("{scene}.supervised.mochi")),
+    )
+}
+
+/// One training sequence, encoded.
+#[derive(Clone, Debug)]
+pub struct EncodedSequence {
+    /// The full-space trajectory.
+    pub trajectory: Trajectory,
+    /// Handle targets of every frame.
+    pub targets: Vec<Vec<f64>>,
+    /// Boundary-condition frame of every frame.
+    pub frames: Vec<Frame>,
+    /// Encoded state of every frame.
+    pub encoded: Vec<Vec<f64>>,
+}
+
+/// Encodes trajectories of `problem`'s body.
+pub fn encode_sequences(encoding: &Encoding, trajectories: Vec<Trajectory>) -> anyhow::Result<Vec<EncodedSequence>> {
+    trajectories
+        .into_iter()
+        .map(|trajectory| {
+            let targets = trajectory
+                .positions
+                .iter()
+                .map(|x| encoding.handle_targets(x))
+                .collect::<Result<Vec<_>, _>>()?;
+            let frames = targets
+                .iter()
+                .map(|t| encoding.frame(t))
+                .collect::<Result<Vec<_>, _>>()?;
+            let encoded = trajectory
+                .positions
+                .iter()
+                .zip(&frames)
+                .map(|(x, f)| encoding.encode(x, f))
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok(EncodedSequence {
+                trajectory,
+                targets,
+                frames,
+                encoded,
+            })
+        })
+        .collect()
+}
+
+/// Runs the whole of `mochi train` for `problem`: dataset (train split, if missing),
+/// latent-size selection, autoencoder, both integrators; writes both artifacts.
+pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Result<TrainOutcome> {
+    let spec = problem.scene.latent.clone();
+    let diagonal = problem.mesh.rest_diagonal();
+    let dim = problem.mesh.dim;
+    let mut stages: Vec<(String, f64)> = Vec::new();
+    let checkpoints = options.out_dir.join("checkpoints");
+
+    // Dataset.
+    let clock = Instant::now();
+    let data_dir = options.out_dir.join("dataset");
+    let made = dataset::generate(problem, &data_dir, Some(Split::Train), false, options.progress)?;
+    if made.sequences > 0 {
+        stages.push(("dataset (train split)".into(), clock.elapsed().as_secs_f64()));
+    }
+    let trajectories: Vec<Trajectory> = dataset::load(problem, &data_dir, Split::Train)?
+        .into_iter()
+        .map(|(_, t)| t)
+        .collect();
+    let encoding = Encoding::new(problem)?;
+    let sequences = encode_sequences(&encoding, trajectories)?;
+    let frames_f64: Vec<Vec<f64>> = sequences.iter().flat_map(|s| s.encoded.iter().cloned()).collect();
+    let frames_f32: Vec<Vec<f32>> = frames_f64
+        .iter()
+        .map(|f| f.iter().map(|&v| v as f32).collect())
+        .collect();
+
+    // PCA and latent-size selection.
+    let clock = Instant::now();
+    let sizes: Vec<usize> = options.latent.map_or(spec.sizes.clone(), |k| vec![k]);
+    let largest = *sizes.iter().max().unwrap_or(&1);
+    let pca_errors = pca::smallest_k_for(spec.tolerance, &frames_f64, dim, diagonal)?.errors;
+    let full_pca = Pca::fit(&frames_f64, largest.min(frames_f64.len()))?;
+    stages.push(("pca".into(), clock.elapsed().as_secs_f64()));
+    let pca_error = |k: usize| pca_errors.get(k).copied().unwrap_or(0.0);
+    if options.progress {
+        let listed: Vec<String> = (1..=largest).map(|k| format!("{k}: {:.2e}", pca_error(k))).collect();
+        println!("PCA RMS vertex error / diagonal by size: {}", listed.join(", "));
+    }
+
+    let mut trials = Vec::new();
+    let mut kept: Option<(usize, Autoencoder, Vec<f64>)> = None;
+    for (i, &k) in sizes.iter().enumerate() {
+        let last = i + 1 == sizes.len();
+        if pca_error(k) > 10.0 * spec.tolerance && !last {
+            trials.push(SizeTrial {
+                size: k as u32,
+                pca_error: pca_error(k),
+                autoencoder_error: None,
+            });
+            if options.progress {
+                println!(
+                    "latent {k}: PCA error {:.2e} is over 10x the tolerance {:.1e}; not trained",
+                    pca_error(k),
+                    spec.tolerance
+                );
+            }
+            continue;
+        }
+        let clock = Instant::now();
+        let pca_k = full_pca.clone().truncated(k.min(full_pca.num_components()))?;
+        let ae_spec = AutoencoderSpec {
+            input: encoding.encoded_len(),
+            latent: k,
+            hidden: spec.autoencoder.hidden,
+            blocks: spec.autoencoder.blocks,
+        };
+        let mut basis = pca_k.basis.clone();
+        // Fewer frames than components: pad with zero directions (never used by the data).
+        basis.resize(k, vec![0.0; encoding.encoded_len()]);
+        let ae = Autoencoder::new_pca_init(ae_spec, &pca_k.mean, &basis, spec.seed)?;
+        let config = train_config(
+            &format!("autoencoder-k{k}"),
+            &spec.autoencoder,
+            spec.seed,
+            &checkpoints,
+            options.progress,
+        );
+        let report = train::train_autoencoder(&ae, &frames_f32, &config, options.resume)?;
+        let mse = train::mean_reconstruction_error(&ae, &frames_f32, 256)?;
+        let error = (mse * dim as f64).sqrt() / diagonal;
+        stages.push((format!("autoencoder k={k}"), clock.elapsed().as_secs_f64()));
+        trials.push(SizeTrial {
+            size: k as u32,
+            pca_error: pca_error(k),
+            autoencoder_error: Some(error),
+        });
+        if options.progress {
+            println!(
+                "latent {k}: autoencoder RMS vertex error / diagonal {error:.2e} (PCA {:.2e}, tolerance {:.1e})",
+                pca_error(k),
+                spec.tolerance
+            );
+        }
+        let meets = error <= spec.tolerance;
+        kept = Some((k, ae, report.losses));
+        if meets {
+            break;
+        }
+        if last && options.progress {
+            println!("no candidate size meets the tolerance; keeping the largest, {k}");
+        }
+    }
+    let (k, ae, autoencoder_losses) = kept.ok_or_else(|| anyhow::anyhow!("no latent size was trained"))?;
+
+    // Integrators.
+    let set = IntegratorData::new(problem, &encoding, &ae, &sequences)?;
+    let int_spec = IntegratorSpec {
+        latent: k,
+        bc: set.bc_len,
+        hidden: spec.integrator.hidden,
+        blocks: spec.integrator.blocks,
+    };
+    let mut outcomes = Vec::new();
+    for method in [Method::SelfSupervised, Method::Supervised] {
+        let clock = Instant::now();
+        let integrator = Integrator::new(
+            int_spec,
+            set.input_norm.clone(),
+            set.increment_norm.clone(),
+            spec.seed + 1,
+        )?;
+        let config = train_config(
+            &format!("integrator-{}-k{k}", method.label()),
+            &spec.integrator,
+            spec.seed + 1,
+            &checkpoints,
+            options.progress,
+        );
+        let report = match method {
+            Method::SelfSupervised => {
+                let mut objective =
+                    PhysicsObjective::new(problem, &set, &ae, spec.noise, spec.bc_weight, spec.min_speed)?;
+                train::train(
+                    &integrator.parameters(),
+                    &set.inputs,
+                    &config,
+                    options.resume,
+                    |batch, rng| objective.batch_loss(&integrator, batch, rng),
+                )?
+            }
+            Method::Supervised => {
+                let objective = SupervisedObjective::new(&set, spec.noise)?;
+                train::train(
+                    &integrator.parameters(),
+                    &set.inputs,
+                    &config,
+                    options.resume,
+                    |batch, rng| objective.batch_loss(&integrator, batch, rng),
+                )?
+            }
+        };
+        stages.push((
+            format!("integrator ({})", method.label()),
+            clock.elapsed().as_secs_f64(),
+        ));
+        outcomes.push((method, integrator, report.losses));
+    }
+
+    let max_radius = frames_f64
+        .iter()
+        .flat_map(|q| q.chunks_exact(dim).map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt()))
+        .fold(0.0, f64::max);
+    let masses = problem.simulator.masses().to_vec();
+    let max_kinetic_energy = sequences
+        .iter()
+        .flat_map(|s| {
+            s.trajectory
+                .positions
+                .windows(2)
+                .map(|w| crate::eval::kinetic_energy(&masses, &w[1], &w[0], problem.scene.dt, dim))
+        })
+        .fold(0.0, f64::max);
+    let mut artifacts = Vec::new();
+    let mut losses = Vec::new();
+    for (method, integrator, history) in outcomes {
+        let summary = TrainingSummary {
+            tolerance: spec.tolerance,
+            trials: trials.clone(),
+            stage_seconds: stages.clone(),
+            final_loss: history.last().copied().unwrap_or(f64::NAN),
+            samples: set.inputs.len() as u64,
+            max_radius,
+            max_kinetic_energy,
+        };
+        artifacts.push(build_artifact(
+            problem,
+            &encoding,
+            &ae,
+            &integrator,
+            &set,
+            method,
+            summary,
+        )?);
+        losses.push(history);
+    }
+    let baseline = artifacts.pop().expect("two artifacts");
+    let model = artifacts.pop().expect("two artifacts");
+    let (model_path, baseline_path) = artifact_paths(&options.out_dir, &problem.scene.name);
+    model.write(&model_path)?;
+    baseline.write(&baseline_path)?;
+    let supervised_losses = losses.pop().unwrap_or_default();
+    let physics_losses = losses.pop().unwrap_or_default();
+    Ok(TrainOutcome {
+        model,
+        baseline,
+        losses: (physics_losses, supervised_losses),
+        autoencoder_losses,
+    })
+}
+
+fn train_config(name: &str, net: &NetworkSpec, seed: u64, checkpoints: &Path, progress: bool) -> TrainConfig {
+    TrainConfig {
+        name: name.into(),
+        epochs: net.epochs,
+        batch_size: net.batch,
+        seed,
+        optimizer: AdamWConfig {
+            lr: net.learning_rate,
+            ..AdamWConfig::default()
+        },
+        final_lr: Some(net.final_learning_rate),
+        checkpoint: Some(CheckpointConfig {
+            dir: checkpoints.to_path_buf(),
+            every: 5,
+        }),
+        progress,
+    }
+}
+
+/// Where a training sample of the integrator comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleRef {
+    /// Sequence.
+    pub sequence: usize,
+    /// Predicted frame `t` (at least 1; frame `t - 2` is clamped to 0 at the start, where
+    /// the body is at rest).
+    pub frame: usize,
+}
+
+impl SampleRef {
+    fn prev2(&self) -> usize {
+        self.frame.saturating_sub(2)
+    }
+}
+
+/// The integrator's training set: packed inputs from ground-truth latents, the targets and
+/// frames of every predicted step, and the decoded previous states the inertia term needs.
+pub struct IntegratorData<'a> {
+    /// Encoded sequences.
+    pub sequences: &'a [EncodedSequence],
+    /// Latent size.
+    pub latent: usize,
+    /// Boundary-condition numbers per frame.
+    pub bc_len: usize,
+    /// Ground-truth latents `E(q)` per sequence and frame.
+    pub latents: Vec<Vec<Vec<f32>>>,
+    /// Decoded ground-truth latents in world space, per sequence and frame (f64).
+    pub decoded: Vec<Vec<Vec<f64>>>,
+    /// One sample per predicted frame.
+    pub samples: Vec<SampleRef>,
+    /// Packed inputs `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`, one per sample.
+    pub inputs: Vec<Vec<f32>>,
+    /// Normalisation of the packed inputs.
+    pub input_norm: Normalisation,
+    /// Normalisation of the ground-truth increments `z_t - z_{t-1}`.
+    pub increment_norm: Normalisation,
+    /// Per latent coordinate, smallest and largest training value.
+    pub latent_range: (Vec<f32>, Vec<f32>),
+    encoding: &'a Encoding,
+}
+
+impl<'a> IntegratorData<'a> {
+    /// Encodes every frame with `ae` and packs one sample per predicted frame.
+    pub fn new(
+        problem: &Problem,
+        encoding: &'a Encoding,
+        ae: &Autoencoder,
+        sequences: &'a [EncodedSequence],
+    ) -> anyhow::Result<Self> {
+        let k = ae.spec().latent;
+        let bc_len = SIGNAL_PER_HANDLE * problem.handles.len();
+        let mut latents = Vec::new();
+        let mut decoded = Vec::new();
+        for seq in sequences {
+            let rows: Vec<Vec<f32>> = seq
+                .encoded
+                .iter()
+                .map(|q| q.iter().map(|&v| v as f32).collect())
+                .collect();
+            let mut z_seq = Vec::new();
+            let mut x_seq = Vec::new();
+            for chunk in rows.chunks(256) {
+                let refs: Vec<&[f32]> = chunk.iter().map(Vec::as_slice).collect();
+                let x = rows_to_tensor(&refs, encoding.encoded_len())?;
+                let z = ae.encode(&x)?;
+                let back = tensor_to_rows(&ae.decode(&z)?)?;
+                z_seq.extend(tensor_to_rows(&z)?);
+                x_seq.extend(back);
+            }
+            let world = x_seq
+                .iter()
+                .enumerate()
+                .map(|(t, q)| decode_world(encoding, q, &seq.frames[t], &seq.targets[t]))
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            latents.push(z_seq);
+            decoded.push(world);
+        }
+        let mut samples = Vec::new();
+        let mut inputs = Vec::new();
+        let mut increments = Vec::new();
+        for (s, seq) in sequences.iter().enumerate() {
+            if seq.trajectory.bc_signal.first().map_or(0, Vec::len) != bc_len {
+                anyhow::bail!(
+                    "training sequence {s} has {} boundary-condition numbers per frame, the scene has {bc_len}",
+                    seq.trajectory.bc_signal.first().map_or(0, Vec::len)
+                );
+            }
+            for t in 1..seq.encoded.len() {
+                let sample = SampleRef { sequence: s, frame: t };
+                inputs.push(pack(
+                    &latents[s][t - 1],
+                    &latents[s][sample.prev2()],
+                    &seq.trajectory.bc_signal,
+                    t,
+                ));
+                increments.push(
+                    latents[s][t]
+                        .iter()
+                        .zip(&latents[s][t - 1])
+                        .map(|(a, b)| a - b)
+                        .collect(),
+                );
+                samples.push(sample);
+            }
+        }
+        let mut lo = vec![f32::INFINITY; k];
+        let mut hi = vec![f32::NEG_INFINITY; k];
+        for z in latents.iter().flatten() {
+            for i in 0..k {
+                lo[i] = lo[i].min(z[i]);
+                hi[i] = hi[i].max(z[i]);
+            }
+        }
+        Ok(IntegratorData {
+            sequences,
+            latent: k,
+            bc_len,
+            input_norm: Normalisation::fit(&inputs)?,
+            increment_norm: Normalisation::fit(&increments)?,
+            latents,
+            decoded,
+            samples,
+            inputs,
+            latent_range: (lo, hi),
+            encoding,
+        })
+    }
+
+    /// Target of the predicted frame of `sample`.
+    fn step(&self, sample: SampleRef) -> (&Frame, &[f64]) {
+        let seq = &self.sequences[sample.sequence];
+        (&seq.frames[sample.frame], &seq.targets[sample.frame])
+    }
+}
+
+/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` for predicting frame `t` from the signal of
+/// every frame (frame indices below 0 clamp to 0, the body at rest).
+pub fn pack(z_prev: &[f32], z_prev2: &[f32], signal: &[Vec<f64>], t: usize) -> Vec<f32> {
+    pack_signals(
+        z_prev,
+        z_prev2,
+        [&signal[t], &signal[t.saturating_sub(1)], &signal[t.saturating_sub(2)]],
+    )
+}
+
+/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` from the three signals.
+pub fn pack_signals(z_prev: &[f32], z_prev2: &[f32], signals: [&[f64]; 3]) -> Vec<f32> {
+    let mut row: Vec<f32> = z_prev.iter().chain(z_prev2).copied().collect();
+    for p in signals {
+        row.extend(p.iter().map(|&v| v as f32));
+    }
+    row
+}
+
+/// The world-space state of an encoded vector `q` (f32, as decoded) in `frame`.
+pub fn decode_world(encoding: &Encoding, q: &[f32], frame: &Frame, targets: &[f64]) -> anyhow::Result<Vec<f64>> {
+    let q64: Vec<f64> = q.iter().map(|&v| v as f64).collect();
+    let mut out = vec![0.0; encoding.state_len()];
+    encoding.decode_into(&q64, frame, targets, &mut out)?;
+    Ok(out)
+}
+
+/// Uniform noise in `±scale * std` per latent coordinate, `std` over the batch's `z_{t-1}`
+/// (Eq. 5), added to both input latents of a copy of every packed row.
+fn perturbed(rows: &[Vec<f32>], k: usize, scale: f64, rng: &mut ChaCha8Rng) -> Vec<Vec<f32>> {
+    let n = rows.len().max(1) as f64;
+    let std: Vec<f64> = (0..k)
+        .map(|i| {
+            let mean = rows.iter().map(|r| r[i] as f64).sum::<f64>() / n;
+            (rows.iter().map(|r| (r[i] as f64 - mean).powi(2)).sum::<f64>() / n).sqrt()
+        })
+        .collect();
+    rows.iter()
+        .map(|r| {
+            let mut r = r.clone();
+            for i in 0..2 * k {
+                let u: f64 = rng.random_range(-1.0..1.0);
+                r[i] += (u * scale * std[i % k]) as f32;
+            }
+            r
+        })
+        .collect()
+}
+
+/// The self-supervised objective (Eq. 4-6) on minibatches of [`IntegratorData`].
+pub struct PhysicsObjective<'a> {
+    data: &'a IntegratorData<'a>,
+    ae: &'a Autoencoder,
+    loss: PhysicsLoss,
+    noise: f64,
+    min_speed: f64,
+}
+
+impl<'a> PhysicsObjective<'a> {
+    /// The objective of `problem`'s body with penalty weight `bc_weight` (Eq. 4), noise
+    /// fraction `noise` (Eq. 5) and balancing floor `min_speed` (Eq. 6).
+    pub fn new(
+        problem: &Problem,
+        data: &'a IntegratorData<'a>,
+        ae: &'a Autoencoder,
+        noise: f64,
+        bc_weight: f64,
+        min_speed: f64,
+    ) -> anyhow::Result<Self> {
+        let loss = PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, Some(bc_weight))?;
+        Ok(PhysicsObjective {
+            data,
+            ae,
+            loss,
+            noise,
+            min_speed,
+        })
+    }
+
+    /// The surrogate objective and the mean balanced loss of one minibatch (clean samples,
+    /// then as many perturbed ones when noise is on).
+    pub fn batch_loss(
+        &mut self,
+        integrator: &Integrator,
+        batch: &Batch<'_>,
+        rng: &mut ChaCha8Rng,
+    ) -> candle_core::Result<BatchLoss> {
+        let data = self.data;
+        let k = data.latent;
+        let clean = tensor_to_rows(&batch.inputs)?;
+        let samples: Vec<SampleRef> = batch.indices.iter().map(|&i| data.samples[i]).collect();
+        // Previous states for the inertia term: the decoded inputs themselves.
+        let mut prevs: Vec<(Vec<f64>, Vec<f64>)> = samples
+            .iter()
+            .map(|s| {
+                let d = &data.decoded[s.sequence];
+                (d[s.frame - 1].clone(), d[s.prev2()].clone())
+            })
+            .collect();
+        let mut rows = clean.clone();
+        let mut all_samples = samples.clone();
+        if self.noise > 0.0 {
+            let noisy = perturbed(&clean, k, self.noise, rng);
+            let z1: Vec<&[f32]> = noisy.iter().map(|r| &r[..k]).collect();
+            let z2: Vec<&[f32]> = noisy.iter().map(|r| &r[k..2 * k]).collect();
+            let q1 = tensor_to_rows(&self.ae.decoder().forward_frozen(&to_tensor(&z1, k)?)?)?;
+            let q2 = tensor_to_rows(&self.ae.decoder().forward_frozen(&to_tensor(&z2, k)?)?)?;
+            for (i, s) in samples.iter().enumerate() {
+                let seq = &data.sequences[s.sequence];
+                let p = s.frame - 1;
+                let world = |q: &[f32], f: usize| decode_world(data.encoding, q, &seq.frames[f], &seq.targets[f]);
+                let prev = world(&q1[i], p).map_err(candle_err)?;
+                let prev2 = world(&q2[i], s.prev2()).map_err(candle_err)?;
+                prevs.push((prev, prev2));
+            }
+            rows.extend(noisy);
+            all_samples.extend(samples.iter().copied());
+        }
+        let refs: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
+        let inputs = Tensor::cat(&[to_tensor(&refs, rows[0].len())?], 0)?;
+        let z = integrator.forward(&inputs)?;
+        let q = self.ae.decoder().forward_frozen(&z)?;
+        let q_rows = tensor_to_rows(&q)?;
+        let (m, n) = (q_rows.len(), data.encoding.encoded_len());
+        let dim = data.encoding.dim();
+        let mut g = vec![0.0f32; m * n];
+        let mut grad = vec![0.0; data.encoding.state_len()];
+        let mut total = 0.0;
+        for (i, s) in all_samples.iter().enumerate() {
+            let (frame, targets) = data.step(*s);
+            let x = decode_world(data.encoding, &q_rows[i], frame, targets).map_err(candle_err)?;
+            let (prev, prev2) = &prevs[i];
+            let value = self.loss.value_and_gradient(&x, prev, prev2, targets, &mut grad);
+            let balance = self.loss.balance(prev, prev2, self.min_speed);
+            total += value / balance;
+            let rt = frame.rotation.transpose();
+            for (j, &v) in data.encoding.free_vertices().iter().enumerate() {
+                let mut gv = nalgebra::Vector3::zeros();
+                gv.as_mut_slice()[..dim].copy_from_slice(&grad[v * dim..(v + 1) * dim]);
+                let local = rt * gv;
+                for c in 0..dim {
+                    g[i * n + j * dim + c] = (local[c] / balance) as f32;
+                }
+            }
+        }
+        let g = Tensor::from_vec(g, (m, n), &Device::Cpu)?;
+        let objective = ((q * g)?.sum_all()? / m as f64)?;
+        Ok(BatchLoss {
+            objective,
+            value: total / m as f64,
+        })
+    }
+}
+
+/// The supervised baseline's objective: squared error of the predicted latent against the
+/// ground truth, per coordinate in units of the increment's standard deviation.
+pub struct SupervisedObjective<'a> {
+    data: &'a IntegratorData<'a>,
+    noise: f64,
+    scale: Tensor,
+}
+
+impl<'a> SupervisedObjective<'a> {
+    /// The objective on `data`, with the same noise augmentation as the physics one.
+    pub fn new(data: &'a IntegratorData<'a>, noise: f64) -> candle_core::Result<Self> {
+        let inv: Vec<f32> = data.increment_norm.std.iter().map(|s| 1.0 / s).collect();
+        let scale = Tensor::from_vec(inv, (1, data.latent), &Device::Cpu)?;
+        Ok(SupervisedObjective { data, noise, scale })
+    }
+
+    /// Objective of one minibatch.
+    pub fn batch_loss(
+        &self,
+        integrator: &Integrator,
+        batch: &Batch<'_>,
+        rng: &mut ChaCha8Rng,
+    ) -> candle_core::Result<BatchLoss> {
+        let k = self.data.latent;
+        let clean = tensor_to_rows(&batch.inputs)?;
+        let mut rows = clean.clone();
+        let mut truth: Vec<Vec<f32>> = batch
+            .indices
+            .iter()
+            .map(|&i| {
+                let s = self.data.samples[i];
+                self.data.latents[s.sequence][s.frame].clone()
+            })
+            .collect();
+        if self.noise > 0.0 {
+            rows.extend(perturbed(&clean, k, self.noise, rng));
+            truth.extend(truth.clone());
+        }
+        let refs: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
+        let truth_refs: Vec<&[f32]> = truth.iter().map(Vec::as_slice).collect();
+        let z = integrator.forward(&to_tensor(&refs, rows[0].len())?)?;
+        let target = to_tensor(&truth_refs, k)?;
+        let objective = (z - target)?.broadcast_mul(&self.scale)?.sqr()?.mean_all()?;
+        BatchLoss::new(objective)
+    }
+}
+
+fn to_tensor(rows: &[&[f32]], dim: usize) -> candle_core::Result<Tensor> {
+    rows_to_tensor(rows, dim).map_err(candle_err)
+}
+
+fn candle_err(e: impl std::fmt::Display) -> candle_core::Error {
+    candle_core::Error::Msg(e.to_string())
+}
+
+/// Assembles the artifact of a trained model.
+pub fn build_artifact(
+    problem: &Problem,
+    encoding: &Encoding,
+    ae: &Autoencoder,
+    integrator: &Integrator,
+    data: &IntegratorData<'_>,
+    method: Method,
+    summary: TrainingSummary,
+) -> anyhow::Result<Artifact> {
+    let exported = ae.export()?;
+    let k = data.latent;
+    let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    let u32s = |v: &[usize]| v.iter().map(|&x| x as u32).collect::<Vec<u32>>();
+    let x0 = &data.sequences[0].trajectory.positions[0];
+    let q0: Vec<f32> = encoding.encode_state(x0)?.iter().map(|&v| v as f32).collect();
+    let initial_latent = crate::model::forward_exported(&exported.encoder, &q0)?;
+    let encoded_frames: Vec<Vec<f64>> = data.sequences.iter().flat_map(|s| s.encoded.iter().cloned()).collect();
+    let pca = Pca::fit(&encoded_frames, k.min(encoded_frames.len()))?;
+    let mut pca_basis: Vec<f32> = pca.basis.iter().flat_map(|b| f32s(b)).collect();
+    pca_basis.resize(k * encoding.encoded_len(), 0.0);
+    let polylines = match &problem.mesh.elements {
+        Elements::Rods(rods) => rods.iter().map(|r| u32s(r)).collect(),
+        _ => Vec::new(),
+    };
+    let handles = problem
+        .handles
+        .iter()
+        .map(|h| HandleData {
+            name: h.name.clone(),
+            vertices: u32s(&h.vertices),
+            reference: h.reference.iter().flatten().map(|&v| v as f32).collect(),
+            pivot: h.pivot.map(|v| v as f32),
+        })
+        .collect();
+    let artifact = Artifact {
+        scene: problem.scene.name.clone(),
+        scene_path: problem.scene.source.display().to_string(),
+        scene_toml: toml::to_string(&problem.scene)?,
+        method,
+        dt: problem.scene.dt,
+        dim: problem.mesh.dim as u32,
+        num_vertices: problem.mesh.num_vertices() as u32,
+        rest: f32s(&problem.mesh.rest),
+        diagonal: problem.mesh.rest_diagonal(),
+        encoding: EncodingData::new(encoding),
+        handles,
+        bc_len: data.bc_len as u32,
+        surface_vertices: u32s(&problem.mesh.surface_vertices()),
+        surface_triangles: problem
+            .mesh
+            .surface_triangles()
+            .iter()
+            .map(|t| t.map(|v| v as u32))
+            .collect(),
+        polylines,
+        latent: k as u32,
+        initial_latent,
+        latent_min: data.latent_range.0.clone(),
+        latent_max: data.latent_range.1.clone(),
+        pca_mean: f32s(&pca.mean),
+        pca_basis,
+        encoder: exported.encoder.layers().into_iter().cloned().collect(),
+        decoder: exported.decoder.layers().into_iter().cloned().collect(),
+        integrator: integrator.export()?.mlp().layers().into_iter().cloned().collect(),
+        summary,
+    };
+    artifact
+        .validate()
+        .map_err(|(field, msg)| anyhow::anyhow!("built an invalid artifact: {field}: {msg}"))?;
+    Ok(artifact)
+}
