@@ -209,7 +209,8 @@ impl Artifact {
         if !(dim == 2 || dim == 3) {
             return err("dim", format!("must be 2 or 3, got {dim}"));
         }
-        if !(self.dt.is_finite() && self.dt > 0.0) || !(self.diagonal.is_finite() && self.diagonal > 0.0) {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(self.dt) || !positive(self.diagonal) {
             return err("dt", "time step and diagonal must be positive".into());
         }
         if self.rest.len() != n * dim {

@@ -261,7 +261,7 @@ pub fn generate(
     let todo: Vec<SequencePlan> = plan(&spec)
         .into_iter()
         .filter(|p| split.is_none_or(|s| s == p.split))
-        .filter(|p| overwrite || !sequence_path(dir, p).exists())
+        .filter(|p| overwrite || !is_current(&sequence_path(dir, p), spec.frames_of(p.split)))
         .collect();
     let total: usize = todo.iter().map(|p| spec.frames_of(p.split)).sum();
     let name = problem.scene.name.clone();
@@ -291,6 +291,11 @@ pub fn generate(
     bar.finish_and_clear();
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// Whether `path` holds a readable trajectory of `frames` frames (after the initial one).
+fn is_current(path: &Path, frames: usize) -> bool {
+    path.exists() && Trajectory::read_npz(path).is_ok_and(|t| t.num_frames() == frames + 1)
 }
 
 /// Reads the sequences of `split` of `problem`'s dataset from `dir`, in plan order, checking

@@ -21,6 +21,7 @@ use std::time::Instant;
 use candle_core::{Device, Tensor};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 use crate::artifact::{Artifact, EncodingData, HandleData, Method, SizeTrial, TrainingSummary};
 use crate::bc::SIGNAL_PER_HANDLE;
@@ -533,7 +534,7 @@ fn perturbed(rows: &[Vec<f32>], k: usize, scale: f64, rng: &mut ChaCha8Rng) -> V
 pub struct PhysicsObjective<'a> {
     data: &'a IntegratorData<'a>,
     ae: &'a Autoencoder,
-    loss: PhysicsLoss,
+    losses: Vec<PhysicsLoss>,
     noise: f64,
     min_speed: f64,
 }
@@ -549,11 +550,13 @@ impl<'a> PhysicsObjective<'a> {
         bc_weight: f64,
         min_speed: f64,
     ) -> anyhow::Result<Self> {
-        let loss = PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, Some(bc_weight))?;
+        let losses = (0..rayon::current_num_threads().max(1))
+            .map(|_| PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, Some(bc_weight)))
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(PhysicsObjective {
             data,
             ae,
-            loss,
+            losses,
             noise,
             min_speed,
         })
@@ -604,26 +607,38 @@ impl<'a> PhysicsObjective<'a> {
         let q = self.ae.decoder().forward_frozen(&z)?;
         let q_rows = tensor_to_rows(&q)?;
         let (m, n) = (q_rows.len(), data.encoding.encoded_len());
-        let dim = data.encoding.dim();
-        let mut g = vec![0.0f32; m * n];
-        let mut grad = vec![0.0; data.encoding.state_len()];
-        let mut total = 0.0;
-        for (i, s) in all_samples.iter().enumerate() {
-            let (frame, targets) = data.step(*s);
-            let x = decode_world(data.encoding, &q_rows[i], frame, targets).map_err(candle_err)?;
-            let (prev, prev2) = &prevs[i];
-            let value = self.loss.value_and_gradient(&x, prev, prev2, targets, &mut grad);
-            let balance = self.loss.balance(prev, prev2, self.min_speed);
-            total += value / balance;
-            let rt = frame.rotation.transpose();
-            for (j, &v) in data.encoding.free_vertices().iter().enumerate() {
-                let mut gv = nalgebra::Vector3::zeros();
-                gv.as_mut_slice()[..dim].copy_from_slice(&grad[v * dim..(v + 1) * dim]);
-                let local = rt * gv;
-                for c in 0..dim {
-                    g[i * n + j * dim + c] = (local[c] / balance) as f32;
+        // One sample per thread: each worker has its own copy of the loss (its inertia and
+        // penalty targets change per sample), and results are gathered in sample order.
+        let per_worker = m.div_ceil(self.losses.len());
+        let min_speed = self.min_speed;
+        let parts: Vec<Result<(f64, Vec<f32>), String>> = self
+            .losses
+            .par_iter_mut()
+            .enumerate()
+            .map(|(w, loss)| {
+                let range = (w * per_worker).min(m)..((w + 1) * per_worker).min(m);
+                let mut total = 0.0;
+                let mut g = vec![0.0f32; range.len() * n];
+                let mut grad = vec![0.0; data.encoding.state_len()];
+                for (row, i) in range.enumerate() {
+                    let s = all_samples[i];
+                    let (frame, targets) = data.step(s);
+                    let x = decode_world(data.encoding, &q_rows[i], frame, targets).map_err(|e| e.to_string())?;
+                    let (prev, prev2) = &prevs[i];
+                    let value = loss.value_and_gradient(&x, prev, prev2, targets, &mut grad);
+                    let balance = loss.balance(prev, prev2, min_speed);
+                    total += value / balance;
+                    encoded_gradient(data.encoding, frame, &grad, balance, &mut g[row * n..(row + 1) * n]);
                 }
-            }
+                Ok((total, g))
+            })
+            .collect();
+        let mut total = 0.0;
+        let mut g = Vec::with_capacity(m * n);
+        for part in parts {
+            let (t, rows) = part.map_err(candle_core::Error::Msg)?;
+            total += t;
+            g.extend(rows);
         }
         let g = Tensor::from_vec(g, (m, n), &Device::Cpu)?;
         let objective = ((q * g)?.sum_all()? / m as f64)?;
@@ -631,6 +646,21 @@ impl<'a> PhysicsObjective<'a> {
             objective,
             value: total / m as f64,
         })
+    }
+}
+
+/// `R^T dE/dx / balance` for the encoded vertices, in encoded order, as f32 (the gradient with
+/// respect to the decoder's output).
+fn encoded_gradient(encoding: &Encoding, frame: &Frame, grad: &[f64], balance: f64, out: &mut [f32]) {
+    let dim = encoding.dim();
+    let rt = frame.rotation.transpose();
+    for (j, &v) in encoding.free_vertices().iter().enumerate() {
+        let mut gv = nalgebra::Vector3::zeros();
+        gv.as_mut_slice()[..dim].copy_from_slice(&grad[v * dim..(v + 1) * dim]);
+        let local = rt * gv;
+        for c in 0..dim {
+            out[j * dim + c] = (local[c] / balance) as f32;
+        }
     }
 }
 
@@ -760,4 +790,88 @@ pub fn build_artifact(
         .validate()
         .map_err(|(field, msg)| anyhow::anyhow!("built an invalid artifact: {field}: {msg}"))?;
     Ok(artifact)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::SpeedPlan;
+    use crate::scene::{MeshSpec, Scene};
+    use rand::SeedableRng;
+
+    /// The surrogate objective's gradient with respect to an integrator weight equals the
+    /// derivative of the balanced physics loss itself (central finite difference).
+    #[test]
+    fn surrogate_gradient_matches_finite_difference_of_the_loss() {
+        let mut scene = Scene::load("beam").unwrap();
+        scene.mesh = MeshSpec::Box {
+            min: [0.0, -0.05, -0.05],
+            max: [0.6, 0.05, 0.05],
+            cells: [6, 1, 1],
+        };
+        let mut problem = scene.build().unwrap();
+        let seq = problem.sequence(&SpeedPlan::constant(1.0), 12, 4);
+        let traj = problem.run(&seq, None).unwrap();
+        let encoding = Encoding::new(&problem).unwrap();
+        let sequences = encode_sequences(&encoding, vec![traj]).unwrap();
+        let frames: Vec<Vec<f64>> = sequences[0].encoded.clone();
+        let pca = Pca::fit(&frames, 3).unwrap();
+        let spec = AutoencoderSpec {
+            input: encoding.encoded_len(),
+            latent: 3,
+            hidden: 16,
+            blocks: 1,
+        };
+        let ae = Autoencoder::new_pca_init(spec, &pca.mean, &pca.basis, 1).unwrap();
+        let data = IntegratorData::new(&problem, &encoding, &ae, &sequences).unwrap();
+        let int_spec = IntegratorSpec {
+            latent: 3,
+            bc: data.bc_len,
+            hidden: 16,
+            blocks: 1,
+        };
+        let integrator = Integrator::new(int_spec, data.input_norm.clone(), data.increment_norm.clone(), 2).unwrap();
+        let mut objective = PhysicsObjective::new(&problem, &data, &ae, 0.0, 1e5, 1e-3).unwrap();
+        let indices: Vec<usize> = (2..10).collect();
+        let rows: Vec<&[f32]> = indices.iter().map(|&i| data.inputs[i].as_slice()).collect();
+        let batch = Batch {
+            inputs: rows_to_tensor(&rows, data.inputs[0].len()).unwrap(),
+            indices: &indices,
+            epoch: 0,
+            batch: 0,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let loss = objective.batch_loss(&integrator, &batch, &mut rng).unwrap();
+        let grads = loss.objective.backward().unwrap();
+        let params = integrator.parameters();
+        let mut checked = 0;
+        for (name, var) in &params {
+            if !(name.ends_with("output.bias") || name.ends_with("input.weight")) {
+                continue;
+            }
+            let g = grads.get(var.as_tensor()).unwrap().flatten_all().unwrap();
+            let g = g.to_vec1::<f32>().unwrap();
+            let original = var.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            for idx in [0, original.len() / 2] {
+                let h = 1e-2f32;
+                let mut value_at = |delta: f32| {
+                    let mut w = original.clone();
+                    w[idx] += delta;
+                    var.set(&Tensor::from_vec(w, var.as_tensor().shape(), &Device::Cpu).unwrap())
+                        .unwrap();
+                    objective.batch_loss(&integrator, &batch, &mut rng).unwrap().value
+                };
+                let fd = (value_at(h) - value_at(-h)) / (2.0 * h as f64);
+                value_at(0.0);
+                let analytic = g[idx] as f64;
+                let scale = fd.abs().max(analytic.abs()).max(1e-3);
+                assert!(
+                    (fd - analytic).abs() <= 2e-2 * scale,
+                    "{name}[{idx}]: surrogate {analytic:.6e}, finite difference {fd:.6e}"
+                );
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 4);
+    }
 }

@@ -47,6 +47,8 @@ impl PhysicsLoss {
 
     /// Value of the loss at `x` given the two previous states and the handle targets
     /// (`dim` numbers per handle vertex, handles concatenated); writes `dE/dx` into `grad`.
+    /// Runs on the calling thread (training evaluates one sample per thread) with a fixed
+    /// summation order.
     pub fn value_and_gradient(
         &mut self,
         x: &[f64],
@@ -58,13 +60,13 @@ impl PhysicsLoss {
         let xhat: Vec<f64> = prev.iter().zip(prev2).map(|(a, b)| 2.0 * a - b).collect();
         self.inertia.set_target(&xhat);
         grad.fill(0.0);
-        let mut value = energy::add_gradient(&self.inertia, 1.0 / (self.dt * self.dt), x, grad);
+        let mut value = energy::add_gradient_sequential(&self.inertia, 1.0 / (self.dt * self.dt), x, grad);
         for p in &self.potentials {
-            value += energy::add_gradient(p.as_ref(), 1.0, x, grad);
+            value += energy::add_gradient_sequential(p.as_ref(), 1.0, x, grad);
         }
         if let Some(penalty) = &mut self.penalty {
             penalty.set_targets(targets);
-            value += energy::add_gradient(penalty, 1.0, x, grad);
+            value += energy::add_gradient_sequential(penalty, 1.0, x, grad);
         }
         value
     }

@@ -420,7 +420,7 @@ impl Default for LatentSpec {
             integrator: NetworkSpec {
                 hidden: 128,
                 blocks: 2,
-                epochs: 200,
+                epochs: 80,
                 batch: 32,
                 learning_rate: 1e-3,
                 final_learning_rate: 1e-5,

@@ -160,6 +160,27 @@ pub fn add_gradient(energy: &dyn StencilEnergy, weight: f64, x: &[f64], grad: &m
     weight * val
 }
 
+/// As [`add_gradient`], on the calling thread only, accumulating straight into `grad`: for
+/// callers that already run many evaluations in parallel (the training loss, one sample per
+/// thread), where splitting one evaluation would only add allocations. The summation order
+/// is fixed, so results are bit-for-bit reproducible.
+pub fn add_gradient_sequential(energy: &dyn StencilEnergy, weight: f64, x: &[f64], grad: &mut [f64]) -> f64 {
+    let dim = energy.dim();
+    let mut out = Local::default();
+    let mut xl = [0.0; MAX_DOF];
+    let mut val = 0.0;
+    for s in 0..energy.len() {
+        let n = gather(energy, s, x, &mut xl);
+        val += energy.eval(s, &xl[..n], Want::Gradient, &mut out);
+        for (a, &v) in energy.stencil(s).iter().enumerate() {
+            for i in 0..dim {
+                grad[v * dim + i] += weight * out.grad[a * dim + i];
+            }
+        }
+    }
+    weight * val
+}
+
 /// Evaluates every stencil's value, gradient and (optionally projected) Hessian in
 /// parallel and hands them, in stencil order, to `sink(stencil, value, local)`.
 ///

@@ -1,0 +1,210 @@
+//! `mochi train` and `mochi eval` end to end on a tiny scene: losses fall, artifacts
+//! round-trip bit for bit, damaged artifacts are refused, an interrupted run resumes.
+
+use mochi_trainer::artifact::{Artifact, Method};
+use mochi_trainer::eval::{self, EvalOptions};
+use mochi_trainer::latent::{self, TrainOptions};
+use mochi_trainer::scene::Scene;
+use std::path::Path;
+
+/// A 8x2x2-cell cantilever whose clamp translates and rotates, with small networks.
+const TINY: &str = r#"
+name = "tiny"
+gravity = [0.0, -9.81, 0.0]
+[mesh]
+type = "box"
+min = [0.0, -0.05, -0.05]
+max = [0.6, 0.05, 0.05]
+cells = [8, 2, 2]
+[material]
+youngs = 2e5
+poisson = 0.3
+density = 500.0
+[[handles]]
+name = "clamp"
+select = { side = { axis = 0, end = "min" } }
+[handles.motion]
+directions = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+rotation_axes = [[1.0, 0.0, 0.0]]
+rotation_share = 0.3
+speed = [0.1, 0.5]
+angular_speed = [0.3, 1.0]
+segment_frames = [5, 10]
+[dataset]
+train = 3
+test = 2
+frames = 40
+test_frames = 60
+[latent]
+tolerance = 1e-3
+sizes = [2, 4, 8]
+autoencoder = { hidden = 32, blocks = 1, epochs = 30, batch = 16, learning_rate = 1e-3, final_learning_rate = 1e-4 }
+integrator = { hidden = 32, blocks = 1, epochs = 30, batch = 16, learning_rate = 1e-3, final_learning_rate = 1e-4 }
+"#;
+
+fn tiny_scene(dir: &Path) -> Scene {
+    let path = dir.join("tiny.toml");
+    std::fs::write(&path, TINY).unwrap();
+    Scene::load(path.to_str().unwrap()).unwrap()
+}
+
+fn options(dir: &Path, resume: bool) -> TrainOptions {
+    TrainOptions {
+        out_dir: dir.join("out"),
+        resume,
+        progress: false,
+        latent: None,
+    }
+}
+
+#[test]
+fn tiny_scene_trains_end_to_end_and_losses_fall() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = tiny_scene(dir.path());
+    let mut problem = scene.build().unwrap();
+    let outcome = latent::train_scene(&mut problem, &options(dir.path(), false)).unwrap();
+
+    let falls = |name: &str, losses: &[f64]| {
+        let (first, last) = (losses[0], *losses.last().unwrap());
+        assert!(last < first, "{name} loss did not fall: {first} -> {last}");
+    };
+    falls("autoencoder", &outcome.autoencoder_losses);
+    falls("supervised integrator", &outcome.losses.1);
+    // The physics loss is an incremental potential divided by a speed: it falls too, but its
+    // value has a large constant part, so compare its first and last epochs directly.
+    falls("self-supervised integrator", &outcome.losses.0);
+
+    // The latent size is the first candidate that meets the tolerance, and every size tried is
+    // reported.
+    let summary = &outcome.model.summary;
+    let kept = outcome.model.latent;
+    let last = summary.trials.last().unwrap();
+    assert_eq!(last.size, kept);
+    let met = last.autoencoder_error.unwrap() <= summary.tolerance;
+    assert!(met || kept == 8, "kept size {kept} without meeting the tolerance");
+    for t in &summary.trials[..summary.trials.len() - 1] {
+        assert!(t.autoencoder_error.is_none_or(|e| e > summary.tolerance));
+    }
+    assert_eq!(outcome.model.method, Method::SelfSupervised);
+    assert_eq!(outcome.baseline.method, Method::Supervised);
+    assert_eq!(
+        outcome.model.decoder, outcome.baseline.decoder,
+        "one autoencoder serves both"
+    );
+
+    // Evaluation runs on the artifacts and measures a stable rollout of the tiny scene.
+    let (model_path, _) = latent::artifact_paths(&dir.path().join("out"), "tiny");
+    let (reports, reference_seconds) = eval::evaluate(
+        std::slice::from_ref(&model_path),
+        &EvalOptions {
+            out_dir: dir.path().join("eval"),
+            stability_frames: 300,
+            accuracy_frames: 60,
+            progress: false,
+        },
+    )
+    .unwrap();
+    assert!(reference_seconds > 0.0);
+    assert_eq!(reports.len(), 2, "the supervised sibling is evaluated too");
+    for r in &reports {
+        assert_eq!(r.sequences.len(), 2);
+        for (_, m) in &r.sequences {
+            // Every reference frame is measured, unless the rollout diverged before the end.
+            let measured = if m.stable_frames >= 60 { 60 } else { m.stable_frames + 1 };
+            assert_eq!(m.error_curve.len(), measured);
+            assert!(m.step_seconds > 0.0 && m.decode_seconds > 0.0);
+        }
+    }
+    for file in [
+        "report.md",
+        "speed-accuracy.png",
+        "error-test-00.png",
+        "error-test-01.png",
+    ] {
+        assert!(dir.path().join("eval").join(file).is_file(), "{file} missing");
+    }
+}
+
+#[test]
+fn artifact_round_trips_bit_exactly_and_damage_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = tiny_scene(dir.path());
+    let mut problem = scene.build().unwrap();
+    let mut opts = options(dir.path(), false);
+    opts.latent = Some(2);
+    latent::train_scene(&mut problem, &opts).unwrap();
+    let (path, _) = latent::artifact_paths(&opts.out_dir, "tiny");
+    let bytes = std::fs::read(&path).unwrap();
+    let artifact = Artifact::read(&path).unwrap();
+    assert_eq!(artifact.to_bytes().unwrap(), bytes, "re-encoding changes the bytes");
+    assert_eq!(Artifact::from_bytes(&bytes, &path).unwrap(), artifact);
+
+    let refused = |damaged: &[u8], expect: &str| {
+        let e = Artifact::from_bytes(damaged, &path).unwrap_err().to_string();
+        assert!(e.contains("tiny.mochi") && e.contains(expect), "{e}");
+    };
+    refused(&bytes[..bytes.len() / 2], "truncated");
+    refused(&bytes[..10], "truncated");
+    refused(b"not an artifact at all", "magic");
+    let mut flipped = bytes.clone();
+    let middle = flipped.len() / 2;
+    flipped[middle] ^= 0x10;
+    refused(&flipped, "CRC");
+    let mut version = bytes.clone();
+    version[8] = 99;
+    refused(&version, "version 99");
+
+    // A well-formed envelope around an inconsistent model names the field at fault.
+    let mut broken = artifact.clone();
+    broken.initial_latent.push(0.0);
+    let e = Artifact::from_bytes(&broken.to_bytes().unwrap(), &path)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("initial_latent"), "{e}");
+    let mut broken = artifact;
+    broken.decoder[0].weights[0] = f32::NAN;
+    let e = Artifact::from_bytes(&broken.to_bytes().unwrap(), &path)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("non-finite"), "{e}");
+}
+
+#[test]
+fn interrupted_training_resumes_from_its_checkpoints() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = tiny_scene(dir.path());
+    let mut problem = scene.build().unwrap();
+    let mut opts = options(dir.path(), false);
+    opts.latent = Some(2);
+    let first = latent::train_scene(&mut problem, &opts).unwrap();
+    // "Interrupt" after the last checkpoint, before the artifacts were written.
+    let (model, baseline) = latent::artifact_paths(&opts.out_dir, "tiny");
+    std::fs::remove_file(&model).unwrap();
+    std::fs::remove_file(&baseline).unwrap();
+    opts.resume = true;
+    let resumed = latent::train_scene(&mut problem, &opts).unwrap();
+    // Nothing is retrained: every loss history comes back from the checkpoints as it was.
+    assert_eq!(resumed.autoencoder_losses, first.autoencoder_losses);
+    assert_eq!(resumed.losses, first.losses);
+    assert_eq!(resumed.model.decoder, first.model.decoder);
+    assert_eq!(resumed.model.integrator, first.model.integrator);
+    assert!(model.is_file() && baseline.is_file());
+}
+
+#[test]
+fn bad_latent_settings_name_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.toml");
+    for (patch, field) in [
+        ("sizes = []", "latent.sizes"),
+        ("sizes = [8, 4]", "latent.sizes"),
+        ("tolerance = -1.0", "latent.tolerance"),
+        ("noise = -0.5", "latent.noise"),
+        ("sizes = [40]", "latent.autoencoder.hidden"),
+    ] {
+        let text = TINY.replace("tolerance = 1e-3\nsizes = [2, 4, 8]", patch);
+        std::fs::write(&path, &text).unwrap();
+        let e = Scene::load(path.to_str().unwrap()).unwrap_err().to_string();
+        assert!(e.contains("bad.toml") && e.contains(field), "{patch}: {e}");
+    }
+}
