@@ -244,29 +244,20 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
             &checkpoints,
             options.progress,
         );
-        let report = match method {
+        let mut physics;
+        let supervised;
+        type Loss<'l> = Box<dyn FnMut(&Batch<'_>, &mut ChaCha8Rng) -> candle_core::Result<BatchLoss> + 'l>;
+        let loss: Loss<'_> = match method {
             Method::SelfSupervised => {
-                let mut objective =
-                    PhysicsObjective::new(problem, &set, &ae, spec.noise, spec.bc_weight, spec.min_speed)?;
-                train::train(
-                    &integrator.parameters(),
-                    &set.inputs,
-                    &config,
-                    options.resume,
-                    |batch, rng| objective.batch_loss(&integrator, batch, rng),
-                )?
+                physics = PhysicsObjective::new(problem, &set, &ae, spec.noise, spec.bc_weight, spec.min_speed)?;
+                Box::new(|batch, rng| physics.batch_loss(&integrator, batch, rng))
             }
             Method::Supervised => {
-                let objective = SupervisedObjective::new(&set, spec.noise)?;
-                train::train(
-                    &integrator.parameters(),
-                    &set.inputs,
-                    &config,
-                    options.resume,
-                    |batch, rng| objective.batch_loss(&integrator, batch, rng),
-                )?
+                supervised = SupervisedObjective::new(&set, spec.noise)?;
+                Box::new(|batch, rng| supervised.batch_loss(&integrator, batch, rng))
             }
         };
+        let report = train::train(&integrator.parameters(), &set.inputs, &config, options.resume, loss)?;
         stages.push((
             format!("integrator ({})", method.label()),
             clock.elapsed().as_secs_f64(),
