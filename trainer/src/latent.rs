@@ -193,9 +193,24 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
             &checkpoints,
             options.progress,
         );
+        let rms = |ae: &Autoencoder| -> anyhow::Result<f64> {
+            let mse = train::mean_reconstruction_error(ae, &frames_f32, 256)?;
+            Ok((mse * dim as f64).sqrt() / diagonal)
+        };
         let report = train::train_autoencoder(&ae, &frames_f32, &config, options.resume)?;
-        let mse = train::mean_reconstruction_error(&ae, &frames_f32, 256)?;
-        let error = (mse * dim as f64).sqrt() / diagonal;
+        let mut error = rms(&ae)?;
+        let mut ae = ae;
+        // Training starts from the exact PCA; should it end worse (it can, on data PCA
+        // already fits well), the PCA-initialised network is kept instead.
+        let initial = Autoencoder::new_pca_init(ae_spec, &pca_k.mean, &basis, spec.seed)?;
+        let initial_error = rms(&initial)?;
+        if initial_error < error {
+            if options.progress {
+                println!("latent {k}: training ended above the PCA initialisation ({error:.2e} > {initial_error:.2e}); keeping the initialisation");
+            }
+            ae = initial;
+            error = initial_error;
+        }
         stages.push((format!("autoencoder k={k}"), clock.elapsed().as_secs_f64()));
         trials.push(SizeTrial {
             size: k as u32,
