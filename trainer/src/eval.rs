@@ -341,11 +341,21 @@ fn write_charts(dir: &Path, scene: &str, reports: &[ModelReport], reference_seco
     }
     let mut points: Vec<LabelledPoint> = reports
         .iter()
-        .map(|r| LabelledPoint {
-            group: r.method.label().into(),
-            label: format!("k={}", r.latent),
-            x: 1e3 * r.mean_of(|m| m.step_seconds + m.decode_seconds),
-            y: 100.0 * r.mean_of(|m| m.mean_error),
+        .map(|r| {
+            // A rollout that diverged inside the measured window has an unbounded mean error;
+            // the chart shows its error over the frames before divergence and says so.
+            let diverged = r.sequences.iter().filter(|(_, m)| !m.mean_error.is_finite()).count();
+            let note = if diverged > 0 {
+                format!(" ({diverged} of {} diverged)", r.sequences.len())
+            } else {
+                String::new()
+            };
+            LabelledPoint {
+                group: r.method.label().into(),
+                label: format!("k={}{note}", r.latent),
+                x: 1e3 * r.mean_of(|m| m.step_seconds + m.decode_seconds),
+                y: 100.0 * r.mean_of(|m| m.error_curve.iter().sum::<f64>() / m.error_curve.len().max(1) as f64),
+            }
         })
         .collect();
     points.push(LabelledPoint {
