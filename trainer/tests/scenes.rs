@@ -148,4 +148,3 @@ fn every_shipped_scene_simulates_a_few_frames() {
         assert!(traj.positions.iter().flatten().all(|c| c.is_finite()), "{name}");
     }
 }
-
