@@ -156,7 +156,7 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
     }
 
     let mut trials = Vec::new();
-    let mut kept: Option<(usize, Autoencoder, Vec<f64>)> = None;
+    let mut kept: Option<(usize, Autoencoder, Vec<f64>, Pca)> = None;
     for (i, &k) in sizes.iter().enumerate() {
         let last = i + 1 == sizes.len();
         if pca_error(k) > 10.0 * spec.tolerance && !last {
@@ -225,7 +225,7 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
             );
         }
         let meets = error <= spec.tolerance;
-        kept = Some((k, ae, report.losses));
+        kept = Some((k, ae, report.losses, pca_k));
         if meets {
             break;
         }
@@ -233,7 +233,7 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
             println!("no candidate size meets the tolerance; keeping the largest, {k}");
         }
     }
-    let (k, ae, autoencoder_losses) = kept.ok_or_else(|| anyhow::anyhow!("no latent size was trained"))?;
+    let (k, ae, autoencoder_losses, pca) = kept.ok_or_else(|| anyhow::anyhow!("no latent size was trained"))?;
 
     // Integrators.
     let set = IntegratorData::new(problem, &encoding, &ae, &sequences)?;
@@ -312,6 +312,7 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
             &ae,
             &integrator,
             &set,
+            &pca,
             method,
             summary,
         )?);
@@ -608,7 +609,7 @@ impl<'a> PhysicsObjective<'a> {
             all_samples.extend(samples.iter().copied());
         }
         let refs: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
-        let inputs = Tensor::cat(&[to_tensor(&refs, rows[0].len())?], 0)?;
+        let inputs = to_tensor(&refs, rows[0].len())?;
         let z = integrator.forward(&inputs)?;
         let q = self.ae.decoder().forward_frozen(&z)?;
         let q_rows = tensor_to_rows(&q)?;
@@ -725,13 +726,15 @@ fn candle_err(e: impl std::fmt::Display) -> candle_core::Error {
     candle_core::Error::Msg(e.to_string())
 }
 
-/// Assembles the artifact of a trained model.
+/// Assembles the artifact of a trained model; `pca` is the PCA of the encoded training
+/// frames the autoencoder was initialised with.
 pub fn build_artifact(
     problem: &Problem,
     encoding: &Encoding,
     ae: &Autoencoder,
     integrator: &Integrator,
     data: &IntegratorData<'_>,
+    pca: &Pca,
     method: Method,
     summary: TrainingSummary,
 ) -> anyhow::Result<Artifact> {
@@ -742,8 +745,6 @@ pub fn build_artifact(
     let x0 = &data.sequences[0].trajectory.positions[0];
     let q0: Vec<f32> = encoding.encode_state(x0)?.iter().map(|&v| v as f32).collect();
     let initial_latent = crate::model::forward_exported(&exported.encoder, &q0)?;
-    let encoded_frames: Vec<Vec<f64>> = data.sequences.iter().flat_map(|s| s.encoded.iter().cloned()).collect();
-    let pca = Pca::fit(&encoded_frames, k.min(encoded_frames.len()))?;
     let mut pca_basis: Vec<f32> = pca.basis.iter().flat_map(|b| f32s(b)).collect();
     pca_basis.resize(k * encoding.encoded_len(), 0.0);
     let polylines = match &problem.mesh.elements {
