@@ -1,6 +1,246 @@
-//! mochi codegen: freezes a trained artifact into Rust `const` arrays consumed by
-//! `mochi-runtime`. Filled in by the codegen issue; the crate exists so the workspace
-//! layout matches the design.
+//! mochi codegen: freezes a trained artifact (`SCENE.mochi`) into a Rust module of `static`
+//! arrays and a [`mochi_runtime::Model`] describing them, for the no_std runtime.
+//!
+//! From a user crate's `build.rs` (with `mochi-codegen` as a build dependency):
+//!
+//! ```ignore
+//! fn main() {
+//!     mochi_codegen::build_rs("model/beam.mochi", "beam.rs").unwrap();
+//! }
+//! ```
+//!
+//! and in the crate: `include!(concat!(env!("OUT_DIR"), "/beam.rs"));`, which defines `MODEL`,
+//! the sizes (`LATENT`, `SIGNAL`, `HIDDEN`, `STATE_LEN`, ...) and `type Instance`.
+//!
+//! The output is deterministic (same artifact, same bytes), compiles without warnings, and is
+//! rustfmt-clean: the long literal arrays carry `#[rustfmt::skip]` and are wrapped at 100
+//! columns.
+
+use std::fmt::{self, Write as _};
+use std::path::{Path, PathBuf};
+
+use mochi_runtime::{Layer, LoadError, Model, OwnedModel};
 
 /// Version of the artifact format this code generator reads.
-pub const ARTIFACT_VERSION: u32 = 1;
+pub const ARTIFACT_VERSION: u32 = mochi_runtime::ARTIFACT_VERSION;
+
+/// Why code could not be generated.
+#[derive(Debug)]
+pub enum CodegenError {
+    /// The artifact could not be read or written.
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        error: std::io::Error,
+    },
+    /// The artifact was refused.
+    Artifact {
+        /// The file (or the name given to [`generate`]).
+        path: PathBuf,
+        /// Why.
+        error: LoadError,
+    },
+    /// `build_rs` ran outside a build script (`OUT_DIR` is not set).
+    NoOutDir,
+}
+
+impl fmt::Display for CodegenError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CodegenError::Io { path, error } => write!(f, "{}: {error}", path.display()),
+            CodegenError::Artifact { path, error } => write!(f, "{}: {error}", path.display()),
+            CodegenError::NoOutDir => write!(f, "OUT_DIR is not set: call build_rs from a build script"),
+        }
+    }
+}
+
+impl std::error::Error for CodegenError {}
+
+/// Rust source for the artifact in `bytes`; `name` (the artifact's file name) goes into the
+/// header comment.
+pub fn generate(bytes: &[u8], name: &str) -> Result<String, CodegenError> {
+    let mut storage = OwnedModel::default();
+    let model = storage.load(bytes).map_err(|error| CodegenError::Artifact {
+        path: PathBuf::from(name),
+        error,
+    })?;
+    Ok(emit(model.model(), name))
+}
+
+/// Reads the artifact at `artifact`, writes its module to `out` (only when the text changed,
+/// so builds that depend on it are not redone for nothing).
+pub fn generate_file(artifact: &Path, out: &Path) -> Result<(), CodegenError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |error| CodegenError::Io { path, error }
+    };
+    let bytes = std::fs::read(artifact).map_err(io(artifact))?;
+    let name = artifact
+        .file_name()
+        .map_or_else(|| artifact.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let source = generate(&bytes, &name).map_err(|e| match e {
+        CodegenError::Artifact { error, .. } => CodegenError::Artifact {
+            path: artifact.to_path_buf(),
+            error,
+        },
+        other => other,
+    })?;
+    if std::fs::read_to_string(out).ok().as_deref() != Some(source.as_str()) {
+        std::fs::write(out, source).map_err(io(out))?;
+    }
+    Ok(())
+}
+
+/// For build scripts: generates `OUT_DIR/out_name` from `artifact` (relative to the crate)
+/// and asks Cargo to rerun when the artifact changes.
+pub fn build_rs(artifact: impl AsRef<Path>, out_name: &str) -> Result<(), CodegenError> {
+    let out_dir = std::env::var_os("OUT_DIR").ok_or(CodegenError::NoOutDir)?;
+    let artifact = artifact.as_ref();
+    println!("cargo:rerun-if-changed={}", artifact.display());
+    generate_file(artifact, &Path::new(&out_dir).join(out_name))
+}
+
+/// Writes the module for a validated model.
+fn emit(m: &Model, name: &str) -> String {
+    let mut s = String::new();
+    let sizes: [(&str, &str, usize); 9] = [
+        ("LATENT", "Latent size.", m.latent as usize),
+        (
+            "SIGNAL",
+            "Boundary-condition numbers per frame (12 per handle).",
+            m.bc_len as usize,
+        ),
+        (
+            "HANDLES",
+            "Handles (one `HandleMotion` each per step).",
+            m.handles.len(),
+        ),
+        ("HIDDEN", "Widest hidden layer.", m.hidden()),
+        ("DIM", "Coordinates per vertex.", m.dim()),
+        ("NUM_VERTICES", "Vertices of the full mesh.", m.num_vertices as usize),
+        (
+            "STATE_LEN",
+            "Length of a full decoded state (`decode_into`).",
+            m.state_len(),
+        ),
+        (
+            "SURFACE_LEN",
+            "Length of a drawn-vertices state (`decode_surface_into`).",
+            m.surface_len(),
+        ),
+        ("WEIGHT_BYTES", "Bytes of network weights and biases.", m.weight_bytes()),
+    ];
+    let _ = writeln!(
+        s,
+        "// @generated by mochi-codegen {} from `{name}`. Do not edit.",
+        env!("CARGO_PKG_VERSION")
+    );
+    let _ = writeln!(
+        s,
+        "// Artifact format {ARTIFACT_VERSION}; regenerate with `mochi codegen {name} -o FILE`."
+    );
+    for (ident, doc, value) in sizes {
+        let _ = writeln!(s, "\n/// {doc}\npub const {ident}: usize = {value};");
+    }
+    let _ = writeln!(s, "\n/// Time step in seconds.\npub const DT: f32 = {:?};", m.dt);
+    let _ = writeln!(s, "\n/// One simulated object of this model.");
+    let _ = writeln!(
+        s,
+        "pub type Instance = mochi_runtime::Instance<LATENT, SIGNAL, HIDDEN>;"
+    );
+    array(&mut s, "PARAMS", "f32", m.params.iter().map(|v| format!("{v:?}")));
+    array(&mut s, "FLOATS", "f32", m.floats.iter().map(|v| format!("{v:?}")));
+    array(&mut s, "INDICES", "u32", m.indices.iter().map(|v| v.to_string()));
+    layers(&mut s, "DECODER", m.decoder);
+    layers(&mut s, "INTEGRATOR", m.integrator);
+    let _ = writeln!(
+        s,
+        "\nstatic HANDLE_LIST: [mochi_runtime::Handle; {}] = [",
+        m.handles.len()
+    );
+    for h in m.handles {
+        let _ = writeln!(
+            s,
+            "    mochi_runtime::Handle {{\n        vertices: {},\n        reference: {},\n        pivot: [{:?}, {:?}, {:?}],\n    }},",
+            span(h.vertices),
+            span(h.reference),
+            h.pivot[0],
+            h.pivot[1],
+            h.pivot[2]
+        );
+    }
+    let _ = writeln!(s, "];");
+    let _ = writeln!(
+        s,
+        "\n/// The model (validate once with `mochi_runtime::ValidModel::new(MODEL)`)."
+    );
+    let _ = writeln!(
+        s,
+        "pub static MODEL: mochi_runtime::Model<'static> = mochi_runtime::Model {{"
+    );
+    for (field, value) in [
+        ("dim", m.dim.to_string()),
+        ("num_vertices", m.num_vertices.to_string()),
+        ("latent", m.latent.to_string()),
+        ("bc_len", m.bc_len.to_string()),
+        ("dt", format!("{:?}", m.dt)),
+        ("diagonal", format!("{:?}", m.diagonal)),
+        ("rotates", m.rotates.to_string()),
+        ("params", "&PARAMS".into()),
+        ("floats", "&FLOATS".into()),
+        ("indices", "&INDICES".into()),
+        ("decoder", "&DECODER".into()),
+        ("integrator", "&INTEGRATOR".into()),
+        ("handles", "&HANDLE_LIST".into()),
+        ("rest", span(m.rest)),
+        ("handle_vertices", span(m.handle_vertices)),
+        ("free_vertices", span(m.free_vertices)),
+        ("origin_of", span(m.origin_of)),
+        ("root_slots", span(m.root_slots)),
+        ("surface_vertices", span(m.surface_vertices)),
+        ("surface_source", span(m.surface_source)),
+        ("initial_latent", span(m.initial_latent)),
+        ("latent_min", span(m.latent_min)),
+        ("latent_max", span(m.latent_max)),
+    ] {
+        let _ = writeln!(s, "    {field}: {value},");
+    }
+    let _ = writeln!(s, "}};");
+    s
+}
+
+fn span(sp: mochi_runtime::Span) -> String {
+    format!("mochi_runtime::Span {{ start: {}, len: {} }}", sp.start, sp.len)
+}
+
+fn layers(s: &mut String, ident: &str, layers: &[Layer]) {
+    let _ = writeln!(s, "\nstatic {ident}: [mochi_runtime::Layer; {}] = [", layers.len());
+    for l in layers {
+        let _ = writeln!(
+            s,
+            "    mochi_runtime::Layer {{ rows: {}, cols: {}, weights: {}, bias: {} }},",
+            l.rows, l.cols, l.weights, l.bias
+        );
+    }
+    let _ = writeln!(s, "];");
+}
+
+/// A `#[rustfmt::skip]` static array, values wrapped at 100 columns.
+fn array(s: &mut String, ident: &str, ty: &str, values: impl ExactSizeIterator<Item = String>) {
+    let _ = writeln!(s, "\n#[rustfmt::skip]\nstatic {ident}: [{ty}; {}] = [", values.len());
+    let mut line = String::from("   ");
+    for v in values {
+        if line.len() + v.len() + 2 > 100 {
+            let _ = writeln!(s, "{}", line.trim_end());
+            line = String::from("   ");
+        }
+        line.push(' ');
+        line.push_str(&v);
+        line.push(',');
+    }
+    if !line.trim().is_empty() {
+        let _ = writeln!(s, "{}", line.trim_end());
+    }
+    let _ = writeln!(s, "];");
+}

@@ -1,11 +1,36 @@
 //! mochi runtime: steps latent rollouts of a frozen model and decodes vertex positions.
 //!
-//! `#![no_std]` and allocation-free; every buffer is sized at compile time. The `std`
-//! feature only adds desktop conveniences for tests.
+//! `#![no_std]` and allocation-free; every buffer is sized at compile time. A [`Model`] is
+//! static and shared (generated `const` arrays from `mochi-codegen`, or an artifact loaded from
+//! bytes into a [`LoadedModel`]); each simulated object is an [`Instance`] holding only its
+//! state. Bad input gets an error value, never a panic and never a NaN in the caller's buffer.
+//!
+//! ```ignore
+//! let model = ValidModel::new(generated::MODEL)?;      // once, at start-up
+//! let mut body = generated::Instance::new(&model)?;    // one per object
+//! body.step(&model, &[HandleMotion::from_poses(&before, &now, generated::DT)])?;
+//! body.decode_into(&model, &mut positions)?;           // or decode_surface_into
+//! ```
+//!
+//! The `std` feature only adds desktop conveniences (`std::error::Error`, `Vec`-backed
+//! storage).
 #![no_std]
 
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod artifact;
+pub mod frame;
+pub mod instance;
+pub mod model;
+pub mod network;
+
+#[cfg(feature = "std")]
+pub use artifact::OwnedModel;
+pub use artifact::{LoadError, LoadedModel, Storage};
+pub use frame::{HandleMotion, HandlePose};
+pub use instance::{DecodeError, Instance, SizeError, StepError, Stepped, ValidModel, RANGE_MARGIN};
+pub use model::{Handle, Layer, Model, ModelError, Problem, Span, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
+
 /// Version of the artifact format this runtime understands.
-pub const ARTIFACT_VERSION: u32 = 1;
+pub const ARTIFACT_VERSION: u32 = artifact::FORMAT_VERSION;

@@ -99,6 +99,45 @@ pub fn kinetic_energy(masses: &[f64], x: &[f64], prev: &[f64], dt: f64, dim: usi
         .sum()
 }
 
+/// The trainer's own rollout of `model` over `bc` (the reference the runtime is checked
+/// against): from the initial latent, calls `visit(t, z_t, q_t, x_t)` for `t = 1..=frames` with
+/// the latent, the decoded encoded state and the world state, until `visit` returns `false`. Returns the seconds spent
+/// stepping and decoding.
+pub fn roll(
+    model: &LoadedModel,
+    problem: &Problem,
+    encoding: &Encoding,
+    bc: &BcSequence,
+    frames: usize,
+    mut visit: impl FnMut(usize, &[f32], &[f32], &[f64]) -> bool,
+) -> anyhow::Result<(f64, f64)> {
+    let a = &model.artifact;
+    let dim = problem.mesh.dim;
+    let mut z_prev = a.initial_latent.clone();
+    let mut z_prev2 = a.initial_latent.clone();
+    let mut signals = [bc.signal(0), bc.signal(0), bc.signal(0)];
+    let (mut step_time, mut decode_time) = (0.0, 0.0);
+    for t in 1..=frames {
+        signals.rotate_right(1);
+        signals[0] = bc.signal(t);
+        let clock = Instant::now();
+        let q_in = pack_signals(&z_prev, &z_prev2, [&signals[0], &signals[1], &signals[2]]);
+        let z = model.integrator.step(&q_in)?;
+        let mid = Instant::now();
+        let targets = bc.targets(&problem.handles, t, dim);
+        let frame = encoding.frame(&targets)?;
+        let q = forward_exported(&model.decoder, &z)?;
+        let x = decode_world(encoding, &q, &frame, &targets)?;
+        step_time += (mid - clock).as_secs_f64();
+        decode_time += mid.elapsed().as_secs_f64();
+        if !visit(t, &z, &q, &x) {
+            break;
+        }
+        z_prev2 = std::mem::replace(&mut z_prev, z);
+    }
+    Ok((step_time, decode_time))
+}
+
 /// Rolls `model` out over `bc` for `frames` frames from its initial latent, comparing with
 /// `reference` where it has frames (at most `accuracy_frames` of them).
 pub fn rollout(
@@ -116,36 +155,19 @@ pub fn rollout(
     let measured = accuracy_frames.min(reference.num_frames() - 1).min(frames);
     let envelope = a.summary.max_radius + 0.5 * a.diagonal;
     let energy_cap = 100.0 * a.summary.max_kinetic_energy.max(1e-12);
-    let mut z_prev = a.initial_latent.clone();
-    let mut z_prev2 = a.initial_latent.clone();
     let mut x_prev = reference.positions[0].clone();
-    let mut signals = [bc.signal(0), bc.signal(0), bc.signal(0)];
     let mut metrics = RolloutMetrics {
         stable_frames: frames,
         ..Default::default()
     };
     let (mut ke_ours, mut ke_ref) = (0.0, 0.0);
-    let (mut step_time, mut decode_time) = (0.0, 0.0);
-    for t in 1..=frames {
-        signals.rotate_right(1);
-        signals[0] = bc.signal(t);
-        let clock = Instant::now();
-        let q_in = pack_signals(&z_prev, &z_prev2, [&signals[0], &signals[1], &signals[2]]);
-        let z = model.integrator.step(&q_in)?;
-        let mid = Instant::now();
-        let targets = bc.targets(&problem.handles, t, dim);
-        let frame = encoding.frame(&targets)?;
-        let q = forward_exported(&model.decoder, &z)?;
-        let x = decode_world(encoding, &q, &frame, &targets)?;
-        step_time += (mid - clock).as_secs_f64();
-        decode_time += mid.elapsed().as_secs_f64();
-
+    let (step_time, decode_time) = roll(model, problem, encoding, bc, frames, |t, z, q, x| {
         let finite = z.iter().all(|v| v.is_finite()) && x.iter().all(|v| v.is_finite());
         let radius = q
             .chunks_exact(dim)
             .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
             .fold(0.0, f64::max);
-        let ke = kinetic_energy(masses, &x, &x_prev, a.dt, dim);
+        let ke = kinetic_energy(masses, x, &x_prev, a.dt, dim);
         let mut diverged = !finite || radius > envelope || ke > energy_cap;
         if t <= measured {
             let xr = &reference.positions[t];
@@ -164,11 +186,11 @@ pub fn rollout(
         }
         if diverged {
             metrics.stable_frames = t - 1;
-            break;
+            return false;
         }
-        x_prev = x;
-        z_prev2 = std::mem::replace(&mut z_prev, z);
-    }
+        x_prev = x.to_vec();
+        true
+    })?;
     let done = metrics.stable_frames.max(1) as f64;
     metrics.step_seconds = step_time / done;
     metrics.decode_seconds = decode_time / done;

@@ -1,0 +1,558 @@
+//! Loading a trainer artifact (`SCENE.mochi`) from bytes into fixed-capacity storage, as an
+//! alternative to generated constants.
+//!
+//! The file is the trainer's envelope (magic `MOCHIMDL`, format version, payload length,
+//! CRC-32) around a postcard payload. Postcard writes a struct as its fields in order, so the
+//! payload is read field by field with serde from one deserializer: the arrays the runtime needs
+//! stream into pools, the rest (encoder, PCA, drawing lists, training summary) is read, checked
+//! and dropped. Nothing is allocated; a pool that is too small is an error, not a panic.
+
+use core::fmt;
+use core::marker::PhantomData;
+
+use serde::de::{DeserializeSeed, SeqAccess, Visitor};
+use serde::{Deserialize, Deserializer};
+
+use crate::instance::ValidModel;
+use crate::model::{Handle, Layer, Model, ModelError, Span, HANDLE_SOURCE, MAX_HANDLES, MAX_LAYERS};
+
+/// First bytes of every artifact.
+pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
+/// Artifact format version this runtime reads.
+pub const FORMAT_VERSION: u32 = 1;
+/// Bytes before the payload: magic, version (u32 LE), length (u64 LE), CRC-32 (u32 LE).
+pub const HEADER_LEN: usize = 24;
+
+/// Why an artifact was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoadError {
+    /// Not a mochi model artifact.
+    BadMagic,
+    /// Written by a format version this runtime does not read.
+    Version {
+        /// Version in the file.
+        found: u32,
+    },
+    /// Shorter or longer than its header says.
+    Truncated,
+    /// The payload's CRC-32 does not match.
+    Corrupt,
+    /// This field could not be read.
+    Malformed {
+        /// Field being read.
+        field: &'static str,
+    },
+    /// The storage is too small for this field.
+    Capacity {
+        /// Field being stored.
+        field: &'static str,
+    },
+    /// The payload has bytes after its last field.
+    TrailingBytes,
+    /// The model read is inconsistent.
+    Invalid(ModelError),
+}
+
+impl fmt::Display for LoadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LoadError::BadMagic => write!(f, "not a mochi model artifact (bad magic bytes)"),
+            LoadError::Version { found } => {
+                write!(
+                    f,
+                    "artifact format version {found}, this runtime reads {FORMAT_VERSION}"
+                )
+            }
+            LoadError::Truncated => write!(f, "artifact is truncated or padded"),
+            LoadError::Corrupt => write!(f, "artifact is corrupted (CRC-32 mismatch)"),
+            LoadError::Malformed { field } => write!(f, "artifact field `{field}` is unreadable"),
+            LoadError::Capacity { field } => write!(f, "storage too small for artifact field `{field}`"),
+            LoadError::TrailingBytes => write!(f, "artifact has bytes after its last field"),
+            LoadError::Invalid(e) => write!(f, "artifact is inconsistent: {e}"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for LoadError {}
+
+/// The payload of an artifact after checking magic, version, length and CRC.
+pub fn payload(bytes: &[u8]) -> Result<&[u8], LoadError> {
+    if bytes.get(..MAGIC.len()) != Some(&MAGIC[..]) {
+        return Err(LoadError::BadMagic);
+    }
+    let header = bytes.get(..HEADER_LEN).ok_or(LoadError::Truncated)?;
+    let word = |from: usize, to: usize| {
+        header[from..to]
+            .iter()
+            .rev()
+            .fold(0u64, |acc, &b| (acc << 8) | b as u64)
+    };
+    let version = word(8, 12) as u32;
+    if version != FORMAT_VERSION {
+        return Err(LoadError::Version { found: version });
+    }
+    let body = &bytes[HEADER_LEN..];
+    if body.len() as u64 != word(12, 20) {
+        return Err(LoadError::Truncated);
+    }
+    if crc32fast::hash(body) as u64 != word(20, 24) {
+        return Err(LoadError::Corrupt);
+    }
+    Ok(body)
+}
+
+/// A growable-up-to-capacity list the loader fills: `heapless::Vec` on targets, `Vec` with
+/// the `std` feature.
+pub trait Pool<T> {
+    /// Removes every element.
+    fn clear(&mut self);
+    /// Appends `v`; `false` when full.
+    fn push(&mut self, v: T) -> bool;
+    /// The elements.
+    fn as_slice(&self) -> &[T];
+}
+
+impl<T, const N: usize> Pool<T> for heapless::Vec<T, N> {
+    fn clear(&mut self) {
+        heapless::Vec::clear(self)
+    }
+    fn push(&mut self, v: T) -> bool {
+        heapless::Vec::push(self, v).is_ok()
+    }
+    fn as_slice(&self) -> &[T] {
+        self
+    }
+}
+
+#[cfg(feature = "std")]
+impl<T> Pool<T> for std::vec::Vec<T> {
+    fn clear(&mut self) {
+        std::vec::Vec::clear(self)
+    }
+    fn push(&mut self, v: T) -> bool {
+        std::vec::Vec::push(self, v);
+        true
+    }
+    fn as_slice(&self) -> &[T] {
+        self
+    }
+}
+
+/// Scalars and spans of a loaded model (the pools hold the arrays).
+#[derive(Clone, Copy, Debug, Default)]
+struct Header {
+    dim: u32,
+    num_vertices: u32,
+    latent: u32,
+    bc_len: u32,
+    dt: f32,
+    diagonal: f32,
+    rotates: bool,
+    rest: Span,
+    handle_vertices: Span,
+    free_vertices: Span,
+    origin_of: Span,
+    root_slots: Span,
+    surface_vertices: Span,
+    surface_source: Span,
+    initial_latent: Span,
+    latent_min: Span,
+    latent_max: Span,
+}
+
+/// A model loaded from artifact bytes into pools `P` (weights), `F` (other reals), `I`
+/// (indices), `L` (layers) and `G` (handles). Use [`LoadedModel`] on targets and
+/// `OwnedModel` (feature `std`) on the desktop.
+#[derive(Clone, Debug, Default)]
+pub struct Storage<P, F, I, L, G> {
+    params: P,
+    floats: F,
+    indices: I,
+    decoder: L,
+    integrator: L,
+    handles: G,
+    header: Header,
+    loaded: bool,
+}
+
+/// Fixed-capacity storage: `P` weights and biases, `F` other reals, `I` indices.
+pub type LoadedModel<const P: usize, const F: usize, const I: usize> = Storage<
+    heapless::Vec<f32, P>,
+    heapless::Vec<f32, F>,
+    heapless::Vec<u32, I>,
+    heapless::Vec<Layer, MAX_LAYERS>,
+    heapless::Vec<Handle, MAX_HANDLES>,
+>;
+
+/// Heap-backed storage for desktop tools (feature `std`).
+#[cfg(feature = "std")]
+pub type OwnedModel =
+    Storage<std::vec::Vec<f32>, std::vec::Vec<f32>, std::vec::Vec<u32>, std::vec::Vec<Layer>, std::vec::Vec<Handle>>;
+
+impl<const P: usize, const F: usize, const I: usize> LoadedModel<P, F, I> {
+    /// Empty storage (usable in a `static`).
+    pub const fn new() -> Self {
+        Storage {
+            params: heapless::Vec::new(),
+            floats: heapless::Vec::new(),
+            indices: heapless::Vec::new(),
+            decoder: heapless::Vec::new(),
+            integrator: heapless::Vec::new(),
+            handles: heapless::Vec::new(),
+            header: Header {
+                dim: 0,
+                num_vertices: 0,
+                latent: 0,
+                bc_len: 0,
+                dt: 0.0,
+                diagonal: 0.0,
+                rotates: false,
+                rest: EMPTY,
+                handle_vertices: EMPTY,
+                free_vertices: EMPTY,
+                origin_of: EMPTY,
+                root_slots: EMPTY,
+                surface_vertices: EMPTY,
+                surface_source: EMPTY,
+                initial_latent: EMPTY,
+                latent_min: EMPTY,
+                latent_max: EMPTY,
+            },
+            loaded: false,
+        }
+    }
+}
+
+const EMPTY: Span = Span { start: 0, len: 0 };
+
+impl<P, F, I, L, G> Storage<P, F, I, L, G>
+where
+    P: Pool<f32>,
+    F: Pool<f32>,
+    I: Pool<u32>,
+    L: Pool<Layer>,
+    G: Pool<Handle>,
+{
+    /// The model as a description over the pools (valid only after a successful load).
+    fn describe(&self) -> Model<'_> {
+        let h = &self.header;
+        Model {
+            dim: h.dim,
+            num_vertices: h.num_vertices,
+            latent: h.latent,
+            bc_len: h.bc_len,
+            dt: h.dt,
+            diagonal: h.diagonal,
+            rotates: h.rotates,
+            params: self.params.as_slice(),
+            floats: self.floats.as_slice(),
+            indices: self.indices.as_slice(),
+            decoder: self.decoder.as_slice(),
+            integrator: self.integrator.as_slice(),
+            handles: self.handles.as_slice(),
+            rest: h.rest,
+            handle_vertices: h.handle_vertices,
+            free_vertices: h.free_vertices,
+            origin_of: h.origin_of,
+            root_slots: h.root_slots,
+            surface_vertices: h.surface_vertices,
+            surface_source: h.surface_source,
+            initial_latent: h.initial_latent,
+            latent_min: h.latent_min,
+            latent_max: h.latent_max,
+        }
+    }
+
+    /// The loaded model, or `None` before a successful [`Storage::load`].
+    pub fn model(&self) -> Option<ValidModel<'_>> {
+        if self.loaded {
+            ValidModel::new(self.describe()).ok()
+        } else {
+            None
+        }
+    }
+
+    /// Parses, stores and validates the artifact in `bytes`, replacing what was stored.
+    pub fn load(&mut self, bytes: &[u8]) -> Result<ValidModel<'_>, LoadError> {
+        self.loaded = false;
+        for pool in [&mut self.decoder, &mut self.integrator] {
+            pool.clear();
+        }
+        self.params.clear();
+        self.floats.clear();
+        self.indices.clear();
+        self.handles.clear();
+        self.header = Header::default();
+        self.read(payload(bytes)?)?;
+        ValidModel::new(self.describe()).map_err(LoadError::Invalid)?;
+        self.loaded = true;
+        self.model().ok_or(LoadError::Malformed { field: "model" })
+    }
+
+    /// Reads every field of the payload in the order of the trainer's `Artifact`.
+    fn read(&mut self, payload: &[u8]) -> Result<(), LoadError> {
+        let mut r = Reader {
+            de: postcard::Deserializer::from_bytes(payload),
+        };
+        r.value::<&str>("scene")?;
+        r.value::<&str>("scene_path")?;
+        r.value::<&str>("scene_toml")?;
+        r.value::<u32>("method")?;
+        let h = &mut self.header;
+        h.dt = r.value::<f64>("dt")? as f32;
+        h.dim = r.value("dim")?;
+        h.num_vertices = r.value("num_vertices")?;
+        h.rest = r.seq("rest", &mut self.floats)?;
+        h.diagonal = r.value::<f64>("diagonal")? as f32;
+        h.rotates = r.value("encoding.rotates")?;
+        h.handle_vertices = r.seq("encoding.handle_vertices", &mut self.indices)?;
+        r.skip_reals("encoding.reference")?;
+        h.free_vertices = r.seq("encoding.free_vertices", &mut self.indices)?;
+        h.origin_of = r.seq("encoding.origin_of", &mut self.indices)?;
+        h.root_slots = r.seq("encoding.root_slots", &mut self.indices)?;
+        let handles = r.len("handles")?;
+        for _ in 0..handles {
+            r.value::<&str>("handles.name")?;
+            let vertices = r.seq("handles.vertices", &mut self.indices)?;
+            let reference = r.seq("handles.reference", &mut self.floats)?;
+            let pivot = r.value::<[f32; 3]>("handles.pivot")?;
+            let handle = Handle {
+                vertices,
+                reference,
+                pivot,
+            };
+            if !self.handles.push(handle) {
+                return Err(LoadError::Capacity { field: "handles" });
+            }
+        }
+        h.bc_len = r.value("bc_len")?;
+        h.surface_vertices = r.seq("surface_vertices", &mut self.indices)?;
+        r.value::<Discarded<[u32; 3]>>("surface_triangles")?;
+        r.value::<Discarded<Discarded<u32>>>("polylines")?;
+        h.latent = r.value("latent")?;
+        h.initial_latent = r.seq("initial_latent", &mut self.floats)?;
+        h.latent_min = r.seq("latent_min", &mut self.floats)?;
+        h.latent_max = r.seq("latent_max", &mut self.floats)?;
+        r.skip_reals("pca_mean")?;
+        r.skip_reals("pca_basis")?;
+        r.network::<Discard, heapless::Vec<Layer, 0>>("encoder", None)?;
+        r.network("decoder", Some((&mut self.params, &mut self.decoder)))?;
+        r.network("integrator", Some((&mut self.params, &mut self.integrator)))?;
+        r.value::<f64>("summary.tolerance")?;
+        r.value::<Discarded<(u32, f64, Option<f64>)>>("summary.trials")?;
+        r.value::<Discarded<(&str, f64)>>("summary.stage_seconds")?;
+        r.value::<(f64, u64, f64, f64)>("summary")?;
+        match r.de.finalize() {
+            Ok([]) => {}
+            _ => return Err(LoadError::TrailingBytes),
+        }
+        self.header.surface_source = self.surface_source()?;
+        Ok(())
+    }
+
+    /// Per drawn vertex, its free-vertex index or its handle slot (see [`Model`]).
+    fn surface_source(&mut self) -> Result<Span, LoadError> {
+        let h = self.header;
+        let start = self.indices.as_slice().len();
+        for i in 0..h.surface_vertices.len as usize {
+            let indices = self.indices.as_slice();
+            let get = |span: Span| span.of(indices).unwrap_or(&[]);
+            let v = get(h.surface_vertices)[i];
+            let source = match get(h.free_vertices).binary_search(&v) {
+                Ok(j) => j as u32,
+                Err(_) => match get(h.handle_vertices).iter().position(|&u| u == v) {
+                    Some(slot) => HANDLE_SOURCE | slot as u32,
+                    None => {
+                        return Err(LoadError::Malformed {
+                            field: "surface_vertices",
+                        })
+                    }
+                },
+            };
+            if !self.indices.push(source) {
+                return Err(LoadError::Capacity {
+                    field: "surface_vertices",
+                });
+            }
+        }
+        Ok(span(start, self.indices.as_slice().len()))
+    }
+}
+
+fn span(start: usize, end: usize) -> Span {
+    Span {
+        start: start as u32,
+        len: (end - start) as u32,
+    }
+}
+
+/// Field-by-field reader of the payload.
+struct Reader<'de> {
+    de: postcard::Deserializer<'de, postcard::de_flavors::Slice<'de>>,
+}
+
+impl<'de> Reader<'de> {
+    fn value<T: Deserialize<'de>>(&mut self, field: &'static str) -> Result<T, LoadError> {
+        T::deserialize(&mut self.de).map_err(|_| LoadError::Malformed { field })
+    }
+
+    /// A sequence length prefix.
+    fn len(&mut self, field: &'static str) -> Result<usize, LoadError> {
+        let n: u64 = postcard_varint(&mut self.de).ok_or(LoadError::Malformed { field })?;
+        usize::try_from(n).map_err(|_| LoadError::Malformed { field })
+    }
+
+    /// A sequence appended to `pool`; its span.
+    fn seq<T, Q>(&mut self, field: &'static str, pool: &mut Q) -> Result<Span, LoadError>
+    where
+        T: Deserialize<'de>,
+        Q: Pool<T>,
+    {
+        let start = pool.as_slice().len();
+        let mut full = false;
+        let seed = Append {
+            pool,
+            full: &mut full,
+            _t: PhantomData,
+        };
+        match seed.deserialize(&mut self.de) {
+            Ok(()) => Ok(span(start, pool.as_slice().len())),
+            Err(_) if full => Err(LoadError::Capacity { field }),
+            Err(_) => Err(LoadError::Malformed { field }),
+        }
+    }
+
+    /// A sequence of reals that is read, checked to be finite, and dropped.
+    fn skip_reals(&mut self, field: &'static str) -> Result<usize, LoadError> {
+        let mut discard = Discard::default();
+        self.seq::<f32, _>(field, &mut discard)?;
+        if discard.finite {
+            Ok(discard.count)
+        } else {
+            Err(LoadError::Invalid(ModelError {
+                field,
+                problem: crate::model::Problem::NotFinite,
+            }))
+        }
+    }
+
+    /// A network (list of dense layers): weights and biases appended to `store`'s pools, or
+    /// checked and dropped when `store` is `None`.
+    fn network<P: Pool<f32>, L: Pool<Layer>>(
+        &mut self,
+        field: &'static str,
+        mut store: Option<(&mut P, &mut L)>,
+    ) -> Result<(), LoadError> {
+        let layers = self.len(field)?;
+        if layers > MAX_LAYERS {
+            return Err(LoadError::Capacity { field });
+        }
+        for _ in 0..layers {
+            let rows: u64 = self.value(field)?;
+            let cols: u64 = self.value(field)?;
+            let (w, b) = match store.as_mut() {
+                Some((params, _)) => {
+                    let w = self.seq::<f32, _>(field, *params)?;
+                    (w, self.seq::<f32, _>(field, *params)?)
+                }
+                None => (span(0, self.skip_reals(field)?), span(0, self.skip_reals(field)?)),
+            };
+            if rows.checked_mul(cols) != Some(w.len as u64) || rows != b.len as u64 {
+                return Err(LoadError::Malformed { field });
+            }
+            if let Some((_, list)) = store.as_mut() {
+                let layer = Layer {
+                    rows: rows as u32,
+                    cols: cols as u32,
+                    weights: w.start,
+                    bias: b.start,
+                };
+                if !list.push(layer) {
+                    return Err(LoadError::Capacity { field });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Reads a postcard varint (a sequence length) through serde: postcard encodes `u64` and
+/// sequence lengths the same way.
+fn postcard_varint<'de>(de: &mut postcard::Deserializer<'de, postcard::de_flavors::Slice<'de>>) -> Option<u64> {
+    u64::deserialize(de).ok()
+}
+
+/// A pool that keeps only a count and whether everything was finite.
+struct Discard {
+    count: usize,
+    finite: bool,
+}
+impl Default for Discard {
+    fn default() -> Self {
+        Discard { count: 0, finite: true }
+    }
+}
+impl Pool<f32> for Discard {
+    fn clear(&mut self) {
+        *self = Discard::default();
+    }
+    fn push(&mut self, v: f32) -> bool {
+        self.count += 1;
+        self.finite &= v.is_finite();
+        true
+    }
+    fn as_slice(&self) -> &[f32] {
+        &[]
+    }
+}
+
+/// Seed that appends a sequence's elements to a pool.
+struct Append<'p, T, Q> {
+    pool: &'p mut Q,
+    full: &'p mut bool,
+    _t: PhantomData<T>,
+}
+
+impl<'de, T: Deserialize<'de>, Q: Pool<T>> DeserializeSeed<'de> for Append<'_, T, Q> {
+    type Value = ();
+    fn deserialize<D: Deserializer<'de>>(self, deserializer: D) -> Result<(), D::Error> {
+        deserializer.deserialize_seq(self)
+    }
+}
+
+impl<'de, T: Deserialize<'de>, Q: Pool<T>> Visitor<'de> for Append<'_, T, Q> {
+    type Value = ();
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("a sequence")
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        while let Some(v) = seq.next_element::<T>()? {
+            if !self.pool.push(v) {
+                *self.full = true;
+                return Err(serde::de::Error::custom("pool full"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A sequence of `T` that is read and dropped.
+struct Discarded<T>(PhantomData<T>);
+
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for Discarded<T> {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Skip<T>(PhantomData<T>);
+        impl<'de, T: Deserialize<'de>> Visitor<'de> for Skip<T> {
+            type Value = Discarded<T>;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a sequence")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Discarded<T>, A::Error> {
+                while seq.next_element::<T>()?.is_some() {}
+                Ok(Discarded(PhantomData))
+            }
+        }
+        deserializer.deserialize_seq(Skip(PhantomData))
+    }
+}

@@ -1,0 +1,218 @@
+//! Boundary conditions: handle motions, the handle vertices they place, and the frame
+//! (rotation and origins) in which the model's states are encoded.
+
+use nalgebra::{Matrix2, Matrix3, Rotation3, Vector3};
+
+use crate::model::{Handle, Model, MAX_HANDLES, SIGNAL_PER_HANDLE};
+
+/// A handle's rigid pose relative to its reference placement: translation of the pivot and a
+/// rotation vector (axis times angle in radians) about it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HandlePose {
+    /// Translation of the pivot.
+    pub translation: [f32; 3],
+    /// Rotation vector about the pivot.
+    pub rotation: [f32; 3],
+}
+
+/// What the model needs of one handle each frame: its velocities over the step that ends at
+/// this frame and its pose (the order of the trainer's boundary-condition signal).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HandleMotion {
+    /// Linear velocity of the pivot (units / s).
+    pub linear_velocity: [f32; 3],
+    /// Angular velocity (rad / s, world axes).
+    pub angular_velocity: [f32; 3],
+    /// Translation of the pivot.
+    pub translation: [f32; 3],
+    /// Rotation vector about the pivot.
+    pub rotation: [f32; 3],
+}
+
+impl HandleMotion {
+    /// A handle at its reference placement, at rest.
+    pub const REST: HandleMotion = HandleMotion {
+        linear_velocity: [0.0; 3],
+        angular_velocity: [0.0; 3],
+        translation: [0.0; 3],
+        rotation: [0.0; 3],
+    };
+
+    /// The motion that moves a handle from `previous` to `current` in `dt` seconds (for
+    /// engines that only track poses).
+    pub fn from_poses(previous: &HandlePose, current: &HandlePose, dt: f32) -> HandleMotion {
+        let v = |a: [f32; 3]| Vector3::from(a);
+        let linear = (v(current.translation) - v(previous.translation)) / dt;
+        let step = rotation(&current.rotation) * rotation(&previous.rotation).inverse();
+        let angular = step.scaled_axis() / dt;
+        HandleMotion {
+            linear_velocity: linear.into(),
+            angular_velocity: angular.into(),
+            translation: current.translation,
+            rotation: current.rotation,
+        }
+    }
+
+    /// The motion whose signal is `s` (the order of [`HandleMotion::signal`]).
+    pub fn from_signal(s: &[f32; SIGNAL_PER_HANDLE]) -> HandleMotion {
+        let part = |i: usize| [s[3 * i], s[3 * i + 1], s[3 * i + 2]];
+        HandleMotion {
+            linear_velocity: part(0),
+            angular_velocity: part(1),
+            translation: part(2),
+            rotation: part(3),
+        }
+    }
+
+    /// Whether every number is finite.
+    pub fn is_finite(&self) -> bool {
+        self.signal().iter().all(|v| v.is_finite())
+    }
+
+    /// The [`SIGNAL_PER_HANDLE`] numbers the integrator reads.
+    pub fn signal(&self) -> [f32; SIGNAL_PER_HANDLE] {
+        let mut s = [0.0; SIGNAL_PER_HANDLE];
+        for (i, part) in [
+            self.linear_velocity,
+            self.angular_velocity,
+            self.translation,
+            self.rotation,
+        ]
+        .iter()
+        .enumerate()
+        {
+            s[3 * i..3 * i + 3].copy_from_slice(part);
+        }
+        s
+    }
+}
+
+fn rotation(rotation_vector: &[f32; 3]) -> Rotation3<f32> {
+    Rotation3::new(Vector3::from(*rotation_vector))
+}
+
+/// The world placement of a model's handles and its encoding frame for one frame of handle
+/// poses (read from the signal: translation at 6..9, rotation vector at 9..12 per handle).
+pub struct Placement<'m, 'a> {
+    model: &'m Model<'a>,
+    rotations: [Matrix3<f32>; MAX_HANDLES],
+    translations: [Vector3<f32>; MAX_HANDLES],
+    /// Frame rotation `R` (upper-left 2x2 in 2D).
+    pub frame: Matrix3<f32>,
+    centroid: Vector3<f32>,
+}
+
+impl<'m, 'a> Placement<'m, 'a> {
+    /// Places the handles of `model` at the poses in `signal` (`bc_len` numbers).
+    pub fn new(model: &'m Model<'a>, signal: &[f32]) -> Self {
+        let mut rotations = [Matrix3::identity(); MAX_HANDLES];
+        let mut translations = [Vector3::zeros(); MAX_HANDLES];
+        for (h, s) in signal.chunks_exact(SIGNAL_PER_HANDLE).take(MAX_HANDLES).enumerate() {
+            translations[h] = Vector3::new(s[6], s[7], s[8]);
+            rotations[h] = *rotation(&[s[9], s[10], s[11]]).matrix();
+        }
+        let mut placement = Placement {
+            model,
+            rotations,
+            translations,
+            frame: Matrix3::identity(),
+            centroid: Vector3::zeros(),
+        };
+        let slots = model.handle_vertices().len();
+        if slots > 0 {
+            let sum = (0..slots).fold(Vector3::zeros(), |acc, s| acc + placement.target(s));
+            placement.centroid = sum / slots as f32;
+        }
+        if model.rotates {
+            placement.frame = match model.handles.len() {
+                1 => rotations[0],
+                _ => placement.best_fit_rotation(),
+            };
+            if model.dim() == 2 {
+                placement.frame = planar(&placement.frame);
+            }
+        }
+        placement
+    }
+
+    /// Handle and index within it of handle slot `slot`.
+    fn locate(&self, slot: usize) -> Option<(usize, &Handle, usize)> {
+        let mut first = 0;
+        for (h, handle) in self.model.handles.iter().enumerate() {
+            let len = handle.vertices.len as usize;
+            if slot < first + len {
+                return Some((h, handle, slot - first));
+            }
+            first += len;
+        }
+        None
+    }
+
+    /// Reference (identity-pose) position of handle slot `slot`.
+    fn reference(&self, slot: usize) -> Vector3<f32> {
+        self.locate(slot)
+            .and_then(|(_, handle, i)| self.model.handle_reference_of(handle).get(3 * i..3 * i + 3))
+            .map_or(Vector3::zeros(), |p| Vector3::new(p[0], p[1], p[2]))
+    }
+
+    /// World position of handle slot `slot` (z = 0 in 2D).
+    pub fn target(&self, slot: usize) -> Vector3<f32> {
+        let Some((h, handle, _)) = self.locate(slot) else {
+            return Vector3::zeros();
+        };
+        let pivot = Vector3::from(handle.pivot);
+        let p = pivot + self.translations[h] + self.rotations[h] * (self.reference(slot) - pivot);
+        if self.model.dim() == 2 {
+            Vector3::new(p.x, p.y, 0.0)
+        } else {
+            p
+        }
+    }
+
+    /// Origin `o` of an encoded vertex whose origin index is `origin`.
+    pub fn origin(&self, origin: u32) -> Vector3<f32> {
+        match self.model.root_slots().get(origin as usize) {
+            Some(&slot) => self.target(slot as usize),
+            None => self.centroid,
+        }
+    }
+
+    /// The proper rotation that best maps the reference handle points onto their targets
+    /// (Kabsch; the handles of one model may rotate differently).
+    fn best_fit_rotation(&self) -> Matrix3<f32> {
+        let slots = self.model.handle_vertices().len();
+        let mean_ref = (0..slots).fold(Vector3::zeros(), |acc, s| acc + self.reference(s)) / slots.max(1) as f32;
+        let mut cov = Matrix3::zeros();
+        for s in 0..slots {
+            cov += (self.reference(s) - mean_ref) * (self.target(s) - self.centroid).transpose();
+        }
+        if self.model.dim() == 2 {
+            let angle = libm::atan2f(cov[(0, 1)] - cov[(1, 0)], cov[(0, 0)] + cov[(1, 1)]);
+            let r = Matrix2::new(
+                libm::cosf(angle),
+                -libm::sinf(angle),
+                libm::sinf(angle),
+                libm::cosf(angle),
+            );
+            return Matrix3::new(r[(0, 0)], r[(0, 1)], 0.0, r[(1, 0)], r[(1, 1)], 0.0, 0.0, 0.0, 1.0);
+        }
+        let svd = cov.svd(true, true);
+        let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+            return Matrix3::identity();
+        };
+        let mut r = v_t.transpose() * u.transpose();
+        if r.determinant() < 0.0 {
+            let mut flip = Matrix3::identity();
+            flip[(2, 2)] = -1.0;
+            r = v_t.transpose() * flip * u.transpose();
+        }
+        r
+    }
+}
+
+/// The in-plane part of a rotation, for 2D models.
+fn planar(r: &Matrix3<f32>) -> Matrix3<f32> {
+    Matrix3::new(r[(0, 0)], r[(0, 1)], 0.0, r[(1, 0)], r[(1, 1)], 0.0, 0.0, 0.0, 1.0)
+}

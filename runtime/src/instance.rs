@@ -1,0 +1,317 @@
+//! One simulated object: the state of a latent rollout (last two latents and the last two
+//! boundary-condition signals), stepped and decoded against a shared [`ValidModel`].
+
+use core::fmt;
+
+use nalgebra::Vector3;
+
+use crate::frame::{HandleMotion, Placement};
+use crate::model::{Model, ModelError, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
+use crate::network::{dense_row, hidden};
+
+/// How far a latent may leave the range seen in training before it is clamped, as a fraction
+/// of that range's width on each side.
+pub const RANGE_MARGIN: f32 = 1.0;
+
+/// A model that passed [`Model::validate`]; only these can be stepped and decoded, so the
+/// kernels never meet an inconsistent shape.
+#[derive(Clone, Copy, Debug)]
+pub struct ValidModel<'a>(Model<'a>);
+
+impl<'a> ValidModel<'a> {
+    /// Validates `model`.
+    pub fn new(model: Model<'a>) -> Result<Self, ModelError> {
+        model.validate()?;
+        Ok(ValidModel(model))
+    }
+    /// The model.
+    pub fn model(&self) -> &Model<'a> {
+        &self.0
+    }
+}
+
+/// Why a step was refused (the instance is left as it was).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepError {
+    /// `bc` must hold one motion per handle.
+    HandleCount {
+        /// Handles of the model.
+        expected: usize,
+        /// Motions given.
+        found: usize,
+    },
+    /// The motion of this handle holds a NaN or an infinity.
+    NotFinite {
+        /// Index of the handle.
+        handle: usize,
+    },
+}
+
+/// Why a decode was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DecodeError {
+    /// The output buffer must hold `expected` numbers.
+    BufferLength {
+        /// Numbers required.
+        expected: usize,
+        /// Length of the buffer given.
+        found: usize,
+    },
+    /// The decoded state was not finite; the buffer holds the rest positions instead.
+    NotFinite,
+}
+
+/// Why an instance cannot run a model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SizeError {
+    /// Which compile-time size does not fit: `latent`, `signal` or `hidden`.
+    pub size: &'static str,
+    /// What the model needs.
+    pub model: usize,
+    /// What the instance type was compiled with.
+    pub compiled: usize,
+}
+
+impl fmt::Display for StepError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StepError::HandleCount { expected, found } => {
+                write!(f, "{found} handle motions given, the model has {expected} handles")
+            }
+            StepError::NotFinite { handle } => write!(f, "motion of handle {handle} is not finite"),
+        }
+    }
+}
+
+impl fmt::Display for DecodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DecodeError::BufferLength { expected, found } => {
+                write!(f, "output buffer holds {found} numbers, expected {expected}")
+            }
+            DecodeError::NotFinite => write!(f, "decoded state is not finite; rest positions written"),
+        }
+    }
+}
+
+impl fmt::Display for SizeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "model needs {} {}, instance compiled for {}",
+            self.size, self.model, self.compiled
+        )
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for StepError {}
+#[cfg(feature = "std")]
+impl std::error::Error for DecodeError {}
+#[cfg(feature = "std")]
+impl std::error::Error for SizeError {}
+
+/// What a step did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stepped {
+    /// Advanced normally.
+    Ok,
+    /// The new latent left the trained range by more than [`RANGE_MARGIN`] and was clamped.
+    Clamped,
+    /// The network produced a non-finite latent; the previous latent was kept.
+    Held,
+}
+
+/// The state of one object: `K` latent coordinates, `S` boundary-condition numbers; `H` is the
+/// widest hidden layer the instance can run (scratch lives on the stack during calls, not in
+/// the instance).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance<const K: usize, const S: usize, const H: usize> {
+    z: [f32; K],
+    z_prev: [f32; K],
+    signal: [f32; S],
+    signal_prev: [f32; S],
+    frames: u32,
+}
+
+impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
+    /// An instance at the model's rest state, handles at their reference placement.
+    pub fn new(model: &ValidModel) -> Result<Self, SizeError> {
+        let m = model.model();
+        for (size, need, compiled) in [("latent", m.latent as usize, K), ("signal", m.bc_len as usize, S)] {
+            if need != compiled {
+                return Err(SizeError {
+                    size,
+                    model: need,
+                    compiled,
+                });
+            }
+        }
+        if m.hidden() > H {
+            return Err(SizeError {
+                size: "hidden",
+                model: m.hidden(),
+                compiled: H,
+            });
+        }
+        let mut z = [0.0; K];
+        z.copy_from_slice(m.initial_latent());
+        Ok(Instance {
+            z,
+            z_prev: z,
+            signal: [0.0; S],
+            signal_prev: [0.0; S],
+            frames: 0,
+        })
+    }
+
+    /// The current latent, for engines that decode on the GPU.
+    pub fn latent(&self) -> &[f32; K] {
+        &self.z
+    }
+
+    /// Frames stepped since creation.
+    pub fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    /// Advances one frame with the handles' motion over it (one [`HandleMotion`] per handle,
+    /// in the model's handle order). Bad input is refused and leaves the instance unchanged.
+    pub fn step(&mut self, model: &ValidModel, bc: &[HandleMotion]) -> Result<Stepped, StepError> {
+        let m = model.model();
+        if bc.len() * SIGNAL_PER_HANDLE != S || bc.len() != m.handles.len() {
+            return Err(StepError::HandleCount {
+                expected: m.handles.len(),
+                found: bc.len(),
+            });
+        }
+        if let Some(handle) = bc.iter().position(|b| !b.is_finite()) {
+            return Err(StepError::NotFinite { handle });
+        }
+        let mut signal = [0.0; S];
+        for (chunk, motion) in signal.chunks_exact_mut(SIGNAL_PER_HANDLE).zip(bc) {
+            chunk.copy_from_slice(&motion.signal());
+        }
+        let (mut h, mut scratch) = ([0.0f32; H], [0.0f32; H]);
+        let parts: [&[f32]; 5] = [&self.z, &self.z_prev, &signal, &self.signal, &self.signal_prev];
+        hidden(m.params, m.integrator, &parts, &mut h, &mut scratch);
+        let output = &m.integrator[m.integrator.len() - 1];
+        let mut z = self.z;
+        for (r, zr) in z.iter_mut().enumerate() {
+            *zr += dense_row(m.params, output, &h, r);
+        }
+        let mut status = Stepped::Ok;
+        if !z.iter().all(|v| v.is_finite()) {
+            z = self.z;
+            status = Stepped::Held;
+        }
+        for ((zr, &lo), &hi) in z.iter_mut().zip(m.latent_min()).zip(m.latent_max()) {
+            let margin = RANGE_MARGIN * (hi - lo);
+            let clamped = zr.clamp(lo - margin, hi + margin);
+            if clamped != *zr {
+                *zr = clamped;
+                if status == Stepped::Ok {
+                    status = Stepped::Clamped;
+                }
+            }
+        }
+        self.z_prev = self.z;
+        self.z = z;
+        self.signal_prev = self.signal;
+        self.signal = signal;
+        self.frames = self.frames.wrapping_add(1);
+        Ok(status)
+    }
+
+    /// Writes the world positions of every vertex (`dim` per vertex) into `out`.
+    pub fn decode_into(&self, model: &ValidModel, out: &mut [f32]) -> Result<(), DecodeError> {
+        let m = model.model();
+        let d = m.dim();
+        check_len(out, m.state_len())?;
+        let (mut h, mut scratch) = ([0.0f32; H], [0.0f32; H]);
+        hidden(m.params, m.decoder, &[&self.z], &mut h, &mut scratch);
+        let output = &m.decoder[m.decoder.len() - 1];
+        let encoded = m.encoded_len();
+        for (r, o) in out[..encoded].iter_mut().enumerate() {
+            *o = dense_row(m.params, output, &h, r);
+        }
+        let place = Placement::new(m, &self.signal);
+        // Free vertex j moves from out[j*d..] to out[v*d..] with v >= j (free vertices ascend):
+        // going backwards, no source is overwritten before it is read.
+        for (j, (&v, &o)) in m.free_vertices().iter().zip(m.origin_of()).enumerate().rev() {
+            let world = to_world(&place, &out[j * d..j * d + d], o);
+            out[v as usize * d..v as usize * d + d].copy_from_slice(&world.as_slice()[..d]);
+        }
+        for (slot, &v) in m.handle_vertices().iter().enumerate() {
+            let p = place.target(slot);
+            out[v as usize * d..v as usize * d + d].copy_from_slice(&p.as_slice()[..d]);
+        }
+        finite_or_rest(out, m.rest())
+    }
+
+    /// Writes the world positions of the drawn vertices only ([`Model::surface_vertices`],
+    /// `dim` each) into `out`; the decoder's output layer runs only for their rows.
+    pub fn decode_surface_into(&self, model: &ValidModel, out: &mut [f32]) -> Result<(), DecodeError> {
+        let m = model.model();
+        let d = m.dim();
+        check_len(out, m.surface_len())?;
+        let (mut h, mut scratch) = ([0.0f32; H], [0.0f32; H]);
+        hidden(m.params, m.decoder, &[&self.z], &mut h, &mut scratch);
+        let output = &m.decoder[m.decoder.len() - 1];
+        let place = Placement::new(m, &self.signal);
+        let origins = m.origin_of();
+        for (o, &source) in out.chunks_exact_mut(d).zip(m.surface_source()) {
+            let p = if source & HANDLE_SOURCE != 0 {
+                place.target((source & !HANDLE_SOURCE) as usize)
+            } else {
+                let j = source as usize;
+                let mut q = [0.0f32; 3];
+                for (c, qc) in q.iter_mut().enumerate().take(d) {
+                    *qc = dense_row(m.params, output, &h, j * d + c);
+                }
+                to_world(&place, &q[..d], origins.get(j).copied().unwrap_or(0))
+            };
+            o.copy_from_slice(&p.as_slice()[..d]);
+        }
+        match finite_or_rest(out, &[]) {
+            Ok(()) => Ok(()),
+            Err(e) => {
+                // Rest positions of the drawn vertices.
+                for (o, &v) in out.chunks_exact_mut(d).zip(m.surface_vertices()) {
+                    let rest = m.rest().get(v as usize * d..v as usize * d + d).unwrap_or(&[]);
+                    o.iter_mut().zip(rest).for_each(|(o, r)| *o = *r);
+                }
+                Err(e)
+            }
+        }
+    }
+}
+
+/// `R q + o` for an encoded vertex (`q` has `dim` numbers).
+fn to_world(place: &Placement, q: &[f32], origin: u32) -> Vector3<f32> {
+    let local = Vector3::new(q[0], q[1], q.get(2).copied().unwrap_or(0.0));
+    place.frame * local + place.origin(origin)
+}
+
+fn check_len(out: &[f32], expected: usize) -> Result<(), DecodeError> {
+    if out.len() == expected {
+        Ok(())
+    } else {
+        Err(DecodeError::BufferLength {
+            expected,
+            found: out.len(),
+        })
+    }
+}
+
+/// `Ok` when `out` is finite; otherwise overwrites it with `rest` (zeros past its end) and
+/// reports it, so no NaN reaches the caller.
+fn finite_or_rest(out: &mut [f32], rest: &[f32]) -> Result<(), DecodeError> {
+    if out.iter().all(|v| v.is_finite()) {
+        return Ok(());
+    }
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = rest.get(i).copied().unwrap_or(0.0);
+    }
+    Err(DecodeError::NotFinite)
+}

@@ -1,0 +1,468 @@
+//! The frozen model the runtime consumes: shapes, weights and the boundary-condition encoding,
+//! as slices into a few flat pools so that generated `static` arrays and storage loaded from
+//! bytes describe a model the same way.
+//!
+//! A network is a list of dense layers `[input, inner_0, outer_0, ..., output]` with
+//! `h = input(x); h += outer_j(swish(inner_j(h))); y = output(swish(h))`. The integrator maps
+//! `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` to the increment `z_t - z_{t-1}`; the decoder
+//! maps a latent to the encoded positions of the free vertices.
+
+use core::fmt;
+
+/// Largest number of handles a model may have.
+pub const MAX_HANDLES: usize = 16;
+/// Largest number of layers in one network (input, output and 2 per residual block).
+pub const MAX_LAYERS: usize = 34;
+/// Numbers per handle in the boundary-condition signal (see [`crate::HandleMotion`]).
+pub const SIGNAL_PER_HANDLE: usize = 12;
+/// Flag in [`Model::surface_source`] marking a prescribed vertex (the rest is its handle slot).
+pub const HANDLE_SOURCE: u32 = 1 << 31;
+
+/// A range `start..start + len` of one of a model's pools.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Span {
+    /// First element.
+    pub start: u32,
+    /// Number of elements.
+    pub len: u32,
+}
+
+impl Span {
+    /// The span's elements of `pool`, or `None` when it does not fit.
+    pub fn of<T>(self, pool: &[T]) -> Option<&[T]> {
+        pool.get(self.start as usize..self.start as usize + self.len as usize)
+    }
+}
+
+/// One dense layer `y = W x + b`: `W` row-major at `params[weights..weights + rows * cols]`,
+/// `b` at `params[bias..bias + rows]`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Layer {
+    /// Outputs.
+    pub rows: u32,
+    /// Inputs.
+    pub cols: u32,
+    /// Offset of `W` in [`Model::params`].
+    pub weights: u32,
+    /// Offset of `b` in [`Model::params`].
+    pub bias: u32,
+}
+
+/// A handle: prescribed vertices moved rigidly about a pivot.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Handle {
+    /// Its vertices, in [`Model::indices`].
+    pub vertices: Span,
+    /// Their identity-pose positions (3 per vertex), in [`Model::floats`].
+    pub reference: Span,
+    /// Rotation pivot at the identity pose.
+    pub pivot: [f32; 3],
+}
+
+/// A frozen model (see the module docs). Every [`Span`] names a range of `floats` or
+/// `indices`; [`Model::validate`] checks all of them once, after which the accessors cannot
+/// fail.
+#[derive(Clone, Copy, Debug)]
+pub struct Model<'a> {
+    /// Coordinates per vertex (2 or 3).
+    pub dim: u32,
+    /// Vertices of the full mesh.
+    pub num_vertices: u32,
+    /// Latent size.
+    pub latent: u32,
+    /// Boundary-condition signal numbers per frame ([`SIGNAL_PER_HANDLE`] per handle).
+    pub bc_len: u32,
+    /// Time step in seconds.
+    pub dt: f32,
+    /// Rest bounding-box diagonal.
+    pub diagonal: f32,
+    /// Whether states are encoded relative to the handles' rotation.
+    pub rotates: bool,
+    /// Weights and biases of both networks.
+    pub params: &'a [f32],
+    /// Other real-valued arrays.
+    pub floats: &'a [f32],
+    /// Index arrays.
+    pub indices: &'a [u32],
+    /// Decoder layers.
+    pub decoder: &'a [Layer],
+    /// Integrator layers.
+    pub integrator: &'a [Layer],
+    /// Handles, in boundary-condition signal order.
+    pub handles: &'a [Handle],
+    /// Rest positions (`dim` per vertex), in `floats`.
+    pub rest: Span,
+    /// Prescribed vertices in handle order (handles concatenated), in `indices`.
+    pub handle_vertices: Span,
+    /// Encoded (free) vertices, ascending, in `indices`.
+    pub free_vertices: Span,
+    /// Per free vertex, its origin (0 for the handle centroid, else a strand), in `indices`.
+    pub origin_of: Span,
+    /// Per rod strand, the handle slot of its root; empty when the origin is the centroid of
+    /// all handle vertices. In `indices`.
+    pub root_slots: Span,
+    /// Vertices that are drawn, ascending, in `indices`.
+    pub surface_vertices: Span,
+    /// Per drawn vertex, its free-vertex index, or [`HANDLE_SOURCE`] | its handle slot.
+    pub surface_source: Span,
+    /// Latent of the initial (rest) state, in `floats`.
+    pub initial_latent: Span,
+    /// Smallest value of each latent coordinate in the training data, in `floats`.
+    pub latent_min: Span,
+    /// Largest value of each latent coordinate in the training data, in `floats`.
+    pub latent_max: Span,
+}
+
+/// What is wrong with a model: the field and the problem.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModelError {
+    /// The offending field.
+    pub field: &'static str,
+    /// What is wrong with it.
+    pub problem: Problem,
+}
+
+/// Kinds of [`ModelError`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Problem {
+    /// An array has the wrong number of elements.
+    Length {
+        /// Elements required.
+        expected: usize,
+        /// Elements found.
+        found: usize,
+    },
+    /// A span or vertex index points outside its pool or mesh.
+    OutOfRange,
+    /// A value is NaN or infinite.
+    NotFinite,
+    /// A value is outside what the runtime supports (dimension, layer count, widths).
+    Unsupported,
+    /// Layer shapes do not chain.
+    Shape,
+    /// Vertex sets do not partition the mesh, or are not ascending.
+    Inconsistent,
+}
+
+impl fmt::Display for ModelError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "field `{}`: ", self.field)?;
+        match self.problem {
+            Problem::Length { expected, found } => write!(f, "{found} elements, expected {expected}"),
+            Problem::OutOfRange => write!(f, "index out of range"),
+            Problem::NotFinite => write!(f, "holds a non-finite value"),
+            Problem::Unsupported => write!(f, "value not supported by this runtime"),
+            Problem::Shape => write!(f, "layer shapes do not chain"),
+            Problem::Inconsistent => write!(f, "vertex sets are inconsistent"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for ModelError {}
+
+fn fail<T>(field: &'static str, problem: Problem) -> Result<T, ModelError> {
+    Err(ModelError { field, problem })
+}
+
+impl<'a> Model<'a> {
+    /// Coordinates per vertex.
+    pub fn dim(&self) -> usize {
+        self.dim as usize
+    }
+    /// Length of a full state (`dim` per vertex).
+    pub fn state_len(&self) -> usize {
+        self.dim() * self.num_vertices as usize
+    }
+    /// Length of a surface-only state (`dim` per drawn vertex).
+    pub fn surface_len(&self) -> usize {
+        self.dim() * self.surface_vertices.len as usize
+    }
+    /// Length of an encoded state (`dim` per free vertex).
+    pub fn encoded_len(&self) -> usize {
+        self.dim() * self.free_vertices.len as usize
+    }
+    /// Widest hidden layer of either network.
+    pub fn hidden(&self) -> usize {
+        let net = |layers: &[Layer]| layers.first().map_or(0, |l| l.rows as usize);
+        net(self.decoder).max(net(self.integrator))
+    }
+    /// Bytes of network weights and biases.
+    pub fn weight_bytes(&self) -> usize {
+        core::mem::size_of_val(self.params)
+    }
+
+    fn floats_of(&self, span: Span) -> &'a [f32] {
+        span.of(self.floats).unwrap_or(&[])
+    }
+    fn indices_of(&self, span: Span) -> &'a [u32] {
+        span.of(self.indices).unwrap_or(&[])
+    }
+    /// Rest positions.
+    pub fn rest(&self) -> &'a [f32] {
+        self.floats_of(self.rest)
+    }
+    /// Prescribed vertices in handle order.
+    pub fn handle_vertices(&self) -> &'a [u32] {
+        self.indices_of(self.handle_vertices)
+    }
+    /// Free vertices, ascending.
+    pub fn free_vertices(&self) -> &'a [u32] {
+        self.indices_of(self.free_vertices)
+    }
+    /// Origin of each free vertex.
+    pub fn origin_of(&self) -> &'a [u32] {
+        self.indices_of(self.origin_of)
+    }
+    /// Handle slots of the strand roots (empty: centroid origin).
+    pub fn root_slots(&self) -> &'a [u32] {
+        self.indices_of(self.root_slots)
+    }
+    /// Drawn vertices, ascending.
+    pub fn surface_vertices(&self) -> &'a [u32] {
+        self.indices_of(self.surface_vertices)
+    }
+    /// Where each drawn vertex comes from (see [`Model::surface_source`]).
+    pub fn surface_source(&self) -> &'a [u32] {
+        self.indices_of(self.surface_source)
+    }
+    /// Vertices of handle `h`.
+    pub fn handle_vertices_of(&self, h: &Handle) -> &'a [u32] {
+        self.indices_of(h.vertices)
+    }
+    /// Identity-pose positions of handle `h` (3 per vertex).
+    pub fn handle_reference_of(&self, h: &Handle) -> &'a [f32] {
+        self.floats_of(h.reference)
+    }
+    /// Initial latent.
+    pub fn initial_latent(&self) -> &'a [f32] {
+        self.floats_of(self.initial_latent)
+    }
+    /// Per-coordinate minimum of the training latents.
+    pub fn latent_min(&self) -> &'a [f32] {
+        self.floats_of(self.latent_min)
+    }
+    /// Per-coordinate maximum of the training latents.
+    pub fn latent_max(&self) -> &'a [f32] {
+        self.floats_of(self.latent_max)
+    }
+
+    /// Checks every size, span and index and that all numbers are finite, so that stepping
+    /// and decoding cannot index out of bounds.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let dim = self.dim();
+        let n = self.num_vertices as usize;
+        let k = self.latent as usize;
+        if !(dim == 2 || dim == 3) {
+            return fail("dim", Problem::Unsupported);
+        }
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        if !positive(self.dt) {
+            return fail("dt", Problem::NotFinite);
+        }
+        if !positive(self.diagonal) {
+            return fail("diagonal", Problem::NotFinite);
+        }
+        let float_spans = [
+            ("rest", self.rest, n * dim),
+            ("initial_latent", self.initial_latent, k),
+            ("latent_min", self.latent_min, k),
+            ("latent_max", self.latent_max, k),
+        ];
+        for (field, span, len) in float_spans {
+            let values = span.of(self.floats).ok_or(ModelError {
+                field,
+                problem: Problem::OutOfRange,
+            })?;
+            if values.len() != len {
+                return fail(
+                    field,
+                    Problem::Length {
+                        expected: len,
+                        found: values.len(),
+                    },
+                );
+            }
+            if !values.iter().all(|v| v.is_finite()) {
+                return fail(field, Problem::NotFinite);
+            }
+        }
+        if self.latent_min().iter().zip(self.latent_max()).any(|(lo, hi)| lo > hi) {
+            return fail("latent_min", Problem::Inconsistent);
+        }
+        let index_spans = [
+            ("handle_vertices", self.handle_vertices),
+            ("free_vertices", self.free_vertices),
+            ("origin_of", self.origin_of),
+            ("root_slots", self.root_slots),
+            ("surface_vertices", self.surface_vertices),
+            ("surface_source", self.surface_source),
+        ];
+        for (field, span) in index_spans {
+            if span.of(self.indices).is_none() {
+                return fail(field, Problem::OutOfRange);
+            }
+        }
+        self.validate_vertices()?;
+        self.validate_handles()?;
+        let bc = SIGNAL_PER_HANDLE * self.handles.len();
+        if self.bc_len as usize != bc {
+            return fail(
+                "bc_len",
+                Problem::Length {
+                    expected: bc,
+                    found: self.bc_len as usize,
+                },
+            );
+        }
+        self.validate_network("decoder", self.decoder, k, self.encoded_len())?;
+        self.validate_network("integrator", self.integrator, 2 * k + 3 * bc, k)?;
+        if !self.params.iter().all(|v| v.is_finite()) {
+            return fail("params", Problem::NotFinite);
+        }
+        Ok(())
+    }
+
+    fn validate_vertices(&self) -> Result<(), ModelError> {
+        let n = self.num_vertices as usize;
+        let (handle, free) = (self.handle_vertices(), self.free_vertices());
+        if handle.len() + free.len() != n {
+            return fail(
+                "free_vertices",
+                Problem::Length {
+                    expected: n - handle.len().min(n),
+                    found: free.len(),
+                },
+            );
+        }
+        let ascending = |v: &[u32]| v.windows(2).all(|w| w[0] < w[1]);
+        if !ascending(free) || free.last().is_some_and(|&v| v as usize >= n) {
+            return fail("free_vertices", Problem::Inconsistent);
+        }
+        if handle
+            .iter()
+            .any(|&v| v as usize >= n || free.binary_search(&v).is_ok())
+        {
+            return fail("handle_vertices", Problem::Inconsistent);
+        }
+        if self.origin_of().len() != free.len() {
+            return fail(
+                "origin_of",
+                Problem::Length {
+                    expected: free.len(),
+                    found: self.origin_of().len(),
+                },
+            );
+        }
+        let roots = self.root_slots();
+        let origins = roots.len().max(1);
+        if self.origin_of().iter().any(|&o| o as usize >= origins) {
+            return fail("origin_of", Problem::OutOfRange);
+        }
+        if roots.iter().any(|&s| s as usize >= handle.len()) {
+            return fail("root_slots", Problem::OutOfRange);
+        }
+        let surface = self.surface_vertices();
+        if !ascending(surface) || surface.last().is_some_and(|&v| v as usize >= n) {
+            return fail("surface_vertices", Problem::Inconsistent);
+        }
+        let source = self.surface_source();
+        if source.len() != surface.len() {
+            return fail(
+                "surface_source",
+                Problem::Length {
+                    expected: surface.len(),
+                    found: source.len(),
+                },
+            );
+        }
+        for (&v, &s) in surface.iter().zip(source) {
+            let found = if s & HANDLE_SOURCE != 0 {
+                handle.get((s & !HANDLE_SOURCE) as usize)
+            } else {
+                free.get(s as usize)
+            };
+            if found != Some(&v) {
+                return fail("surface_source", Problem::Inconsistent);
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_handles(&self) -> Result<(), ModelError> {
+        if self.handles.len() > MAX_HANDLES {
+            return fail("handles", Problem::Unsupported);
+        }
+        let mut slot = 0usize;
+        let all = self.handle_vertices();
+        for h in self.handles {
+            let vertices = h.vertices.of(self.indices).ok_or(ModelError {
+                field: "handles",
+                problem: Problem::OutOfRange,
+            })?;
+            let reference = h.reference.of(self.floats).ok_or(ModelError {
+                field: "handles",
+                problem: Problem::OutOfRange,
+            })?;
+            if reference.len() != 3 * vertices.len() {
+                return fail(
+                    "handles",
+                    Problem::Length {
+                        expected: 3 * vertices.len(),
+                        found: reference.len(),
+                    },
+                );
+            }
+            if all.get(slot..slot + vertices.len()) != Some(vertices) {
+                return fail("handles", Problem::Inconsistent);
+            }
+            if !reference.iter().chain(&h.pivot).all(|v| v.is_finite()) {
+                return fail("handles", Problem::NotFinite);
+            }
+            slot += vertices.len();
+        }
+        if slot != all.len() {
+            return fail(
+                "handle_vertices",
+                Problem::Length {
+                    expected: slot,
+                    found: all.len(),
+                },
+            );
+        }
+        Ok(())
+    }
+
+    fn validate_network(
+        &self,
+        field: &'static str,
+        layers: &[Layer],
+        input: usize,
+        output: usize,
+    ) -> Result<(), ModelError> {
+        if layers.len() < 2 || !layers.len().is_multiple_of(2) || layers.len() > MAX_LAYERS {
+            return fail(field, Problem::Unsupported);
+        }
+        let hidden = layers[0].rows as usize;
+        let last = layers.len() - 1;
+        for (i, l) in layers.iter().enumerate() {
+            let (rows, cols) = (l.rows as usize, l.cols as usize);
+            let (want_rows, want_cols) = match i {
+                0 => (hidden, input),
+                _ if i == last => (output, hidden),
+                _ => (hidden, hidden),
+            };
+            if rows != want_rows || cols != want_cols || rows == 0 {
+                return fail(field, Problem::Shape);
+            }
+            let w = l.weights as usize;
+            let b = l.bias as usize;
+            if w.checked_add(rows * cols).is_none_or(|e| e > self.params.len())
+                || b.checked_add(rows).is_none_or(|e| e > self.params.len())
+            {
+                return fail(field, Problem::OutOfRange);
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,180 @@
+//! The runtime agrees with the trainer: for each committed artifact, generated constants and
+//! the same artifact loaded from bytes roll out within 1e-4 of the bounding-box diagonal of
+//! the trainer's own rollout over 1,000 frames of every test sequence; the surface decode is
+//! the full decode restricted to the drawn vertices.
+//!
+//! Where the trainer's rollout itself diverges (leaves the training envelope, as `mochi eval`
+//! counts it), round-off differences grow without bound and agreement means nothing; where the
+//! runtime clamps a latent that left the trained range (its documented recovery), it departs
+//! from the trainer on purpose. Frames from either point on are not compared, and at least one
+//! sequence must run all frames without either.
+
+use std::path::Path;
+
+use mochi_runtime::{LoadedModel, Model, OwnedModel, Stepped, ValidModel};
+use mochi_tests::{motions, runtime_rollout};
+use mochi_trainer::artifact::Artifact;
+use mochi_trainer::bc::BcSequence;
+use mochi_trainer::dataset::{self, Split};
+use mochi_trainer::eval::{self, LoadedModel as TrainerModel};
+
+const FRAMES: usize = 1000;
+const TOLERANCE: f64 = 1e-4;
+
+/// Test sequences of the artifact's scene, `FRAMES` long.
+fn test_sequences(
+    artifact: &Artifact,
+) -> (
+    TrainerModel,
+    Vec<BcSequence>,
+    mochi_trainer::scene::Problem,
+    mochi_trainer::encoding::Encoding,
+) {
+    let (problem, encoding) = eval::rebuild_problem(artifact).unwrap();
+    let plans = dataset::plan(&problem.scene.dataset);
+    let bcs = plans
+        .iter()
+        .filter(|p| p.split == Split::Test)
+        .map(|p| problem.sequence(&p.speeds, FRAMES, p.seed))
+        .collect();
+    (TrainerModel::new(artifact.clone()).unwrap(), bcs, problem, encoding)
+}
+
+/// Largest vertex distance / diagonal between the trainer's and the runtime's rollouts.
+fn worst_disagreement<const K: usize, const S: usize, const H: usize>(artifact_path: &Path, model: &ValidModel) -> f64 {
+    let artifact = Artifact::read(artifact_path).unwrap();
+    let (trainer, bcs, problem, encoding) = test_sequences(&artifact);
+    let dim = artifact.dim as usize;
+    let envelope = artifact.summary.max_radius + 0.5 * artifact.diagonal;
+    let mut worst = 0.0f64;
+    let mut longest = 0;
+    for bc in &bcs {
+        let mut reference = Vec::new();
+        eval::roll(&trainer, &problem, &encoding, bc, FRAMES, |_, _, q, x| {
+            let radius = q
+                .chunks_exact(dim)
+                .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
+                .fold(0.0, f64::max);
+            let stable = radius <= envelope && x.iter().all(|v| v.is_finite());
+            if stable {
+                reference.push(x.to_vec());
+            }
+            stable
+        })
+        .unwrap();
+        let mut compared = 0;
+        runtime_rollout::<K, S, H>(model, bc, FRAMES, |t, status, _, x| {
+            if status != Stepped::Ok || compared < t - 1 {
+                return;
+            }
+            let Some(reference) = reference.get(t - 1) else { return };
+            compared = t;
+            for (p, r) in x.chunks_exact(dim).zip(reference.chunks_exact(dim)) {
+                let d: f64 = p.iter().zip(r).map(|(&a, &b)| (a as f64 - b).powi(2)).sum();
+                worst = worst.max(d.sqrt() / artifact.diagonal);
+            }
+        })
+        .unwrap();
+        longest = longest.max(compared);
+    }
+    assert_eq!(
+        longest, FRAMES,
+        "no test sequence of {} stays stable for {FRAMES} frames",
+        artifact.scene
+    );
+    worst
+}
+
+#[test]
+fn generated_tiny_model_agrees_with_the_trainer() {
+    use mochi_tests::tiny;
+    let model = ValidModel::new(tiny::MODEL).unwrap();
+    let worst = worst_disagreement::<{ tiny::LATENT }, { tiny::SIGNAL }, { tiny::HIDDEN }>(
+        Path::new("artifacts/tiny.mochi"),
+        &model,
+    );
+    assert!(
+        worst <= TOLERANCE,
+        "generated tiny model is {worst:.2e} diagonals from the trainer"
+    );
+}
+
+#[test]
+fn tiny_model_loaded_from_bytes_agrees_with_the_trainer() {
+    use mochi_tests::tiny;
+    let bytes = std::fs::read("artifacts/tiny.mochi").unwrap();
+    // Fixed-capacity storage, as on a target (sizes from the generated module).
+    let mut storage = Box::new(LoadedModel::<20_000, 2_000, 2_000>::new());
+    let model = storage.load(&bytes).unwrap();
+    let worst = worst_disagreement::<{ tiny::LATENT }, { tiny::SIGNAL }, { tiny::HIDDEN }>(
+        Path::new("artifacts/tiny.mochi"),
+        &model,
+    );
+    assert!(
+        worst <= TOLERANCE,
+        "loaded tiny model is {worst:.2e} diagonals from the trainer"
+    );
+    // The same numbers as the generated constants.
+    let generated = tiny::MODEL;
+    assert_eq!(model.model().params, generated.params);
+    assert_eq!(model.model().floats, generated.floats);
+    assert_eq!(model.model().indices, generated.indices);
+}
+
+#[test]
+fn surface_decode_is_the_full_decode_on_the_drawn_vertices() {
+    use mochi_tests::tiny;
+    let model = ValidModel::new(tiny::MODEL).unwrap();
+    let artifact = Artifact::read(Path::new("artifacts/tiny.mochi")).unwrap();
+    let (_, bcs, _, _) = test_sequences(&artifact);
+    let mut body = tiny::Instance::new(&model).unwrap();
+    let (mut full, mut surface) = ([0.0f32; tiny::STATE_LEN], [0.0f32; tiny::SURFACE_LEN]);
+    const { assert!(tiny::SURFACE_LEN < tiny::STATE_LEN, "a tet mesh draws only its surface") };
+    for t in 1..=50 {
+        assert_eq!(body.step(&model, &motions(&bcs[0], t)).unwrap(), Stepped::Ok);
+        body.decode_into(&model, &mut full).unwrap();
+        body.decode_surface_into(&model, &mut surface).unwrap();
+        let d = tiny::DIM;
+        for (i, &v) in model.model().surface_vertices().iter().enumerate() {
+            let v = v as usize;
+            assert_eq!(
+                &surface[i * d..i * d + d],
+                &full[v * d..v * d + d],
+                "vertex {v} at frame {t}"
+            );
+        }
+    }
+}
+
+#[test]
+fn runtime_loads_what_the_trainer_wrote_field_for_field() {
+    let artifact = Artifact::read(Path::new("artifacts/tiny.mochi")).unwrap();
+    let bytes = std::fs::read("artifacts/tiny.mochi").unwrap();
+    let mut storage = OwnedModel::default();
+    let valid = storage.load(&bytes).unwrap();
+    let m: &Model = valid.model();
+    assert_eq!(
+        (m.dim, m.num_vertices, m.latent, m.bc_len),
+        (artifact.dim, artifact.num_vertices, artifact.latent, artifact.bc_len)
+    );
+    assert_eq!(m.rest(), &artifact.rest[..]);
+    assert_eq!(m.free_vertices(), &artifact.encoding.free_vertices[..]);
+    assert_eq!(m.handle_vertices(), &artifact.encoding.handle_vertices[..]);
+    assert_eq!(m.surface_vertices(), &artifact.surface_vertices[..]);
+    assert_eq!(m.initial_latent(), &artifact.initial_latent[..]);
+    assert_eq!(
+        (m.latent_min(), m.latent_max()),
+        (&artifact.latent_min[..], &artifact.latent_max[..])
+    );
+    for (layers, trained) in [(m.decoder, &artifact.decoder), (m.integrator, &artifact.integrator)] {
+        assert_eq!(layers.len(), trained.len());
+        for (l, t) in layers.iter().zip(trained) {
+            let w = &m.params[l.weights as usize..l.weights as usize + t.weights.len()];
+            let b = &m.params[l.bias as usize..l.bias as usize + t.bias.len()];
+            assert_eq!(
+                (l.rows as usize, l.cols as usize, w, b),
+                (t.rows, t.cols, &t.weights[..], &t.bias[..])
+            );
+        }
+    }
+}
