@@ -16,6 +16,7 @@ pub mod mesh;
 pub mod model;
 pub mod pca;
 pub mod render;
+pub mod runtime_bench;
 pub mod scene;
 pub mod solver;
 pub mod train;

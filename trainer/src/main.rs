@@ -84,6 +84,14 @@ enum Command {
         #[arg(long, default_value_t = eval::ACCURACY_FRAMES)]
         accuracy_frames: usize,
     },
+    /// Freeze an artifact into a Rust module of static arrays for the runtime.
+    Codegen {
+        /// Artifact (`SCENE.mochi`).
+        artifact: PathBuf,
+        /// Output Rust file.
+        #[arg(short, long)]
+        out: PathBuf,
+    },
     /// Timings.
     Bench {
         #[command(subcommand)]
@@ -102,6 +110,18 @@ enum Bench {
         /// Frames per scene.
         #[arg(long, default_value_t = 60)]
         frames: usize,
+    },
+    /// The no_std runtime (one thread) against candle's batch-1 forward of the same weights.
+    Runtime {
+        /// Artifacts (`SCENE.mochi`).
+        #[arg(required = true)]
+        artifacts: Vec<PathBuf>,
+        /// Frames per timing round (the first test sequence of each scene).
+        #[arg(long, default_value_t = 1000)]
+        frames: usize,
+        /// Also write the table to this markdown file.
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
 }
 
@@ -141,9 +161,17 @@ fn run(cli: Cli) -> Result<()> {
             frames,
             accuracy_frames,
         } => eval_models(&artifacts, out, frames, accuracy_frames),
+        Command::Codegen { artifact, out } => {
+            mochi_codegen::generate_file(&artifact, &out)?;
+            println!("{} -> {}", artifact.display(), out.display());
+            Ok(())
+        }
         Command::Bench {
             what: Bench::Sim { scenes, frames },
         } => bench_sim(scenes, frames),
+        Command::Bench {
+            what: Bench::Runtime { artifacts, frames, out },
+        } => bench_runtime(&artifacts, frames, out),
         Command::Scenes => {
             for name in shipped_scene_names() {
                 let scene = Scene::load(&name)?;
@@ -324,6 +352,29 @@ fn bench_sim(scenes: Vec<String>, frames: usize) -> Result<()> {
             mean(&iters),
             iters.iter().fold(0.0f64, |m, &i| m.max(i))
         );
+    }
+    Ok(())
+}
+
+/// Environment variable candle (and rayon) read for their thread count.
+const THREADS_VAR: &str = "RAYON_NUM_THREADS";
+
+fn bench_runtime(artifacts: &[PathBuf], frames: usize, out: Option<PathBuf>) -> Result<()> {
+    // Both sides run on one thread: candle reads its thread count from the environment, so
+    // the benchmark re-runs itself with it set when it is not.
+    if std::env::var(THREADS_VAR).as_deref() != Ok("1") {
+        let status = std::process::Command::new(std::env::current_exe()?)
+            .args(std::env::args_os().skip(1))
+            .env(THREADS_VAR, "1")
+            .status()?;
+        std::process::exit(status.code().unwrap_or(1));
+    }
+    let timings = mochi_trainer::runtime_bench::bench(artifacts, frames)?;
+    let table = mochi_trainer::runtime_bench::table(&timings);
+    println!("{table}");
+    if let Some(out) = out {
+        std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;
+        println!("-> {}", out.display());
     }
     Ok(())
 }

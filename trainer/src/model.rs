@@ -349,6 +349,27 @@ impl ResMlp {
         })
     }
 
+    /// The candle network with the weights of a frozen one (for comparisons with the runtime).
+    pub fn from_exported(mlp: &ExportedMlp) -> ModelResult<Self> {
+        let dense = |l: &DenseLayer| Dense::from_values(l.rows, l.cols, l.weights.clone(), l.bias.clone());
+        let blocks = mlp
+            .blocks()
+            .iter()
+            .map(|b| {
+                Ok(Block {
+                    inner: dense(&b.inner)?,
+                    outer: dense(&b.outer)?,
+                })
+            })
+            .collect::<ModelResult<Vec<_>>>()?;
+        Ok(ResMlp {
+            spec: mlp.spec(),
+            input: dense(mlp.input())?,
+            blocks,
+            output: dense(mlp.output())?,
+        })
+    }
+
     /// The sizes of this network.
     pub fn spec(&self) -> MlpSpec {
         self.spec

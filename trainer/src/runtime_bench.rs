@@ -1,0 +1,309 @@
+//! `mochi bench runtime`: per-frame cost of the no_std runtime (step + full decode, step +
+//! surface decode, one thread) against candle's batch-1 forward of the same weights measured
+//! in the same process, with achieved GFLOP/s, weight and instance-state bytes, and the
+//! runtime's largest disagreement with the trainer's own rollout.
+//!
+//! The runtime's instance sizes are compile-time constants; here artifacts arrive at run
+//! time, so the benchmark is instantiated for every latent size up to 16 and one or two
+//! handles, with hidden scratch of [`MAX_HIDDEN`].
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use candle_core::{Device, Tensor};
+use mochi_runtime::{HandleMotion, Instance, OwnedModel, ValidModel, SIGNAL_PER_HANDLE};
+
+use crate::artifact::Artifact;
+use crate::bc::BcSequence;
+use crate::dataset::{self, Split};
+use crate::eval::{self, LoadedModel};
+use crate::model::ResMlp;
+
+/// Widest hidden layer the benchmark's instances can run.
+pub const MAX_HIDDEN: usize = 512;
+
+/// What one artifact measured.
+#[derive(Clone, Debug)]
+pub struct RuntimeTiming {
+    /// Artifact file.
+    pub path: PathBuf,
+    /// Scene name.
+    pub scene: String,
+    /// Latent size.
+    pub latent: usize,
+    /// Numbers in a full state.
+    pub state_len: usize,
+    /// Numbers in a surface-only state.
+    pub surface_len: usize,
+    /// Seconds per frame: runtime step + full decode.
+    pub full: f64,
+    /// Seconds per frame: runtime step + surface decode.
+    pub surface: f64,
+    /// Seconds per frame: candle batch-1 integrator + decoder forward.
+    pub candle: f64,
+    /// Multiply-adds of one integrator + full decoder forward.
+    pub multiply_adds: usize,
+    /// Bytes of weights and biases.
+    pub weight_bytes: usize,
+    /// Bytes of one instance.
+    pub state_bytes: usize,
+    /// Largest vertex distance / diagonal from the trainer's rollout over the compared frames.
+    pub disagreement: f64,
+    /// Frames compared (up to the first clamp of either rollout leaving the envelope).
+    pub compared_frames: usize,
+}
+
+impl RuntimeTiming {
+    /// Candle's time over the runtime's (step + full decode).
+    pub fn speedup(&self) -> f64 {
+        self.candle / self.full
+    }
+    /// Achieved GFLOP/s of step + full decode (2 FLOPs per multiply-add).
+    pub fn gflops(&self) -> f64 {
+        2.0 * self.multiply_adds as f64 / self.full / 1e9
+    }
+}
+
+/// The handle motions of frame `t` of `bc`.
+pub fn motions(bc: &BcSequence, t: usize) -> Vec<HandleMotion> {
+    bc.signal(t)
+        .chunks_exact(SIGNAL_PER_HANDLE)
+        .map(|c| {
+            let mut s = [0.0f32; SIGNAL_PER_HANDLE];
+            s.iter_mut().zip(c).for_each(|(s, &v)| *s = v as f32);
+            HandleMotion::from_signal(&s)
+        })
+        .collect()
+}
+
+/// Best seconds per call of `f` over 5 rounds of `calls` calls (after a warm-up round).
+fn seconds_per_call(calls: usize, mut f: impl FnMut(usize)) -> f64 {
+    let mut best = f64::INFINITY;
+    for round in 0..6 {
+        let clock = Instant::now();
+        for i in 0..calls {
+            f(i);
+        }
+        if round > 0 {
+            best = best.min(clock.elapsed().as_secs_f64() / calls as f64);
+        }
+    }
+    best
+}
+
+/// Benchmarks every artifact over `frames` frames of its scene's first test sequence.
+pub fn bench(paths: &[PathBuf], frames: usize) -> Result<Vec<RuntimeTiming>> {
+    paths.iter().map(|p| bench_one(p, frames.max(1))).collect()
+}
+
+fn bench_one(path: &Path, frames: usize) -> Result<RuntimeTiming> {
+    let artifact = Artifact::read(path)?;
+    let bytes = std::fs::read(path)?;
+    let mut storage = OwnedModel::default();
+    let model = storage
+        .load(&bytes)
+        .with_context(|| format!("{}: runtime refused the artifact", path.display()))?;
+    let m = model.model();
+    if m.hidden() > MAX_HIDDEN {
+        bail!(
+            "{}: hidden width {} is over the benchmark's {MAX_HIDDEN}",
+            path.display(),
+            m.hidden()
+        );
+    }
+    let (problem, encoding) = eval::rebuild_problem(&artifact)?;
+    let plan = dataset::plan(&problem.scene.dataset)
+        .into_iter()
+        .find(|p| p.split == Split::Test)
+        .context("the scene has no test sequence")?;
+    let bc = problem.sequence(&plan.speeds, frames, plan.seed);
+    let script: Vec<Vec<HandleMotion>> = (1..=frames).map(|t| motions(&bc, t)).collect();
+
+    let trainer = LoadedModel::new(artifact.clone())?;
+    let mut reference = Vec::new();
+    let envelope = artifact.summary.max_radius + 0.5 * artifact.diagonal;
+    let dim = artifact.dim as usize;
+    eval::roll(&trainer, &problem, &encoding, &bc, frames, |_, _, q, x| {
+        let radius = q
+            .chunks_exact(dim)
+            .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
+            .fold(0.0, f64::max);
+        let stable = radius <= envelope && x.iter().all(|v| v.is_finite());
+        if stable {
+            reference.push(x.to_vec());
+        }
+        stable
+    })?;
+
+    let k = m.latent as usize;
+    let s = m.bc_len as usize;
+    let run = Run {
+        model: &model,
+        script: &script,
+        reference: &reference,
+        diagonal: artifact.diagonal,
+    };
+    let measured = run_for_sizes(k, s, &run)?;
+    let candle = candle_seconds(&trainer, &script, k)?;
+    Ok(RuntimeTiming {
+        path: path.to_path_buf(),
+        scene: artifact.scene.clone(),
+        latent: k,
+        state_len: m.state_len(),
+        surface_len: m.surface_len(),
+        full: measured.full,
+        surface: measured.surface,
+        candle,
+        multiply_adds: mochi_runtime::network::multiply_adds(m.integrator)
+            + mochi_runtime::network::multiply_adds(m.decoder),
+        weight_bytes: m.weight_bytes(),
+        state_bytes: measured.state_bytes,
+        disagreement: measured.disagreement,
+        compared_frames: measured.compared,
+    })
+}
+
+/// What the runtime rollout needs.
+struct Run<'a> {
+    model: &'a ValidModel<'a>,
+    script: &'a [Vec<HandleMotion>],
+    reference: &'a [Vec<f64>],
+    diagonal: f64,
+}
+
+struct Measured {
+    full: f64,
+    surface: f64,
+    state_bytes: usize,
+    disagreement: f64,
+    compared: usize,
+}
+
+fn measure<const K: usize, const S: usize>(run: &Run) -> Result<Measured> {
+    let model = run.model;
+    let m = model.model();
+    let dim = m.dim();
+    let fresh = || Instance::<K, S, MAX_HIDDEN>::new(model);
+    // Agreement with the trainer, up to the first clamp or the end of its stable frames.
+    let mut body = fresh()?;
+    let mut x = vec![0.0f32; m.state_len()];
+    let (mut disagreement, mut compared) = (0.0f64, 0);
+    for (t, bc) in run.script.iter().enumerate() {
+        let status = body.step(model, bc)?;
+        body.decode_into(model, &mut x)?;
+        let Some(r) = run.reference.get(t) else { break };
+        if status != mochi_runtime::Stepped::Ok {
+            break;
+        }
+        for (p, r) in x.chunks_exact(dim).zip(r.chunks_exact(dim)) {
+            let d: f64 = p.iter().zip(r).map(|(&a, &b)| (a as f64 - b).powi(2)).sum();
+            disagreement = disagreement.max(d.sqrt() / run.diagonal);
+        }
+        compared = t + 1;
+    }
+    let frames = run.script.len();
+    let mut body = fresh()?;
+    let full = seconds_per_call(frames, |i| {
+        let _ = body.step(model, &run.script[i % frames]);
+        let _ = body.decode_into(model, &mut x);
+    });
+    let mut body = fresh()?;
+    let mut surface_x = vec![0.0f32; m.surface_len()];
+    let surface = seconds_per_call(frames, |i| {
+        let _ = body.step(model, &run.script[i % frames]);
+        let _ = body.decode_surface_into(model, &mut surface_x);
+    });
+    Ok(Measured {
+        full,
+        surface,
+        state_bytes: std::mem::size_of::<Instance<K, S, MAX_HIDDEN>>(),
+        disagreement,
+        compared,
+    })
+}
+
+/// `measure::<K, S>` for the artifact's latent size and signal length.
+fn run_for_sizes(k: usize, s: usize, run: &Run) -> Result<Measured> {
+    macro_rules! sizes {
+        ($($k:literal)*) => {
+            match (k, s) {
+                $(($k, 12) => measure::<$k, 12>(run),)*
+                $(($k, 24) => measure::<$k, 24>(run),)*
+                _ => bail!("the benchmark runs latent sizes 1-16 with one or two handles, not latent {k} with {s} signal numbers"),
+            }
+        };
+    }
+    sizes!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16)
+}
+
+/// Seconds per frame of candle's batch-1 forward of the integrator and the decoder (weights
+/// from the same artifact), rolling out the same script; the frame transform is left out, so
+/// candle does less work than the runtime here.
+fn candle_seconds(trainer: &LoadedModel, script: &[Vec<HandleMotion>], k: usize) -> Result<f64> {
+    let integrator = ResMlp::from_exported(trainer.integrator.mlp())?;
+    let decoder = ResMlp::from_exported(&trainer.decoder)?;
+    let signal = |i: usize| -> Vec<f32> { script[i].iter().flat_map(|m| m.signal()).collect() };
+    let initial = trainer.artifact.initial_latent.clone();
+    let (mut z, mut z_prev) = (initial.clone(), initial);
+    let zero = vec![0.0f32; signal(0).len()];
+    let (mut p1, mut p2) = (zero.clone(), zero);
+    let mut failed = None;
+    let frames = script.len();
+    let seconds = seconds_per_call(frames, |i| {
+        let p0 = signal(i % frames);
+        let input: Vec<f32> = z
+            .iter()
+            .chain(&z_prev)
+            .chain(&p0)
+            .chain(&p1)
+            .chain(&p2)
+            .copied()
+            .collect();
+        let result = (|| -> candle_core::Result<Vec<f32>> {
+            let x = Tensor::from_slice(&input, (1, input.len()), &Device::Cpu)?;
+            let increment = integrator.forward(&x)?;
+            let z_t = (increment + Tensor::from_slice(&z, (1, k), &Device::Cpu)?)?;
+            let q = decoder.forward(&z_t)?;
+            let _decoded: Vec<f32> = q.flatten_all()?.to_vec1()?;
+            z_t.flatten_all()?.to_vec1()
+        })();
+        match result {
+            Ok(next) => {
+                z_prev = std::mem::replace(&mut z, next);
+                p2 = std::mem::replace(&mut p1, p0);
+            }
+            Err(e) => failed = Some(e),
+        }
+    });
+    if let Some(e) = failed {
+        bail!("candle forward failed: {e}");
+    }
+    Ok(seconds)
+}
+
+/// The benchmark table (markdown).
+pub fn table(timings: &[RuntimeTiming]) -> String {
+    let mut s = String::from(
+        "| artifact | latent | step + full decode | step + surface decode | candle batch-1 | runtime speed-up | GFLOP/s | weights | instance state | max disagreement (frames) |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for t in timings {
+        s += &format!(
+            "| {} | {} | {:.1} µs | {:.1} µs | {:.1} µs | {:.1}x | {:.2} | {:.1} KiB | {} B | {:.1e} ({}) |\n",
+            t.path
+                .file_name()
+                .map_or(t.scene.clone(), |n| n.to_string_lossy().into_owned()),
+            t.latent,
+            1e6 * t.full,
+            1e6 * t.surface,
+            1e6 * t.candle,
+            t.speedup(),
+            t.gflops(),
+            t.weight_bytes as f64 / 1024.0,
+            t.state_bytes,
+            t.disagreement,
+            t.compared_frames
+        );
+    }
+    s
+}
