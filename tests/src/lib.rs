@@ -2,24 +2,13 @@
 //! artifacts by `build.rs`, and the runtime rollout the agreement tests compare with the
 //! trainer's.
 
-use mochi_runtime::{HandleMotion, Instance, Stepped, ValidModel, SIGNAL_PER_HANDLE};
+use mochi_runtime::{Instance, Stepped, ValidModel};
 use mochi_trainer::bc::BcSequence;
+pub use mochi_trainer::runtime_bench::motions;
 
 /// Generated from `artifacts/tiny.mochi`.
 pub mod tiny {
     include!(concat!(env!("OUT_DIR"), "/tiny.rs"));
-}
-
-/// The handle motions of frame `t` of `bc` (one per handle).
-pub fn motions(bc: &BcSequence, t: usize) -> Vec<HandleMotion> {
-    bc.signal(t)
-        .chunks_exact(SIGNAL_PER_HANDLE)
-        .map(|c| {
-            let mut s = [0.0f32; SIGNAL_PER_HANDLE];
-            s.iter_mut().zip(c).for_each(|(s, &v)| *s = v as f32);
-            HandleMotion::from_signal(&s)
-        })
-        .collect()
 }
 
 /// Rolls `model` out over `bc` in the runtime for `frames` frames, calling

@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Builds the runtime without std for a bare-metal target (default: Cortex-M4F). Only `core` is
+# built for the target (-Zbuild-std=core), so the build fails if the runtime links `alloc`.
+set -euo pipefail
+cd "$(dirname "$0")/../runtime"
+target="${1:-thumbv7em-none-eabihf}"
+RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 cargo build --release --no-default-features \
+  -Zbuild-std=core,panic_abort --target "$target" --target-dir ../target/cross
+echo "mochi-runtime builds for $target with core only (no std, no alloc)"
