@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 
 use crate::frame::{HandleMotion, Placement};
 use crate::model::{Model, ModelError, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
-use crate::network::{dense_row, hidden};
+use crate::network::{dense_rows, hidden};
 
 /// How far a latent may leave the range seen in training before it is clamped, as a fraction
 /// of that range's width on each side.
@@ -45,6 +45,8 @@ pub enum StepError {
         /// Index of the handle.
         handle: usize,
     },
+    /// The model's sizes are not the ones this instance was compiled for.
+    Model(SizeError),
 }
 
 /// Why a decode was refused.
@@ -59,6 +61,8 @@ pub enum DecodeError {
     },
     /// The decoded state was not finite; the buffer holds the rest positions instead.
     NotFinite,
+    /// The model's sizes are not the ones this instance was compiled for.
+    Model(SizeError),
 }
 
 /// Why an instance cannot run a model.
@@ -79,6 +83,7 @@ impl fmt::Display for StepError {
                 write!(f, "{found} handle motions given, the model has {expected} handles")
             }
             StepError::NotFinite { handle } => write!(f, "motion of handle {handle} is not finite"),
+            StepError::Model(e) => write!(f, "{e}"),
         }
     }
 }
@@ -90,6 +95,7 @@ impl fmt::Display for DecodeError {
                 write!(f, "output buffer holds {found} numbers, expected {expected}")
             }
             DecodeError::NotFinite => write!(f, "decoded state is not finite; rest positions written"),
+            DecodeError::Model(e) => write!(f, "{e}"),
         }
     }
 }
@@ -165,6 +171,29 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         })
     }
 
+    /// Checks that `model` has the sizes this instance type was compiled for (every call checks:
+    /// an instance may be handed a different model than the one it was created with).
+    fn check_sizes(model: &ValidModel) -> Result<(), SizeError> {
+        let m = model.model();
+        for (size, need, compiled) in [("latent", m.latent as usize, K), ("signal", m.bc_len as usize, S)] {
+            if need != compiled {
+                return Err(SizeError {
+                    size,
+                    model: need,
+                    compiled,
+                });
+            }
+        }
+        if m.hidden() > H {
+            return Err(SizeError {
+                size: "hidden",
+                model: m.hidden(),
+                compiled: H,
+            });
+        }
+        Ok(())
+    }
+
     /// The current latent, for engines that decode on the GPU.
     pub fn latent(&self) -> &[f32; K] {
         &self.z
@@ -178,6 +207,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     /// Advances one frame with the handles' motion over it (one [`HandleMotion`] per handle,
     /// in the model's handle order). Bad input is refused and leaves the instance unchanged.
     pub fn step(&mut self, model: &ValidModel, bc: &[HandleMotion]) -> Result<Stepped, StepError> {
+        Self::check_sizes(model).map_err(StepError::Model)?;
         let m = model.model();
         if bc.len() * SIGNAL_PER_HANDLE != S || bc.len() != m.handles.len() {
             return Err(StepError::HandleCount {
@@ -192,14 +222,20 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         for (chunk, motion) in signal.chunks_exact_mut(SIGNAL_PER_HANDLE).zip(bc) {
             chunk.copy_from_slice(&motion.signal());
         }
-        let (mut h, mut scratch) = ([0.0f32; H], [0.0f32; H]);
+        let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
         let parts: [&[f32]; 5] = [&self.z, &self.z_prev, &signal, &self.signal, &self.signal_prev];
-        hidden(m.params, m.integrator, &parts, &mut h, &mut scratch);
+        hidden(m.params, m.integrator, &parts, &mut h, [&mut a, &mut b]);
         let output = &m.integrator[m.integrator.len() - 1];
+        let mut increment = [0.0f32; K];
+        dense_rows(
+            m.params,
+            output,
+            &[h.get(..output.cols as usize).unwrap_or(&h)],
+            0,
+            &mut increment,
+        );
         let mut z = self.z;
-        for (r, zr) in z.iter_mut().enumerate() {
-            *zr += dense_row(m.params, output, &h, r);
-        }
+        z.iter_mut().zip(&increment).for_each(|(z, dz)| *z += dz);
         let mut status = Stepped::Ok;
         if !z.iter().all(|v| v.is_finite()) {
             z = self.z;
@@ -225,26 +261,29 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
 
     /// Writes the world positions of every vertex (`dim` per vertex) into `out`.
     pub fn decode_into(&self, model: &ValidModel, out: &mut [f32]) -> Result<(), DecodeError> {
+        Self::check_sizes(model).map_err(DecodeError::Model)?;
         let m = model.model();
         let d = m.dim();
         check_len(out, m.state_len())?;
-        let (mut h, mut scratch) = ([0.0f32; H], [0.0f32; H]);
-        hidden(m.params, m.decoder, &[&self.z], &mut h, &mut scratch);
+        let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
+        hidden(m.params, m.decoder, &[&self.z], &mut h, [&mut a, &mut b]);
         let output = &m.decoder[m.decoder.len() - 1];
-        let encoded = m.encoded_len();
-        for (r, o) in out[..encoded].iter_mut().enumerate() {
-            *o = dense_row(m.params, output, &h, r);
-        }
+        dense_rows(
+            m.params,
+            output,
+            &[h.get(..output.cols as usize).unwrap_or(&h)],
+            0,
+            &mut out[..m.encoded_len()],
+        );
         let place = Placement::new(m, &self.signal);
         // Free vertex j moves from out[j*d..] to out[v*d..] with v >= j (free vertices ascend):
         // going backwards, no source is overwritten before it is read.
         for (j, (&v, &o)) in m.free_vertices().iter().zip(m.origin_of()).enumerate().rev() {
             let world = to_world(&place, &out[j * d..j * d + d], o);
-            out[v as usize * d..v as usize * d + d].copy_from_slice(&world.as_slice()[..d]);
+            put(out, v as usize, d, &world);
         }
         for (slot, &v) in m.handle_vertices().iter().enumerate() {
-            let p = place.target(slot);
-            out[v as usize * d..v as usize * d + d].copy_from_slice(&p.as_slice()[..d]);
+            put(out, v as usize, d, &place.target(slot));
         }
         finite_or_rest(out, m.rest())
     }
@@ -252,26 +291,41 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     /// Writes the world positions of the drawn vertices only ([`Model::surface_vertices`],
     /// `dim` each) into `out`; the decoder's output layer runs only for their rows.
     pub fn decode_surface_into(&self, model: &ValidModel, out: &mut [f32]) -> Result<(), DecodeError> {
+        Self::check_sizes(model).map_err(DecodeError::Model)?;
         let m = model.model();
         let d = m.dim();
         check_len(out, m.surface_len())?;
-        let (mut h, mut scratch) = ([0.0f32; H], [0.0f32; H]);
-        hidden(m.params, m.decoder, &[&self.z], &mut h, &mut scratch);
+        let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
+        hidden(m.params, m.decoder, &[&self.z], &mut h, [&mut a, &mut b]);
         let output = &m.decoder[m.decoder.len() - 1];
+        let x = h.get(..output.cols as usize).unwrap_or(&h);
         let place = Placement::new(m, &self.signal);
-        let origins = m.origin_of();
-        for (o, &source) in out.chunks_exact_mut(d).zip(m.surface_source()) {
-            let p = if source & HANDLE_SOURCE != 0 {
-                place.target((source & !HANDLE_SOURCE) as usize)
-            } else {
-                let j = source as usize;
-                let mut q = [0.0f32; 3];
-                for (c, qc) in q.iter_mut().enumerate().take(d) {
-                    *qc = dense_row(m.params, output, &h, j * d + c);
-                }
-                to_world(&place, &q[..d], origins.get(j).copied().unwrap_or(0))
-            };
-            o.copy_from_slice(&p.as_slice()[..d]);
+        let (origins, sources) = (m.origin_of(), m.surface_source());
+        let mut i = 0;
+        while i < sources.len() {
+            let source = sources[i];
+            if source & HANDLE_SOURCE != 0 {
+                put(out, i, d, &place.target((source & !HANDLE_SOURCE) as usize));
+                i += 1;
+                continue;
+            }
+            // A run of drawn vertices that are consecutive free vertices: their rows of the
+            // output layer are contiguous and go through the kernel together.
+            let j = source as usize;
+            let run = sources[i..]
+                .iter()
+                .zip(source..)
+                .take_while(|(s, want)| **s == *want)
+                .count();
+            if let Some(block) = out.get_mut(i * d..(i + run) * d) {
+                dense_rows(m.params, output, &[x], j * d, block);
+            }
+            for k in 0..run {
+                let q = out.get(((i + k) * d)..((i + k + 1) * d)).unwrap_or(&[0.0; 3]);
+                let world = to_world(&place, q, origins.get(j + k).copied().unwrap_or(0));
+                put(out, i + k, d, &world);
+            }
+            i += run;
         }
         match finite_or_rest(out, &[]) {
             Ok(()) => Ok(()),
@@ -283,6 +337,17 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                 }
                 Err(e)
             }
+        }
+    }
+}
+
+/// Writes the first `d` coordinates of `p` as vertex `v` of `out` (element by element: a
+/// slice copy of 2 or 3 floats would be a call to `memmove`).
+#[inline]
+fn put(out: &mut [f32], v: usize, d: usize, p: &Vector3<f32>) {
+    for c in 0..d {
+        if let Some(o) = out.get_mut(v * d + c) {
+            *o = p[c];
         }
     }
 }

@@ -1,7 +1,7 @@
 //! The runtime agrees with the trainer: for each committed artifact, generated constants and
 //! the same artifact loaded from bytes roll out within 1e-4 of the bounding-box diagonal of
 //! the trainer's own rollout over 1,000 frames of every test sequence; the surface decode is
-//! the full decode restricted to the drawn vertices.
+//! the full decode restricted to the drawn vertices (up to round-off).
 //!
 //! Where the trainer's rollout itself diverges (leaves the training envelope, as `mochi eval`
 //! counts it), round-off differences grow without bound and agreement means nothing; where the
@@ -137,11 +137,13 @@ fn surface_decode_is_the_full_decode_on_the_drawn_vertices() {
         let d = tiny::DIM;
         for (i, &v) in model.model().surface_vertices().iter().enumerate() {
             let v = v as usize;
-            assert_eq!(
-                &surface[i * d..i * d + d],
-                &full[v * d..v * d + d],
-                "vertex {v} at frame {t}"
-            );
+            // The kernels may group the rows differently: equal up to f32 round-off.
+            for (a, b) in surface[i * d..i * d + d].iter().zip(&full[v * d..v * d + d]) {
+                assert!(
+                    (a - b).abs() <= 1e-6 * model.model().diagonal,
+                    "vertex {v} at frame {t}: {a} vs {b}"
+                );
+            }
         }
     }
 }
