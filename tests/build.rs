@@ -10,6 +10,6 @@ fn main() {
 }
 
 /// The committed artifacts (see `artifacts/README.md`).
-fn mochi_tests_artifacts() -> [&'static str; 1] {
-    ["tiny"]
+fn mochi_tests_artifacts() -> [&'static str; 2] {
+    ["tiny", "beam"]
 }

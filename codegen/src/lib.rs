@@ -104,7 +104,7 @@ pub fn build_rs(artifact: impl AsRef<Path>, out_name: &str) -> Result<(), Codege
 /// Writes the module for a validated model.
 fn emit(m: &Model, name: &str) -> String {
     let mut s = String::new();
-    let sizes: [(&str, &str, usize); 9] = [
+    let sizes: [(&str, &str, usize); 12] = [
         ("LATENT", "Latent size.", m.latent as usize),
         (
             "SIGNAL",
@@ -130,6 +130,21 @@ fn emit(m: &Model, name: &str) -> String {
             m.surface_len(),
         ),
         ("WEIGHT_BYTES", "Bytes of network weights and biases.", m.weight_bytes()),
+        (
+            "PARAMS_LEN",
+            "Weights and biases (capacity for loading this model from bytes).",
+            m.params.len(),
+        ),
+        (
+            "FLOATS_LEN",
+            "Other reals (capacity for loading from bytes).",
+            m.floats.len(),
+        ),
+        (
+            "INDICES_LEN",
+            "Indices (capacity for loading from bytes).",
+            m.indices.len(),
+        ),
     ];
     let _ = writeln!(
         s,
@@ -149,9 +164,32 @@ fn emit(m: &Model, name: &str) -> String {
         s,
         "pub type Instance = mochi_runtime::Instance<LATENT, SIGNAL, HIDDEN>;"
     );
-    array(&mut s, "PARAMS", "f32", m.params.iter().map(|v| format!("{v:?}")));
-    array(&mut s, "FLOATS", "f32", m.floats.iter().map(|v| format!("{v:?}")));
-    array(&mut s, "INDICES", "u32", m.indices.iter().map(|v| v.to_string()));
+    let _ = writeln!(
+        s,
+        "\n/// Fixed-capacity storage that fits this model loaded from its artifact bytes."
+    );
+    let _ = writeln!(
+        s,
+        "pub type Loaded = mochi_runtime::LoadedModel<PARAMS_LEN, FLOATS_LEN, INDICES_LEN>;"
+    );
+    array(
+        &mut s,
+        "PARAMS",
+        "f32; PARAMS_LEN",
+        m.params.iter().map(|v| format!("{v:?}")),
+    );
+    array(
+        &mut s,
+        "FLOATS",
+        "f32; FLOATS_LEN",
+        m.floats.iter().map(|v| format!("{v:?}")),
+    );
+    array(
+        &mut s,
+        "INDICES",
+        "u32; INDICES_LEN",
+        m.indices.iter().map(|v| v.to_string()),
+    );
     layers(&mut s, "DECODER", m.decoder);
     layers(&mut s, "INTEGRATOR", m.integrator);
     let _ = writeln!(
@@ -226,9 +264,9 @@ fn layers(s: &mut String, ident: &str, layers: &[Layer]) {
     let _ = writeln!(s, "];");
 }
 
-/// A `#[rustfmt::skip]` static array, values wrapped at 100 columns.
-fn array(s: &mut String, ident: &str, ty: &str, values: impl ExactSizeIterator<Item = String>) {
-    let _ = writeln!(s, "\n#[rustfmt::skip]\nstatic {ident}: [{ty}; {}] = [", values.len());
+/// A `#[rustfmt::skip]` static array of type `[ty]`, values wrapped at 100 columns.
+fn array(s: &mut String, ident: &str, ty: &str, values: impl Iterator<Item = String>) {
+    let _ = writeln!(s, "\n#[rustfmt::skip]\nstatic {ident}: [{ty}] = [");
     let mut line = String::from("   ");
     for v in values {
         if line.len() + v.len() + 2 > 100 {

@@ -11,6 +11,11 @@ pub mod tiny {
     include!(concat!(env!("OUT_DIR"), "/tiny.rs"));
 }
 
+/// Generated from `artifacts/beam.mochi` (the shipped beam scene's self-supervised model).
+pub mod beam {
+    include!(concat!(env!("OUT_DIR"), "/beam.rs"));
+}
+
 /// Rolls `model` out over `bc` in the runtime for `frames` frames, calling
 /// `visit(t, status, z_t, x_t)` with what the step did, the latent and the decoded world state.
 pub fn runtime_rollout<const K: usize, const S: usize, const H: usize>(

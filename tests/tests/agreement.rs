@@ -11,7 +11,7 @@
 
 use std::path::Path;
 
-use mochi_runtime::{LoadedModel, Model, OwnedModel, Stepped, ValidModel};
+use mochi_runtime::{Model, OwnedModel, Stepped, ValidModel};
 use mochi_tests::{motions, runtime_rollout};
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::bc::BcSequence;
@@ -99,12 +99,55 @@ fn generated_tiny_model_agrees_with_the_trainer() {
     );
 }
 
+/// Runs `f` on a thread with a stack large enough for fixed-capacity storage of a big model
+/// (a `heapless` pool is built on the stack before it is boxed).
+fn with_big_stack(f: impl FnOnce() + Send + 'static) {
+    std::thread::Builder::new()
+        .stack_size(256 << 20)
+        .spawn(f)
+        .unwrap()
+        .join()
+        .unwrap();
+}
+
+#[test]
+fn generated_beam_model_agrees_with_the_trainer() {
+    use mochi_tests::beam;
+    let model = ValidModel::new(beam::MODEL).unwrap();
+    let worst = worst_disagreement::<{ beam::LATENT }, { beam::SIGNAL }, { beam::HIDDEN }>(
+        Path::new("artifacts/beam.mochi"),
+        &model,
+    );
+    assert!(
+        worst <= TOLERANCE,
+        "generated beam model is {worst:.2e} diagonals from the trainer"
+    );
+}
+
+#[test]
+fn beam_model_loaded_from_bytes_agrees_with_the_trainer() {
+    with_big_stack(|| {
+        use mochi_tests::beam;
+        let bytes = std::fs::read("artifacts/beam.mochi").unwrap();
+        let mut storage = Box::new(beam::Loaded::new());
+        let model = storage.load(&bytes).unwrap();
+        let worst = worst_disagreement::<{ beam::LATENT }, { beam::SIGNAL }, { beam::HIDDEN }>(
+            Path::new("artifacts/beam.mochi"),
+            &model,
+        );
+        assert!(
+            worst <= TOLERANCE,
+            "loaded beam model is {worst:.2e} diagonals from the trainer"
+        );
+    });
+}
+
 #[test]
 fn tiny_model_loaded_from_bytes_agrees_with_the_trainer() {
     use mochi_tests::tiny;
     let bytes = std::fs::read("artifacts/tiny.mochi").unwrap();
     // Fixed-capacity storage, as on a target (sizes from the generated module).
-    let mut storage = Box::new(LoadedModel::<20_000, 2_000, 2_000>::new());
+    let mut storage = Box::new(tiny::Loaded::new());
     let model = storage.load(&bytes).unwrap();
     let worst = worst_disagreement::<{ tiny::LATENT }, { tiny::SIGNAL }, { tiny::HIDDEN }>(
         Path::new("artifacts/tiny.mochi"),

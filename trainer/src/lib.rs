@@ -4,6 +4,7 @@ pub mod artifact;
 pub mod bc;
 pub mod chart;
 pub mod dataset;
+pub mod demo;
 pub mod encoding;
 pub mod energy;
 pub mod error;

@@ -21,6 +21,22 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The whole path on one scene: train (or reuse), generate code, compile it against the
+    /// runtime, run it on a held-out script and compare with the full-space solver.
+    Demo {
+        /// Scene name or path.
+        #[arg(default_value = "beam")]
+        scene: String,
+        /// Output directory; default out/SCENE.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Frames of the runtime rollout compared with the full-space solver.
+        #[arg(long, default_value_t = 300)]
+        frames: usize,
+        /// Train again even when the artifact exists.
+        #[arg(long)]
+        retrain: bool,
+    },
     /// Simulate one boundary-condition sequence of a scene in full space.
     Simulate {
         /// Scene name (shipped: see `mochi scenes`) or path to a scene TOML file.
@@ -149,6 +165,12 @@ fn run(cli: Cli) -> Result<()> {
             png_frames,
         } => simulate(&scene, frames, out, level, seed, obj, obj_every, &png_frames),
         Command::Dataset { scene, out } => make_dataset(&scene, out),
+        Command::Demo {
+            scene,
+            out,
+            frames,
+            retrain,
+        } => demo(&scene, out, frames, retrain),
         Command::Train {
             scene,
             out,
@@ -376,5 +398,29 @@ fn bench_runtime(artifacts: &[PathBuf], frames: usize, out: Option<PathBuf>) -> 
         std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;
         println!("-> {}", out.display());
     }
+    Ok(())
+}
+
+fn demo(name: &str, out: Option<PathBuf>, frames: usize, retrain: bool) -> Result<()> {
+    let scene = Scene::load(name)?;
+    let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
+    let start = Instant::now();
+    let options = mochi_trainer::demo::DemoOptions {
+        scene: name.to_string(),
+        out_dir: out_dir.clone(),
+        frames,
+        retrain,
+    };
+    let report = mochi_trainer::demo::run(&options)?;
+    println!("\n{}", std::fs::read_to_string(out_dir.join("report.md"))?);
+    println!(
+        "{}: mean error {:.3}% of the diagonal, {:.1} µs/frame in the runtime vs {:.1} ms/frame full space; total {:.0} s -> {}",
+        scene.name,
+        100.0 * report.mean_error,
+        1e6 * report.runtime_seconds,
+        1e3 * report.full_space_seconds,
+        start.elapsed().as_secs_f64(),
+        out_dir.join("report.md").display()
+    );
     Ok(())
 }
