@@ -339,9 +339,13 @@ impl<'a> Model<'a> {
         if !ascending(free) || free.last().is_some_and(|&v| v as usize >= n) {
             return fail("free_vertices", Problem::Inconsistent);
         }
+        // Prescribed vertices are in range, not free, and listed once (with the count above,
+        // handle and free vertices then partition the mesh).
+        let repeated = |i: usize, v: &u32| handle[..i].contains(v);
         if handle
             .iter()
-            .any(|&v| v as usize >= n || free.binary_search(&v).is_ok())
+            .enumerate()
+            .any(|(i, v)| *v as usize >= n || free.binary_search(v).is_ok() || repeated(i, v))
         {
             return fail("handle_vertices", Problem::Inconsistent);
         }

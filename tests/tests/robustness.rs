@@ -221,3 +221,46 @@ fn wrong_magic_and_version_are_named() {
     bytes[0] = b'X';
     assert_eq!(load(&bytes), Err(LoadError::BadMagic));
 }
+
+#[test]
+fn inconsistent_model_descriptions_are_refused_naming_the_field() {
+    let good = tiny::MODEL;
+    assert!(ValidModel::new(good).is_ok());
+    // A prescribed vertex listed twice (and so another vertex never written).
+    let mut indices = good.indices.to_vec();
+    let hv = good.handle_vertices;
+    indices[hv.start as usize + 1] = indices[hv.start as usize];
+    let bad = mochi_runtime::Model {
+        indices: &indices,
+        ..good
+    };
+    assert_eq!(ValidModel::new(bad).unwrap_err().field, "handle_vertices");
+    // A span past the end of its pool.
+    let bad = mochi_runtime::Model {
+        rest: mochi_runtime::Span {
+            start: good.floats.len() as u32,
+            len: 3,
+        },
+        ..good
+    };
+    assert_eq!(
+        ValidModel::new(bad).unwrap_err().problem,
+        mochi_runtime::Problem::OutOfRange
+    );
+    // A weight that is not finite.
+    let mut params = good.params.to_vec();
+    params[17] = f32::NAN;
+    let bad = mochi_runtime::Model {
+        params: &params,
+        ..good
+    };
+    assert_eq!(ValidModel::new(bad).unwrap_err().field, "params");
+    // A layer pointing past the weights.
+    let mut decoder = good.decoder.to_vec();
+    decoder[0].weights = good.params.len() as u32;
+    let bad = mochi_runtime::Model {
+        decoder: &decoder,
+        ..good
+    };
+    assert_eq!(ValidModel::new(bad).unwrap_err().field, "decoder");
+}

@@ -310,6 +310,10 @@ impl Artifact {
         artifact
             .validate()
             .map_err(|(field, msg)| InputError::field(source, field, msg))?;
+        // What the runtime will read must pass the runtime's own checks too.
+        mochi_runtime::OwnedModel::default()
+            .load(bytes)
+            .map_err(|e| InputError::file(source, format!("refused by the runtime: {e}")))?;
         Ok(artifact)
     }
 
