@@ -143,23 +143,8 @@ pub struct Instance<const K: usize, const S: usize, const H: usize> {
 impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     /// An instance at the model's rest state, handles at their reference placement.
     pub fn new(model: &ValidModel) -> Result<Self, SizeError> {
+        Self::check_sizes(model)?;
         let m = model.model();
-        for (size, need, compiled) in [("latent", m.latent as usize, K), ("signal", m.bc_len as usize, S)] {
-            if need != compiled {
-                return Err(SizeError {
-                    size,
-                    model: need,
-                    compiled,
-                });
-            }
-        }
-        if m.hidden() > H {
-            return Err(SizeError {
-                size: "hidden",
-                model: m.hidden(),
-                compiled: H,
-            });
-        }
         let mut z = [0.0; K];
         z.copy_from_slice(m.initial_latent());
         Ok(Instance {

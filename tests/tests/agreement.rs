@@ -45,23 +45,10 @@ fn worst_disagreement<const K: usize, const S: usize, const H: usize>(artifact_p
     let artifact = Artifact::read(artifact_path).unwrap();
     let (trainer, bcs, problem, encoding) = test_sequences(&artifact);
     let dim = artifact.dim as usize;
-    let envelope = artifact.summary.max_radius + 0.5 * artifact.diagonal;
     let mut worst = 0.0f64;
     let mut longest = 0;
     for bc in &bcs {
-        let mut reference = Vec::new();
-        eval::roll(&trainer, &problem, &encoding, bc, FRAMES, |_, _, q, x| {
-            let radius = q
-                .chunks_exact(dim)
-                .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
-                .fold(0.0, f64::max);
-            let stable = radius <= envelope && x.iter().all(|v| v.is_finite());
-            if stable {
-                reference.push(x.to_vec());
-            }
-            stable
-        })
-        .unwrap();
+        let reference = eval::stable_rollout(&trainer, &problem, &encoding, bc, FRAMES).unwrap();
         let mut compared = 0;
         runtime_rollout::<K, S, H>(model, bc, FRAMES, |t, status, _, x| {
             if status != Stepped::Ok || compared < t - 1 {

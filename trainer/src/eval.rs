@@ -138,6 +138,35 @@ pub fn roll(
     Ok((step_time, decode_time))
 }
 
+/// The trainer's rollout of `model` over `bc` (world states of frames `1..`) up to the first
+/// frame that leaves the training envelope (a vertex farther from its encoding origin than in
+/// any training frame plus half the diagonal) or is not finite: the frames on which another
+/// implementation of the same model can be expected to agree with it.
+pub fn stable_rollout(
+    model: &LoadedModel,
+    problem: &Problem,
+    encoding: &Encoding,
+    bc: &BcSequence,
+    frames: usize,
+) -> anyhow::Result<Vec<Vec<f64>>> {
+    let a = &model.artifact;
+    let envelope = a.summary.max_radius + 0.5 * a.diagonal;
+    let dim = problem.mesh.dim;
+    let mut states = Vec::new();
+    roll(model, problem, encoding, bc, frames, |_, _, q, x| {
+        let radius = q
+            .chunks_exact(dim)
+            .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
+            .fold(0.0, f64::max);
+        let stable = radius <= envelope && x.iter().all(|v| v.is_finite());
+        if stable {
+            states.push(x.to_vec());
+        }
+        stable
+    })?;
+    Ok(states)
+}
+
 /// Rolls `model` out over `bc` for `frames` frames from its initial latent, comparing with
 /// `reference` where it has frames (at most `accuracy_frames` of them).
 pub fn rollout(

@@ -121,20 +121,7 @@ fn bench_one(path: &Path, frames: usize) -> Result<RuntimeTiming> {
     let script: Vec<Vec<HandleMotion>> = (1..=frames).map(|t| motions(&bc, t)).collect();
 
     let trainer = LoadedModel::new(artifact.clone())?;
-    let mut reference = Vec::new();
-    let envelope = artifact.summary.max_radius + 0.5 * artifact.diagonal;
-    let dim = artifact.dim as usize;
-    eval::roll(&trainer, &problem, &encoding, &bc, frames, |_, _, q, x| {
-        let radius = q
-            .chunks_exact(dim)
-            .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
-            .fold(0.0, f64::max);
-        let stable = radius <= envelope && x.iter().all(|v| v.is_finite());
-        if stable {
-            reference.push(x.to_vec());
-        }
-        stable
-    })?;
+    let reference = eval::stable_rollout(&trainer, &problem, &encoding, &bc, frames)?;
 
     let k = m.latent as usize;
     let s = m.bc_len as usize;
