@@ -107,3 +107,41 @@ fn bad_scene_exits_non_zero_naming_file_and_line() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("no-such-scene"));
     assert!(!Path::new("out/no-such-scene").exists());
 }
+
+#[test]
+fn codegen_writes_the_generated_module_and_names_a_bad_artifact() {
+    let dir = tempfile::tempdir().unwrap();
+    let artifact = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/artifacts/tiny.mochi");
+    let out = dir.path().join("tiny.rs");
+    let run = mochi(&["codegen", artifact.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let expected = mochi_codegen::generate(&std::fs::read(&artifact).unwrap(), "tiny.mochi").unwrap();
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), expected);
+
+    let bad = dir.path().join("bad.mochi");
+    std::fs::write(&bad, b"MOCHIMDL not really").unwrap();
+    let run = mochi(&[
+        "codegen",
+        bad.to_str().unwrap(),
+        "-o",
+        dir.path().join("x.rs").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && err.contains("bad.mochi"), "{err}");
+}
+
+#[test]
+fn bench_runtime_reports_the_ratio_and_agreement() {
+    let artifact = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/artifacts/tiny.mochi");
+    let run = mochi(&["bench", "runtime", artifact.to_str().unwrap(), "--frames", "20"]);
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let row = text
+        .lines()
+        .find(|l| l.starts_with("| tiny.mochi"))
+        .expect("a row for tiny.mochi");
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    assert!(cells[6].ends_with('x'), "speed-up column: {row}");
+    let disagreement: f64 = cells[10].split_whitespace().next().unwrap().parse().unwrap();
+    assert!(disagreement < 1e-4, "{row}");
+}
