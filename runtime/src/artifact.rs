@@ -265,12 +265,10 @@ where
     }
 
     /// The loaded model, or `None` before a successful [`Storage::load`].
+    /// The pools do not change between a successful load and the next one, so the model is
+    /// not validated again here.
     pub fn model(&self) -> Option<ValidModel<'_>> {
-        if self.loaded {
-            ValidModel::new(self.describe()).ok()
-        } else {
-            None
-        }
+        self.loaded.then(|| ValidModel::validated(self.describe()))
     }
 
     /// Parses, stores and validates the artifact in `bytes`, replacing what was stored.
@@ -285,9 +283,9 @@ where
         self.handles.clear();
         self.header = Header::default();
         self.read(payload(bytes)?)?;
-        ValidModel::new(self.describe()).map_err(LoadError::Invalid)?;
+        self.describe().validate().map_err(LoadError::Invalid)?;
         self.loaded = true;
-        self.model().ok_or(LoadError::Malformed { field: "model" })
+        Ok(ValidModel::validated(self.describe()))
     }
 
     /// Reads every field of the payload in the order of the trainer's `Artifact`.

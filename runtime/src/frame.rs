@@ -153,17 +153,24 @@ impl<'m, 'a> Placement<'m, 'a> {
     /// Reference (identity-pose) position of handle slot `slot`.
     fn reference(&self, slot: usize) -> Vector3<f32> {
         self.locate(slot)
-            .and_then(|(_, handle, i)| self.model.handle_reference_of(handle).get(3 * i..3 * i + 3))
+            .map_or(Vector3::zeros(), |(_, handle, i)| self.reference_in(handle, i))
+    }
+
+    /// Reference position of vertex `i` of `handle`.
+    fn reference_in(&self, handle: &Handle, i: usize) -> Vector3<f32> {
+        self.model
+            .handle_reference_of(handle)
+            .get(3 * i..3 * i + 3)
             .map_or(Vector3::zeros(), |p| Vector3::new(p[0], p[1], p[2]))
     }
 
     /// World position of handle slot `slot` (z = 0 in 2D).
     pub fn target(&self, slot: usize) -> Vector3<f32> {
-        let Some((h, handle, _)) = self.locate(slot) else {
+        let Some((h, handle, i)) = self.locate(slot) else {
             return Vector3::zeros();
         };
         let pivot = Vector3::from(handle.pivot);
-        let p = pivot + self.translations[h] + self.rotations[h] * (self.reference(slot) - pivot);
+        let p = pivot + self.translations[h] + self.rotations[h] * (self.reference_in(handle, i) - pivot);
         if self.model.dim() == 2 {
             Vector3::new(p.x, p.y, 0.0)
         } else {

@@ -6,7 +6,7 @@ use core::fmt;
 use nalgebra::Vector3;
 
 use crate::frame::{HandleMotion, Placement};
-use crate::model::{Model, ModelError, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
+use crate::model::{Layer, Model, ModelError, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::{dense_rows, hidden};
 
 /// How far a latent may leave the range seen in training before it is clamped, as a fraction
@@ -23,6 +23,10 @@ impl<'a> ValidModel<'a> {
     pub fn new(model: Model<'a>) -> Result<Self, ModelError> {
         model.validate()?;
         Ok(ValidModel(model))
+    }
+    /// `model`, already validated by the caller (storage that validated it when it was loaded).
+    pub(crate) fn validated(model: Model<'a>) -> Self {
+        ValidModel(model)
     }
     /// The model.
     pub fn model(&self) -> &Model<'a> {
@@ -194,7 +198,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     pub fn step(&mut self, model: &ValidModel, bc: &[HandleMotion]) -> Result<Stepped, StepError> {
         Self::check_sizes(model).map_err(StepError::Model)?;
         let m = model.model();
-        if bc.len() * SIGNAL_PER_HANDLE != S || bc.len() != m.handles.len() {
+        if bc.len() != m.handles.len() {
             return Err(StepError::HandleCount {
                 expected: m.handles.len(),
                 found: bc.len(),
@@ -207,18 +211,10 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         for (chunk, motion) in signal.chunks_exact_mut(SIGNAL_PER_HANDLE).zip(bc) {
             chunk.copy_from_slice(&motion.signal());
         }
-        let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
         let parts: [&[f32]; 5] = [&self.z, &self.z_prev, &signal, &self.signal, &self.signal_prev];
-        hidden(m.params, m.integrator, &parts, &mut h, [&mut a, &mut b]);
-        let output = &m.integrator[m.integrator.len() - 1];
+        let h = last_hidden::<H>(m.params, m.integrator, &parts);
         let mut increment = [0.0f32; K];
-        dense_rows(
-            m.params,
-            output,
-            &[h.get(..output.cols as usize).unwrap_or(&h)],
-            0,
-            &mut increment,
-        );
+        output_rows(m.params, m.integrator, &h, 0, &mut increment);
         let mut z = self.z;
         z.iter_mut().zip(&increment).for_each(|(z, dz)| *z += dz);
         let mut status = Stepped::Ok;
@@ -250,16 +246,8 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let m = model.model();
         let d = m.dim();
         check_len(out, m.state_len())?;
-        let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
-        hidden(m.params, m.decoder, &[&self.z], &mut h, [&mut a, &mut b]);
-        let output = &m.decoder[m.decoder.len() - 1];
-        dense_rows(
-            m.params,
-            output,
-            &[h.get(..output.cols as usize).unwrap_or(&h)],
-            0,
-            &mut out[..m.encoded_len()],
-        );
+        let h = last_hidden::<H>(m.params, m.decoder, &[&self.z]);
+        output_rows(m.params, m.decoder, &h, 0, &mut out[..m.encoded_len()]);
         let place = Placement::new(m, &self.signal);
         // Free vertex j moves from out[j*d..] to out[v*d..] with v >= j (free vertices ascend):
         // going backwards, no source is overwritten before it is read.
@@ -280,10 +268,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let m = model.model();
         let d = m.dim();
         check_len(out, m.surface_len())?;
-        let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
-        hidden(m.params, m.decoder, &[&self.z], &mut h, [&mut a, &mut b]);
-        let output = &m.decoder[m.decoder.len() - 1];
-        let x = h.get(..output.cols as usize).unwrap_or(&h);
+        let h = last_hidden::<H>(m.params, m.decoder, &[&self.z]);
         let place = Placement::new(m, &self.signal);
         let (origins, sources) = (m.origin_of(), m.surface_source());
         let mut i = 0;
@@ -303,7 +288,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                 .take_while(|(s, want)| **s == *want)
                 .count();
             if let Some(block) = out.get_mut(i * d..(i + run) * d) {
-                dense_rows(m.params, output, &[x], j * d, block);
+                output_rows(m.params, m.decoder, &h, j * d, block);
             }
             for k in 0..run {
                 let q = out.get(((i + k) * d)..((i + k + 1) * d)).unwrap_or(&[0.0; 3]);
@@ -334,6 +319,23 @@ fn put(out: &mut [f32], v: usize, d: usize, p: &Vector3<f32>) {
         if let Some(o) = out.get_mut(v * d + c) {
             *o = p[c];
         }
+    }
+}
+
+/// The last hidden activation of the network `layers` for the input `parts`, with scratch on
+/// the stack (`H` is at least the hidden width: checked by `check_sizes`).
+fn last_hidden<const H: usize>(params: &[f32], layers: &[Layer], parts: &[&[f32]]) -> [f32; H] {
+    let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
+    hidden(params, layers, parts, &mut h, [&mut a, &mut b]);
+    h
+}
+
+/// Rows `first..first + out.len()` of the output layer of `layers` applied to the last hidden
+/// activation `h` (of which the layer reads its first `cols` values).
+fn output_rows(params: &[f32], layers: &[Layer], h: &[f32], first: usize, out: &mut [f32]) {
+    if let Some(output) = layers.last() {
+        let x = h.get(..output.cols as usize).unwrap_or(h);
+        dense_rows(params, output, &[x], first, out);
     }
 }
 

@@ -12,11 +12,12 @@
 use std::path::Path;
 
 use mochi_runtime::{Model, OwnedModel, Stepped, ValidModel};
-use mochi_tests::{motions, runtime_rollout};
+use mochi_tests::motions;
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::bc::BcSequence;
 use mochi_trainer::dataset::{self, Split};
 use mochi_trainer::eval::{self, LoadedModel as TrainerModel};
+use mochi_trainer::runtime_bench::agreement;
 
 const FRAMES: usize = 1000;
 const TOLERANCE: f64 = 1e-4;
@@ -44,24 +45,13 @@ fn test_sequences(
 fn worst_disagreement<const K: usize, const S: usize, const H: usize>(artifact_path: &Path, model: &ValidModel) -> f64 {
     let artifact = Artifact::read(artifact_path).unwrap();
     let (trainer, bcs, problem, encoding) = test_sequences(&artifact);
-    let dim = artifact.dim as usize;
     let mut worst = 0.0f64;
     let mut longest = 0;
     for bc in &bcs {
         let reference = eval::stable_rollout(&trainer, &problem, &encoding, bc, FRAMES).unwrap();
-        let mut compared = 0;
-        runtime_rollout::<K, S, H>(model, bc, FRAMES, |t, status, _, x| {
-            if status != Stepped::Ok || compared < t - 1 {
-                return;
-            }
-            let Some(reference) = reference.get(t - 1) else { return };
-            compared = t;
-            for (p, r) in x.chunks_exact(dim).zip(reference.chunks_exact(dim)) {
-                let d: f64 = p.iter().zip(r).map(|(&a, &b)| (a as f64 - b).powi(2)).sum();
-                worst = worst.max(d.sqrt() / artifact.diagonal);
-            }
-        })
-        .unwrap();
+        let script: Vec<_> = (1..=FRAMES).map(|t| motions(bc, t)).collect();
+        let (disagreement, compared) = agreement::<K, S, H>(model, &script, &reference, artifact.diagonal).unwrap();
+        worst = worst.max(disagreement);
         longest = longest.max(compared);
     }
     assert_eq!(

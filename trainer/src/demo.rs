@@ -14,6 +14,7 @@ use anyhow::{bail, Context, Result};
 use crate::artifact::Artifact;
 use crate::chart::{self, Series};
 use crate::dataset::{self, Split};
+use crate::encoding::Encoding;
 use crate::eval::{self, LoadedModel};
 use crate::latent::{self, TrainOptions};
 use crate::render::{self, RenderOptions};
@@ -93,23 +94,29 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
     let out = &options.out_dir;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
 
-    // 1. Dataset and training (reused when the artifact is already there).
+    // 1. Dataset and training (reused when the artifact there was trained on this scene as it
+    //    is now).
     let (artifact_path, _) = latent::artifact_paths(out, &scene.name);
     let clock = Instant::now();
-    if options.retrain || Artifact::read(&artifact_path).is_err() {
-        println!("== training {} (dataset, autoencoder, integrators)", scene.name);
-        let train = TrainOptions {
-            out_dir: out.clone(),
-            resume: true,
-            progress: true,
-            latent: None,
-        };
-        latent::train_scene(&mut problem, &train)?;
-    } else {
-        println!("== reusing {} (pass --retrain to train again)", artifact_path.display());
-    }
+    let scene_toml = toml::to_string(&scene)?;
+    let artifact = match Artifact::read(&artifact_path) {
+        Ok(artifact) if !options.retrain && artifact.scene_toml == scene_toml => {
+            println!("== reusing {} (pass --retrain to train again)", artifact_path.display());
+            artifact
+        }
+        _ => {
+            println!("== training {} (dataset, autoencoder, integrators)", scene.name);
+            let train = TrainOptions {
+                out_dir: out.clone(),
+                resume: true,
+                progress: true,
+                latent: None,
+            };
+            latent::train_scene(&mut problem, &train)?;
+            Artifact::read(&artifact_path)?
+        }
+    };
     stages.push(("dataset + training".to_string(), clock.elapsed().as_secs_f64()));
-    let artifact = Artifact::read(&artifact_path)?;
 
     // 2. Codegen into a stand-alone crate that uses the runtime as a user's crate would.
     let clock = Instant::now();
@@ -190,33 +197,22 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
 
     // 5. Compare with the full-space solver and with the trainer's own rollout.
     let dim = problem.mesh.dim;
-    let distance = |a: &[f32], b: &[f64]| -> Vec<f64> {
-        a.chunks_exact(dim)
-            .zip(b.chunks_exact(dim))
-            .map(|(p, r)| {
-                p.iter()
-                    .zip(r)
-                    .map(|(&x, &y)| (x as f64 - y).powi(2))
-                    .sum::<f64>()
-                    .sqrt()
-                    / artifact.diagonal
-            })
-            .collect()
-    };
+    let diagonal = artifact.diagonal;
     let errors: Vec<Vec<f64>> = (0..frames)
-        .map(|t| distance(runtime[t], &reference.positions[t + 1]))
+        .map(|t| eval::vertex_errors(runtime[t], &reference.positions[t + 1], dim, diagonal).collect())
         .collect();
     let mean_curve: Vec<f64> = errors.iter().map(|e| e.iter().sum::<f64>() / e.len() as f64).collect();
     let mean_error = mean_curve.iter().sum::<f64>() / frames as f64;
     let max_error = errors.iter().flatten().copied().fold(0.0, f64::max);
-    let (_, encoding) = eval::rebuild_problem(&artifact)?;
-    let trainer = LoadedModel::new(artifact.clone())?;
+    // The artifact was trained on this scene (checked above), so its encoding is this one.
+    let encoding = Encoding::new(&problem)?;
+    let trainer = LoadedModel::new(artifact)?;
     let mut disagreement = 0.0f64;
     eval::roll(&trainer, &problem, &encoding, &bc, frames, |t, _, _, x| {
-        let d = distance(runtime[t - 1], x);
-        disagreement = disagreement.max(d.into_iter().fold(0.0, f64::max));
+        disagreement = eval::vertex_errors(runtime[t - 1], x, dim, diagonal).fold(disagreement, f64::max);
         true
     })?;
+    let artifact = trainer.artifact;
 
     // 6. Charts, render and report.
     let clock = Instant::now();

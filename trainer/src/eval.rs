@@ -87,6 +87,27 @@ pub struct RolloutMetrics {
     pub decode_seconds: f64,
 }
 
+/// Per vertex, the distance between `x` and `reference` (`dim` numbers per vertex, f32 or f64)
+/// as a fraction of `diagonal`.
+pub fn vertex_errors<'a, T: Copy + Into<f64>>(
+    x: &'a [T],
+    reference: &'a [f64],
+    dim: usize,
+    diagonal: f64,
+) -> impl Iterator<Item = f64> + 'a {
+    x.chunks_exact(dim).zip(reference.chunks_exact(dim)).map(move |(p, r)| {
+        let squared: f64 = p.iter().zip(r).map(|(&a, &b)| (a.into() - b).powi(2)).sum();
+        squared.sqrt() / diagonal
+    })
+}
+
+/// Largest distance of an encoded vertex from its origin (`q` in the encoding frame).
+fn max_radius(q: &[f32], dim: usize) -> f64 {
+    q.chunks_exact(dim)
+        .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
+        .fold(0.0, f64::max)
+}
+
 /// Kinetic energy of the step from `prev` to `x`.
 pub fn kinetic_energy(masses: &[f64], x: &[f64], prev: &[f64], dt: f64, dim: usize) -> f64 {
     masses
@@ -101,8 +122,8 @@ pub fn kinetic_energy(masses: &[f64], x: &[f64], prev: &[f64], dt: f64, dim: usi
 
 /// The trainer's own rollout of `model` over `bc` (the reference the runtime is checked
 /// against): from the initial latent, calls `visit(t, z_t, q_t, x_t)` for `t = 1..=frames` with
-/// the latent, the decoded encoded state and the world state, until `visit` returns `false`. Returns the seconds spent
-/// stepping and decoding.
+/// the latent, the decoded encoded state and the world state, until `visit` returns `false`.
+/// Returns the seconds spent stepping and decoding.
 pub fn roll(
     model: &LoadedModel,
     problem: &Problem,
@@ -154,11 +175,7 @@ pub fn stable_rollout(
     let dim = problem.mesh.dim;
     let mut states = Vec::new();
     roll(model, problem, encoding, bc, frames, |_, _, q, x| {
-        let radius = q
-            .chunks_exact(dim)
-            .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
-            .fold(0.0, f64::max);
-        let stable = radius <= envelope && x.iter().all(|v| v.is_finite());
+        let stable = max_radius(q, dim) <= envelope && x.iter().all(|v| v.is_finite());
         if stable {
             states.push(x.to_vec());
         }
@@ -192,19 +209,11 @@ pub fn rollout(
     let (mut ke_ours, mut ke_ref) = (0.0, 0.0);
     let (step_time, decode_time) = roll(model, problem, encoding, bc, frames, |t, z, q, x| {
         let finite = z.iter().all(|v| v.is_finite()) && x.iter().all(|v| v.is_finite());
-        let radius = q
-            .chunks_exact(dim)
-            .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
-            .fold(0.0, f64::max);
         let ke = kinetic_energy(masses, x, &x_prev, a.dt, dim);
-        let mut diverged = !finite || radius > envelope || ke > energy_cap;
+        let mut diverged = !finite || max_radius(q, dim) > envelope || ke > energy_cap;
         if t <= measured {
             let xr = &reference.positions[t];
-            let errors: Vec<f64> = x
-                .chunks_exact(dim)
-                .zip(xr.chunks_exact(dim))
-                .map(|(p, r)| p.iter().zip(r).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt() / a.diagonal)
-                .collect();
+            let errors: Vec<f64> = vertex_errors(x, xr, dim, a.diagonal).collect();
             let mean = errors.iter().sum::<f64>() / errors.len() as f64;
             let max = errors.iter().copied().fold(0.0, f64::max);
             metrics.error_curve.push(mean);
@@ -217,7 +226,7 @@ pub fn rollout(
             metrics.stable_frames = t - 1;
             return false;
         }
-        x_prev = x.to_vec();
+        x_prev.copy_from_slice(x);
         true
     })?;
     let done = metrics.stable_frames.max(1) as f64;

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use candle_core::{Device, Tensor};
-use mochi_runtime::{HandleMotion, Instance, OwnedModel, ValidModel, SIGNAL_PER_HANDLE};
+use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, SIGNAL_PER_HANDLE};
 
 use crate::artifact::Artifact;
 use crate::bc::BcSequence;
@@ -50,7 +50,7 @@ pub struct RuntimeTiming {
     pub state_bytes: usize,
     /// Largest vertex distance / diagonal from the trainer's rollout over the compared frames.
     pub disagreement: f64,
-    /// Frames compared (up to the first clamp of either rollout leaving the envelope).
+    /// Frames compared (see [`agreement`]).
     pub compared_frames: usize,
 }
 
@@ -98,8 +98,8 @@ pub fn bench(paths: &[PathBuf], frames: usize) -> Result<Vec<RuntimeTiming>> {
 }
 
 fn bench_one(path: &Path, frames: usize) -> Result<RuntimeTiming> {
-    let artifact = Artifact::read(path)?;
-    let bytes = std::fs::read(path)?;
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let artifact = Artifact::from_bytes(&bytes, path)?;
     let mut storage = OwnedModel::default();
     let model = storage
         .load(&bytes)
@@ -167,28 +167,37 @@ struct Measured {
     compared: usize,
 }
 
+/// Largest vertex distance / diagonal between the runtime's rollout of `model` over `script`
+/// and the trainer's states `reference` (one per frame, see [`eval::stable_rollout`]), over the
+/// frames before the reference ends or the runtime first clamps or holds a latent (its
+/// documented departures from the trainer); and how many frames were compared.
+pub fn agreement<const K: usize, const S: usize, const H: usize>(
+    model: &ValidModel,
+    script: &[Vec<HandleMotion>],
+    reference: &[Vec<f64>],
+    diagonal: f64,
+) -> Result<(f64, usize)> {
+    let m = model.model();
+    let mut body = Instance::<K, S, H>::new(model)?;
+    let mut x = vec![0.0f32; m.state_len()];
+    let (mut worst, mut compared) = (0.0f64, 0);
+    for (bc, r) in script.iter().zip(reference) {
+        if body.step(model, bc)? != Stepped::Ok {
+            break;
+        }
+        body.decode_into(model, &mut x)?;
+        worst = eval::vertex_errors(&x, r, m.dim(), diagonal).fold(worst, f64::max);
+        compared += 1;
+    }
+    Ok((worst, compared))
+}
+
 fn measure<const K: usize, const S: usize>(run: &Run) -> Result<Measured> {
     let model = run.model;
     let m = model.model();
-    let dim = m.dim();
     let fresh = || Instance::<K, S, MAX_HIDDEN>::new(model);
-    // Agreement with the trainer, up to the first clamp or the end of its stable frames.
-    let mut body = fresh()?;
+    let (disagreement, compared) = agreement::<K, S, MAX_HIDDEN>(model, run.script, run.reference, run.diagonal)?;
     let mut x = vec![0.0f32; m.state_len()];
-    let (mut disagreement, mut compared) = (0.0f64, 0);
-    for (t, bc) in run.script.iter().enumerate() {
-        let status = body.step(model, bc)?;
-        body.decode_into(model, &mut x)?;
-        let Some(r) = run.reference.get(t) else { break };
-        if status != mochi_runtime::Stepped::Ok {
-            break;
-        }
-        for (p, r) in x.chunks_exact(dim).zip(r.chunks_exact(dim)) {
-            let d: f64 = p.iter().zip(r).map(|(&a, &b)| (a as f64 - b).powi(2)).sum();
-            disagreement = disagreement.max(d.sqrt() / run.diagonal);
-        }
-        compared = t + 1;
-    }
     let frames = run.script.len();
     let mut body = fresh()?;
     let full = seconds_per_call(frames, |i| {
