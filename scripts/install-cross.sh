@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
-# Installs what cross-compiling needs on these machines (DESIGN.md, "Cross-compiling"):
-# Debian's rustc-web (a rustc that can build `core` for any target with -Zbuild-std), the
-# standard library sources for it, and lld. Idempotent: installs only what is missing.
+# Installs what cross-compiling and running the targets need on these machines (DESIGN.md,
+# "Cross-compiling"): Debian's rustc-web (a rustc that can build `core` for any target with
+# -Zbuild-std), the standard library sources for it, lld, QEMU for the Cortex-M4 firmware,
+# Chromium for the web page's headless test, and node for the wasm module (when the machine
+# has none). Idempotent: installs only what is missing.
 set -euo pipefail
 need=()
-for package in rustc-web rust-web-src lld-22 "$@"; do
+for package in rustc-web rust-web-src lld-22 qemu-system-arm chromium "$@"; do
   dpkg -s "$package" >/dev/null 2>&1 || need+=("$package")
 done
+command -v node >/dev/null 2>&1 || need+=(nodejs)
 if [ ${#need[@]} -gt 0 ]; then
   sudo=""
   if [ "$(id -u)" -ne 0 ]; then sudo=sudo; fi
+  echo "installing: ${need[*]}"
   $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${need[@]}" >/dev/null
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
 fi

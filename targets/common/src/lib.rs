@@ -1,0 +1,187 @@
+//! What every target runs (host, Cortex-M4, wasm, the C program): a fixed boundary-condition
+//! script and a checksum of the decoded positions, so that their outputs can be compared bit
+//! for bit.
+//!
+//! The script uses only IEEE-754 single-precision arithmetic and `libm` (a software library,
+//! the same bits on every machine), and the runtime's kernels fix the order of every sum, so
+//! a model run on any target gives the same positions as on the host.
+#![no_std]
+
+use mochi_runtime::model::MAX_HANDLES;
+use mochi_runtime::{DecodeError, HandleMotion, Instance, SizeError, StepError, ValidModel};
+
+/// Frames of the reference run every target makes.
+pub const FRAMES: u32 = 1000;
+
+/// Frames after which targets report the running checksum (the last is [`FRAMES`]).
+pub const CHECKPOINTS: [u32; 4] = [1, 10, 100, FRAMES];
+
+/// The fixed boundary-condition script: every handle sways along y and z and twists about x,
+/// with an amplitude of a tenth of the model's rest bounding-box diagonal (speeds inside the
+/// ranges the shipped scenes train on).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Script {
+    amplitude: f32,
+    dt: f32,
+}
+
+/// Seconds per sway period along y, along z, and of the twist.
+const PERIODS: [f32; 3] = [3.0, 4.5, 4.0];
+/// Twist amplitude in radians.
+const TWIST: f32 = 0.2;
+
+impl Script {
+    /// The script for a model with rest positions `rest` (`dim` per vertex) and time step `dt`.
+    pub fn new(rest: &[f32], dim: usize, dt: f32) -> Self {
+        Script {
+            amplitude: 0.1 * diagonal(rest, dim),
+            dt,
+        }
+    }
+
+    /// The script for `model`.
+    pub fn for_model(model: &ValidModel) -> Self {
+        let m = model.model();
+        Script::new(m.rest(), m.dim(), m.dt)
+    }
+
+    /// Translation and rotation vector of every handle at the end of `frame`.
+    pub fn pose(&self, frame: u32) -> ([f32; 3], [f32; 3]) {
+        let t = frame as f32 * self.dt;
+        let phase = |period: f32| libm::sinf(2.0 * core::f32::consts::PI * t / period);
+        let translation = [
+            0.0,
+            self.amplitude * phase(PERIODS[0]),
+            0.5 * self.amplitude * phase(PERIODS[1]),
+        ];
+        (translation, [TWIST * phase(PERIODS[2]), 0.0, 0.0])
+    }
+
+    /// The motion of every handle over the step that ends at `frame` (velocities by finite
+    /// difference of the poses, the way an engine that tracks poses gets them).
+    pub fn motion(&self, frame: u32) -> HandleMotion {
+        let (t1, r1) = self.pose(frame);
+        let (t0, r0) = self.pose(frame.saturating_sub(1));
+        let rate = |a: [f32; 3], b: [f32; 3]| [0, 1, 2].map(|i| (a[i] - b[i]) / self.dt);
+        HandleMotion {
+            linear_velocity: rate(t1, t0),
+            // The twist keeps its axis, so the angular velocity is the rotation vector's rate.
+            angular_velocity: rate(r1, r0),
+            translation: t1,
+            rotation: r1,
+        }
+    }
+}
+
+/// Rest bounding-box diagonal of `rest` (`dim` coordinates per vertex).
+pub fn diagonal(rest: &[f32], dim: usize) -> f32 {
+    let dim = dim.clamp(1, 3);
+    let mut squared = 0.0;
+    for c in 0..dim {
+        let values = rest.iter().skip(c).step_by(dim);
+        let lo = values.clone().fold(f32::INFINITY, |a, &b| a.min(b));
+        let hi = values.fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        if hi >= lo {
+            squared += (hi - lo) * (hi - lo);
+        }
+    }
+    libm::sqrtf(squared)
+}
+
+/// FNV-1a (64-bit) over the bit patterns of every decoded coordinate of every frame, in
+/// order: equal checksums mean bit-identical positions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Checksum(pub u64);
+
+impl Default for Checksum {
+    fn default() -> Self {
+        Checksum(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Checksum {
+    /// Folds the coordinates of one frame in.
+    pub fn update(&mut self, positions: &[f32]) {
+        for v in positions {
+            for byte in v.to_bits().to_le_bytes() {
+                self.0 ^= u64::from(byte);
+                self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        }
+    }
+}
+
+/// Why a reference run stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunError {
+    /// The instance type does not fit the model.
+    Size(SizeError),
+    /// A step was refused.
+    Step(StepError),
+    /// A decode was refused or gave a non-finite state.
+    Decode(DecodeError),
+}
+
+impl core::fmt::Display for RunError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            RunError::Size(e) => write!(f, "instance: {e}"),
+            RunError::Step(e) => write!(f, "step: {e}"),
+            RunError::Decode(e) => write!(f, "decode: {e}"),
+        }
+    }
+}
+
+/// Runs `model` from rest for `frames` frames of the [`Script`], decoding every frame into
+/// `positions` (`state_len` numbers) and folding it into the checksum; `visit(frame,
+/// checksum, positions)` sees every frame (1-based). Returns the final checksum.
+pub fn run<const K: usize, const S: usize, const H: usize>(
+    model: &ValidModel,
+    frames: u32,
+    positions: &mut [f32],
+    mut visit: impl FnMut(u32, Checksum, &[f32]),
+) -> Result<Checksum, RunError> {
+    let script = Script::for_model(model);
+    let handles = model.model().handles.len().min(MAX_HANDLES);
+    let mut body = Instance::<K, S, H>::new(model).map_err(RunError::Size)?;
+    let mut checksum = Checksum::default();
+    let mut bc = [HandleMotion::REST; MAX_HANDLES];
+    for frame in 1..=frames {
+        bc[..handles].fill(script.motion(frame));
+        body.step(model, &bc[..handles]).map_err(RunError::Step)?;
+        body.decode_into(model, positions).map_err(RunError::Decode)?;
+        checksum.update(positions);
+        visit(frame, checksum, positions);
+    }
+    Ok(checksum)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checksum_tells_bit_patterns_apart() {
+        let mut a = Checksum::default();
+        let mut b = Checksum::default();
+        a.update(&[0.0, 1.0]);
+        b.update(&[-0.0, 1.0]);
+        assert_ne!(a, b);
+        let mut c = Checksum::default();
+        c.update(&[0.0, 1.0]);
+        assert_eq!(a, c);
+    }
+
+    #[test]
+    fn script_starts_at_rest_and_moves() {
+        let script = Script::new(&[0.0, 0.0, 0.0, 3.0, 4.0, 0.0], 3, 0.02);
+        assert_eq!(script.amplitude, 0.5);
+        let rest = script.motion(0);
+        assert_eq!(rest, HandleMotion::REST);
+        let m = script.motion(10);
+        assert!(m.translation[1] > 0.0 && m.linear_velocity[1] > 0.0 && m.rotation[0] > 0.0);
+        // Velocity is the finite difference of the poses.
+        let (t9, _) = script.pose(9);
+        assert!((m.linear_velocity[1] - (m.translation[1] - t9[1]) / 0.02).abs() < 1e-6);
+    }
+}
