@@ -12,6 +12,10 @@
 //! and in the crate: `include!(concat!(env!("OUT_DIR"), "/beam.rs"));`, which defines `MODEL`,
 //! the sizes (`LATENT`, `SIGNAL`, `HIDDEN`, `STATE_LEN`, ...) and `type Instance`.
 //!
+//! The weight storage (`f32`, `f16`, int8 with per-row scales) is chosen with [`Options`]
+//! ([`build_rs_with`], `mochi codegen --weights`); `mochi eval --storage` measures what each
+//! costs in accuracy.
+//!
 //! The output is deterministic (same artifact, same bytes), compiles without warnings, and is
 //! rustfmt-clean: the long literal arrays carry `#[rustfmt::skip]` and are wrapped at 100
 //! columns.
@@ -19,7 +23,18 @@
 use std::fmt::{self, Write as _};
 use std::path::{Path, PathBuf};
 
-use mochi_runtime::{Layer, LoadError, Model, OwnedModel};
+pub mod quantize;
+
+use mochi_runtime::{Layer, LoadError, Model, ModelError, OwnedModel, ValidModel, WeightFormat};
+
+pub use quantize::{format_name, parse_format, Quantized};
+
+/// What to generate.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Options {
+    /// How the network weights are stored.
+    pub weights: WeightFormat,
+}
 
 /// Version of the artifact format this code generator reads.
 pub const ARTIFACT_VERSION: u32 = mochi_runtime::ARTIFACT_VERSION;
@@ -41,6 +56,15 @@ pub enum CodegenError {
         /// Why.
         error: LoadError,
     },
+    /// The model is not valid in the chosen weight format (e.g. a weight beyond `f16`'s range).
+    Model {
+        /// The artifact.
+        path: PathBuf,
+        /// The format.
+        format: WeightFormat,
+        /// Why.
+        error: ModelError,
+    },
     /// `build_rs` ran outside a build script (`OUT_DIR` is not set).
     NoOutDir,
 }
@@ -50,6 +74,9 @@ impl fmt::Display for CodegenError {
         match self {
             CodegenError::Io { path, error } => write!(f, "{}: {error}", path.display()),
             CodegenError::Artifact { path, error } => write!(f, "{}: {error}", path.display()),
+            CodegenError::Model { path, format, error } => {
+                write!(f, "{}: with {} weights: {error}", path.display(), format_name(*format))
+            }
             CodegenError::NoOutDir => write!(f, "OUT_DIR is not set: call build_rs from a build script"),
         }
     }
@@ -57,20 +84,38 @@ impl fmt::Display for CodegenError {
 
 impl std::error::Error for CodegenError {}
 
-/// Rust source for the artifact in `bytes`; `name` (the artifact's file name) goes into the
-/// header comment.
+/// Rust source for the artifact in `bytes` with `f32` weights; `name` (the artifact's file
+/// name) goes into the header comment.
 pub fn generate(bytes: &[u8], name: &str) -> Result<String, CodegenError> {
+    generate_with(bytes, name, &Options::default())
+}
+
+/// Rust source for the artifact in `bytes` with the given options.
+pub fn generate_with(bytes: &[u8], name: &str, options: &Options) -> Result<String, CodegenError> {
     let mut storage = OwnedModel::default();
     let model = storage.load(bytes).map_err(|error| CodegenError::Artifact {
         path: PathBuf::from(name),
         error,
     })?;
-    Ok(emit(model.model(), name))
+    let base = model.model();
+    let quantized = Quantized::new(base, options.weights);
+    let stored = quantized.model(base);
+    ValidModel::new(stored).map_err(|error| CodegenError::Model {
+        path: PathBuf::from(name),
+        format: options.weights,
+        error,
+    })?;
+    Ok(emit(&stored, base.params.len(), name))
 }
 
-/// Reads the artifact at `artifact`, writes its module to `out` (only when the text changed,
-/// so builds that depend on it are not redone for nothing).
+/// Reads the artifact at `artifact`, writes its module (`f32` weights) to `out` (only when the
+/// text changed, so builds that depend on it are not redone for nothing).
 pub fn generate_file(artifact: &Path, out: &Path) -> Result<(), CodegenError> {
+    generate_file_with(artifact, out, &Options::default())
+}
+
+/// [`generate_file`] with the given options.
+pub fn generate_file_with(artifact: &Path, out: &Path, options: &Options) -> Result<(), CodegenError> {
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |error| CodegenError::Io { path, error }
@@ -79,9 +124,14 @@ pub fn generate_file(artifact: &Path, out: &Path) -> Result<(), CodegenError> {
     let name = artifact
         .file_name()
         .map_or_else(|| artifact.display().to_string(), |n| n.to_string_lossy().into_owned());
-    let source = generate(&bytes, &name).map_err(|e| match e {
+    let source = generate_with(&bytes, &name, options).map_err(|e| match e {
         CodegenError::Artifact { error, .. } => CodegenError::Artifact {
             path: artifact.to_path_buf(),
+            error,
+        },
+        CodegenError::Model { format, error, .. } => CodegenError::Model {
+            path: artifact.to_path_buf(),
+            format,
             error,
         },
         other => other,
@@ -92,19 +142,25 @@ pub fn generate_file(artifact: &Path, out: &Path) -> Result<(), CodegenError> {
     Ok(())
 }
 
-/// For build scripts: generates `OUT_DIR/out_name` from `artifact` (relative to the crate)
-/// and asks Cargo to rerun when the artifact changes.
+/// For build scripts: generates `OUT_DIR/out_name` from `artifact` (relative to the crate,
+/// `f32` weights) and asks Cargo to rerun when the artifact changes.
 pub fn build_rs(artifact: impl AsRef<Path>, out_name: &str) -> Result<(), CodegenError> {
+    build_rs_with(artifact, out_name, &Options::default())
+}
+
+/// [`build_rs`] with the given options.
+pub fn build_rs_with(artifact: impl AsRef<Path>, out_name: &str, options: &Options) -> Result<(), CodegenError> {
     let out_dir = std::env::var_os("OUT_DIR").ok_or(CodegenError::NoOutDir)?;
     let artifact = artifact.as_ref();
     println!("cargo:rerun-if-changed={}", artifact.display());
-    generate_file(artifact, &Path::new(&out_dir).join(out_name))
+    generate_file_with(artifact, &Path::new(&out_dir).join(out_name), options)
 }
 
-/// Writes the module for a validated model.
-fn emit(m: &Model, name: &str) -> String {
+/// Writes the module for a validated model; `artifact_params` is the length of the artifact's
+/// own (`f32`) parameter pool, the capacity loading it from bytes needs.
+fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
     let mut s = String::new();
-    let sizes: [(&str, &str, usize); 12] = [
+    let sizes: [(&str, &str, usize); 15] = [
         ("LATENT", "Latent size.", m.latent as usize),
         (
             "SIGNAL",
@@ -129,11 +185,18 @@ fn emit(m: &Model, name: &str) -> String {
             "Length of a drawn-vertices state (`decode_surface_into`).",
             m.surface_len(),
         ),
-        ("WEIGHT_BYTES", "Bytes of network weights and biases.", m.weight_bytes()),
         (
-            "PARAMS_LEN",
-            "Weights and biases (capacity for loading this model from bytes).",
-            m.params.len(),
+            "WEIGHT_BYTES",
+            "Bytes of network weights, biases and scales.",
+            m.weight_bytes(),
+        ),
+        ("PARAMS_LEN", "`f32` weights, biases and scales.", m.params.len()),
+        ("HALVES_LEN", "Half-precision weights.", m.halves.len()),
+        ("BYTES_LEN", "Int8 weights.", m.bytes.len()),
+        (
+            "ARTIFACT_PARAMS_LEN",
+            "Weights and biases of the artifact (capacity for loading it from bytes).",
+            artifact_params,
         ),
         (
             "FLOATS_LEN",
@@ -159,6 +222,11 @@ fn emit(m: &Model, name: &str) -> String {
         let _ = writeln!(s, "\n/// {doc}\npub const {ident}: usize = {value};");
     }
     let _ = writeln!(s, "\n/// Time step in seconds.\npub const DT: f32 = {:?};", m.dt);
+    let format = m.decoder.first().map_or(WeightFormat::F32, |l| l.format);
+    let _ = writeln!(
+        s,
+        "\n/// How the network weights are stored.\npub const WEIGHT_FORMAT: mochi_runtime::WeightFormat = mochi_runtime::WeightFormat::{format:?};"
+    );
     let _ = writeln!(s, "\n/// One simulated object of this model.");
     let _ = writeln!(
         s,
@@ -170,7 +238,7 @@ fn emit(m: &Model, name: &str) -> String {
     );
     let _ = writeln!(
         s,
-        "pub type Loaded = mochi_runtime::LoadedModel<PARAMS_LEN, FLOATS_LEN, INDICES_LEN>;"
+        "pub type Loaded = mochi_runtime::LoadedModel<ARTIFACT_PARAMS_LEN, FLOATS_LEN, INDICES_LEN>;"
     );
     array(
         &mut s,
@@ -178,6 +246,13 @@ fn emit(m: &Model, name: &str) -> String {
         "f32; PARAMS_LEN",
         m.params.iter().map(|v| format!("{v:?}")),
     );
+    array(
+        &mut s,
+        "HALVES",
+        "u16; HALVES_LEN",
+        m.halves.iter().map(|v| format!("{v:#06x}")),
+    );
+    array(&mut s, "BYTES", "i8; BYTES_LEN", m.bytes.iter().map(|v| v.to_string()));
     array(
         &mut s,
         "FLOATS",
@@ -226,6 +301,8 @@ fn emit(m: &Model, name: &str) -> String {
         ("diagonal", format!("{:?}", m.diagonal)),
         ("rotates", m.rotates.to_string()),
         ("params", "&PARAMS".into()),
+        ("halves", "&HALVES".into()),
+        ("bytes", "&BYTES".into()),
         ("floats", "&FLOATS".into()),
         ("indices", "&INDICES".into()),
         ("decoder", "&DECODER".into()),
@@ -253,12 +330,16 @@ fn span(sp: mochi_runtime::Span) -> String {
 }
 
 fn layers(s: &mut String, ident: &str, layers: &[Layer]) {
-    let _ = writeln!(s, "\nstatic {ident}: [mochi_runtime::Layer; {}] = [", layers.len());
+    let _ = writeln!(
+        s,
+        "\n#[rustfmt::skip]\nstatic {ident}: [mochi_runtime::Layer; {}] = [",
+        layers.len()
+    );
     for l in layers {
         let _ = writeln!(
             s,
-            "    mochi_runtime::Layer {{ rows: {}, cols: {}, weights: {}, bias: {} }},",
-            l.rows, l.cols, l.weights, l.bias
+            "    mochi_runtime::Layer {{ rows: {}, cols: {}, format: mochi_runtime::WeightFormat::{:?}, weights: {}, bias: {}, scales: {} }},",
+            l.rows, l.cols, l.format, l.weights, l.bias, l.scales
         );
     }
     let _ = writeln!(s, "];");

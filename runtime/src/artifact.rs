@@ -246,6 +246,8 @@ where
             diagonal: h.diagonal,
             rotates: h.rotates,
             params: self.params.as_slice(),
+            halves: &[],
+            bytes: &[],
             floats: self.floats.as_slice(),
             indices: self.indices.as_slice(),
             decoder: self.decoder.as_slice(),
@@ -465,6 +467,7 @@ impl<'de> Reader<'de> {
                     cols: cols as u32,
                     weights: w.start,
                     bias: b.start,
+                    ..Layer::default()
                 };
                 if !list.push(layer) {
                     return Err(LoadError::Capacity { field });

@@ -89,8 +89,28 @@ impl HandleMotion {
     }
 }
 
+/// The rotation of a rotation vector (Rodrigues' formula), with `libm`'s sine and cosine
+/// rather than the platform's, so that every target computes the same bits.
 fn rotation(rotation_vector: &[f32; 3]) -> Rotation3<f32> {
-    Rotation3::new(Vector3::from(*rotation_vector))
+    let [x, y, z] = *rotation_vector;
+    let angle = libm::sqrtf(x * x + y * y + z * z);
+    if angle <= f32::EPSILON {
+        return Rotation3::identity();
+    }
+    let (sin, cos) = (libm::sinf(angle), libm::cosf(angle));
+    let (x, y, z) = (x / angle, y / angle, z / angle);
+    let c = 1.0 - cos;
+    Rotation3::from_matrix_unchecked(Matrix3::new(
+        cos + x * x * c,
+        x * y * c - z * sin,
+        x * z * c + y * sin,
+        y * x * c + z * sin,
+        cos + y * y * c,
+        y * z * c - x * sin,
+        z * x * c - y * sin,
+        z * y * c + x * sin,
+        cos + z * z * c,
+    ))
 }
 
 /// The world placement of a model's handles and its encoding frame for one frame of handle

@@ -6,7 +6,7 @@ use core::fmt;
 use nalgebra::Vector3;
 
 use crate::frame::{HandleMotion, Placement};
-use crate::model::{Layer, Model, ModelError, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
+use crate::model::{Layer, Model, ModelError, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::{dense_rows, hidden};
 
 /// How far a latent may leave the range seen in training before it is clamped, as a fraction
@@ -132,60 +132,79 @@ pub enum Stepped {
     Held,
 }
 
-/// The state of one object: `K` latent coordinates, `S` boundary-condition numbers; `H` is the
-/// widest hidden layer the instance can run (scratch lives on the stack during calls, not in
-/// the instance).
+/// The state of one object, with room for `K` latent coordinates and `S` boundary-condition
+/// numbers; `H` is the widest hidden layer the instance can run (scratch lives on the stack
+/// during calls, not in the instance). Generated code sizes these exactly for its model; a
+/// C engine uses one type with room for any model (`capi`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Instance<const K: usize, const S: usize, const H: usize> {
     z: [f32; K],
     z_prev: [f32; K],
     signal: [f32; S],
     signal_prev: [f32; S],
+    /// Latent size and signal length of the model the instance was created for.
+    latent: u16,
+    signal_len: u16,
     frames: u32,
 }
 
 impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     /// An instance at the model's rest state, handles at their reference placement.
     pub fn new(model: &ValidModel) -> Result<Self, SizeError> {
-        Self::check_sizes(model)?;
         let m = model.model();
+        for (size, need, room) in [
+            ("latent", m.latent as usize, K),
+            ("signal", m.bc_len as usize, S),
+            ("hidden", m.hidden(), H),
+        ] {
+            if need > room {
+                return Err(SizeError {
+                    size,
+                    model: need,
+                    compiled: room,
+                });
+            }
+        }
         let mut z = [0.0; K];
-        z.copy_from_slice(m.initial_latent());
+        let latent = m.initial_latent();
+        z[..latent.len()].copy_from_slice(latent);
         Ok(Instance {
             z,
             z_prev: z,
             signal: [0.0; S],
             signal_prev: [0.0; S],
+            latent: m.latent as u16,
+            signal_len: m.bc_len as u16,
             frames: 0,
         })
     }
 
-    /// Checks that `model` has the sizes this instance type was compiled for (every call checks:
-    /// an instance may be handed a different model than the one it was created with).
-    fn check_sizes(model: &ValidModel) -> Result<(), SizeError> {
+    /// Checks that `model` has the sizes this instance was created for (every call checks: an
+    /// instance may be handed a different model than the one it was created with). Returns the
+    /// latent size and signal length.
+    fn check_sizes(&self, model: &ValidModel) -> Result<(usize, usize), SizeError> {
         let m = model.model();
-        for (size, need, compiled) in [("latent", m.latent as usize, K), ("signal", m.bc_len as usize, S)] {
-            if need != compiled {
+        let (k, s) = (self.latent as usize, self.signal_len as usize);
+        for (size, need, has) in [
+            ("latent", m.latent as usize, k),
+            ("signal", m.bc_len as usize, s),
+            ("hidden", m.hidden(), H),
+        ] {
+            let fits = if size == "hidden" { need <= has } else { need == has };
+            if !fits {
                 return Err(SizeError {
                     size,
                     model: need,
-                    compiled,
+                    compiled: has,
                 });
             }
         }
-        if m.hidden() > H {
-            return Err(SizeError {
-                size: "hidden",
-                model: m.hidden(),
-                compiled: H,
-            });
-        }
-        Ok(())
+        Ok((k, s))
     }
 
-    /// The current latent, for engines that decode on the GPU.
-    pub fn latent(&self) -> &[f32; K] {
-        &self.z
+    /// The current latent (the model's latent size), for engines that decode on the GPU.
+    pub fn latent(&self) -> &[f32] {
+        &self.z[..(self.latent as usize).min(K)]
     }
 
     /// Frames stepped since creation.
@@ -196,7 +215,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     /// Advances one frame with the handles' motion over it (one [`HandleMotion`] per handle,
     /// in the model's handle order). Bad input is refused and leaves the instance unchanged.
     pub fn step(&mut self, model: &ValidModel, bc: &[HandleMotion]) -> Result<Stepped, StepError> {
-        Self::check_sizes(model).map_err(StepError::Model)?;
+        let (k, s) = self.check_sizes(model).map_err(StepError::Model)?;
         let m = model.model();
         if bc.len() != m.handles.len() {
             return Err(StepError::HandleCount {
@@ -211,14 +230,20 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         for (chunk, motion) in signal.chunks_exact_mut(SIGNAL_PER_HANDLE).zip(bc) {
             chunk.copy_from_slice(&motion.signal());
         }
-        let parts: [&[f32]; 5] = [&self.z, &self.z_prev, &signal, &self.signal, &self.signal_prev];
-        let h = last_hidden::<H>(m.params, m.integrator, &parts);
+        let parts: [&[f32]; 5] = [
+            &self.z[..k],
+            &self.z_prev[..k],
+            &signal[..s],
+            &self.signal[..s],
+            &self.signal_prev[..s],
+        ];
+        let h = last_hidden::<H>(&m.weights(), m.integrator, &parts);
         let mut increment = [0.0f32; K];
-        output_rows(m.params, m.integrator, &h, 0, &mut increment);
+        output_rows(&m.weights(), m.integrator, &h, 0, &mut increment[..k]);
         let mut z = self.z;
-        z.iter_mut().zip(&increment).for_each(|(z, dz)| *z += dz);
+        z.iter_mut().zip(&increment[..k]).for_each(|(z, dz)| *z += dz);
         let mut status = Stepped::Ok;
-        if !z.iter().all(|v| v.is_finite()) {
+        if !z[..k].iter().all(|v| v.is_finite()) {
             z = self.z;
             status = Stepped::Held;
         }
@@ -242,13 +267,13 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
 
     /// Writes the world positions of every vertex (`dim` per vertex) into `out`.
     pub fn decode_into(&self, model: &ValidModel, out: &mut [f32]) -> Result<(), DecodeError> {
-        Self::check_sizes(model).map_err(DecodeError::Model)?;
+        let (k, s) = self.check_sizes(model).map_err(DecodeError::Model)?;
         let m = model.model();
         let d = m.dim();
         check_len(out, m.state_len())?;
-        let h = last_hidden::<H>(m.params, m.decoder, &[&self.z]);
-        output_rows(m.params, m.decoder, &h, 0, &mut out[..m.encoded_len()]);
-        let place = Placement::new(m, &self.signal);
+        let h = last_hidden::<H>(&m.weights(), m.decoder, &[&self.z[..k]]);
+        output_rows(&m.weights(), m.decoder, &h, 0, &mut out[..m.encoded_len()]);
+        let place = Placement::new(m, &self.signal[..s]);
         // Free vertex j moves from out[j*d..] to out[v*d..] with v >= j (free vertices ascend):
         // going backwards, no source is overwritten before it is read.
         for (j, (&v, &o)) in m.free_vertices().iter().zip(m.origin_of()).enumerate().rev() {
@@ -264,12 +289,12 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     /// Writes the world positions of the drawn vertices only ([`Model::surface_vertices`],
     /// `dim` each) into `out`; the decoder's output layer runs only for their rows.
     pub fn decode_surface_into(&self, model: &ValidModel, out: &mut [f32]) -> Result<(), DecodeError> {
-        Self::check_sizes(model).map_err(DecodeError::Model)?;
+        let (k, s) = self.check_sizes(model).map_err(DecodeError::Model)?;
         let m = model.model();
         let d = m.dim();
         check_len(out, m.surface_len())?;
-        let h = last_hidden::<H>(m.params, m.decoder, &[&self.z]);
-        let place = Placement::new(m, &self.signal);
+        let h = last_hidden::<H>(&m.weights(), m.decoder, &[&self.z[..k]]);
+        let place = Placement::new(m, &self.signal[..s]);
         let (origins, sources) = (m.origin_of(), m.surface_source());
         let mut i = 0;
         while i < sources.len() {
@@ -288,7 +313,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                 .take_while(|(s, want)| **s == *want)
                 .count();
             if let Some(block) = out.get_mut(i * d..(i + run) * d) {
-                output_rows(m.params, m.decoder, &h, j * d, block);
+                output_rows(&m.weights(), m.decoder, &h, j * d, block);
             }
             for k in 0..run {
                 let q = out.get(((i + k) * d)..((i + k + 1) * d)).unwrap_or(&[0.0; 3]);
@@ -324,18 +349,18 @@ fn put(out: &mut [f32], v: usize, d: usize, p: &Vector3<f32>) {
 
 /// The last hidden activation of the network `layers` for the input `parts`, with scratch on
 /// the stack (`H` is at least the hidden width: checked by `check_sizes`).
-fn last_hidden<const H: usize>(params: &[f32], layers: &[Layer], parts: &[&[f32]]) -> [f32; H] {
+fn last_hidden<const H: usize>(weights: &Weights, layers: &[Layer], parts: &[&[f32]]) -> [f32; H] {
     let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
-    hidden(params, layers, parts, &mut h, [&mut a, &mut b]);
+    hidden(weights, layers, parts, &mut h, [&mut a, &mut b]);
     h
 }
 
 /// Rows `first..first + out.len()` of the output layer of `layers` applied to the last hidden
 /// activation `h` (of which the layer reads its first `cols` values).
-fn output_rows(params: &[f32], layers: &[Layer], h: &[f32], first: usize, out: &mut [f32]) {
+fn output_rows(weights: &Weights, layers: &[Layer], h: &[f32], first: usize, out: &mut [f32]) {
     if let Some(output) = layers.last() {
         let x = h.get(..output.cols as usize).unwrap_or(h);
-        dense_rows(params, output, &[x], first, out);
+        dense_rows(weights, output, &[x], first, out);
     }
 }
 

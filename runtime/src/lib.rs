@@ -30,7 +30,9 @@ pub use artifact::OwnedModel;
 pub use artifact::{LoadError, LoadedModel, Storage};
 pub use frame::{HandleMotion, HandlePose};
 pub use instance::{DecodeError, Instance, SizeError, StepError, Stepped, ValidModel, RANGE_MARGIN};
-pub use model::{Handle, Layer, Model, ModelError, Problem, Span, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
+pub use model::{
+    Handle, Layer, Model, ModelError, Problem, Span, WeightFormat, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE,
+};
 
 /// Version of the artifact format this runtime understands.
 pub const ARTIFACT_VERSION: u32 = artifact::FORMAT_VERSION;

@@ -34,18 +34,47 @@ impl Span {
     }
 }
 
-/// One dense layer `y = W x + b`: `W` row-major at `params[weights..weights + rows * cols]`,
-/// `b` at `params[bias..bias + rows]`.
+/// How a layer's weight matrix is stored (chosen at code generation; biases and scales are
+/// always `f32`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WeightFormat {
+    /// `f32`, in [`Model::params`].
+    #[default]
+    F32,
+    /// IEEE half precision bit patterns, in [`Model::halves`].
+    F16,
+    /// Signed bytes times a per-row (output channel) scale: `W[r][c] = scale[r] * q[r][c]`,
+    /// `q` in [`Model::bytes`], the scales in [`Model::params`].
+    Int8,
+}
+
+/// One dense layer `y = W x + b`: `W` row-major at `weights..weights + rows * cols` of the pool
+/// its [`WeightFormat`] names, `b` at `params[bias..bias + rows]`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Layer {
     /// Outputs.
     pub rows: u32,
     /// Inputs.
     pub cols: u32,
-    /// Offset of `W` in [`Model::params`].
+    /// How `W` is stored.
+    pub format: WeightFormat,
+    /// Offset of `W` in the pool of its format.
     pub weights: u32,
     /// Offset of `b` in [`Model::params`].
     pub bias: u32,
+    /// Offset of the per-row scales in [`Model::params`] ([`WeightFormat::Int8`] only).
+    pub scales: u32,
+}
+
+/// The pools the layers of a model point into.
+#[derive(Clone, Copy, Debug)]
+pub struct Weights<'a> {
+    /// `f32` weights, biases and scales.
+    pub params: &'a [f32],
+    /// Half-precision weights.
+    pub halves: &'a [u16],
+    /// Int8 weights.
+    pub bytes: &'a [i8],
 }
 
 /// A handle: prescribed vertices moved rigidly about a pivot.
@@ -78,8 +107,12 @@ pub struct Model<'a> {
     pub diagonal: f32,
     /// Whether states are encoded relative to the handles' rotation.
     pub rotates: bool,
-    /// Weights and biases of both networks.
+    /// Weights (those stored as `f32`), biases and scales of both networks.
     pub params: &'a [f32],
+    /// Half-precision weights (empty unless a layer is [`WeightFormat::F16`]).
+    pub halves: &'a [u16],
+    /// Int8 weights (empty unless a layer is [`WeightFormat::Int8`]).
+    pub bytes: &'a [i8],
     /// Other real-valued arrays.
     pub floats: &'a [f32],
     /// Index arrays.
@@ -187,9 +220,17 @@ impl<'a> Model<'a> {
         let net = |layers: &[Layer]| layers.first().map_or(0, |l| l.rows as usize);
         net(self.decoder).max(net(self.integrator))
     }
-    /// Bytes of network weights and biases.
+    /// Bytes of network weights, biases and scales.
     pub fn weight_bytes(&self) -> usize {
-        core::mem::size_of_val(self.params)
+        core::mem::size_of_val(self.params) + core::mem::size_of_val(self.halves) + self.bytes.len()
+    }
+    /// The pools the layers point into.
+    pub fn weights(&self) -> Weights<'a> {
+        Weights {
+            params: self.params,
+            halves: self.halves,
+            bytes: self.bytes,
+        }
     }
 
     fn floats_of(&self, span: Span) -> &'a [f32] {
@@ -319,6 +360,10 @@ impl<'a> Model<'a> {
         self.validate_network("integrator", self.integrator, 2 * k + 3 * bc, k)?;
         if !self.params.iter().all(|v| v.is_finite()) {
             return fail("params", Problem::NotFinite);
+        }
+        // Exponent bits all set: a half-precision infinity or NaN.
+        if self.halves.iter().any(|h| h & 0x7c00 == 0x7c00) {
+            return fail("halves", Problem::NotFinite);
         }
         Ok(())
     }
@@ -459,11 +504,16 @@ impl<'a> Model<'a> {
             if rows != want_rows || cols != want_cols || rows == 0 {
                 return fail(field, Problem::Shape);
             }
-            let w = l.weights as usize;
-            let b = l.bias as usize;
-            if w.checked_add(rows * cols).is_none_or(|e| e > self.params.len())
-                || b.checked_add(rows).is_none_or(|e| e > self.params.len())
-            {
+            let fits =
+                |start: u32, len: usize, pool: usize| (start as usize).checked_add(len).is_some_and(|e| e <= pool);
+            let weights_fit = match l.format {
+                WeightFormat::F32 => fits(l.weights, rows * cols, self.params.len()),
+                WeightFormat::F16 => fits(l.weights, rows * cols, self.halves.len()),
+                WeightFormat::Int8 => {
+                    fits(l.weights, rows * cols, self.bytes.len()) && fits(l.scales, rows, self.params.len())
+                }
+            };
+            if !weights_fit || !fits(l.bias, rows, self.params.len()) {
                 return fail(field, Problem::OutOfRange);
             }
         }
