@@ -22,12 +22,12 @@ pub fn format_name(format: WeightFormat) -> &'static str {
     }
 }
 
-/// Both networks of a model with their weights in one format (owned pools; biases and int8
-/// scales in `params`).
+/// Both networks of a model with their weights re-stored (owned pools; biases and int8 scales
+/// in `params`).
 #[derive(Clone, Debug, Default)]
 pub struct Quantized {
-    /// Format of every weight matrix.
-    pub format: WeightFormat,
+    /// Format of the layers being added.
+    format: WeightFormat,
     /// Biases, scales and (for `f32`) weights.
     pub params: Vec<f32>,
     /// Half-precision weights.
@@ -43,11 +43,15 @@ pub struct Quantized {
 impl Quantized {
     /// Re-stores the networks of `model` (any formats) in `format`.
     pub fn new(model: &Model, format: WeightFormat) -> Self {
-        let mut q = Quantized {
-            format,
-            ..Quantized::default()
-        };
+        Self::split(model, format, format)
+    }
+
+    /// Re-stores the decoder in `decoder` and the integrator in `integrator`.
+    pub fn split(model: &Model, decoder: WeightFormat, integrator: WeightFormat) -> Self {
+        let mut q = Quantized::default();
+        q.format = decoder;
         q.decoder = model.decoder.iter().map(|l| q.push(model, l)).collect();
+        q.format = integrator;
         q.integrator = model.integrator.iter().map(|l| q.push(model, l)).collect();
         q
     }

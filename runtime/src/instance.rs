@@ -9,6 +9,18 @@ use crate::frame::{HandleMotion, Placement};
 use crate::model::{Layer, Model, ModelError, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::{dense_rows, hidden};
 
+/// Latent room of an [`AnyInstance`].
+pub const MAX_LATENT: usize = 64;
+/// Signal room of an [`AnyInstance`] (every handle a model may have).
+pub const MAX_SIGNAL: usize = SIGNAL_PER_HANDLE * crate::model::MAX_HANDLES;
+/// Hidden-width room of an [`AnyInstance`].
+pub const MAX_HIDDEN: usize = 1024;
+
+/// An instance with room for any model up to [`MAX_LATENT`], [`MAX_SIGNAL`] and
+/// [`MAX_HIDDEN`], for hosts that pick models at run time (tools, the C ABI); generated code
+/// sizes its `Instance` exactly instead.
+pub type AnyInstance = Instance<MAX_LATENT, MAX_SIGNAL, MAX_HIDDEN>;
+
 /// How far a latent may leave the range seen in training before it is clamped, as a fraction
 /// of that range's width on each side.
 pub const RANGE_MARGIN: f32 = 1.0;

@@ -29,7 +29,10 @@ pub mod network;
 pub use artifact::OwnedModel;
 pub use artifact::{LoadError, LoadedModel, Storage};
 pub use frame::{HandleMotion, HandlePose};
-pub use instance::{DecodeError, Instance, SizeError, StepError, Stepped, ValidModel, RANGE_MARGIN};
+pub use instance::{
+    AnyInstance, DecodeError, Instance, SizeError, StepError, Stepped, ValidModel, MAX_HIDDEN, MAX_LATENT, MAX_SIGNAL,
+    RANGE_MARGIN,
+};
 pub use model::{
     Handle, Layer, Model, ModelError, Problem, Span, WeightFormat, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE,
 };

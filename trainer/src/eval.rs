@@ -16,6 +16,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use anyhow::Context;
+
 use crate::artifact::{Artifact, Method};
 use crate::bc::BcSequence;
 use crate::chart::{self, LabelledPoint, Series};
@@ -24,6 +26,7 @@ use crate::encoding::Encoding;
 use crate::latent::{decode_world, pack_signals};
 use crate::model::{forward_exported, ExportedIntegrator, ExportedMlp};
 use crate::scene::{Problem, Scene};
+use crate::storage;
 use crate::trajectory::Trajectory;
 
 /// Frames over which accuracy is measured (from the start of each test sequence).
@@ -345,7 +348,13 @@ pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec
     }
     std::fs::create_dir_all(&options.out_dir)?;
     write_charts(&options.out_dir, &first.scene, &reports, reference_seconds)?;
-    let text = report_markdown(&first.scene, &reports, reference_seconds, options);
+    let mut text = report_markdown(&first.scene, &reports, reference_seconds, options);
+    // What each weight storage costs, for the first artifact (the runtime's own rollout).
+    let first_path = &all[0].0;
+    let bytes = std::fs::read(first_path).with_context(|| format!("reading {}", first_path.display()))?;
+    let storage = storage::evaluate(&bytes, first_path, &problem, &tests, options.accuracy_frames)?;
+    storage::write_chart(&options.out_dir, &first.scene, &storage)?;
+    text += &storage::markdown(&storage, options.accuracy_frames);
     std::fs::write(options.out_dir.join("report.md"), &text)?;
     Ok((reports, reference_seconds))
 }

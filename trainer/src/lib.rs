@@ -19,6 +19,7 @@ pub mod pca;
 pub mod render;
 pub mod runtime_bench;
 pub mod scene;
+pub mod storage;
 pub mod solver;
 pub mod train;
 pub mod trajectory;

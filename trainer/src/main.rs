@@ -107,6 +107,10 @@ enum Command {
         /// Output Rust file.
         #[arg(short, long)]
         out: PathBuf,
+        /// Weight storage: f32, f16 or int8 (per-row scales; the integrator stays f16);
+        /// `mochi eval` reports what each costs in accuracy.
+        #[arg(long, default_value = "f32", value_parser = parse_weights)]
+        weights: mochi_runtime::WeightFormat,
     },
     /// Timings.
     Bench {
@@ -139,6 +143,11 @@ enum Bench {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+}
+
+/// `--weights` values.
+fn parse_weights(name: &str) -> std::result::Result<mochi_runtime::WeightFormat, String> {
+    mochi_codegen::parse_format(name).ok_or_else(|| format!("`{name}` is not one of f32, f16, int8"))
 }
 
 fn main() {
@@ -183,9 +192,14 @@ fn run(cli: Cli) -> Result<()> {
             frames,
             accuracy_frames,
         } => eval_models(&artifacts, out, frames, accuracy_frames),
-        Command::Codegen { artifact, out } => {
-            mochi_codegen::generate_file(&artifact, &out)?;
-            println!("{} -> {}", artifact.display(), out.display());
+        Command::Codegen { artifact, out, weights } => {
+            mochi_codegen::generate_file_with(&artifact, &out, &mochi_codegen::Options::weights(weights))?;
+            println!(
+                "{} -> {} ({} weights)",
+                artifact.display(),
+                out.display(),
+                mochi_codegen::format_name(weights)
+            );
             Ok(())
         }
         Command::Bench {

@@ -1,0 +1,194 @@
+//! What each weight storage costs in accuracy (`mochi eval`, "Weight storage"): the runtime's
+//! rollout of one artifact with its weights stored as `f32`, `f16` and int8 (per-row scales,
+//! as `mochi codegen --weights` would generate them), against the full-space reference on the
+//! test sequences, and against the `f32` runtime.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use mochi_codegen::{format_name, Options, Quantized};
+use mochi_runtime::{AnyInstance, OwnedModel, ValidModel, WeightFormat};
+
+use crate::chart::{self, LabelledPoint};
+use crate::dataset::SequencePlan;
+use crate::eval::vertex_errors;
+use crate::runtime_bench::motions;
+use crate::scene::Problem;
+use crate::trajectory::Trajectory;
+
+/// The storages compared: `--weights f32`, `f16` and `int8` (which keeps the integrator in
+/// `f16`), and int8 for both networks, the reason it does.
+pub fn storages() -> [Options; 4] {
+    [
+        Options::weights(WeightFormat::F32),
+        Options::weights(WeightFormat::F16),
+        Options::weights(WeightFormat::Int8),
+        Options {
+            decoder: WeightFormat::Int8,
+            integrator: WeightFormat::Int8,
+        },
+    ]
+}
+
+/// How a storage is called in reports.
+pub fn storage_name(options: &Options) -> String {
+    if options == &Options::weights(options.decoder) {
+        format_name(options.decoder).into()
+    } else {
+        format!(
+            "{} decoder, {} integrator",
+            format_name(options.decoder),
+            format_name(options.integrator)
+        )
+    }
+}
+
+/// A vertex farther than this from the reference (fraction of the diagonal) counts as
+/// divergence, as in the rest of `mochi eval`.
+const DIVERGED: f64 = 0.5;
+
+/// One format's results over the test sequences.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StorageReport {
+    /// The weight storage.
+    pub storage: Options,
+    /// Bytes of weights, biases and scales.
+    pub weight_bytes: usize,
+    /// Mean over sequences of the mean vertex error / diagonal (infinite if one diverged).
+    pub mean_error: f64,
+    /// Largest vertex error / diagonal.
+    pub max_error: f64,
+    /// Largest vertex distance / diagonal from the `f32` runtime's positions.
+    pub max_deviation: f64,
+    /// Fewest frames any sequence ran before diverging (capped at the frames measured).
+    pub stable_frames: usize,
+}
+
+/// Rolls the runtime out over the first `frames` frames of every test sequence with the
+/// artifact's weights stored in each of [`storages`] (the first, `f32`, is the one the others
+/// are compared with).
+pub fn evaluate(
+    bytes: &[u8],
+    source: &Path,
+    problem: &Problem,
+    tests: &[(SequencePlan, Trajectory)],
+    frames: usize,
+) -> Result<Vec<StorageReport>> {
+    let mut storage = OwnedModel::default();
+    let base = *storage
+        .load(bytes)
+        .with_context(|| format!("{}: runtime refused the artifact", source.display()))?
+        .model();
+    let mut f32_positions: Vec<Vec<Vec<f32>>> = Vec::new();
+    let mut reports = Vec::new();
+    for options in storages() {
+        let quantized = Quantized::split(&base, options.decoder, options.integrator);
+        let model = ValidModel::new(quantized.model(&base))
+            .with_context(|| format!("{}: with {} weights", source.display(), storage_name(&options)))?;
+        let mut report = StorageReport {
+            storage: options,
+            weight_bytes: model.model().weight_bytes(),
+            mean_error: 0.0,
+            max_error: 0.0,
+            max_deviation: 0.0,
+            stable_frames: usize::MAX,
+        };
+        for (s, (plan, reference)) in tests.iter().enumerate() {
+            let measured = frames.min(reference.num_frames() - 1);
+            let bc = problem.sequence(&plan.speeds, measured, plan.seed);
+            let rolled = roll(&model, |t| motions(&bc, t), measured)?;
+            let diagonal = base.diagonal as f64;
+            let dim = base.dim();
+            let (mut mean_sum, mut stable) = (0.0, rolled.len());
+            for (t, x) in rolled.iter().enumerate() {
+                let errors: Vec<f64> = vertex_errors(x, &reference.positions[t + 1], dim, diagonal).collect();
+                let worst = errors.iter().copied().fold(0.0, f64::max);
+                if worst > DIVERGED {
+                    stable = t;
+                    break;
+                }
+                mean_sum += errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+                report.max_error = report.max_error.max(worst);
+                if let Some(ours) = f32_positions.get(s).and_then(|p| p.get(t)) {
+                    let ours: Vec<f64> = ours.iter().map(|&v| v as f64).collect();
+                    report.max_deviation = vertex_errors(x, &ours, dim, diagonal).fold(report.max_deviation, f64::max);
+                }
+            }
+            report.stable_frames = report.stable_frames.min(stable);
+            report.mean_error += if stable < measured {
+                f64::INFINITY
+            } else {
+                mean_sum / measured.max(1) as f64 / tests.len() as f64
+            };
+            if f32_positions.len() < tests.len() {
+                f32_positions.push(rolled);
+            }
+        }
+        reports.push(report);
+    }
+    Ok(reports)
+}
+
+/// Positions of frames `1..=frames` of the runtime's rollout with `motion(t)` (one motion per
+/// handle), up to the first refused step or decode.
+fn roll(
+    model: &ValidModel,
+    motion: impl Fn(usize) -> Vec<mochi_runtime::HandleMotion>,
+    frames: usize,
+) -> Result<Vec<Vec<f32>>> {
+    let m = model.model();
+    let mut body = AnyInstance::new(model)?;
+    let mut x = vec![0.0f32; m.state_len()];
+    let mut out = Vec::with_capacity(frames);
+    for t in 1..=frames {
+        if body.step(model, &motion(t)).is_err() || body.decode_into(model, &mut x).is_err() {
+            break;
+        }
+        out.push(x.clone());
+    }
+    Ok(out)
+}
+
+/// Writes `storage.png`: mean error against model size, one point per format.
+pub fn write_chart(dir: &Path, scene: &str, reports: &[StorageReport]) -> Result<()> {
+    let points: Vec<LabelledPoint> = reports
+        .iter()
+        .map(|r| LabelledPoint {
+            group: storage_name(&r.storage),
+            label: format!("{:.0} KiB", r.weight_bytes as f64 / 1024.0),
+            x: r.weight_bytes as f64 / 1024.0,
+            y: 100.0 * r.mean_error,
+        })
+        .collect();
+    chart::scatter_chart(
+        &dir.join("storage.png"),
+        &format!("{scene}: weight storage, size against accuracy (runtime, test mean)"),
+        "weights (KiB)",
+        "mean vertex error (% of diagonal)",
+        &points,
+        true,
+        false,
+    )
+}
+
+/// The report section (markdown).
+pub fn markdown(reports: &[StorageReport], frames: usize) -> String {
+    let mut s = format!(
+        "\n## Weight storage\n\nThe runtime's rollout with the weights stored each way (`mochi codegen --weights`), over \
+         the first {frames} frames of each test sequence: error against the full-space reference, and the largest \
+         distance from the `f32` runtime's positions (% of the diagonal).\n\n| weights | bytes | mean err % | max err % \
+         | max distance from f32 % | fewest stable frames |\n|---|---|---|---|---|---|\n"
+    );
+    for r in reports {
+        s += &format!(
+            "| {} | {} | {:.3} | {:.3} | {:.4} | {} |\n",
+            storage_name(&r.storage),
+            r.weight_bytes,
+            100.0 * r.mean_error,
+            100.0 * r.max_error,
+            100.0 * r.max_deviation,
+            r.stable_frames
+        );
+    }
+    s
+}
