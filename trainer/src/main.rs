@@ -142,6 +142,9 @@ enum Bench {
         /// Also write the table to this markdown file.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Weight storages to time, comma-separated (f32, f16, int8).
+        #[arg(long, default_value = "f32", value_delimiter = ',', value_parser = parse_weights)]
+        weights: Vec<mochi_runtime::WeightFormat>,
     },
 }
 
@@ -206,8 +209,14 @@ fn run(cli: Cli) -> Result<()> {
             what: Bench::Sim { scenes, frames },
         } => bench_sim(scenes, frames),
         Command::Bench {
-            what: Bench::Runtime { artifacts, frames, out },
-        } => bench_runtime(&artifacts, frames, out),
+            what:
+                Bench::Runtime {
+                    artifacts,
+                    frames,
+                    out,
+                    weights,
+                },
+        } => bench_runtime(&artifacts, frames, out, &weights),
         Command::Scenes => {
             for name in shipped_scene_names() {
                 let scene = Scene::load(&name)?;
@@ -395,7 +404,12 @@ fn bench_sim(scenes: Vec<String>, frames: usize) -> Result<()> {
 /// Environment variable candle (and rayon) read for their thread count.
 const THREADS_VAR: &str = "RAYON_NUM_THREADS";
 
-fn bench_runtime(artifacts: &[PathBuf], frames: usize, out: Option<PathBuf>) -> Result<()> {
+fn bench_runtime(
+    artifacts: &[PathBuf],
+    frames: usize,
+    out: Option<PathBuf>,
+    weights: &[mochi_runtime::WeightFormat],
+) -> Result<()> {
     // Both sides run on one thread: candle reads its thread count from the environment, so
     // the benchmark re-runs itself with it set when it is not.
     if std::env::var(THREADS_VAR).as_deref() != Ok("1") {
@@ -405,7 +419,7 @@ fn bench_runtime(artifacts: &[PathBuf], frames: usize, out: Option<PathBuf>) -> 
             .status()?;
         std::process::exit(status.code().unwrap_or(1));
     }
-    let timings = mochi_trainer::runtime_bench::bench(artifacts, frames)?;
+    let timings = mochi_trainer::runtime_bench::bench(artifacts, frames, weights)?;
     let table = mochi_trainer::runtime_bench::table(&timings);
     println!("{table}");
     if let Some(out) = out {

@@ -12,7 +12,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use candle_core::{Device, Tensor};
-use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, SIGNAL_PER_HANDLE};
+use mochi_codegen::{format_name, Options, Quantized};
+use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, WeightFormat, SIGNAL_PER_HANDLE};
 
 use crate::artifact::Artifact;
 use crate::bc::BcSequence;
@@ -28,6 +29,8 @@ pub const MAX_HIDDEN: usize = 512;
 pub struct RuntimeTiming {
     /// Artifact file.
     pub path: PathBuf,
+    /// Weight storage of the runtime model (`--weights`).
+    pub weights: WeightFormat,
     /// Scene name.
     pub scene: String,
     /// Latent size.
@@ -92,12 +95,17 @@ fn seconds_per_call(calls: usize, mut f: impl FnMut(usize)) -> f64 {
     best
 }
 
-/// Benchmarks every artifact over `frames` frames of its scene's first test sequence.
-pub fn bench(paths: &[PathBuf], frames: usize) -> Result<Vec<RuntimeTiming>> {
-    paths.iter().map(|p| bench_one(p, frames.max(1))).collect()
+/// Benchmarks every artifact over `frames` frames of its scene's first test sequence, with
+/// the runtime's weights stored in each of `storages` (as `mochi codegen --weights` would).
+pub fn bench(paths: &[PathBuf], frames: usize, storages: &[WeightFormat]) -> Result<Vec<RuntimeTiming>> {
+    let mut all = Vec::new();
+    for p in paths {
+        all.extend(bench_one(p, frames.max(1), storages)?);
+    }
+    Ok(all)
 }
 
-fn bench_one(path: &Path, frames: usize) -> Result<RuntimeTiming> {
+fn bench_one(path: &Path, frames: usize, storages: &[WeightFormat]) -> Result<Vec<RuntimeTiming>> {
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
     let artifact = Artifact::from_bytes(&bytes, path)?;
     let mut storage = OwnedModel::default();
@@ -125,30 +133,39 @@ fn bench_one(path: &Path, frames: usize) -> Result<RuntimeTiming> {
 
     let k = m.latent as usize;
     let s = m.bc_len as usize;
-    let run = Run {
-        model: &model,
-        script: &script,
-        reference: &reference,
-        diagonal: artifact.diagonal,
-    };
-    let measured = run_for_sizes(k, s, &run)?;
     let candle = candle_seconds(&trainer, &script, k)?;
-    Ok(RuntimeTiming {
-        path: path.to_path_buf(),
-        scene: artifact.scene.clone(),
-        latent: k,
-        state_len: m.state_len(),
-        surface_len: m.surface_len(),
-        full: measured.full,
-        surface: measured.surface,
-        candle,
-        multiply_adds: mochi_runtime::network::multiply_adds(m.integrator)
-            + mochi_runtime::network::multiply_adds(m.decoder),
-        weight_bytes: m.weight_bytes(),
-        state_bytes: measured.state_bytes,
-        disagreement: measured.disagreement,
-        compared_frames: measured.compared,
-    })
+    let mut timings = Vec::new();
+    for &weights in storages {
+        let options = Options::weights(weights);
+        let stored = Quantized::split(m, options.decoder, options.integrator);
+        let model = ValidModel::new(stored.model(m))
+            .with_context(|| format!("{}: with {} weights", path.display(), format_name(weights)))?;
+        let run = Run {
+            model: &model,
+            script: &script,
+            reference: &reference,
+            diagonal: artifact.diagonal,
+        };
+        let measured = run_for_sizes(k, s, &run)?;
+        timings.push(RuntimeTiming {
+            path: path.to_path_buf(),
+            weights,
+            scene: artifact.scene.clone(),
+            latent: k,
+            state_len: m.state_len(),
+            surface_len: m.surface_len(),
+            full: measured.full,
+            surface: measured.surface,
+            candle,
+            multiply_adds: mochi_runtime::network::multiply_adds(m.integrator)
+                + mochi_runtime::network::multiply_adds(m.decoder),
+            weight_bytes: model.model().weight_bytes(),
+            state_bytes: measured.state_bytes,
+            disagreement: measured.disagreement,
+            compared_frames: measured.compared,
+        });
+    }
+    Ok(timings)
 }
 
 /// What the runtime rollout needs.
@@ -281,14 +298,15 @@ fn candle_seconds(trainer: &LoadedModel, script: &[Vec<HandleMotion>], k: usize)
 /// The benchmark table (markdown).
 pub fn table(timings: &[RuntimeTiming]) -> String {
     let mut s = String::from(
-        "| artifact | latent | step + full decode | step + surface decode | candle batch-1 | runtime speed-up | GFLOP/s | weights | instance state | max disagreement (frames) |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| artifact | weights | latent | step + full decode | step + surface decode | candle batch-1 | runtime speed-up | GFLOP/s | weights | instance state | max disagreement (frames) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for t in timings {
         s += &format!(
-            "| {} | {} | {:.1} µs | {:.1} µs | {:.1} µs | {:.1}x | {:.2} | {:.1} KiB | {} B | {:.1e} ({}) |\n",
+            "| {} | {} | {} | {:.1} µs | {:.1} µs | {:.1} µs | {:.1}x | {:.2} | {:.1} KiB | {} B | {:.1e} ({}) |\n",
             t.path
                 .file_name()
                 .map_or(t.scene.clone(), |n| n.to_string_lossy().into_owned()),
+            format_name(t.weights),
             t.latent,
             1e6 * t.full,
             1e6 * t.surface,
