@@ -4,6 +4,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/../runtime"
 target="${1:-thumbv7em-none-eabihf}"
-RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 cargo build --release --no-default-features \
+RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 cargo build --release --no-default-features --features capi \
   -Zbuild-std=core,panic_abort --target "$target" --target-dir ../target/cross
-echo "mochi-runtime builds for $target with core only (no std, no alloc)"
+echo "mochi-runtime (with its C ABI) builds for $target with core only (no std, no alloc)"

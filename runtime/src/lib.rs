@@ -20,6 +20,8 @@
 extern crate std;
 
 pub mod artifact;
+#[cfg(feature = "capi")]
+pub mod capi;
 pub mod frame;
 pub mod instance;
 pub mod model;

@@ -185,3 +185,121 @@ mod tests {
         assert!((m.linear_velocity[1] - (m.translation[1] - t9[1]) / 0.02).abs() < 1e-6);
     }
 }
+
+/// What a target printed (the protocol every target follows) and its check against the host.
+#[cfg(feature = "std")]
+pub mod host {
+    extern crate std;
+
+    use std::string::{String, ToString};
+    use std::vec::Vec;
+    use std::{format, vec};
+
+    use super::*;
+
+    /// A target's report: checksums at the [`CHECKPOINTS`] and the final positions.
+    #[derive(Clone, Debug, Default, PartialEq)]
+    pub struct Report {
+        /// Model name.
+        pub model: String,
+        /// Weight storage.
+        pub weights: String,
+        /// Frames run.
+        pub frames: u32,
+        /// `(frame, checksum)` per checkpoint.
+        pub checksums: Vec<(u32, u64)>,
+        /// Decoded positions of the final frame.
+        pub positions: Vec<f32>,
+        /// Instructions for all frames, where the target counts them.
+        pub instructions: Option<u64>,
+    }
+
+    /// Parses a target's output:
+    ///
+    /// ```text
+    /// model <name> weights <f32|f16|int8> frames <N>
+    /// checksum <frame> <16 hex digits>       (one per checkpoint)
+    /// positions <8 hex digits per float>    (final frame)
+    /// instructions <count>                  (optional)
+    /// status ok
+    /// ```
+    pub fn parse(output: &str) -> Result<Report, String> {
+        let mut report = Report::default();
+        let mut ok = false;
+        for line in output.lines() {
+            let words: Vec<&str> = line.split_whitespace().collect();
+            match words.as_slice() {
+                ["model", name, "weights", weights, "frames", frames] => {
+                    report.model = name.to_string();
+                    report.weights = weights.to_string();
+                    report.frames = frames.parse().map_err(|e| format!("frames `{frames}`: {e}"))?;
+                }
+                ["checksum", frame, hash] => report.checksums.push((
+                    frame.parse().map_err(|e| format!("checksum frame `{frame}`: {e}"))?,
+                    u64::from_str_radix(hash, 16).map_err(|e| format!("checksum `{hash}`: {e}"))?,
+                )),
+                ["positions", values @ ..] => {
+                    report.positions = values
+                        .iter()
+                        .map(|v| u32::from_str_radix(v, 16).map(f32::from_bits))
+                        .collect::<Result<_, _>>()
+                        .map_err(|e| format!("positions: {e}"))?;
+                }
+                ["instructions", n] => {
+                    report.instructions = Some(n.parse().map_err(|e| format!("instructions `{n}`: {e}"))?);
+                }
+                ["status", "ok"] => ok = true,
+                ["status", ..] => return Err(format!("target reported: {line}")),
+                _ => {}
+            }
+        }
+        if !ok {
+            return Err(format!("no `status ok` line in the target's output:\n{output}"));
+        }
+        Ok(report)
+    }
+
+    /// Runs the reference on the host with `Instance<K, S, H>` and checks `report` against it:
+    /// bit-identical checksums at every checkpoint, and final positions within `1e-5` of the
+    /// rest diagonal. Returns the largest final-position distance / diagonal.
+    pub fn check<const K: usize, const S: usize, const H: usize>(
+        model: &ValidModel,
+        report: &Report,
+    ) -> Result<f32, String> {
+        let m = model.model();
+        let mut positions = vec![0.0f32; m.state_len()];
+        let mut expected = Vec::new();
+        run::<K, S, H>(model, report.frames, &mut positions, |frame, checksum, _| {
+            if CHECKPOINTS.contains(&frame) {
+                expected.push((frame, checksum.0));
+            }
+        })
+        .map_err(|e| format!("host run: {e}"))?;
+        if report.positions.len() != positions.len() {
+            return Err(format!(
+                "target printed {} final coordinates, the model has {}",
+                report.positions.len(),
+                positions.len()
+            ));
+        }
+        let diagonal = diagonal(m.rest(), m.dim());
+        let worst = report
+            .positions
+            .chunks(m.dim())
+            .zip(positions.chunks(m.dim()))
+            .map(|(a, b)| libm::sqrtf(a.iter().zip(b).map(|(a, b)| (a - b) * (a - b)).sum::<f32>()) / diagonal)
+            .fold(0.0f32, f32::max);
+        if worst > 1e-5 {
+            return Err(format!(
+                "final positions differ from the host's by {worst:.3e} of the diagonal (limit 1e-5)"
+            ));
+        }
+        if report.checksums != expected {
+            return Err(format!(
+                "checksums differ from the host's (positions within {worst:.1e} of the diagonal):\n  target {:x?}\n  host   {:x?}",
+                report.checksums, expected
+            ));
+        }
+        Ok(worst)
+    }
+}

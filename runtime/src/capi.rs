@@ -1,0 +1,238 @@
+//! C ABI (feature `capi`) for engines written in C and C++: a model handle, caller-allocated
+//! instances with room for any model, and status codes instead of panics. The header is
+//! generated with cbindgen (`targets/c`); every function checks its pointers and sizes and
+//! returns a [`MochiStatus`].
+//!
+//! A model handle comes from the crate that holds the generated model (`targets/c` exports
+//! `mochi_model_tiny()`); instances are plain memory ([`MochiInstance`], no allocation), so an
+//! engine can keep thousands in its own arrays.
+#![allow(unsafe_code)]
+
+use core::mem::{align_of, size_of};
+
+use crate::frame::HandleMotion;
+use crate::instance::{AnyInstance, DecodeError, StepError, Stepped, ValidModel};
+use crate::model::{Model, ModelError};
+
+/// 8-byte words of a [`MochiInstance`].
+pub const MOCHI_INSTANCE_WORDS: usize = 257;
+
+const _: () = assert!(size_of::<AnyInstance>() <= size_of::<MochiInstance>());
+const _: () = assert!(align_of::<AnyInstance>() <= align_of::<MochiInstance>());
+
+/// A validated model, shared by any number of instances (opaque to C).
+#[derive(Clone, Copy, Debug)]
+pub struct MochiModel(ValidModel<'static>);
+
+impl MochiModel {
+    /// Validates `model` for use through the C ABI.
+    pub fn new(model: Model<'static>) -> Result<Self, ModelError> {
+        ValidModel::new(model).map(MochiModel)
+    }
+}
+
+/// Memory for one simulated object, with room for any model (latent up to 64, 16 handles,
+/// hidden width up to 1,024). Allocate it anywhere; initialise it with
+/// [`mochi_instance_init`] before any other call.
+#[repr(C)]
+pub struct MochiInstance {
+    /// The instance's bytes (see [`AnyInstance`]); only the functions here read them.
+    pub opaque: [u64; MOCHI_INSTANCE_WORDS],
+}
+
+/// What a call did. Non-negative: success; negative: refused, nothing changed (except
+/// [`MochiStatus::DecodeNotFinite`], which writes the rest positions).
+#[repr(i32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MochiStatus {
+    /// Done.
+    Ok = 0,
+    /// Stepped; the latent left the trained range and was clamped.
+    Clamped = 1,
+    /// Stepped; the network gave a non-finite latent and the previous one was kept.
+    Held = 2,
+    /// A pointer argument was null.
+    NullPointer = -1,
+    /// The number of handle motions is not the model's handle count.
+    HandleCount = -2,
+    /// A handle motion holds a NaN or an infinity.
+    NotFinite = -3,
+    /// The model does not fit an instance, or is not the one the instance was created for.
+    Size = -4,
+    /// The output buffer's length is not the model's state (or surface) length.
+    BufferLength = -5,
+    /// The decoded state was not finite; the rest positions were written instead.
+    DecodeNotFinite = -6,
+}
+
+/// Sizes of a model.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MochiModelInfo {
+    /// Latent size.
+    pub latent: u32,
+    /// Handles (one [`HandleMotion`] each per step).
+    pub handles: u32,
+    /// Coordinates per vertex (2 or 3).
+    pub dim: u32,
+    /// Vertices of the full mesh.
+    pub vertices: u32,
+    /// Floats of a full state ([`mochi_instance_decode`]).
+    pub state_len: u32,
+    /// Floats of a drawn-vertices state ([`mochi_instance_decode_surface`]).
+    pub surface_len: u32,
+    /// Time step in seconds.
+    pub dt: f32,
+    /// Rest bounding-box diagonal.
+    pub diagonal: f32,
+}
+
+/// The instance in `instance`'s memory.
+///
+/// # Safety
+/// `instance` must be null or point to a `MochiInstance` (any bytes: every field of an
+/// [`AnyInstance`] is a number, so every bit pattern is a value).
+unsafe fn state<'i>(instance: *mut MochiInstance) -> Option<&'i mut AnyInstance> {
+    // SAFETY: size and alignment are asserted above; see the function's contract.
+    unsafe { instance.cast::<AnyInstance>().as_mut() }
+}
+
+/// Writes the sizes of `model` into `info`.
+///
+/// # Safety
+/// `model` must be null or come from a model export; `info` null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn mochi_model_info(model: *const MochiModel, info: *mut MochiModelInfo) -> MochiStatus {
+    // SAFETY: see the function's contract.
+    let (Some(model), Some(info)) = (unsafe { model.as_ref() }, unsafe { info.as_mut() }) else {
+        return MochiStatus::NullPointer;
+    };
+    let m = model.0.model();
+    *info = MochiModelInfo {
+        latent: m.latent,
+        handles: m.handles.len() as u32,
+        dim: m.dim,
+        vertices: m.num_vertices,
+        state_len: m.state_len() as u32,
+        surface_len: m.surface_len() as u32,
+        dt: m.dt,
+        diagonal: m.diagonal,
+    };
+    MochiStatus::Ok
+}
+
+/// Puts a new object of `model` at rest into `instance`.
+///
+/// # Safety
+/// `model` must be null or come from a model export; `instance` null or writable memory of a
+/// `MochiInstance`.
+#[no_mangle]
+pub unsafe extern "C" fn mochi_instance_init(model: *const MochiModel, instance: *mut MochiInstance) -> MochiStatus {
+    // SAFETY: see the function's contract.
+    let Some(model) = (unsafe { model.as_ref() }) else {
+        return MochiStatus::NullPointer;
+    };
+    if instance.is_null() {
+        return MochiStatus::NullPointer;
+    }
+    match AnyInstance::new(&model.0) {
+        Ok(body) => {
+            // SAFETY: non-null, sized and aligned for an `AnyInstance` (asserted above).
+            unsafe { instance.cast::<AnyInstance>().write(body) };
+            MochiStatus::Ok
+        }
+        Err(_) => MochiStatus::Size,
+    }
+}
+
+/// Advances `instance` one frame with `count` handle motions (the model's handle order).
+///
+/// # Safety
+/// `model` as for [`mochi_instance_init`]; `instance` initialised by it; `motions` null or
+/// `count` readable motions.
+#[no_mangle]
+pub unsafe extern "C" fn mochi_instance_step(
+    model: *const MochiModel,
+    instance: *mut MochiInstance,
+    motions: *const HandleMotion,
+    count: usize,
+) -> MochiStatus {
+    // SAFETY: see the function's contract.
+    let (Some(model), Some(body)) = (unsafe { model.as_ref() }, unsafe { state(instance) }) else {
+        return MochiStatus::NullPointer;
+    };
+    if motions.is_null() {
+        return MochiStatus::NullPointer;
+    }
+    // SAFETY: `count` readable motions (the function's contract).
+    let bc = unsafe { core::slice::from_raw_parts(motions, count) };
+    match body.step(&model.0, bc) {
+        Ok(Stepped::Ok) => MochiStatus::Ok,
+        Ok(Stepped::Clamped) => MochiStatus::Clamped,
+        Ok(Stepped::Held) => MochiStatus::Held,
+        Err(StepError::HandleCount { .. }) => MochiStatus::HandleCount,
+        Err(StepError::NotFinite { .. }) => MochiStatus::NotFinite,
+        Err(StepError::Model(_)) => MochiStatus::Size,
+    }
+}
+
+/// Writes the world positions of every vertex (`state_len` floats) into `out`.
+///
+/// # Safety
+/// As [`mochi_instance_step`]; `out` null or `len` writable floats.
+#[no_mangle]
+pub unsafe extern "C" fn mochi_instance_decode(
+    model: *const MochiModel,
+    instance: *mut MochiInstance,
+    out: *mut f32,
+    len: usize,
+) -> MochiStatus {
+    // SAFETY: see the function's contract.
+    unsafe { decode(model, instance, out, len, false) }
+}
+
+/// Writes the world positions of the drawn vertices (`surface_len` floats) into `out`.
+///
+/// # Safety
+/// As [`mochi_instance_decode`].
+#[no_mangle]
+pub unsafe extern "C" fn mochi_instance_decode_surface(
+    model: *const MochiModel,
+    instance: *mut MochiInstance,
+    out: *mut f32,
+    len: usize,
+) -> MochiStatus {
+    // SAFETY: see the function's contract.
+    unsafe { decode(model, instance, out, len, true) }
+}
+
+/// # Safety
+/// As [`mochi_instance_decode`].
+unsafe fn decode(
+    model: *const MochiModel,
+    instance: *mut MochiInstance,
+    out: *mut f32,
+    len: usize,
+    surface: bool,
+) -> MochiStatus {
+    // SAFETY: see the caller's contract.
+    let (Some(model), Some(body)) = (unsafe { model.as_ref() }, unsafe { state(instance) }) else {
+        return MochiStatus::NullPointer;
+    };
+    if out.is_null() {
+        return MochiStatus::NullPointer;
+    }
+    // SAFETY: `len` writable floats (the caller's contract).
+    let out = unsafe { core::slice::from_raw_parts_mut(out, len) };
+    let result = if surface {
+        body.decode_surface_into(&model.0, out)
+    } else {
+        body.decode_into(&model.0, out)
+    };
+    match result {
+        Ok(()) => MochiStatus::Ok,
+        Err(DecodeError::BufferLength { .. }) => MochiStatus::BufferLength,
+        Err(DecodeError::NotFinite) => MochiStatus::DecodeNotFinite,
+        Err(DecodeError::Model(_)) => MochiStatus::Size,
+    }
+}

@@ -1,0 +1,87 @@
+/* An engine's view of mochi: links libmochi_c.a, creates several instances of one model in
+ * its own memory, steps them with the reference boundary-condition script and prints a
+ * checksum of the decoded positions that must equal the host runtime's (see
+ * tests/c_program.rs). Output protocol: the same lines as the Cortex-M4 and wasm targets. */
+#include <stdio.h>
+#include <string.h>
+
+#include "mochi.h"
+
+#define INSTANCES 3
+#define FRAMES 1000
+#define MAX_HANDLES 16
+
+/* FNV-1a (64-bit) over the little-endian bytes of each float's bit pattern, as
+ * mochi-target-common's Checksum. */
+static uint64_t fnv(uint64_t hash, const float *values, size_t n) {
+  for (size_t i = 0; i < n; i++) {
+    uint32_t bits;
+    memcpy(&bits, &values[i], sizeof bits);
+    for (int byte = 0; byte < 4; byte++) {
+      hash ^= (bits >> (8 * byte)) & 0xffu;
+      hash *= 0x00000100000001b3ull;
+    }
+  }
+  return hash;
+}
+
+static int fail(const char *what, MochiStatus status) {
+  printf("status error %s returned %d\n", what, (int)status);
+  return 1;
+}
+
+int main(void) {
+  const MochiModel *model = mochi_model_tiny();
+  MochiModelInfo info;
+  MochiStatus s = mochi_model_info(model, &info);
+  if (s != MochiStatus_Ok) return fail("mochi_model_info", s);
+  if (info.handles > MAX_HANDLES) return fail("handle count", MochiStatus_HandleCount);
+
+  /* Instances live in the engine's memory: here, a static array. */
+  static MochiInstance bodies[INSTANCES];
+  for (int i = 0; i < INSTANCES; i++) {
+    s = mochi_instance_init(model, &bodies[i]);
+    if (s != MochiStatus_Ok) return fail("mochi_instance_init", s);
+  }
+  static float positions[INSTANCES][1 << 16];
+  if (info.state_len > (1 << 16)) return fail("state length", MochiStatus_BufferLength);
+
+  /* Bad input is refused, not crashed on. */
+  if (mochi_instance_step(model, &bodies[0], NULL, 1) != MochiStatus_NullPointer ||
+      mochi_instance_decode(model, &bodies[0], positions[0], info.state_len - 1) != MochiStatus_BufferLength ||
+      mochi_instance_step(NULL, &bodies[0], NULL, 0) != MochiStatus_NullPointer)
+    return fail("bad-input checks", MochiStatus_Ok);
+
+  printf("model tiny weights f32 frames %d\n", FRAMES);
+  uint64_t hash = 0xcbf29ce484222325ull;
+  MochiHandleMotion motion, rest, bc[MAX_HANDLES];
+  memset(&rest, 0, sizeof rest);
+  for (uint32_t frame = 1; frame <= FRAMES; frame++) {
+    s = mochi_reference_motion(frame, &motion);
+    if (s != MochiStatus_Ok) return fail("mochi_reference_motion", s);
+    for (int i = 0; i < INSTANCES; i++) {
+      /* Instances 0 and 1 follow the script; instance 2 is held at rest. */
+      for (uint32_t h = 0; h < info.handles; h++) bc[h] = i < 2 ? motion : rest;
+      s = mochi_instance_step(model, &bodies[i], bc, info.handles);
+      if (s < 0) return fail("mochi_instance_step", s);
+      s = mochi_instance_decode(model, &bodies[i], positions[i], info.state_len);
+      if (s != MochiStatus_Ok) return fail("mochi_instance_decode", s);
+    }
+    if (memcmp(positions[0], positions[1], info.state_len * sizeof(float)) != 0)
+      return fail("two instances with the same script diverged", MochiStatus_Ok);
+    hash = fnv(hash, positions[0], info.state_len);
+    if (frame == 1 || frame == 10 || frame == 100 || frame == FRAMES)
+      printf("checksum %u %016llx\n", frame, (unsigned long long)hash);
+  }
+  if (memcmp(positions[0], positions[2], info.state_len * sizeof(float)) == 0)
+    return fail("the instance at rest moved with the others", MochiStatus_Ok);
+
+  printf("positions");
+  for (uint32_t i = 0; i < info.state_len; i++) {
+    uint32_t bits;
+    memcpy(&bits, &positions[0][i], sizeof bits);
+    printf(" %08x", bits);
+  }
+  printf("\nstatus ok\n");
+  return 0;
+}

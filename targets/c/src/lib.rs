@@ -1,0 +1,50 @@
+//! Static library for C and C++ engines: the runtime's C ABI (`mochi_instance_*`, see
+//! `include/mochi.h`) with one generated model (`mochi_model_tiny`), and the reference
+//! boundary-condition script every target runs (`mochi_reference_motion`), so that the C
+//! program in `main.c` can check its positions against the host's.
+
+use std::sync::OnceLock;
+
+use mochi_runtime::capi::{MochiModel, MochiStatus};
+use mochi_runtime::HandleMotion;
+use mochi_target_common::Script;
+
+/// The generated model (see build.rs).
+#[allow(missing_docs)]
+pub mod model {
+    include!(concat!(env!("OUT_DIR"), "/model.rs"));
+}
+
+/// The C header, as cbindgen generated it for this build.
+pub const HEADER: &str = include_str!(concat!(env!("OUT_DIR"), "/mochi.h"));
+
+/// The model, validated on first use.
+fn validated() -> Option<&'static MochiModel> {
+    static MODEL: OnceLock<Option<MochiModel>> = OnceLock::new();
+    MODEL.get_or_init(|| MochiModel::new(model::MODEL).ok()).as_ref()
+}
+
+/// The generated model, or null if it failed validation (it cannot, unless the generated
+/// code was edited).
+#[no_mangle] // exported under a fixed name: the lint counts that as unsafe code
+#[allow(unsafe_code)]
+pub extern "C" fn mochi_model_tiny() -> *const MochiModel {
+    validated().map_or(core::ptr::null(), |m| m as *const MochiModel)
+}
+
+/// The motion every handle of the generated model makes over the step that ends at `frame` in
+/// the reference script (`mochi-target-common`), written to `out`.
+///
+/// # Safety
+/// `out` must be null or writable.
+#[no_mangle]
+#[allow(unsafe_code)]
+pub unsafe extern "C" fn mochi_reference_motion(frame: u32, out: *mut HandleMotion) -> MochiStatus {
+    // SAFETY: null or writable (the function's contract).
+    let Some(out) = (unsafe { out.as_mut() }) else {
+        return MochiStatus::NullPointer;
+    };
+    let m = &model::MODEL;
+    *out = Script::new(m.rest(), m.dim(), m.dt).motion(frame);
+    MochiStatus::Ok
+}
