@@ -12,3 +12,13 @@ pub mod tiny {
 pub mod beam {
     include!(concat!(env!("OUT_DIR"), "/beam.rs"));
 }
+
+/// Generated from `artifacts/tiny.mochi` with `f16` weights.
+pub mod tiny_f16 {
+    include!(concat!(env!("OUT_DIR"), "/tiny_f16.rs"));
+}
+
+/// Generated from `artifacts/tiny.mochi` with int8 weights (the integrator in `f16`).
+pub mod tiny_int8 {
+    include!(concat!(env!("OUT_DIR"), "/tiny_int8.rs"));
+}
