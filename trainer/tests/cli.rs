@@ -133,15 +133,30 @@ fn codegen_writes_the_generated_module_and_names_a_bad_artifact() {
 #[test]
 fn bench_runtime_reports_the_ratio_and_agreement() {
     let artifact = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/artifacts/tiny.mochi");
-    let run = mochi(&["bench", "runtime", artifact.to_str().unwrap(), "--frames", "20"]);
+    let run = mochi(&[
+        "bench",
+        "runtime",
+        artifact.to_str().unwrap(),
+        "--frames",
+        "20",
+        "--weights",
+        "f32,int8",
+    ]);
     let text = String::from_utf8_lossy(&run.stdout);
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let row = text
+    let rows: Vec<Vec<&str>> = text
         .lines()
-        .find(|l| l.starts_with("| tiny.mochi"))
-        .expect("a row for tiny.mochi");
-    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
-    assert!(cells[6].ends_with('x'), "speed-up column: {row}");
-    let disagreement: f64 = cells[10].split_whitespace().next().unwrap().parse().unwrap();
-    assert!(disagreement < 1e-4, "{row}");
+        .filter(|l| l.starts_with("| tiny.mochi"))
+        .map(|row| row.split('|').map(str::trim).collect())
+        .collect();
+    assert_eq!(rows.len(), 2, "one row per storage:\n{text}");
+    for (cells, weights, limit) in [(&rows[0], "f32", 1e-4), (&rows[1], "int8", 5e-2)] {
+        assert_eq!(cells[2], weights, "{cells:?}");
+        assert!(cells[7].ends_with('x'), "speed-up column: {cells:?}");
+        let disagreement: f64 = cells[11].split_whitespace().next().unwrap().parse().unwrap();
+        assert!(disagreement < limit, "{cells:?}");
+    }
+    // Fewer bytes per weight.
+    let kib = |cells: &[&str]| -> f64 { cells[9].split_whitespace().next().unwrap().parse().unwrap() };
+    assert!(kib(&rows[1]) < 0.5 * kib(&rows[0]), "{rows:?}");
 }
