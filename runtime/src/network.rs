@@ -82,10 +82,33 @@ fn rows_general<T: Stored>(params: &[f32], layer: &Layer, w: &[T], parts: &[&[f3
     let cols = layer.cols as usize;
     for (i, o) in out.iter_mut().enumerate() {
         let r = first + i;
-        let row = w.get(r * cols..(r + 1) * cols).unwrap_or(&[]);
+        let mut row = w.get(r * cols..(r + 1) * cols).unwrap_or(&[]);
         let mut lanes = [0.0f32; LANES];
-        for (c, (wv, &v)) in row.iter().zip(parts.iter().flat_map(|p| p.iter())).enumerate() {
-            lanes[c % LANES] += wv.value() * v;
+        // Column `c` goes to lane `c % 8`: each part is split into a head that completes the
+        // lane cycle the previous part left open, whole cycles (vectorised), and a tail.
+        let mut lane = 0;
+        for part in parts {
+            let n = part.len().min(row.len());
+            let (x, rest) = (&part[..n], &row[n..]);
+            let wx = &row[..n];
+            let head = ((LANES - lane) % LANES).min(n);
+            for (wv, &v) in wx[..head].iter().zip(&x[..head]) {
+                lanes[lane] += wv.value() * v;
+                lane += 1;
+            }
+            lane %= LANES;
+            let (wc, wt) = wx[head..].as_chunks::<LANES>();
+            let (xc, xt) = x[head..].as_chunks::<LANES>();
+            for (a, b) in wc.iter().zip(xc) {
+                for l in 0..LANES {
+                    lanes[l] += a[l].value() * b[l];
+                }
+            }
+            for (wv, &v) in wt.iter().zip(xt) {
+                lanes[lane] += wv.value() * v;
+                lane += 1;
+            }
+            row = rest;
         }
         *o = finish(params, layer, r, fold(&lanes));
     }
@@ -371,6 +394,10 @@ mod tests {
                 let (a, b) = x.split_at(cols / 3);
                 dense_rows(&weights, &layer, &[a, b], 0, &mut general);
                 assert_eq!(general, want, "{format:?} {rows}x{cols} in two parts");
+                let (a, rest) = x.split_at(cols.min(3));
+                let (b, c) = rest.split_at(rest.len().min(9));
+                dense_rows(&weights, &layer, &[a, b, c], 0, &mut general);
+                assert_eq!(general, want, "{format:?} {rows}x{cols} in three parts");
                 let mut portable = std::vec![0.0; rows];
                 match format {
                     WeightFormat::F32 => {
