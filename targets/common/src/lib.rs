@@ -210,8 +210,8 @@ pub mod host {
         pub checksums: Vec<(u32, u64)>,
         /// Decoded positions of the final frame.
         pub positions: Vec<f32>,
-        /// Instructions for all frames, where the target counts them.
-        pub instructions: Option<u64>,
+        /// Instructions per frame (step + full decode), where the target counts them.
+        pub instructions_per_frame: Option<u64>,
     }
 
     /// Parses a target's output:
@@ -220,7 +220,7 @@ pub mod host {
     /// model <name> weights <f32|f16|int8> frames <N>
     /// checksum <frame> <16 hex digits>       (one per checkpoint)
     /// positions <8 hex digits per float>    (final frame)
-    /// instructions <count>                  (optional)
+    /// instructions_per_frame <count>        (optional)
     /// status ok
     /// ```
     pub fn parse(output: &str) -> Result<Report, String> {
@@ -245,8 +245,9 @@ pub mod host {
                         .collect::<Result<_, _>>()
                         .map_err(|e| format!("positions: {e}"))?;
                 }
-                ["instructions", n] => {
-                    report.instructions = Some(n.parse().map_err(|e| format!("instructions `{n}`: {e}"))?);
+                ["instructions_per_frame", n] => {
+                    report.instructions_per_frame =
+                        Some(n.parse().map_err(|e| format!("instructions_per_frame `{n}`: {e}"))?);
                 }
                 ["status", "ok"] => ok = true,
                 ["status", ..] => return Err(format!("target reported: {line}")),
