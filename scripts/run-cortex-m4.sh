@@ -15,12 +15,18 @@ for tool in /usr/bin/rustc qemu-system-arm readelf; do
   command -v "$tool" >/dev/null || { echo "$tool not found: run scripts/install-cross.sh" >&2; exit 1; }
 done
 cd "$repo/targets/cortex-m4"
-MOCHI_ARTIFACT="$artifact" MOCHI_WEIGHTS="$weights" RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 RUSTFLAGS="-D warnings -C link-arg=-Tlink.x" \
-  cargo build --release --quiet -Zbuild-std=core,panic_abort --target thumbv7em-none-eabihf \
-  --target-dir "$repo/target/cross"
-elf="$repo/target/cross/thumbv7em-none-eabihf/release/mochi-cortex-m4"
 out="$repo/target/targets/cortex-m4-$name-$weights.txt"
+elf="$repo/target/targets/cortex-m4-$name-$weights.elf"
 mkdir -p "$(dirname "$out")"
+# One build at a time (the ELF's path is shared by every model): build, then keep a copy.
+(
+  flock 9
+  MOCHI_ARTIFACT="$artifact" MOCHI_WEIGHTS="$weights" RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 \
+    RUSTFLAGS="-D warnings -C link-arg=-Tlink.x" \
+    cargo build --release --quiet -Zbuild-std=core,panic_abort --target thumbv7em-none-eabihf \
+    --target-dir "$repo/target/cross"
+  cp "$repo/target/cross/thumbv7em-none-eabihf/release/mochi-cortex-m4" "$elf"
+) 9>"$repo/target/targets/.cortex-m4.lock"
 # Section sizes: flash holds the vector table, code, read-only data and the initial values of
 # .data; RAM holds .data, .bss and the stack (its peak is measured by the firmware).
 read -r flash statics < <(readelf -S -W "$elf" | python3 -c '

@@ -17,13 +17,18 @@ done
 seconds() { date +%s.%N; }
 t0=$(seconds)
 cd "$repo/targets/wasm"
-MOCHI_ARTIFACT="$artifact" MOCHI_WEIGHTS="$weights" RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 RUSTFLAGS="-D warnings" \
-  cargo build --release --quiet -Zbuild-std=core,panic_abort --target wasm32-unknown-unknown \
-  --target-dir "$repo/target/cross"
-module="$repo/target/cross/wasm32-unknown-unknown/release/mochi_wasm.wasm"
 out="$repo/target/targets"
 web="$out/web"
+module="$out/mochi-$name-$weights.wasm"
 mkdir -p "$web"
+# One build at a time (the module's path is shared by every model): build, then keep a copy.
+(
+  flock 9
+  MOCHI_ARTIFACT="$artifact" MOCHI_WEIGHTS="$weights" RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 RUSTFLAGS="-D warnings" \
+    cargo build --release --quiet -Zbuild-std=core,panic_abort --target wasm32-unknown-unknown \
+    --target-dir "$repo/target/cross"
+  cp "$repo/target/cross/wasm32-unknown-unknown/release/mochi_wasm.wasm" "$module"
+) 9>"$out/.wasm.lock"
 cp "$module" "$web/mochi.wasm"
 cp web/index.html web/main.js "$web/"
 t1=$(seconds)

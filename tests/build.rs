@@ -10,9 +10,14 @@ fn main() {
             panic!("codegen failed: {e}");
         }
     }
-    // The tiny model in the other weight storages.
-    for (format, out) in [(WeightFormat::F16, "tiny_f16.rs"), (WeightFormat::Int8, "tiny_int8.rs")] {
-        if let Err(e) = build_rs_with("artifacts/tiny.mochi", out, &Options::weights(format)) {
+    // Other weight storages (beam int8: the reference model that fits 1 MiB of flash).
+    for (artifact, format, out) in [
+        ("tiny", WeightFormat::F16, "tiny_f16.rs"),
+        ("tiny", WeightFormat::Int8, "tiny_int8.rs"),
+        ("beam", WeightFormat::Int8, "beam_int8.rs"),
+    ] {
+        let artifact = format!("artifacts/{artifact}.mochi");
+        if let Err(e) = build_rs_with(&artifact, out, &Options::weights(format)) {
             panic!("codegen failed: {e}");
         }
     }

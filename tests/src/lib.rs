@@ -22,3 +22,8 @@ pub mod tiny_f16 {
 pub mod tiny_int8 {
     include!(concat!(env!("OUT_DIR"), "/tiny_int8.rs"));
 }
+
+/// Generated from `artifacts/beam.mochi` with int8 weights (the integrator in `f16`).
+pub mod beam_int8 {
+    include!(concat!(env!("OUT_DIR"), "/beam_int8.rs"));
+}

@@ -7,15 +7,20 @@ use std::process::Command;
 
 use mochi_runtime::{Model, ValidModel};
 use mochi_target_common::host;
-use mochi_tests::{tiny, tiny_int8};
+use mochi_tests::{beam, beam_int8, tiny, tiny_int8};
 
-/// Runs the firmware for the tiny artifact with `weights` and checks it against `model`.
-fn firmware_matches_the_host(weights: &str, model: Model<'static>) {
+/// Runs the firmware for the artifact `name` with `weights` and checks it against `model`
+/// with an `Instance<K, S, H>`; returns the script's output (sizes and rates).
+fn firmware_matches_the_host<const K: usize, const S: usize, const H: usize>(
+    name: &str,
+    weights: &str,
+    model: Model<'static>,
+) -> String {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let script = repo.join("scripts/run-cortex-m4.sh");
     let run = Command::new("bash")
         .arg(&script)
-        .arg(repo.join("tests/artifacts/tiny.mochi"))
+        .arg(repo.join(format!("tests/artifacts/{name}.mochi")))
         .arg(weights)
         .output()
         .unwrap_or_else(|e| panic!("running {}: {e}", script.display()));
@@ -26,21 +31,46 @@ fn firmware_matches_the_host(weights: &str, model: Model<'static>) {
         script.display(),
         String::from_utf8_lossy(&run.stdout)
     );
-    let output = std::fs::read_to_string(repo.join(format!("target/targets/cortex-m4-tiny-{weights}.txt"))).unwrap();
-    let report = host::parse(&output).unwrap();
-    assert_eq!((report.model.as_str(), report.weights.as_str()), ("tiny", weights));
+    let path = repo.join(format!("target/targets/cortex-m4-{name}-{weights}.txt"));
+    let report = host::parse(&std::fs::read_to_string(path).unwrap()).unwrap();
+    assert_eq!((report.model.as_str(), report.weights.as_str()), (name, weights));
     let model = ValidModel::new(model).unwrap();
-    host::check::<{ tiny::LATENT }, { tiny::SIGNAL }, { tiny::HIDDEN }>(&model, &report).unwrap();
+    host::check::<K, S, H>(&model, &report).unwrap();
     let per_frame = report.instructions_per_frame.expect("instructions per frame");
     assert!(
-        per_frame > 10_000 && per_frame < 10_000_000,
+        per_frame > 10_000 && per_frame < 100_000_000,
         "{per_frame} instructions per frame"
     );
+    String::from_utf8_lossy(&run.stdout).into_owned()
 }
 
 #[test]
 fn firmware_under_qemu_matches_the_host_bit_for_bit() {
-    firmware_matches_the_host("f32", tiny::MODEL);
+    use tiny::{HIDDEN, LATENT, SIGNAL};
+    firmware_matches_the_host::<LATENT, SIGNAL, HIDDEN>("tiny", "f32", tiny::MODEL);
     // The int8 kernels too (int8 decoder, f16 integrator).
-    firmware_matches_the_host("int8", tiny_int8::MODEL);
+    firmware_matches_the_host::<LATENT, SIGNAL, HIDDEN>("tiny", "int8", tiny_int8::MODEL);
+}
+
+/// The shipped beam model with int8 weights links into 1 MiB of flash and runs in 64 KiB of
+/// RAM (the firmware's linker script has exactly that), bit-identical to the host.
+#[test]
+fn beam_int8_fits_one_mebibyte_of_flash_and_matches_the_host() {
+    let output = firmware_matches_the_host::<{ beam::LATENT }, { beam::SIGNAL }, { beam::HIDDEN }>(
+        "beam",
+        "int8",
+        beam_int8::MODEL,
+    );
+    let line = output.lines().find(|l| l.starts_with("flash ")).expect("a size line");
+    let kib = |before: &str| -> f64 {
+        let text = line.split(before).next().unwrap_or("");
+        let open = text.rfind('(').unwrap_or(0);
+        text[open + 1..]
+            .split_whitespace()
+            .next()
+            .unwrap_or("")
+            .parse()
+            .unwrap_or(f64::NAN)
+    };
+    assert!(kib("KiB of 1024") <= 1024.0 && kib("KiB of 64") <= 64.0, "{line}");
 }
