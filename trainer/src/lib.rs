@@ -19,8 +19,8 @@ pub mod pca;
 pub mod render;
 pub mod runtime_bench;
 pub mod scene;
-pub mod storage;
 pub mod solver;
+pub mod storage;
 pub mod train;
 pub mod trajectory;
 
