@@ -84,6 +84,8 @@ pub enum CodegenError {
         /// Why.
         error: ModelError,
     },
+    /// `MOCHI_WEIGHTS` names no weight storage.
+    Weights(String),
     /// `build_rs` ran outside a build script (`OUT_DIR` is not set).
     NoOutDir,
 }
@@ -96,6 +98,7 @@ impl fmt::Display for CodegenError {
             CodegenError::Model { path, format, error } => {
                 write!(f, "{}: with {} weights: {error}", path.display(), format_name(*format))
             }
+            CodegenError::Weights(value) => write!(f, "MOCHI_WEIGHTS=`{value}` is not one of f32, f16, int8"),
             CodegenError::NoOutDir => write!(f, "OUT_DIR is not set: call build_rs from a build script"),
         }
     }
@@ -165,6 +168,25 @@ pub fn generate_file_with(artifact: &Path, out: &Path, options: &Options) -> Res
 /// `f32` weights) and asks Cargo to rerun when the artifact changes.
 pub fn build_rs(artifact: impl AsRef<Path>, out_name: &str) -> Result<(), CodegenError> {
     build_rs_with(artifact, out_name, &Options::default())
+}
+
+/// For build scripts that let whoever builds pick the model: generates `OUT_DIR/out_name`
+/// from the artifact named by the environment variable `MOCHI_ARTIFACT` (else
+/// `default_artifact`) with the weight storage `MOCHI_WEIGHTS` (`f32`, `f16` or `int8`;
+/// default `f32`), and asks Cargo to rerun when either changes. Returns the artifact and the
+/// storage's name.
+pub fn build_rs_from_env(
+    default_artifact: impl AsRef<Path>,
+    out_name: &str,
+) -> Result<(PathBuf, &'static str), CodegenError> {
+    println!("cargo:rerun-if-env-changed=MOCHI_ARTIFACT");
+    println!("cargo:rerun-if-env-changed=MOCHI_WEIGHTS");
+    let artifact =
+        std::env::var_os("MOCHI_ARTIFACT").map_or_else(|| default_artifact.as_ref().to_path_buf(), PathBuf::from);
+    let weights = std::env::var("MOCHI_WEIGHTS").unwrap_or_else(|_| "f32".into());
+    let format = parse_format(&weights).ok_or(CodegenError::Weights(weights))?;
+    build_rs_with(&artifact, out_name, &Options::weights(format))?;
+    Ok((artifact, format_name(format)))
 }
 
 /// [`build_rs`] with the given options.

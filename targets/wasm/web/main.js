@@ -72,24 +72,21 @@ function frame() {
   if (!(testMode && frames >= testFrames)) schedule();
 }
 
+function drawEdges(points, colour) {
+  ctx.strokeStyle = colour;
+  ctx.beginPath();
+  for (const [i, j] of edges) {
+    const [a, b] = [project(at(points, i)), project(at(points, j))];
+    ctx.moveTo(a[0], a[1]);
+    ctx.lineTo(b[0], b[1]);
+  }
+  ctx.stroke();
+}
+
 function draw(x) {
   ctx.clearRect(0, 0, canvas.width, canvas.height);
-  ctx.strokeStyle = "#ccc";
-  ctx.beginPath();
-  for (const [i, j] of edges) {
-    const [a, b] = [project(at(rest, i)), project(at(rest, j))];
-    ctx.moveTo(a[0], a[1]);
-    ctx.lineTo(b[0], b[1]);
-  }
-  ctx.stroke();
-  ctx.strokeStyle = "#2b6cb0";
-  ctx.beginPath();
-  for (const [i, j] of edges) {
-    const [a, b] = [project(at(x, i)), project(at(x, j))];
-    ctx.moveTo(a[0], a[1]);
-    ctx.lineTo(b[0], b[1]);
-  }
-  ctx.stroke();
+  drawEdges(rest, "#ccc");
+  drawEdges(x, "#2b6cb0");
   ctx.fillStyle = "#c05621";
   for (let i = 0; i < n; i++) {
     const p = project(at(x, i));
