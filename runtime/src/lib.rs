@@ -12,8 +12,9 @@
 //! body.decode_into(&model, &mut positions)?;           // or decode_surface_into
 //! ```
 //!
-//! The `std` feature only adds desktop conveniences (`std::error::Error`, `Vec`-backed
-//! storage).
+//! Every target computes the same bits for the same input (see [`network`]). The `std`
+//! feature only adds desktop conveniences (`std::error::Error`, `Vec`-backed storage, the
+//! run-time choice of the AVX2 kernel); `capi` adds the C ABI (module `capi`, no_std too).
 #![no_std]
 
 #[cfg(feature = "std")]
