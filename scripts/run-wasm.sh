@@ -40,10 +40,11 @@ t2=$(seconds)
 
 # The page, from a local server, in headless Chromium (no GPU, no sandbox: CI runs as root).
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+profile=$(mktemp -d)
+server=""
+trap 'if [ -n "$server" ]; then kill "$server" 2>/dev/null || true; fi; rm -rf "$profile"' EXIT
 python3 -m http.server "$port" --bind 127.0.0.1 --directory "$web" >/dev/null 2>&1 &
 server=$!
-profile=$(mktemp -d)
-trap 'kill "$server" 2>/dev/null || true; rm -rf "$profile"' EXIT
 for _ in $(seq 50); do
   python3 -c "import urllib.request; urllib.request.urlopen('http://127.0.0.1:$port/index.html')" 2>/dev/null && break
   sleep 0.1
