@@ -11,20 +11,36 @@ repo="$(cd "$(dirname "$0")/.." && pwd)"
 artifact="$(realpath "${1:-$repo/tests/artifacts/tiny.mochi}")"
 weights="${2:-f32}"
 name="$(basename "$artifact" .mochi)"
-for tool in /usr/bin/rustc qemu-system-arm readelf; do
+for tool in /usr/bin/rustc rust-lld qemu-system-arm readelf; do
   command -v "$tool" >/dev/null || { echo "$tool not found: run scripts/install-cross.sh" >&2; exit 1; }
 done
+# -Zbuild-std compiles `core` from the sources of Debian's rust-web-src.
+if [ ! -d "$(/usr/bin/rustc --print sysroot)/lib/rustlib/src/rust/library/core" ]; then
+  echo "the standard library sources for /usr/bin/rustc are missing: run scripts/install-cross.sh" >&2
+  exit 1
+fi
 cd "$repo/targets/cortex-m4"
 out="$repo/target/targets/cortex-m4-$name-$weights.txt"
 elf="$repo/target/targets/cortex-m4-$name-$weights.elf"
 mkdir -p "$(dirname "$out")"
+log="$(mktemp)"
+trap 'rm -f "$log"' EXIT
 # One build at a time (the ELF's path is shared by every model): build, then keep a copy.
 (
   flock 9
-  MOCHI_ARTIFACT="$artifact" MOCHI_WEIGHTS="$weights" RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 \
+  if ! MOCHI_ARTIFACT="$artifact" MOCHI_WEIGHTS="$weights" RUSTC=/usr/bin/rustc RUSTC_BOOTSTRAP=1 \
     RUSTFLAGS="-D warnings -C link-arg=-Tlink.x" \
     cargo build --release --quiet -Zbuild-std=core,panic_abort --target thumbv7em-none-eabihf \
-    --target-dir "$repo/target/cross"
+    --target-dir "$repo/target/cross" 2>"$log"; then
+    cat "$log" >&2
+    if grep -q "will not fit in region" "$log"; then
+      echo "$name with $weights weights does not fit the firmware's 1 MiB of flash / 64 KiB of RAM" \
+        "(memory.x): the linker's overflow is above" >&2
+    fi
+    echo "building the Cortex-M4 firmware for $artifact ($weights) failed" >&2
+    exit 1
+  fi
+  cat "$log" >&2
   cp "$repo/target/cross/thumbv7em-none-eabihf/release/mochi-cortex-m4" "$elf"
 ) 9>"$repo/target/targets/.cortex-m4.lock"
 # Section sizes: flash holds the vector table, code, read-only data and the initial values of
