@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The README's test command: installs what the target tests need when it is missing (Debian's
-# rustc-web, rust-web-src and lld for cross-compiling; QEMU, Chromium, node), then runs every
+# rustc-web, rust-web-src, rust-web-llvm and lld for cross-compiling; QEMU, Chromium, node), then runs every
 # test of the workspace, the Cortex-M4 firmware under QEMU, the wasm module in node and in
 # headless Chromium, and the C program among them. Prints one closing tally line.
 set -euo pipefail

@@ -277,6 +277,30 @@ impl Encoding {
         Ok(q)
     }
 
+    /// Pulls a full-space gradient `dE/dx` back to the encoded coordinates:
+    /// `dE/dq_v = R^T dE/dx_v` for every encoded vertex (the chain rule through `decode`),
+    /// scaled by `1 / scale`, written into `out` (`encoded_len` values).
+    pub fn encode_gradient(
+        &self,
+        grad: &[f64],
+        frame: &Frame,
+        scale: f64,
+        out: &mut [f64],
+    ) -> Result<(), EncodingError> {
+        check_len("gradient", self.state_len(), grad.len())?;
+        check_len("encoded gradient", self.encoded_len(), out.len())?;
+        self.check_frame(frame)?;
+        let d = self.dim;
+        let rt = frame.rotation.transpose();
+        for (j, &v) in self.free_vertices.iter().enumerate() {
+            let local = rt * pad(&grad[v * d..(v + 1) * d]);
+            for c in 0..d {
+                out[j * d + c] = local[c] / scale;
+            }
+        }
+        Ok(())
+    }
+
     /// Encodes a full state in the frame of its own prescribed vertices.
     pub fn encode_state(&self, x: &[f64]) -> Result<Vec<f64>, EncodingError> {
         let frame = self.frame(&self.handle_targets(x)?)?;

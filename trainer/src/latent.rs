@@ -627,6 +627,7 @@ impl<'a> PhysicsObjective<'a> {
                 let mut total = 0.0;
                 let mut g = vec![0.0f32; range.len() * n];
                 let mut grad = vec![0.0; data.encoding.state_len()];
+                let mut local = vec![0.0; n];
                 for (row, i) in range.enumerate() {
                     let s = all_samples[i];
                     let (frame, targets) = data.step(s);
@@ -635,7 +636,12 @@ impl<'a> PhysicsObjective<'a> {
                     let value = loss.value_and_gradient(&x, prev, prev2, targets, &mut grad);
                     let balance = loss.balance(prev, prev2, min_speed);
                     total += value / balance;
-                    encoded_gradient(data.encoding, frame, &grad, balance, &mut g[row * n..(row + 1) * n]);
+                    data.encoding
+                        .encode_gradient(&grad, frame, balance, &mut local)
+                        .map_err(|e| e.to_string())?;
+                    for (out, l) in g[row * n..(row + 1) * n].iter_mut().zip(&local) {
+                        *out = *l as f32;
+                    }
                 }
                 Ok((total, g))
             })
@@ -653,21 +659,6 @@ impl<'a> PhysicsObjective<'a> {
             objective,
             value: total / m as f64,
         })
-    }
-}
-
-/// `R^T dE/dx / balance` for the encoded vertices, in encoded order, as f32 (the gradient with
-/// respect to the decoder's output).
-fn encoded_gradient(encoding: &Encoding, frame: &Frame, grad: &[f64], balance: f64, out: &mut [f32]) {
-    let dim = encoding.dim();
-    let rt = frame.rotation.transpose();
-    for (j, &v) in encoding.free_vertices().iter().enumerate() {
-        let mut gv = nalgebra::Vector3::zeros();
-        gv.as_mut_slice()[..dim].copy_from_slice(&grad[v * dim..(v + 1) * dim]);
-        let local = rt * gv;
-        for c in 0..dim {
-            out[j * dim + c] = (local[c] / balance) as f32;
-        }
     }
 }
 

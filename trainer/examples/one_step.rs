@@ -1,0 +1,74 @@
+//! Diagnostic: one step of a trained model's integrator from ground-truth latents of its own
+//! training sequences, against the encoded truth and against not moving at all.
+//!
+//! ```sh
+//! cargo run --release -p mochi-trainer --example one_step -- ARTIFACT.mochi DATASET_DIR
+//! ```
+//!
+//! For frames of every other training sequence it prints the mean vertex error (% of the
+//! diagonal) of the decoded truth, of the prediction and of the previous frame's latent kept
+//! ("stay"), and the incremental potential the integrator was trained on ([`PhysicsLoss`],
+//! unbalanced) at each: a model that cannot even fit its training steps shows up here before
+//! any rollout.
+
+use mochi_trainer::artifact::Artifact;
+use mochi_trainer::dataset::{self, Split};
+use mochi_trainer::eval::{rebuild_problem, vertex_errors, LoadedModel};
+use mochi_trainer::latent::{decode_world, encode_sequences, pack};
+use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
+use mochi_trainer::mesh::Elements;
+use mochi_trainer::model::forward_exported;
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() < 3 {
+        anyhow::bail!("usage: one_step ARTIFACT.mochi DATASET_DIR");
+    }
+    let model = LoadedModel::new(Artifact::read(std::path::Path::new(&args[1]))?)?;
+    let dir = std::path::PathBuf::from(&args[2]);
+    let a = &model.artifact;
+    let (problem, encoding) = rebuild_problem(a)?;
+    let encoder = a.encoder().map_err(anyhow::Error::msg)?;
+    let train = dataset::load(&problem, &dir, Split::Train)?
+        .into_iter()
+        .map(|(_, t)| t)
+        .collect();
+    let sequences = encode_sequences(&encoding, train)?;
+    let penalty = (!matches!(problem.mesh.elements, Elements::Rods(_))).then_some(PAPER_BC_WEIGHT);
+    let mut loss = PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, penalty)?;
+    let dim = problem.mesh.dim;
+    let mut grad = vec![0.0; encoding.state_len()];
+    for (s, seq) in sequences.iter().enumerate().step_by(2) {
+        let latents = seq
+            .encoded
+            .iter()
+            .map(|q| forward_exported(&encoder, &q.iter().map(|&v| v as f32).collect::<Vec<_>>()))
+            .collect::<Result<Vec<_>, _>>()?;
+        let world = |z: &[f32], t: usize| -> anyhow::Result<Vec<f64>> {
+            let q = forward_exported(&model.decoder, z)?;
+            decode_world(&encoding, &q, &seq.frames[t], &seq.targets[t])
+        };
+        let last = seq.encoded.len() - 1;
+        for t in [2, 5, 20, 60, 100, 140].into_iter().filter(|&t| t <= last) {
+            let (prev, prev2) = (world(&latents[t - 1], t - 1)?, world(&latents[t - 2], t - 2)?);
+            let predicted =
+                model
+                    .integrator
+                    .step(&pack(&latents[t - 1], &latents[t - 2], &seq.trajectory.bc_signal, t))?;
+            let mut measure = |z: &[f32]| -> anyhow::Result<(f64, f64)> {
+                let x = world(z, t)?;
+                let error = vertex_errors(&x, &seq.trajectory.positions[t], dim, a.diagonal).sum::<f64>()
+                    / problem.mesh.num_vertices() as f64;
+                let energy = loss.value_and_gradient(&x, &prev, &prev2, &seq.targets[t], &mut grad);
+                Ok((100.0 * error, energy))
+            };
+            let (truth, pred, stay) = (measure(&latents[t])?, measure(&predicted)?, measure(&latents[t - 1])?);
+            println!(
+                "train-{s:02} frame {t}: error % truth {:.3}, predicted {:.3}, stay {:.3} | potential truth {:.4e}, \
+                 predicted {:.4e}, stay {:.4e}",
+                truth.0, pred.0, stay.0, truth.1, pred.1, stay.1
+            );
+        }
+    }
+    Ok(())
+}
