@@ -24,6 +24,6 @@ fn main() {
 }
 
 /// The committed artifacts (see `artifacts/README.md`).
-fn mochi_tests_artifacts() -> [&'static str; 2] {
-    ["tiny", "beam"]
+fn mochi_tests_artifacts() -> [&'static str; 3] {
+    ["tiny", "beam", "strands"]
 }

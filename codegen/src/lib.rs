@@ -356,6 +356,8 @@ fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
         ("free_vertices", span(m.free_vertices)),
         ("origin_of", span(m.origin_of)),
         ("root_slots", span(m.root_slots)),
+        ("chains", span(m.chains)),
+        ("chain_floats", span(m.chain_floats)),
         ("surface_vertices", span(m.surface_vertices)),
         ("surface_source", span(m.surface_source)),
         ("initial_latent", span(m.initial_latent)),

@@ -1,11 +1,13 @@
-//! Generated modules are deterministic and rustfmt-clean, and bad artifacts are refused with
-//! the file named.
+//! Generated modules are deterministic and rustfmt-clean (for positions- and bend-encoded
+//! models), and bad artifacts are refused with the file named.
 
 use std::io::Write;
 use std::path::Path;
 use std::process::{Command, Stdio};
 
 const TINY: &str = "../tests/artifacts/tiny.mochi";
+/// Rods encoded by their bends (`encoding.chains` not empty).
+const STRANDS: &str = "../tests/artifacts/strands.mochi";
 
 #[test]
 fn output_is_deterministic() {
@@ -18,9 +20,30 @@ fn output_is_deterministic() {
 }
 
 #[test]
+fn chain_tables_are_empty_for_positions_and_filled_for_bends() {
+    let chains = |source: &str| {
+        let line = source.lines().find(|l| l.trim_start().starts_with("chains: ")).unwrap();
+        line.trim().to_string()
+    };
+    let tiny = mochi_codegen::generate(&std::fs::read(TINY).unwrap(), "tiny.mochi").unwrap();
+    assert!(chains(&tiny).ends_with("len: 0 },"), "{}", chains(&tiny));
+    assert!(tiny.contains("// Artifact format 2;"));
+    let strands = std::fs::read(STRANDS).unwrap();
+    let a = mochi_codegen::generate(&strands, "strands.mochi").unwrap();
+    assert_eq!(a, mochi_codegen::generate(&strands, "strands.mochi").unwrap());
+    assert!(!chains(&a).ends_with("len: 0 },"), "{}", chains(&a));
+}
+
+#[test]
 fn output_is_rustfmt_clean() {
-    let bytes = std::fs::read(TINY).unwrap();
-    let source = mochi_codegen::generate(&bytes, "tiny.mochi").unwrap();
+    for path in [TINY, STRANDS] {
+        rustfmt_clean(path);
+    }
+}
+
+fn rustfmt_clean(path: &str) {
+    let bytes = std::fs::read(path).unwrap();
+    let source = mochi_codegen::generate(&bytes, path).unwrap();
     let mut rustfmt = Command::new("rustfmt")
         .args(["--check", "--edition", "2021", "--config", "max_width=100"])
         .stdin(Stdio::piped())

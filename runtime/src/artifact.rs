@@ -14,12 +14,15 @@ use serde::de::{DeserializeSeed, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer};
 
 use crate::instance::ValidModel;
-use crate::model::{Handle, Layer, Model, ModelError, Span, HANDLE_SOURCE, MAX_HANDLES, MAX_LAYERS};
+use crate::model::{Handle, Layer, Model, ModelError, Problem, Span, HANDLE_SOURCE, MAX_HANDLES, MAX_LAYERS};
 
 /// First bytes of every artifact.
 pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
 /// Artifact format version this runtime reads.
-pub const FORMAT_VERSION: u32 = 1;
+///
+/// Version 2 added the bend-encoded rod strands (`encoding.chains`, after
+/// `encoding.root_slots`); version 1 files are refused with [`LoadError::Version`].
+pub const FORMAT_VERSION: u32 = 2;
 /// Bytes before the payload: magic, version (u32 LE), length (u64 LE), CRC-32 (u32 LE).
 pub const HEADER_LEN: usize = 24;
 
@@ -154,6 +157,8 @@ struct Header {
     free_vertices: Span,
     origin_of: Span,
     root_slots: Span,
+    chains: Span,
+    chain_floats: Span,
     surface_vertices: Span,
     surface_source: Span,
     initial_latent: Span,
@@ -213,6 +218,8 @@ impl<const P: usize, const F: usize, const I: usize> LoadedModel<P, F, I> {
                 free_vertices: EMPTY,
                 origin_of: EMPTY,
                 root_slots: EMPTY,
+                chains: EMPTY,
+                chain_floats: EMPTY,
                 surface_vertices: EMPTY,
                 surface_source: EMPTY,
                 initial_latent: EMPTY,
@@ -258,6 +265,8 @@ where
             free_vertices: h.free_vertices,
             origin_of: h.origin_of,
             root_slots: h.root_slots,
+            chains: h.chains,
+            chain_floats: h.chain_floats,
             surface_vertices: h.surface_vertices,
             surface_source: h.surface_source,
             initial_latent: h.initial_latent,
@@ -311,6 +320,7 @@ where
         h.free_vertices = r.seq("encoding.free_vertices", &mut self.indices)?;
         h.origin_of = r.seq("encoding.origin_of", &mut self.indices)?;
         h.root_slots = r.seq("encoding.root_slots", &mut self.indices)?;
+        (h.chains, h.chain_floats) = r.chains(&mut self.indices, &mut self.floats)?;
         let handles = r.len("handles")?;
         for _ in 0..handles {
             r.value::<&str>("handles.name")?;
@@ -423,6 +433,56 @@ impl<'de> Reader<'de> {
         }
     }
 
+    /// The bend-encoded strands (`encoding.chains`), appended to `indices` and `floats` as
+    /// the tables of [`Model::chains`] and [`Model::chain_floats`]; their spans.
+    fn chains<I: Pool<u32>, F: Pool<f32>>(
+        &mut self,
+        indices: &mut I,
+        floats: &mut F,
+    ) -> Result<(Span, Span), LoadError> {
+        const FIELD: &str = "encoding.chains";
+        let start = (indices.as_slice().len(), floats.as_slice().len());
+        let full = LoadError::Capacity { field: FIELD };
+        for _ in 0..self.len(FIELD)? {
+            let parent = self.value::<[u32; 2]>("encoding.chains.parent")?;
+            let normal = self.value::<[f32; 3]>("encoding.chains.rest_normal")?;
+            let n = self.len("encoding.chains.slots")?;
+            let count = u32::try_from(n).map_err(|_| LoadError::Malformed {
+                field: "encoding.chains.slots",
+            })?;
+            if !(indices.push(parent[0]) && indices.push(parent[1]) && indices.push(count)) {
+                return Err(full);
+            }
+            for _ in 0..n {
+                if !indices.push(self.value("encoding.chains.slots")?) {
+                    return Err(full);
+                }
+            }
+            if !normal.iter().all(|&v| floats.push(v)) {
+                return Err(full);
+            }
+            let lengths = self.len("encoding.chains.lengths")?;
+            if lengths != n {
+                return Err(LoadError::Invalid(ModelError {
+                    field: "chains.lengths",
+                    problem: Problem::Length {
+                        expected: n,
+                        found: lengths,
+                    },
+                }));
+            }
+            for _ in 0..n {
+                if !floats.push(self.value("encoding.chains.lengths")?) {
+                    return Err(full);
+                }
+            }
+        }
+        Ok((
+            span(start.0, indices.as_slice().len()),
+            span(start.1, floats.as_slice().len()),
+        ))
+    }
+
     /// A sequence of reals that is read, checked to be finite, and dropped.
     fn skip_reals(&mut self, field: &'static str) -> Result<usize, LoadError> {
         let mut discard = Discard::default();
@@ -432,7 +492,7 @@ impl<'de> Reader<'de> {
         } else {
             Err(LoadError::Invalid(ModelError {
                 field,
-                problem: crate::model::Problem::NotFinite,
+                problem: Problem::NotFinite,
             }))
         }
     }

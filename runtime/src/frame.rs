@@ -1,9 +1,10 @@
 //! Boundary conditions: handle motions, the handle vertices they place, and the frame
-//! (rotation and origins) in which the model's states are encoded.
+//! (rotation, origins, and the starts of bend-encoded strands) in which the model's states are
+//! encoded.
 
 use nalgebra::{Matrix2, Matrix3, Rotation3, Vector3};
 
-use crate::model::{Handle, Model, MAX_HANDLES, SIGNAL_PER_HANDLE};
+use crate::model::{Chain, Handle, Model, MAX_HANDLES, SIGNAL_PER_HANDLE};
 
 /// A handle's rigid pose relative to its reference placement: translation of the pivot and a
 /// rotation vector (axis times angle in radians) about it.
@@ -206,6 +207,29 @@ impl<'m, 'a> Placement<'m, 'a> {
         }
     }
 
+    /// Where the bend-encoded strand `chain` starts in this placement: its second prescribed
+    /// vertex and the axes of its first bend (see [`Chain`]).
+    pub fn chain_start(&self, chain: &Chain) -> ChainWalk {
+        let point = |slot: u32| -> [f32; 3] { self.target(slot as usize).into() };
+        let anchor = point(chain.parent[1]);
+        let d = normalized(sub(anchor, point(chain.parent[0])));
+        let r = &self.frame;
+        let n = chain.rest_normal;
+        let turned: [f32; 3] = core::array::from_fn(|i| r[(i, 0)] * n[0] + r[(i, 1)] * n[1] + r[(i, 2)] * n[2]);
+        let along = dot(&d, &turned);
+        let projected: [f32; 3] = core::array::from_fn(|i| turned[i] - d[i] * along);
+        let norm = libm::sqrtf(dot(&projected, &projected));
+        let u = if norm > 1e-6 {
+            projected.map(|v| v / norm)
+        } else {
+            normal_to(&d)
+        };
+        ChainWalk {
+            position: anchor,
+            axes: [d, u, cross(&d, &u)],
+        }
+    }
+
     /// The proper rotation that best maps the reference handle points onto their targets
     /// (Kabsch; the handles of one model may rotate differently).
     fn best_fit_rotation(&self) -> Matrix3<f32> {
@@ -242,4 +266,73 @@ impl<'m, 'a> Placement<'m, 'a> {
 /// The in-plane part of a rotation, for 2D models.
 fn planar(r: &Matrix3<f32>) -> Matrix3<f32> {
     Matrix3::new(r[(0, 0)], r[(0, 1)], 0.0, r[(1, 0)], r[(1, 1)], 0.0, 0.0, 0.0, 1.0)
+}
+
+/// A walk along a bend-encoded strand (see [`Chain`]): the last vertex placed and the axes
+/// `[d, u, w]` of the next bend.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChainWalk {
+    /// Position of the last vertex placed (at the start, the strand's second prescribed
+    /// vertex).
+    pub position: [f32; 3],
+    /// Direction of the last edge, then the two normals (`d x u = w`).
+    pub axes: [[f32; 3]; 3],
+}
+
+impl ChainWalk {
+    /// Places the next vertex from its two encoded numbers `q` and the rest length of the edge
+    /// that ends at it: turns the axes by the Cayley map of `g = (u q[0] + w q[1]) / length`
+    /// (`y + 2 / (1 + |g|^2) (g x y + g x (g x y))`) and steps `length` along the new `d`.
+    /// Returns the vertex's position.
+    pub fn step(&mut self, q: [f32; 2], length: f32) -> [f32; 3] {
+        let [_, u, w] = self.axes;
+        let g: [f32; 3] = core::array::from_fn(|i| (u[i] * q[0] + w[i] * q[1]) / length);
+        let c = 2.0 / (1.0 + dot(&g, &g));
+        for y in &mut self.axes {
+            let h = cross(&g, y);
+            let k = cross(&g, &h);
+            *y = core::array::from_fn(|i| y[i] + (h[i] + k[i]) * c);
+        }
+        let d = self.axes[0];
+        self.position = core::array::from_fn(|i| self.position[i] + d[i] * length);
+        self.position
+    }
+}
+
+// Plain `f32` vector arithmetic in a fixed order (no fused multiply-add), the same on every
+// target.
+
+fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn normalized(v: [f32; 3]) -> [f32; 3] {
+    let norm = libm::sqrtf(dot(&v, &v));
+    v.map(|c| c / norm)
+}
+
+/// A unit vector perpendicular to the unit vector `d`: the coordinate axis least aligned with
+/// `d` (the first on ties), with its `d` component removed.
+fn normal_to(d: &[f32; 3]) -> [f32; 3] {
+    let mut axis = 0;
+    for i in 1..3 {
+        if libm::fabsf(d[i]) < libm::fabsf(d[axis]) {
+            axis = i;
+        }
+    }
+    let mut e = [0.0; 3];
+    e[axis] = 1.0;
+    normalized(core::array::from_fn(|i| e[i] - d[i] * d[axis]))
 }

@@ -284,13 +284,22 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let d = m.dim();
         check_len(out, m.state_len())?;
         let h = last_hidden::<H>(&m.weights(), m.decoder, &[&self.z[..k]]);
-        output_rows(&m.weights(), m.decoder, &h, 0, &mut out[..m.encoded_len()]);
         let place = Placement::new(m, &self.signal[..s]);
-        // Free vertex j moves from out[j*d..] to out[v*d..] with v >= j (free vertices ascend):
-        // going backwards, no source is overwritten before it is read.
-        for (j, (&v, &o)) in m.free_vertices().iter().zip(m.origin_of()).enumerate().rev() {
-            let world = to_world(&place, &out[j * d..j * d + d], o);
-            put(out, v as usize, d, &world);
+        if m.bends() {
+            let free = m.free_vertices();
+            walk_chains(m, &h, &place, |j, p| {
+                if let Some(&v) = free.get(j) {
+                    put(out, v as usize, d, &Vector3::from(*p));
+                }
+            });
+        } else {
+            output_rows(&m.weights(), m.decoder, &h, 0, &mut out[..m.encoded_len()]);
+            // Free vertex j moves from out[j*d..] to out[v*d..] with v >= j (free vertices
+            // ascend): going backwards, no source is overwritten before it is read.
+            for (j, (&v, &o)) in m.free_vertices().iter().zip(m.origin_of()).enumerate().rev() {
+                let world = to_world(&place, &out[j * d..j * d + d], o);
+                put(out, v as usize, d, &world);
+            }
         }
         for (slot, &v) in m.handle_vertices().iter().enumerate() {
             put(out, v as usize, d, &place.target(slot));
@@ -299,7 +308,8 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     }
 
     /// Writes the world positions of the drawn vertices only ([`Model::surface_vertices`],
-    /// `dim` each) into `out`; the decoder's output layer runs only for their rows.
+    /// `dim` each) into `out`; the decoder's output layer runs only for their rows (for a
+    /// bend-encoded model every strand is walked from its root, as in a full decode).
     pub fn decode_surface_into(&self, model: &ValidModel, out: &mut [f32]) -> Result<(), DecodeError> {
         let (k, s) = self.check_sizes(model).map_err(DecodeError::Model)?;
         let m = model.model();
@@ -308,31 +318,45 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let h = last_hidden::<H>(&m.weights(), m.decoder, &[&self.z[..k]]);
         let place = Placement::new(m, &self.signal[..s]);
         let (origins, sources) = (m.origin_of(), m.surface_source());
-        let mut i = 0;
-        while i < sources.len() {
-            let source = sources[i];
-            if source & HANDLE_SOURCE != 0 {
-                put(out, i, d, &place.target((source & !HANDLE_SOURCE) as usize));
-                i += 1;
-                continue;
+        if m.bends() {
+            for (i, &source) in sources.iter().enumerate() {
+                if source & HANDLE_SOURCE != 0 {
+                    put(out, i, d, &place.target((source & !HANDLE_SOURCE) as usize));
+                }
             }
-            // A run of drawn vertices that are consecutive free vertices: their rows of the
-            // output layer are contiguous and go through the kernel together.
-            let j = source as usize;
-            let run = sources[i..]
-                .iter()
-                .zip(source..)
-                .take_while(|(s, want)| **s == *want)
-                .count();
-            if let Some(block) = out.get_mut(i * d..(i + run) * d) {
-                output_rows(&m.weights(), m.decoder, &h, j * d, block);
+            let (free, surface) = (m.free_vertices(), m.surface_vertices());
+            walk_chains(m, &h, &place, |j, p| {
+                if let Some(i) = free.get(j).and_then(|v| surface.binary_search(v).ok()) {
+                    put(out, i, d, &Vector3::from(*p));
+                }
+            });
+        } else {
+            let mut i = 0;
+            while i < sources.len() {
+                let source = sources[i];
+                if source & HANDLE_SOURCE != 0 {
+                    put(out, i, d, &place.target((source & !HANDLE_SOURCE) as usize));
+                    i += 1;
+                    continue;
+                }
+                // A run of drawn vertices that are consecutive free vertices: their rows of the
+                // output layer are contiguous and go through the kernel together.
+                let j = source as usize;
+                let run = sources[i..]
+                    .iter()
+                    .zip(source..)
+                    .take_while(|(s, want)| **s == *want)
+                    .count();
+                if let Some(block) = out.get_mut(i * d..(i + run) * d) {
+                    output_rows(&m.weights(), m.decoder, &h, j * d, block);
+                }
+                for k in 0..run {
+                    let q = out.get(((i + k) * d)..((i + k + 1) * d)).unwrap_or(&[0.0; 3]);
+                    let world = to_world(&place, q, origins.get(j + k).copied().unwrap_or(0));
+                    put(out, i + k, d, &world);
+                }
+                i += run;
             }
-            for k in 0..run {
-                let q = out.get(((i + k) * d)..((i + k + 1) * d)).unwrap_or(&[0.0; 3]);
-                let world = to_world(&place, q, origins.get(j + k).copied().unwrap_or(0));
-                put(out, i + k, d, &world);
-            }
-            i += run;
         }
         match finite_or_rest(out, &[]) {
             Ok(()) => Ok(()),
@@ -376,6 +400,60 @@ fn output_rows(weights: &Weights, layers: &[Layer], h: &[f32], first: usize, out
     }
 }
 
+/// Encoded vertices whose decoder rows [`BendRows`] computes at once.
+const BEND_BLOCK: usize = 16;
+
+/// The decoder's output rows for bend-encoded vertices, computed for a block of consecutive
+/// free vertices at a time (the strands of a mesh usually list consecutive ones): each row has
+/// the same bits whichever block computes it (see [`crate::network`]).
+struct BendRows<'w, 'l, 'h> {
+    weights: Weights<'w>,
+    layers: &'l [Layer],
+    h: &'h [f32],
+    /// Free vertices of the model.
+    total: usize,
+    /// First free vertex in `rows`, and how many.
+    first: usize,
+    count: usize,
+    rows: [f32; 2 * BEND_BLOCK],
+}
+
+impl BendRows<'_, '_, '_> {
+    /// The two encoded numbers of free vertex `j`.
+    fn get(&mut self, j: usize) -> [f32; 2] {
+        if j < self.first || j >= self.first + self.count {
+            let count = BEND_BLOCK.min(self.total.saturating_sub(j));
+            output_rows(&self.weights, self.layers, self.h, 2 * j, &mut self.rows[..2 * count]);
+            self.first = j;
+            self.count = count;
+        }
+        let at = |i: usize| self.rows.get(i).copied().unwrap_or(0.0);
+        let i = 2 * j.saturating_sub(self.first);
+        [at(i), at(i + 1)]
+    }
+}
+
+/// Walks every bend-encoded strand of `m` from its start in `place`, with the decoder's last
+/// hidden activation `h`, calling `visit(j, position)` for each free vertex `j` in strand order.
+fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: impl FnMut(usize, &[f32; 3])) {
+    let mut rows = BendRows {
+        weights: m.weights(),
+        layers: m.decoder,
+        h,
+        total: m.free_vertices().len(),
+        first: 0,
+        count: 0,
+        rows: [0.0; 2 * BEND_BLOCK],
+    };
+    for chain in m.chains() {
+        let mut walk = place.chain_start(&chain);
+        for (&j, &length) in chain.slots.iter().zip(chain.lengths) {
+            let p = walk.step(rows.get(j as usize), length);
+            visit(j as usize, &p);
+        }
+    }
+}
+
 /// `R q + o` for an encoded vertex (`q` has `dim` numbers).
 fn to_world(place: &Placement, q: &[f32], origin: u32) -> Vector3<f32> {
     let local = Vector3::new(q[0], q[1], q.get(2).copied().unwrap_or(0.0));
@@ -403,4 +481,286 @@ fn finite_or_rest(out: &mut [f32], rest: &[f32]) -> Result<(), DecodeError> {
         *o = rest.get(i).copied().unwrap_or(0.0);
     }
     Err(DecodeError::NotFinite)
+}
+
+#[cfg(all(test, feature = "std"))]
+mod tests {
+    use std::vec::Vec;
+
+    use super::*;
+    use crate::frame::HandleMotion;
+    use crate::model::{Handle, Problem, Span};
+
+    /// Hidden width of the test networks.
+    const HIDDEN: usize = 8;
+    /// Rest length of every edge of the test strand.
+    const L: f32 = 0.1;
+    /// The instance type of the test model.
+    type Body = Instance<1, 12, HIDDEN>;
+
+    /// A one-strand model: vertices 0 and 1 prescribed (one handle), 2, 3 and 4 free, hanging
+    /// along -y at spacing `L`, the chain tables as the trainer writes them; networks of zeros
+    /// whose decoder outputs the bends `q` whatever the latent.
+    struct Strand {
+        params: Vec<f32>,
+        floats: Vec<f32>,
+        indices: Vec<u32>,
+        decoder: [Layer; 2],
+        integrator: [Layer; 2],
+        handles: [Handle; 1],
+        rotates: bool,
+        spans: [Span; 12],
+    }
+
+    /// Appends `values` to `pool`; their span.
+    fn push<T: Copy>(pool: &mut Vec<T>, values: &[T]) -> Span {
+        let span = Span {
+            start: pool.len() as u32,
+            len: values.len() as u32,
+        };
+        pool.extend_from_slice(values);
+        span
+    }
+
+    impl Strand {
+        fn new(q: [f32; 6], rotates: bool) -> Self {
+            let mut params = Vec::new();
+            let mut layer = |rows: usize, cols: usize, bias: &[f32]| Layer {
+                rows: rows as u32,
+                cols: cols as u32,
+                weights: push(&mut params, &std::vec![0.0; rows * cols]).start,
+                bias: push(&mut params, bias).start,
+                ..Layer::default()
+            };
+            let decoder = [layer(HIDDEN, 1, &[0.0; HIDDEN]), layer(6, HIDDEN, &q)];
+            let integrator = [layer(HIDDEN, 2 + 3 * 12, &[0.0; HIDDEN]), layer(1, HIDDEN, &[0.0])];
+            let (mut floats, mut indices) = (Vec::new(), Vec::new());
+            let rest: Vec<f32> = (0..5).flat_map(|i| [0.0, -L * i as f32, 0.0]).collect();
+            let spans = [
+                push(&mut floats, &rest),
+                push(&mut floats, &[0.0]),
+                push(&mut floats, &[-1.0]),
+                push(&mut floats, &[1.0]),
+                push(&mut indices, &[0, 1]),
+                push(&mut indices, &[2, 3, 4]),
+                push(&mut indices, &[0, 0, 0]),
+                push(&mut indices, &[0]),
+                push(&mut indices, &[0, 1, 3, 0, 1, 2]),
+                push(&mut floats, &[1.0, 0.0, 0.0, L, L, L]),
+                push(&mut indices, &[0, 1, 2, 3, 4]),
+                push(&mut indices, &[HANDLE_SOURCE, HANDLE_SOURCE | 1, 0, 1, 2]),
+            ];
+            let handles = [Handle {
+                vertices: spans[4],
+                reference: push(&mut floats, &rest[..6]),
+                pivot: [0.0, -0.05, 0.0],
+            }];
+            Strand {
+                params,
+                floats,
+                indices,
+                decoder,
+                integrator,
+                handles,
+                rotates,
+                spans,
+            }
+        }
+
+        fn model(&self) -> Model<'_> {
+            let [rest, initial_latent, latent_min, latent_max, handle_vertices, free_vertices, origin_of, root_slots, chains, chain_floats, surface_vertices, surface_source] =
+                self.spans;
+            Model {
+                dim: 3,
+                num_vertices: 5,
+                latent: 1,
+                bc_len: 12,
+                dt: 0.03,
+                diagonal: 0.4,
+                rotates: self.rotates,
+                params: &self.params,
+                halves: &[],
+                bytes: &[],
+                floats: &self.floats,
+                indices: &self.indices,
+                decoder: &self.decoder,
+                integrator: &self.integrator,
+                handles: &self.handles,
+                rest,
+                handle_vertices,
+                free_vertices,
+                origin_of,
+                root_slots,
+                chains,
+                chain_floats,
+                surface_vertices,
+                surface_source,
+                initial_latent,
+                latent_min,
+                latent_max,
+            }
+        }
+
+        /// The full decode after one step to the handle pose `motion`.
+        fn decode(&self, motion: HandleMotion) -> [f32; 15] {
+            let model = ValidModel::new(self.model()).unwrap();
+            let mut body = Body::new(&model).unwrap();
+            body.step(&model, &[motion]).unwrap();
+            let mut x = [0.0; 15];
+            body.decode_into(&model, &mut x).unwrap();
+            x
+        }
+    }
+
+    fn close(a: &[f32], b: &[f32]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(a, b)| (a - b).abs() <= 1e-6)
+    }
+
+    #[test]
+    fn bends_decode_known_shapes_at_rest_length() {
+        let rest = HandleMotion::REST;
+        // No bend: the strand continues its parent edge.
+        let straight = Strand::new([0.0; 6], false).decode(rest);
+        let want: Vec<f32> = (0..5).flat_map(|i| [0.0, -L * i as f32, 0.0]).collect();
+        assert!(close(&straight, &want), "{straight:?}");
+        // A bend of tan(45 deg) about u = x (the rest normal) turns d = -y by 90 degrees into
+        // -w = -z; the next edges continue straight.
+        let bent = Strand::new([L, 0.0, 0.0, 0.0, 0.0, 0.0], false).decode(rest);
+        let want = [
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            -L,
+            0.0,
+            0.0,
+            -L,
+            -L,
+            0.0,
+            -L,
+            -2.0 * L,
+            0.0,
+            -L,
+            -3.0 * L,
+        ];
+        assert!(close(&bent, &want), "{bent:?}");
+        // Any bends keep every edge at its rest length.
+        let random = Strand::new([0.3, -0.7, 2.0, 0.05, -1.5, 0.9], false).decode(rest);
+        for e in 1..4 {
+            let edge: f32 = (0..3)
+                .map(|c| (random[3 * e + 3 + c] - random[3 * e + c]).powi(2))
+                .sum();
+            assert!((edge.sqrt() - L).abs() < 1e-6, "edge {e}: {}", edge.sqrt());
+        }
+    }
+
+    #[test]
+    fn bends_turn_with_a_rotating_handle() {
+        let q = [0.03, -0.05, 0.08, 0.02, -0.04, 0.06];
+        let strand = Strand::new(q, true);
+        let at_rest = strand.decode(HandleMotion::REST);
+        let (t, r) = ([0.2f32, -0.1, 0.3], [0.3f32, 0.9, -0.4]);
+        let moved = strand.decode(HandleMotion {
+            translation: t,
+            rotation: r,
+            ..HandleMotion::REST
+        });
+        // Rodrigues in f64: the pose applied to the rest decode.
+        let angle = r.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt();
+        let k = r.map(|v| v as f64 / angle);
+        let pivot = [0.0, -0.05, 0.0];
+        for v in 0..5 {
+            let p: [f64; 3] = core::array::from_fn(|c| at_rest[3 * v + c] as f64 - pivot[c]);
+            let kxp = [
+                k[1] * p[2] - k[2] * p[1],
+                k[2] * p[0] - k[0] * p[2],
+                k[0] * p[1] - k[1] * p[0],
+            ];
+            let kp = k[0] * p[0] + k[1] * p[1] + k[2] * p[2];
+            for c in 0..3 {
+                let want = pivot[c]
+                    + t[c] as f64
+                    + p[c] * angle.cos()
+                    + kxp[c] * angle.sin()
+                    + k[c] * kp * (1.0 - angle.cos());
+                let got = moved[3 * v + c] as f64;
+                assert!((got - want).abs() < 1e-5, "vertex {v}: {got} vs {want}");
+            }
+        }
+    }
+
+    #[test]
+    fn bends_surface_decode_is_the_full_decode() {
+        let strand = Strand::new([0.3, -0.7, 2.0, 0.05, -1.5, 0.9], true);
+        let model = ValidModel::new(strand.model()).unwrap();
+        let mut body = Body::new(&model).unwrap();
+        let motion = HandleMotion {
+            translation: [0.1, 0.2, 0.3],
+            rotation: [0.5, 0.0, 0.2],
+            ..HandleMotion::REST
+        };
+        body.step(&model, &[motion]).unwrap();
+        let (mut full, mut surface) = ([0.0; 15], [0.0; 15]);
+        body.decode_into(&model, &mut full).unwrap();
+        body.decode_surface_into(&model, &mut surface).unwrap();
+        assert_eq!(full, surface);
+        // Only some vertices drawn: the same bits for those.
+        let mut drawn = strand;
+        let sources = push(&mut drawn.indices, &[HANDLE_SOURCE, 2]);
+        drawn.spans[10] = push(&mut drawn.indices, &[0, 4]);
+        drawn.spans[11] = sources;
+        let model = ValidModel::new(drawn.model()).unwrap();
+        let mut some = [0.0; 6];
+        body.decode_surface_into(&model, &mut some).unwrap();
+        assert_eq!(some[..3], full[..3]);
+        assert_eq!(some[3..], full[12..]);
+    }
+
+    #[test]
+    fn malformed_chains_are_refused_naming_the_field() {
+        let good = Strand::new([0.0; 6], false);
+        assert!(good.model().validate().is_ok());
+        let refused = |edit: &dyn Fn(&mut Strand)| {
+            let mut s = Strand::new([0.0; 6], false);
+            edit(&mut s);
+            let e = s.model().validate().unwrap_err();
+            (e.field, e.problem)
+        };
+        let (chains, chain_floats) = (good.spans[8].start as usize, good.spans[9].start as usize);
+        type Edit<'e> = &'e dyn Fn(&mut Strand);
+        let cases: [(Edit, &str, Problem); 10] = [
+            (&|s| s.indices[chains] = 2, "chains.parent", Problem::OutOfRange),
+            (&|s| s.indices[chains] = 1, "chains.parent", Problem::Inconsistent),
+            (&|s| s.indices[chains + 2] = 9, "chains", Problem::Inconsistent),
+            (&|s| s.indices[chains + 4] = 3, "chains.slots", Problem::OutOfRange),
+            (&|s| s.indices[chains + 4] = 0, "chains.slots", Problem::Inconsistent),
+            (&|s| s.floats[chain_floats] = 1.1, "chains.rest_normal", Problem::Domain),
+            (
+                &|s| s.floats[chain_floats + 1] = f32::NAN,
+                "chains.rest_normal",
+                Problem::NotFinite,
+            ),
+            (&|s| s.floats[chain_floats + 4] = 0.0, "chains.lengths", Problem::Domain),
+            (
+                &|s| s.spans[9].len -= 1,
+                "chains.lengths",
+                Problem::Length { expected: 6, found: 5 },
+            ),
+            (
+                &|s| s.spans[8].start = s.indices.len() as u32,
+                "chains",
+                Problem::OutOfRange,
+            ),
+        ];
+        for (edit, field, problem) in cases {
+            assert_eq!(refused(edit), (field, problem));
+        }
+        // A strand that covers only two of the three free vertices.
+        let short = refused(&|s| {
+            s.indices[chains + 2] = 2;
+            s.spans[8].len -= 1;
+            s.spans[9].len -= 1;
+        });
+        assert_eq!(short, ("chains.slots", Problem::Length { expected: 3, found: 2 }));
+    }
 }

@@ -31,13 +31,14 @@ pub mod network;
 #[cfg(feature = "std")]
 pub use artifact::OwnedModel;
 pub use artifact::{LoadError, LoadedModel, Storage};
-pub use frame::{HandleMotion, HandlePose};
+pub use frame::{ChainWalk, HandleMotion, HandlePose};
 pub use instance::{
     AnyInstance, DecodeError, Instance, SizeError, StepError, Stepped, ValidModel, MAX_HIDDEN, MAX_LATENT, MAX_SIGNAL,
     RANGE_MARGIN,
 };
 pub use model::{
-    Handle, Layer, Model, ModelError, Problem, Span, WeightFormat, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE,
+    Chain, Chains, Handle, Layer, Model, ModelError, Problem, Span, WeightFormat, Weights, HANDLE_SOURCE,
+    SIGNAL_PER_HANDLE,
 };
 
 /// Version of the artifact format this runtime understands.

@@ -5,7 +5,9 @@
 //! A network is a list of dense layers `[input, inner_0, outer_0, ..., output]` with
 //! `h = input(x); h += outer_j(swish(inner_j(h))); y = output(swish(h))`. The integrator maps
 //! `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` to the increment `z_t - z_{t-1}`; the decoder
-//! maps a latent to the encoded positions of the free vertices.
+//! maps a latent to the encoded state of the free vertices: `dim` numbers each (positions in
+//! the encoding frame), or two numbers each for rod strands encoded by their bends
+//! ([`Model::chains`], see [`Chain`]).
 
 use core::fmt;
 
@@ -88,6 +90,62 @@ pub struct Handle {
     pub pivot: [f32; 3],
 }
 
+/// One rod strand of a bend-encoded model (read from [`Model::chains`] and
+/// [`Model::chain_floats`] by [`Model::chains`]).
+///
+/// The strand starts with two prescribed vertices (handle slots `parent`); every free vertex
+/// after them is encoded by two numbers `q[2j], q[2j + 1]` (`j` its index among the free
+/// vertices), the bend of the edge that ends at it. Decoding starts at the second prescribed
+/// vertex with the axes `d` (unit parent edge), `u` (the rest normal turned by the frame
+/// rotation, made perpendicular to `d`) and `w = d x u`, and for each edge turns the axes by
+/// the Cayley map of the Gibbs vector `g = (u q[2j] + w q[2j + 1]) / length` and steps `length`
+/// along the new `d`, so every edge keeps its rest length.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Chain<'a> {
+    /// Handle slots of the strand's two prescribed vertices (the parent edge goes from the
+    /// first to the second).
+    pub parent: [u32; 2],
+    /// Unit vector perpendicular to the parent edge at rest.
+    pub rest_normal: [f32; 3],
+    /// Free-vertex indices of the strand's free vertices, root to tip.
+    pub slots: &'a [u32],
+    /// Rest length of the edge that ends at each of them.
+    pub lengths: &'a [f32],
+}
+
+/// The strands of a bend-encoded model, in order (see [`Model::chains`]). Stops at the first
+/// record that does not fit its table (none in a validated model).
+#[derive(Clone, Debug)]
+pub struct Chains<'a> {
+    indices: &'a [u32],
+    floats: &'a [f32],
+}
+
+impl<'a> Iterator for Chains<'a> {
+    type Item = Chain<'a>;
+
+    fn next(&mut self) -> Option<Chain<'a>> {
+        let (&[p0, p1, n], rest) = self.indices.split_first_chunk::<3>()?;
+        let (&normal, reals) = self.floats.split_first_chunk::<3>()?;
+        let n = n as usize;
+        if rest.len() < n || reals.len() < n {
+            self.indices = &[];
+            self.floats = &[];
+            return None;
+        }
+        let (slots, rest) = rest.split_at(n);
+        let (lengths, reals) = reals.split_at(n);
+        self.indices = rest;
+        self.floats = reals;
+        Some(Chain {
+            parent: [p0, p1],
+            rest_normal: normal,
+            slots,
+            lengths,
+        })
+    }
+}
+
 /// A frozen model (see the module docs). Every [`Span`] names a range of `floats` or
 /// `indices`; [`Model::validate`] checks all of them once, after which the accessors cannot
 /// fail.
@@ -134,6 +192,15 @@ pub struct Model<'a> {
     /// Per rod strand, the handle slot of its root; empty when the origin is the centroid of
     /// all handle vertices. In `indices`.
     pub root_slots: Span,
+    /// Rod strands encoded by their bends instead of positions (see [`Chain`]); empty when the
+    /// encoded vertices are positions. In `indices`, one record per strand:
+    /// `[parent_0, parent_1, n, slot_0, ..., slot_(n-1)]`. Validation names its parts
+    /// `chains` (the table), `chains.parent` and `chains.slots`.
+    pub chains: Span,
+    /// The real-valued part of [`Model::chains`]: in `floats`, one record per strand,
+    /// `[normal_x, normal_y, normal_z, length_0, ..., length_(n-1)]`. Validation names its parts
+    /// `chains.rest_normal` and `chains.lengths`.
+    pub chain_floats: Span,
     /// Vertices that are drawn, ascending, in `indices`.
     pub surface_vertices: Span,
     /// Per drawn vertex, its free-vertex index, or [`HANDLE_SOURCE`] | its handle slot.
@@ -175,6 +242,9 @@ pub enum Problem {
     Shape,
     /// Vertex sets do not partition the mesh, or are not ascending.
     Inconsistent,
+    /// A finite value outside its domain (a rest length that is not positive, a normal that is
+    /// not of unit length).
+    Domain,
 }
 
 impl fmt::Display for ModelError {
@@ -187,6 +257,7 @@ impl fmt::Display for ModelError {
             Problem::Unsupported => write!(f, "value not supported by this runtime"),
             Problem::Shape => write!(f, "layer shapes do not chain"),
             Problem::Inconsistent => write!(f, "vertex sets are inconsistent"),
+            Problem::Domain => write!(f, "holds a value outside its domain"),
         }
     }
 }
@@ -211,9 +282,21 @@ impl<'a> Model<'a> {
     pub fn surface_len(&self) -> usize {
         self.dim() * self.surface_vertices.len as usize
     }
-    /// Length of an encoded state (`dim` per free vertex).
+    /// Whether rod strands are encoded by their bends ([`Model::chains`] is not empty).
+    pub fn bends(&self) -> bool {
+        self.chains.len > 0
+    }
+    /// Numbers per encoded (free) vertex: `dim`, or 2 for bends.
+    pub fn values_per_vertex(&self) -> usize {
+        if self.bends() {
+            2
+        } else {
+            self.dim()
+        }
+    }
+    /// Length of an encoded state (`dim` per free vertex, 2 for bends).
     pub fn encoded_len(&self) -> usize {
-        self.dim() * self.free_vertices.len as usize
+        self.values_per_vertex() * self.free_vertices.len as usize
     }
     /// Widest hidden layer of either network.
     pub fn hidden(&self) -> usize {
@@ -258,6 +341,13 @@ impl<'a> Model<'a> {
     /// Handle slots of the strand roots (empty: centroid origin).
     pub fn root_slots(&self) -> &'a [u32] {
         self.indices_of(self.root_slots)
+    }
+    /// The strands encoded by their bends, in order (none for positions).
+    pub fn chains(&self) -> Chains<'a> {
+        Chains {
+            indices: self.indices_of(self.chains),
+            floats: self.floats_of(self.chain_floats),
+        }
     }
     /// Drawn vertices, ascending.
     pub fn surface_vertices(&self) -> &'a [u32] {
@@ -346,6 +436,7 @@ impl<'a> Model<'a> {
         }
         self.validate_vertices()?;
         self.validate_handles()?;
+        self.validate_chains()?;
         let bc = SIGNAL_PER_HANDLE * self.handles.len();
         if self.bc_len as usize != bc {
             return fail(
@@ -434,6 +525,107 @@ impl<'a> Model<'a> {
             if found != Some(&v) {
                 return fail("surface_source", Problem::Inconsistent);
             }
+        }
+        Ok(())
+    }
+
+    /// The chain tables (see [`Model::chains`]): records that fit, parents that are two
+    /// distinct handle slots, unit normals, positive lengths, and slots that list every free
+    /// vertex exactly once. Runs after the vertex sets are validated.
+    fn validate_chains(&self) -> Result<(), ModelError> {
+        let table = self.chains.of(self.indices).ok_or(ModelError {
+            field: "chains",
+            problem: Problem::OutOfRange,
+        })?;
+        let reals = self.chain_floats.of(self.floats).ok_or(ModelError {
+            field: "chains.lengths",
+            problem: Problem::OutOfRange,
+        })?;
+        if table.is_empty() {
+            if !reals.is_empty() {
+                return fail(
+                    "chains.lengths",
+                    Problem::Length {
+                        expected: 0,
+                        found: reals.len(),
+                    },
+                );
+            }
+            return Ok(());
+        }
+        if self.dim() != 3 {
+            return fail("chains", Problem::Unsupported);
+        }
+        let (slots, free) = (self.handle_vertices().len(), self.free_vertices().len());
+        let (mut i, mut f, mut covered) = (0usize, 0usize, 0usize);
+        while i < table.len() {
+            let Some(&[p0, p1, n]) = table.get(i..).and_then(|t| t.first_chunk::<3>()) else {
+                return fail("chains", Problem::Inconsistent);
+            };
+            let n = n as usize;
+            let end = |start: usize| start.checked_add(3).and_then(|s| s.checked_add(n));
+            let Some(strand) = end(i).and_then(|e| table.get(i + 3..e)) else {
+                return fail("chains", Problem::Inconsistent);
+            };
+            let Some(record) = end(f).and_then(|e| reals.get(f..e)) else {
+                return fail(
+                    "chains.lengths",
+                    Problem::Length {
+                        expected: f.saturating_add(3).saturating_add(n),
+                        found: reals.len(),
+                    },
+                );
+            };
+            if p0 as usize >= slots || p1 as usize >= slots {
+                return fail("chains.parent", Problem::OutOfRange);
+            }
+            if p0 == p1 {
+                return fail("chains.parent", Problem::Inconsistent);
+            }
+            let (normal, lengths) = record.split_at(3);
+            if !normal.iter().all(|v| v.is_finite()) {
+                return fail("chains.rest_normal", Problem::NotFinite);
+            }
+            let squared = normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2];
+            if (squared - 1.0).abs() >= 1e-4 {
+                return fail("chains.rest_normal", Problem::Domain);
+            }
+            if !lengths.iter().all(|l| l.is_finite()) {
+                return fail("chains.lengths", Problem::NotFinite);
+            }
+            if !lengths.iter().all(|&l| l > 0.0) {
+                return fail("chains.lengths", Problem::Domain);
+            }
+            if strand.iter().any(|&j| j as usize >= free) {
+                return fail("chains.slots", Problem::OutOfRange);
+            }
+            covered += n;
+            i += 3 + n;
+            f += 3 + n;
+        }
+        if f != reals.len() {
+            return fail(
+                "chains.lengths",
+                Problem::Length {
+                    expected: f,
+                    found: reals.len(),
+                },
+            );
+        }
+        if covered != free {
+            return fail(
+                "chains.slots",
+                Problem::Length {
+                    expected: free,
+                    found: covered,
+                },
+            );
+        }
+        // Every free vertex exactly once: at once when the strands list them in order (as the
+        // trainer writes the procedural rods), otherwise pair by pair (once per model).
+        let all = || self.chains().flat_map(|c| c.slots.iter().copied());
+        if !all().eq(0..free as u32) && all().enumerate().any(|(p, j)| all().take(p).any(|k| k == j)) {
+            return fail("chains.slots", Problem::Inconsistent);
         }
         Ok(())
     }

@@ -13,6 +13,11 @@ pub mod beam {
     include!(concat!(env!("OUT_DIR"), "/beam.rs"));
 }
 
+/// Generated from `artifacts/strands.mochi` (four rods encoded by their bends).
+pub mod strands {
+    include!(concat!(env!("OUT_DIR"), "/strands.rs"));
+}
+
 /// Generated from `artifacts/tiny.mochi` with `f16` weights.
 pub mod tiny_f16 {
     include!(concat!(env!("OUT_DIR"), "/tiny_f16.rs"));

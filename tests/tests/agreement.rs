@@ -1,7 +1,8 @@
-//! The runtime agrees with the trainer: for each committed artifact, generated constants and
-//! the same artifact loaded from bytes roll out within 1e-4 of the bounding-box diagonal of
-//! the trainer's own rollout over 1,000 frames of every test sequence; the surface decode is
-//! the full decode restricted to the drawn vertices (up to round-off).
+//! The runtime agrees with the trainer: for each committed artifact (positions- and
+//! bend-encoded), generated constants and the same artifact loaded from bytes roll out within
+//! 1e-4 of the bounding-box diagonal of the trainer's own rollout over 1,000 frames of every
+//! test sequence; the surface decode is the full decode restricted to the drawn vertices (up
+//! to round-off).
 //!
 //! Where the trainer's rollout itself diverges (leaves the training envelope, as `mochi eval`
 //! counts it), round-off differences grow without bound and agreement means nothing; where the
@@ -73,6 +74,21 @@ fn generated_tiny_model_agrees_with_the_trainer() {
     assert!(
         worst <= TOLERANCE,
         "generated tiny model is {worst:.2e} diagonals from the trainer"
+    );
+}
+
+#[test]
+fn generated_strands_model_agrees_with_the_trainer() {
+    // Rods encoded by their bends: the runtime walks every strand from its root.
+    use mochi_tests::strands;
+    let model = ValidModel::new(strands::MODEL).unwrap();
+    let worst = worst_disagreement::<{ strands::LATENT }, { strands::SIGNAL }, { strands::HIDDEN }>(
+        Path::new("artifacts/strands.mochi"),
+        &model,
+    );
+    assert!(
+        worst <= TOLERANCE,
+        "generated strands model is {worst:.2e} diagonals from the trainer"
     );
 }
 

@@ -177,7 +177,11 @@ fn corrupted_payloads_with_a_valid_checksum_are_refused_without_panic() {
         } else {
             p.truncate(rng.random_range(0..p.len()));
         }
-        let wrapped = mochi_trainer::framing::wrap(mochi_runtime::artifact::MAGIC, 1, &p);
+        let wrapped = mochi_trainer::framing::wrap(
+            mochi_runtime::artifact::MAGIC,
+            mochi_runtime::artifact::FORMAT_VERSION,
+            &p,
+        );
         let loaded = load(&wrapped);
         if p.len() < payload.len() {
             assert!(loaded.is_err(), "payload truncated to {} bytes was accepted", p.len());
@@ -216,8 +220,16 @@ fn too_small_storage_names_the_field_that_did_not_fit() {
 #[test]
 fn wrong_magic_and_version_are_named() {
     let mut bytes = artifact_bytes();
-    bytes[8] = 2;
-    assert_eq!(load(&bytes), Err(LoadError::Version { found: 2 }));
+    assert_eq!(mochi_runtime::ARTIFACT_VERSION, 2);
+    // Format 1 (before `encoding.chains`) and a future format 3.
+    for version in [1, 3] {
+        bytes[8] = version;
+        assert_eq!(load(&bytes), Err(LoadError::Version { found: version as u32 }));
+        let trainer = mochi_trainer::artifact::Artifact::from_bytes(&bytes, std::path::Path::new("old.mochi"))
+            .unwrap_err()
+            .to_string();
+        assert!(trainer.contains(&format!("version {version}")), "{trainer}");
+    }
     bytes[0] = b'X';
     assert_eq!(load(&bytes), Err(LoadError::BadMagic));
 }

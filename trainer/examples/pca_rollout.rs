@@ -78,7 +78,7 @@ fn main() -> anyhow::Result<()> {
                 let x = decode(z, t)?;
                 let value = loss.value_and_gradient(&x, prev, prev2, &targets, &mut grad);
                 let mut local = vec![0.0; encoding.encoded_len()];
-                encoding.encode_gradient(&grad, &frame, 1.0, &mut local)?;
+                encoding.encode_gradient(&pca.reconstruct(z)?, &grad, &frame, 1.0, &mut local)?;
                 let gz = pca.basis.iter().map(|b| b.iter().zip(&local).map(|(a, c)| a * c).sum());
                 Ok((value, DVector::from_iterator(k, gz)))
             };

@@ -20,8 +20,8 @@ use crate::model::{DenseLayer, ExportedIntegrator, ExportedMlp};
 
 /// First bytes of every artifact.
 pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
-/// Version of the artifact format written by this build.
-pub const FORMAT_VERSION: u32 = 1;
+/// Version of the artifact format written by this build (2: `encoding.chains` added).
+pub const FORMAT_VERSION: u32 = 2;
 
 /// How an artifact's integrator was trained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -58,6 +58,22 @@ pub struct EncodingData {
     /// Empty: one origin, the centroid of the handle targets. Otherwise, per rod strand, the
     /// slot of its root among the handle vertices.
     pub root_slots: Vec<u32>,
+    /// Empty: encoded vertices are positions. Otherwise the rod strands, encoded by their
+    /// bends ([`crate::encoding::Encoding::with_strand_bends`]), two numbers per vertex.
+    pub chains: Vec<ChainData>,
+}
+
+/// One rod strand of the bend encoding (see [`crate::encoding::Chain`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ChainData {
+    /// Handle slots of the strand's two prescribed vertices (parent edge: first to second).
+    pub parent: [u32; 2],
+    /// Unit vector perpendicular to the parent edge at rest.
+    pub rest_normal: [f32; 3],
+    /// Encoded-vertex indices of the strand's free vertices, root to tip.
+    pub slots: Vec<u32>,
+    /// Rest length of the edge ending at each of them.
+    pub lengths: Vec<f32>,
 }
 
 impl EncodingData {
@@ -74,6 +90,16 @@ impl EncodingData {
                 Origins::HandleCentroid => Vec::new(),
                 Origins::StrandRoots { root_slots } => u32s(root_slots),
             },
+            chains: encoding
+                .chains()
+                .iter()
+                .map(|c| ChainData {
+                    parent: c.parent.map(|s| s as u32),
+                    rest_normal: [0, 1, 2].map(|i| c.rest_normal[i] as f32),
+                    slots: u32s(&c.slots),
+                    lengths: c.lengths.iter().map(|&l| l as f32).collect(),
+                })
+                .collect(),
         }
     }
 }
@@ -178,9 +204,14 @@ pub struct Artifact {
 }
 
 impl Artifact {
-    /// Length of an encoded state.
+    /// Length of an encoded state (`dim` per encoded vertex, 2 with strand bends).
     pub fn encoded_len(&self) -> usize {
-        self.encoding.free_vertices.len() * self.dim as usize
+        let per_vertex = if self.encoding.chains.is_empty() {
+            self.dim as usize
+        } else {
+            2
+        };
+        self.encoding.free_vertices.len() * per_vertex
     }
 
     /// The encoder as a runnable network.
@@ -235,6 +266,36 @@ impl Artifact {
             || e.root_slots.iter().any(|&s| s as usize >= e.handle_vertices.len())
         {
             return err("encoding", "origin index out of range".into());
+        }
+        if !e.chains.is_empty() {
+            let mut covered = vec![false; e.free_vertices.len()];
+            for c in &e.chains {
+                let parents_ok =
+                    c.parent.iter().all(|&s| (s as usize) < e.handle_vertices.len()) && c.parent[0] != c.parent[1];
+                let lengths_ok =
+                    c.lengths.len() == c.slots.len() && c.lengths.iter().all(|l| l.is_finite() && *l > 0.0);
+                let normal_ok = (c.rest_normal.iter().map(|v| v * v).sum::<f32>() - 1.0).abs() < 1e-4;
+                if !(parents_ok && lengths_ok && normal_ok && dim == 3) {
+                    return err(
+                        "encoding.chains",
+                        "a strand's parent, lengths or rest normal is invalid".into(),
+                    );
+                }
+                for &j in &c.slots {
+                    match covered.get_mut(j as usize) {
+                        Some(seen @ false) => *seen = true,
+                        _ => {
+                            return err(
+                                "encoding.chains",
+                                format!("encoded vertex {j} is out of range or on two strands"),
+                            )
+                        }
+                    }
+                }
+            }
+            if covered.contains(&false) {
+                return err("encoding.chains", "some encoded vertex lies on no strand".into());
+            }
         }
         let handle_count: usize = self.handles.iter().map(|h| h.vertices.len()).sum();
         if handle_count != e.handle_vertices.len()

@@ -32,7 +32,7 @@ use nalgebra::{DMatrix, Matrix3, Vector3};
 use crate::bc::Handle;
 use crate::error::InputError;
 use crate::mesh::{Elements, Mesh};
-use crate::scene::{HandleSpec, Problem};
+use crate::scene::{HandleSpec, Problem, RodEncoding};
 use crate::trajectory::Trajectory;
 
 /// Spread of the handle points along a principal direction, relative to the largest, below
@@ -106,6 +106,8 @@ pub struct Frame {
     pub rotation: Matrix3<f64>,
     /// The origins, indexed by [`Encoding::origin_of`] (z = 0 in 2D).
     pub origins: Vec<Vector3<f64>>,
+    /// Per strand, where its chain starts (empty unless strands are encoded by bends).
+    pub chains: Vec<ChainStart>,
 }
 
 /// How the states of one body are encoded relative to its boundary conditions.
@@ -123,6 +125,34 @@ pub struct Encoding {
     /// Per encoded vertex, the index of its origin in [`Frame::origins`].
     origin_of: Vec<usize>,
     origins: Origins,
+    /// Rod strands encoded by their bends instead of their positions
+    /// ([`Encoding::with_strand_bends`]); empty for the affine encoding.
+    chains: Vec<Chain>,
+}
+
+/// One rod strand in the stretch-free encoding ([`Encoding::with_strand_bends`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Chain {
+    /// Handle slots of the strand's two prescribed vertices; the edge from the first to the
+    /// second is the parent of the first free edge.
+    pub parent: [usize; 2],
+    /// A unit vector perpendicular to the parent edge at rest: with the handles' rotation
+    /// applied, it fixes the first bend's axes.
+    pub rest_normal: Vector3<f64>,
+    /// Indices into the encoded vertices of the strand's free vertices, root to tip.
+    pub slots: Vec<usize>,
+    /// Rest length of the edge that ends at each of them.
+    pub lengths: Vec<f64>,
+}
+
+/// Where a strand's chain starts in one state: its last prescribed vertex and the axes
+/// (parent-edge direction, then two normals) of the first bend.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChainStart {
+    /// Position of the strand's last prescribed vertex.
+    pub anchor: Vector3<f64>,
+    /// Unit parent-edge direction `d`, and the normals `u`, `w` (`d x u = w`).
+    pub axes: [Vector3<f64>; 3],
 }
 
 impl Encoding {
@@ -130,8 +160,14 @@ impl Encoding {
     /// (see [`handles_rotate`]).
     pub fn new(problem: &Problem) -> Result<Encoding, InputError> {
         let rotates = handles_rotate(&problem.scene.handles);
-        Encoding::from_parts(&problem.mesh, &problem.handles, rotates)
-            .map_err(|e| InputError::field(&problem.scene.source, "handles", e.to_string()))
+        let encoding = Encoding::from_parts(&problem.mesh, &problem.handles, rotates)
+            .map_err(|e| InputError::field(&problem.scene.source, "handles", e.to_string()))?;
+        match problem.scene.latent.rods {
+            RodEncoding::Positions => Ok(encoding),
+            RodEncoding::Bends => encoding
+                .with_strand_bends(&problem.mesh)
+                .map_err(|e| InputError::field(&problem.scene.source, "latent.rods", e.to_string())),
+        }
     }
 
     /// The encoding of `mesh` with prescribed `handles`; `rotates` says whether to remove
@@ -182,7 +218,105 @@ impl Encoding {
             free_vertices,
             origin_of,
             origins,
+            chains: Vec::new(),
         })
+    }
+
+    /// Encodes the rod strands of `mesh` by their bends instead of their positions, so that
+    /// no encoded vector can stretch a rod. Every strand must start with exactly two
+    /// prescribed vertices (a clamped root) and every free vertex must lie on a strand.
+    ///
+    /// Each free edge `e` of a strand is stored as two numbers `l_e (g . u, g . w)`, where
+    /// `l_e` is its rest length and `g = d x d_e / (1 + d . d_e)` the Gibbs vector
+    /// (`tan(angle / 2)` times the axis) of the smallest rotation carrying the previous
+    /// edge's direction `d` to the edge's own `d_e`, in the axes `(d, u, w)` that the root's
+    /// axes reach by the same rotations (parallel transport along the strand). Decoding
+    /// rotates the axes by the Cayley map of `g` and steps `l_e` along the new direction:
+    /// rational arithmetic only, every edge at its rest length, exact for any rod that is
+    /// not stretched. The root's axes are the parent edge's direction and the rest normal
+    /// turned by the handles' rotation.
+    pub fn with_strand_bends(mut self, mesh: &Mesh) -> Result<Encoding, EncodingError> {
+        let bad = |message: String| EncodingError::BadHandle {
+            handle: "rod roots".into(),
+            message,
+        };
+        let Elements::Rods(strands) = &mesh.elements else {
+            return Err(bad("bend encoding needs a rods mesh".into()));
+        };
+        if self.dim != 3 {
+            return Err(bad(format!(
+                "bend encoding needs 3D rods, the mesh has {} coordinates per vertex",
+                self.dim
+            )));
+        }
+        let slot_of = |v: usize| self.handle_vertices.iter().position(|&h| h == v);
+        let index_of = |v: usize| self.free_vertices.binary_search(&v).ok();
+        let point = |v: usize| pad(&mesh.rest[v * 3..v * 3 + 3]);
+        let mut covered = 0;
+        let mut chains = Vec::with_capacity(strands.len());
+        for (k, strand) in strands.iter().enumerate() {
+            let (Some(a), Some(b)) = (
+                strand.first().and_then(|&v| slot_of(v)),
+                strand.get(1).and_then(|&v| slot_of(v)),
+            ) else {
+                return Err(bad(format!(
+                    "strand {k} does not start with two prescribed vertices (select rod-roots = 2)"
+                )));
+            };
+            let parent = point(strand[1]) - point(strand[0]);
+            if parent.norm() == 0.0 {
+                return Err(bad(format!("strand {k}: its first edge has zero rest length")));
+            }
+            let mut slots = Vec::with_capacity(strand.len().saturating_sub(2));
+            let mut lengths = Vec::with_capacity(slots.capacity());
+            for pair in strand[1..].windows(2) {
+                let j = index_of(pair[1])
+                    .ok_or_else(|| bad(format!("strand {k}: vertex {} after the root is prescribed", pair[1])))?;
+                let length = (point(pair[1]) - point(pair[0])).norm();
+                if length == 0.0 {
+                    return Err(bad(format!(
+                        "strand {k}: the edge to vertex {} has zero rest length",
+                        pair[1]
+                    )));
+                }
+                slots.push(j);
+                lengths.push(length);
+            }
+            covered += slots.len();
+            chains.push(Chain {
+                parent: [a, b],
+                rest_normal: normal_to(&parent.normalize()),
+                slots,
+                lengths,
+            });
+        }
+        if covered != self.free_vertices.len() {
+            return Err(bad(format!(
+                "{} free vertices, {covered} of them on strands: every free vertex must lie on exactly one strand",
+                self.free_vertices.len()
+            )));
+        }
+        self.chains = chains;
+        Ok(self)
+    }
+
+    /// The strands encoded by their bends (empty for the affine encoding).
+    pub fn chains(&self) -> &[Chain] {
+        &self.chains
+    }
+
+    /// Whether rod strands are encoded by their bends ([`Encoding::with_strand_bends`]).
+    pub fn strand_bends(&self) -> bool {
+        !self.chains.is_empty()
+    }
+
+    /// Numbers per encoded vertex: `dim` for positions, 2 for bends.
+    pub fn values_per_vertex(&self) -> usize {
+        if self.strand_bends() {
+            2
+        } else {
+            self.dim
+        }
     }
 
     /// Coordinates per vertex.
@@ -193,9 +327,9 @@ impl Encoding {
     pub fn state_len(&self) -> usize {
         self.num_vertices * self.dim
     }
-    /// Length of an encoded vector (`dim` per encoded vertex).
+    /// Length of an encoded vector (`dim` per encoded vertex, 2 with strand bends).
     pub fn encoded_len(&self) -> usize {
-        self.free_vertices.len() * self.dim
+        self.free_vertices.len() * self.values_per_vertex()
     }
     /// Length of the handle targets (`dim` per prescribed vertex).
     pub fn targets_len(&self) -> usize {
@@ -252,7 +386,33 @@ impl Encoding {
             Origins::HandleCentroid => vec![centroid(handle_targets, self.dim)],
             Origins::StrandRoots { root_slots } => root_slots.iter().map(|&s| point(s)).collect(),
         };
-        Ok(Frame { rotation, origins })
+        let chains = self
+            .chains
+            .iter()
+            .map(|c| {
+                let anchor = point(c.parent[1]);
+                let d = (anchor - point(c.parent[0])).normalize();
+                let turned = rotation * c.rest_normal;
+                let projected = turned - d * d.dot(&turned);
+                let u = if projected.norm() > 1e-6 {
+                    projected.normalize()
+                } else {
+                    normal_to(&d)
+                };
+                if !(d.iter().chain(u.iter()).all(|x| x.is_finite())) {
+                    return Err(EncodingError::NotFinite);
+                }
+                Ok(ChainStart {
+                    anchor,
+                    axes: [d, u, d.cross(&u)],
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Frame {
+            rotation,
+            origins,
+            chains,
+        })
     }
 
     fn check_frame(&self, frame: &Frame) -> Result<(), EncodingError> {
@@ -260,13 +420,17 @@ impl Encoding {
             Origins::HandleCentroid => 1,
             Origins::StrandRoots { root_slots } => root_slots.len(),
         };
-        check_len("frame origins", expected, frame.origins.len())
+        check_len("frame origins", expected, frame.origins.len())?;
+        check_len("frame chains", self.chains.len(), frame.chains.len())
     }
 
     /// Encodes the full state `x` in `frame`: `q_v = R^T (x_v - o_v)` for every encoded vertex.
     pub fn encode(&self, x: &[f64], frame: &Frame) -> Result<Vec<f64>, EncodingError> {
         check_len("state", self.state_len(), x.len())?;
         self.check_frame(frame)?;
+        if self.strand_bends() {
+            return Ok(self.encode_bends(x, frame));
+        }
         let d = self.dim;
         let rt = frame.rotation.transpose();
         let mut q = Vec::with_capacity(self.encoded_len());
@@ -277,19 +441,27 @@ impl Encoding {
         Ok(q)
     }
 
-    /// Pulls a full-space gradient `dE/dx` back to the encoded coordinates:
-    /// `dE/dq_v = R^T dE/dx_v` for every encoded vertex (the chain rule through `decode`),
-    /// scaled by `1 / scale`, written into `out` (`encoded_len` values).
+    /// Pulls a full-space gradient `dE/dx`, taken at the decoding of `q` in `frame`, back to
+    /// the encoded coordinates (the chain rule through [`Encoding::decode_into`]), scaled by
+    /// `1 / scale`, into `out` (`encoded_len` values). For positions this is
+    /// `dE/dq_v = R^T dE/dx_v` and does not depend on `q`; for strand bends it is the
+    /// reverse pass through each chain.
     pub fn encode_gradient(
         &self,
+        q: &[f64],
         grad: &[f64],
         frame: &Frame,
         scale: f64,
         out: &mut [f64],
     ) -> Result<(), EncodingError> {
+        check_len("encoded vector", self.encoded_len(), q.len())?;
         check_len("gradient", self.state_len(), grad.len())?;
         check_len("encoded gradient", self.encoded_len(), out.len())?;
         self.check_frame(frame)?;
+        if self.strand_bends() {
+            self.bends_gradient(q, grad, frame, scale, out);
+            return Ok(());
+        }
         let d = self.dim;
         let rt = frame.rotation.transpose();
         for (j, &v) in self.free_vertices.iter().enumerate() {
@@ -299,6 +471,71 @@ impl Encoding {
             }
         }
         Ok(())
+    }
+
+    /// The bends of every free edge of `x` (see [`Encoding::with_strand_bends`]).
+    fn encode_bends(&self, x: &[f64], frame: &Frame) -> Vec<f64> {
+        let mut q = vec![0.0; self.encoded_len()];
+        for (chain, start) in self.chains.iter().zip(&frame.chains) {
+            let (mut previous, mut axes) = (start.anchor, start.axes);
+            for (&j, &length) in chain.slots.iter().zip(&chain.lengths) {
+                let v = self.free_vertices[j];
+                let p = pad(&x[v * 3..v * 3 + 3]);
+                let direction = (p - previous).normalize();
+                let g = axes[0].cross(&direction) / (1.0 + axes[0].dot(&direction));
+                q[2 * j] = length * g.dot(&axes[1]);
+                q[2 * j + 1] = length * g.dot(&axes[2]);
+                axes = axes.map(|y| cayley(&g, &y));
+                previous = p;
+            }
+        }
+        q
+    }
+
+    /// Walks every chain of `q` from its anchor, calling `place(j, position)` for each
+    /// encoded vertex `j`.
+    fn decode_bends(&self, q: &[f64], frame: &Frame, mut place: impl FnMut(usize, &Vector3<f64>)) {
+        for (chain, start) in self.chains.iter().zip(&frame.chains) {
+            let (mut position, mut axes) = (start.anchor, start.axes);
+            for (&j, &length) in chain.slots.iter().zip(&chain.lengths) {
+                let g = (axes[1] * q[2 * j] + axes[2] * q[2 * j + 1]) / length;
+                axes = axes.map(|y| cayley(&g, &y));
+                position += axes[0] * length;
+                place(j, &position);
+            }
+        }
+    }
+
+    /// Reverse pass of [`Encoding::decode_bends`]: `dE/dq` from `dE/dx`.
+    fn bends_gradient(&self, q: &[f64], grad: &[f64], frame: &Frame, scale: f64, out: &mut [f64]) {
+        for (chain, start) in self.chains.iter().zip(&frame.chains) {
+            // Forward: the axes before each edge and its Gibbs vector.
+            let mut axes = start.axes;
+            let mut before = Vec::with_capacity(chain.slots.len());
+            for (&j, &length) in chain.slots.iter().zip(&chain.lengths) {
+                let g = (axes[1] * q[2 * j] + axes[2] * q[2 * j + 1]) / length;
+                before.push((axes, g));
+                axes = axes.map(|y| cayley(&g, &y));
+            }
+            // Backward: `tail` sums dE/dx over the vertices from edge e to the tip; `carry`
+            // is the adjoint of the axes after edge e from the edges beyond it.
+            let mut tail = Vector3::zeros();
+            let mut carry = [Vector3::zeros(); 3];
+            for e in (0..chain.slots.len()).rev() {
+                let (j, length) = (chain.slots[e], chain.lengths[e]);
+                let v = self.free_vertices[j];
+                tail += pad(&grad[v * 3..v * 3 + 3]);
+                let mut adjoint = carry;
+                adjoint[0] += tail * length;
+                let (axes, g) = &before[e];
+                let g_bar: Vector3<f64> = (0..3).map(|c| cayley_vjp(g, &axes[c], &adjoint[c])).sum();
+                out[2 * j] = g_bar.dot(&axes[1]) / length / scale;
+                out[2 * j + 1] = g_bar.dot(&axes[2]) / length / scale;
+                carry = adjoint.map(|a| cayley(&-g, &a));
+                carry[1] += g_bar * (q[2 * j] / length);
+                carry[2] += g_bar * (q[2 * j + 1] / length);
+            }
+        }
     }
 
     /// Encodes a full state in the frame of its own prescribed vertices.
@@ -328,9 +565,16 @@ impl Encoding {
         check_len("output state", self.state_len(), out.len())?;
         self.check_frame(frame)?;
         let d = self.dim;
-        for (k, (&v, &o)) in self.free_vertices.iter().zip(&self.origin_of).enumerate() {
-            let world = frame.rotation * pad(&q[k * d..(k + 1) * d]) + frame.origins[o];
-            out[v * d..(v + 1) * d].copy_from_slice(&world.as_slice()[..d]);
+        if self.strand_bends() {
+            self.decode_bends(q, frame, |j, p| {
+                let v = self.free_vertices[j];
+                out[v * 3..v * 3 + 3].copy_from_slice(p.as_slice());
+            });
+        } else {
+            for (k, (&v, &o)) in self.free_vertices.iter().zip(&self.origin_of).enumerate() {
+                let world = frame.rotation * pad(&q[k * d..(k + 1) * d]) + frame.origins[o];
+                out[v * d..(v + 1) * d].copy_from_slice(&world.as_slice()[..d]);
+            }
         }
         for (slot, &v) in self.handle_vertices.iter().enumerate() {
             out[v * d..(v + 1) * d].copy_from_slice(&handle_targets[slot * d..(slot + 1) * d]);
@@ -467,6 +711,29 @@ fn strand_roots(mesh: &Mesh, slot_of: &[Option<usize>], free: &[usize]) -> Optio
     Some((root_slots, strand_of))
 }
 
+/// `y` turned by the rotation whose Gibbs vector is `g` (the Cayley map:
+/// `y + 2 / (1 + |g|^2) (g x y + g x (g x y))`).
+fn cayley(g: &Vector3<f64>, y: &Vector3<f64>) -> Vector3<f64> {
+    let h = g.cross(y);
+    y + (h + g.cross(&h)) * (2.0 / (1.0 + g.norm_squared()))
+}
+
+/// `(d cayley(g, y) / d g)^T y_bar`: how the turned vector's adjoint reaches `g`.
+fn cayley_vjp(g: &Vector3<f64>, y: &Vector3<f64>, y_bar: &Vector3<f64>) -> Vector3<f64> {
+    let c = 2.0 / (1.0 + g.norm_squared());
+    let h = g.cross(y);
+    let k = g.cross(&h);
+    g * (-c * c * (h + k).dot(y_bar)) + (y.cross(y_bar) + h.cross(y_bar) + y.cross(&y_bar.cross(g))) * c
+}
+
+/// A unit vector perpendicular to the unit vector `d`: the coordinate axis least aligned
+/// with `d`, with its `d` component removed.
+fn normal_to(d: &Vector3<f64>) -> Vector3<f64> {
+    let axis = (0..3).min_by(|&a, &b| d[a].abs().total_cmp(&d[b].abs())).unwrap_or(0);
+    let e = Vector3::ith(axis, 1.0);
+    (e - d * d.dot(&e)).normalize()
+}
+
 /// A point of `dim` (2 or 3) coordinates as a 3-vector (z = 0 in 2D).
 fn pad(p: &[f64]) -> Vector3<f64> {
     let mut out = Vector3::zeros();
@@ -513,11 +780,22 @@ mod tests {
             .collect()
     }
 
+    /// Decoding inverts encoding: exactly for positions; for strand bends, which decode at
+    /// rest length, exactly from the encoded side (`encode(decode(q)) = q`).
     fn round_trip_is_exact(enc: &Encoding, states: &[Vec<f64>]) {
         for x in states {
             let q = enc.encode_state(x).unwrap();
             assert_eq!(q.len(), enc.encoded_len());
             let back = enc.decode(&q, &enc.handle_targets(x).unwrap()).unwrap();
+            if enc.strand_bends() {
+                let again = enc.encode_state(&back).unwrap();
+                assert!(
+                    max_abs_diff(&again, &q) < 1e-12,
+                    "bends round trip {}",
+                    max_abs_diff(&again, &q)
+                );
+                continue;
+            }
             assert!(
                 max_abs_diff(&back, x) < 1e-12,
                 "round trip error {}",
@@ -546,7 +824,7 @@ mod tests {
         }
 
         let (rods, traj) = simulate("rods", 10);
-        let enc = Encoding::new(&rods).unwrap();
+        let enc = Encoding::from_parts(&rods.mesh, &rods.handles, false).unwrap();
         assert!(!enc.rotates());
         let Origins::StrandRoots { root_slots } = enc.origins() else {
             panic!("rods encode relative to their roots");
@@ -593,6 +871,152 @@ mod tests {
             max_abs_diff(&q, &q_moved)
         );
         round_trip_is_exact(&enc, &traj.positions);
+    }
+
+    /// The rods scene's encoding by strand bends, with or without the roots' rotation removed.
+    fn rod_bends(rods: &Problem, rotates: bool) -> Encoding {
+        Encoding::from_parts(&rods.mesh, &rods.handles, rotates)
+            .unwrap()
+            .with_strand_bends(&rods.mesh)
+            .unwrap()
+    }
+
+    /// Rest length of every rod edge, and the same edges' lengths in `x`.
+    fn edge_lengths(mesh: &Mesh, x: &[f64]) -> Vec<(f64, f64)> {
+        let Elements::Rods(strands) = &mesh.elements else {
+            unreachable!()
+        };
+        let length = |p: &[f64], a: usize, b: usize| (pad(&p[b * 3..b * 3 + 3]) - pad(&p[a * 3..a * 3 + 3])).norm();
+        strands
+            .iter()
+            .flat_map(|s| s.windows(2))
+            .map(|e| (length(&mesh.rest, e[0], e[1]), length(x, e[0], e[1])))
+            .collect()
+    }
+
+    #[test]
+    fn strand_bends_decode_at_rest_length_and_track_simulated_rods() {
+        let (rods, traj) = simulate("rods", 20);
+        assert_eq!(rods.scene.latent.rods, RodEncoding::Bends);
+        let enc = Encoding::new(&rods).unwrap();
+        assert!(enc.strand_bends());
+        assert_eq!(enc.values_per_vertex(), 2);
+        assert_eq!(enc.encoded_len(), 16 * 28 * 2);
+        let length = 0.3;
+        for x in &traj.positions {
+            let targets = enc.handle_targets(x).unwrap();
+            let back = enc.decode(&enc.encode_state(x).unwrap(), &targets).unwrap();
+            for (rest, decoded) in edge_lengths(&rods.mesh, &back) {
+                assert!((rest - decoded).abs() < 1e-12 * length, "{rest} {decoded}");
+            }
+            // The simulated rods stretch by a strain of about 1e-4, all the difference there is.
+            let strain = edge_lengths(&rods.mesh, x)
+                .iter()
+                .map(|(r, l)| (l / r - 1.0).abs())
+                .fold(0.0, f64::max);
+            assert!(strain < 1e-2, "strain {strain}");
+            assert!(
+                max_abs_diff(&back, x) <= 2.0 * strain * length + 1e-12,
+                "{} {strain}",
+                max_abs_diff(&back, x)
+            );
+        }
+        round_trip_is_exact(&enc, &traj.positions);
+        // Any encoded vector is a valid state; its encoding is itself.
+        let targets = enc.handle_targets(&traj.positions[7]).unwrap();
+        let q: Vec<f64> = (0..enc.encoded_len())
+            .map(|i| 0.004 * (i as f64 * 0.61).sin())
+            .collect();
+        let x = enc.decode(&q, &targets).unwrap();
+        assert!(max_abs_diff(&enc.encode_state(&x).unwrap(), &q) < 1e-12);
+        // A bend that folds an edge far back still round-trips.
+        let mut folded = q.clone();
+        folded[2 * 5] = 0.09;
+        let x = enc.decode(&folded, &targets).unwrap();
+        assert!(max_abs_diff(&enc.encode_state(&x).unwrap(), &folded) < 1e-10);
+    }
+
+    #[test]
+    fn strand_bends_ignore_rigid_motion_of_state_and_handles_together() {
+        let (rods, traj) = simulate("rods", 6);
+        let enc = rod_bends(&rods, true);
+        let rotation = *Rotation3::from_scaled_axis(Vector3::new(0.3, -1.1, 0.7)).matrix();
+        let shift = Vector3::new(0.4, -2.0, 1.5);
+        for x in &traj.positions {
+            let q = enc.encode_state(x).unwrap();
+            let q_moved = enc.encode_state(&moved(x, 3, &rotation, shift)).unwrap();
+            assert!(max_abs_diff(&q, &q_moved) < 1e-12, "{}", max_abs_diff(&q, &q_moved));
+        }
+    }
+
+    #[test]
+    fn strand_bends_gradient_matches_finite_differences() {
+        let (rods, traj) = simulate("rods", 6);
+        for rotates in [false, true] {
+            let enc = rod_bends(&rods, rotates);
+            let x0 = traj.positions.last().unwrap();
+            let targets = enc.handle_targets(x0).unwrap();
+            let frame = enc.frame(&targets).unwrap();
+            let q = enc.encode(x0, &frame).unwrap();
+            // E(x) = sum c_i x_i + 0.5 |x - x0|^2 * 40: linear and curved parts.
+            let c: Vec<f64> = (0..x0.len()).map(|i| (i as f64 * 1.7).cos()).collect();
+            let energy = |q: &[f64]| -> f64 {
+                let x = enc.decode(q, &targets).unwrap();
+                x.iter()
+                    .zip(&c)
+                    .zip(x0)
+                    .map(|((x, c), r)| c * x + 20.0 * (x - r).powi(2))
+                    .sum()
+            };
+            let mut q = q;
+            for (i, v) in q.iter_mut().enumerate() {
+                *v += 0.01 * (i as f64 * 0.3).sin();
+            }
+            let x = enc.decode(&q, &targets).unwrap();
+            let grad: Vec<f64> = x.iter().zip(&c).zip(x0).map(|((x, c), r)| c + 40.0 * (x - r)).collect();
+            let mut analytic = vec![0.0; enc.encoded_len()];
+            enc.encode_gradient(&q, &grad, &frame, 2.0, &mut analytic).unwrap();
+            let h = 1e-6;
+            for i in (0..q.len()).step_by(7) {
+                let mut shifted = q.clone();
+                shifted[i] += h;
+                let plus = energy(&shifted);
+                shifted[i] -= 2.0 * h;
+                let minus = energy(&shifted);
+                let numeric = (plus - minus) / (2.0 * h) / 2.0;
+                assert!(
+                    (numeric - analytic[i]).abs() <= 1e-6 * (1.0 + numeric.abs()),
+                    "rotates {rotates}, coordinate {i}: {numeric} vs {}",
+                    analytic[i]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn strand_bends_refuse_what_they_cannot_encode() {
+        let beam = Scene::load("beam").unwrap().build().unwrap();
+        let enc = Encoding::from_parts(&beam.mesh, &beam.handles, false).unwrap();
+        let err = enc.with_strand_bends(&beam.mesh).unwrap_err().to_string();
+        assert!(err.contains("rods mesh"), "{err}");
+        // Only the roots prescribed: the first free edge would have no parent edge.
+        let rods = Scene::load("rods").unwrap().build().unwrap();
+        let Elements::Rods(strands) = &rods.mesh.elements else {
+            unreachable!()
+        };
+        let mut handles = rods.handles.clone();
+        let roots: Vec<usize> = strands.iter().map(|s| s[0]).collect();
+        handles[0].reference = roots
+            .iter()
+            .map(|&v| [0, 1, 2].map(|c| rods.mesh.rest[v * 3 + c]))
+            .collect();
+        handles[0].vertices = roots;
+        let enc = Encoding::from_parts(&rods.mesh, &handles, false).unwrap();
+        let err = enc.with_strand_bends(&rods.mesh).unwrap_err().to_string();
+        assert!(
+            err.contains("strand 0 does not start with two prescribed vertices"),
+            "{err}"
+        );
     }
 
     /// States of a scene with its handles at the targets of a sampled sequence and the

@@ -104,9 +104,10 @@ pub fn vertex_errors<'a, T: Copy + Into<f64>>(
     })
 }
 
-/// Largest distance of an encoded vertex from its origin (`q` in the encoding frame).
-fn max_radius(q: &[f32], dim: usize) -> f64 {
-    q.chunks_exact(dim)
+/// Largest norm of an encoded vertex's values (`per_vertex` each): its distance from its
+/// origin for positions, its edge's bend for strand bends.
+fn max_radius(q: &[f32], per_vertex: usize) -> f64 {
+    q.chunks_exact(per_vertex)
         .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
         .fold(0.0, f64::max)
 }
@@ -175,10 +176,9 @@ pub fn stable_rollout(
 ) -> anyhow::Result<Vec<Vec<f64>>> {
     let a = &model.artifact;
     let envelope = a.summary.max_radius + 0.5 * a.diagonal;
-    let dim = problem.mesh.dim;
     let mut states = Vec::new();
     roll(model, problem, encoding, bc, frames, |_, _, q, x| {
-        let stable = max_radius(q, dim) <= envelope && x.iter().all(|v| v.is_finite());
+        let stable = max_radius(q, encoding.values_per_vertex()) <= envelope && x.iter().all(|v| v.is_finite());
         if stable {
             states.push(x.to_vec());
         }
@@ -213,7 +213,7 @@ pub fn rollout(
     let (step_time, decode_time) = roll(model, problem, encoding, bc, frames, |t, z, q, x| {
         let finite = z.iter().all(|v| v.is_finite()) && x.iter().all(|v| v.is_finite());
         let ke = kinetic_energy(masses, x, &x_prev, a.dt, dim);
-        let mut diverged = !finite || max_radius(q, dim) > envelope || ke > energy_cap;
+        let mut diverged = !finite || max_radius(q, encoding.values_per_vertex()) > envelope || ke > energy_cap;
         if t <= measured {
             let xr = &reference.positions[t];
             let errors: Vec<f64> = vertex_errors(x, xr, dim, a.diagonal).collect();

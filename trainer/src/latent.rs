@@ -114,6 +114,30 @@ pub fn encode_sequences(encoding: &Encoding, trajectories: Vec<Trajectory>) -> a
         .collect()
 }
 
+/// RMS vertex error over all frames of `sequences`, as a fraction of `diagonal`, of the
+/// positions decoded from `rebuilt` (one encoded vector per frame, in sequence order) against
+/// the positions decoded from the frames' own encodings.
+fn decoded_rms_error(
+    encoding: &Encoding,
+    sequences: &[EncodedSequence],
+    rebuilt: &[Vec<f64>],
+    diagonal: f64,
+) -> anyhow::Result<f64> {
+    let frames = sequences
+        .iter()
+        .flat_map(|s| s.encoded.iter().zip(&s.frames).zip(&s.targets));
+    let (mut sum, mut count) = (0.0, 0usize);
+    let mut exact = vec![0.0; encoding.state_len()];
+    let mut approx = vec![0.0; encoding.state_len()];
+    for (((q, frame), targets), r) in frames.zip(rebuilt) {
+        encoding.decode_into(q, frame, targets, &mut exact)?;
+        encoding.decode_into(r, frame, targets, &mut approx)?;
+        sum += exact.iter().zip(&approx).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+        count += encoding.free_vertices().len();
+    }
+    Ok((sum / count.max(1) as f64).sqrt() / diagonal)
+}
+
 /// Runs the whole of `mochi train` for `problem`: dataset (train split, if missing),
 /// latent-size selection, autoencoder, both integrators; writes both artifacts.
 pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Result<TrainOutcome> {
@@ -146,8 +170,24 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
     let clock = Instant::now();
     let sizes: Vec<usize> = options.latent.map_or(spec.sizes.clone(), |k| vec![k]);
     let largest = *sizes.iter().max().unwrap_or(&1);
-    let pca_errors = pca::smallest_k_for(spec.tolerance, &frames_f64, dim, diagonal)?.errors;
+    let per_vertex = encoding.values_per_vertex();
     let full_pca = Pca::fit(&frames_f64, largest.min(frames_f64.len()))?;
+    // Encoded positions: the PCA error follows from the singular values. Strand bends: the
+    // error is measured on the decoded positions, where it counts.
+    let pca_errors = if encoding.strand_bends() {
+        (0..=largest)
+            .map(|k| {
+                let pca_k = full_pca.clone().truncated(k.min(full_pca.num_components()))?;
+                let rebuilt = frames_f64
+                    .iter()
+                    .map(|q| pca_k.reconstruct(&pca_k.project(q)?))
+                    .collect::<Result<Vec<_>, _>>()?;
+                decoded_rms_error(&encoding, &sequences, &rebuilt, diagonal)
+            })
+            .collect::<anyhow::Result<Vec<f64>>>()?
+    } else {
+        pca::smallest_k_for(spec.tolerance, &frames_f64, per_vertex, diagonal)?.errors
+    };
     stages.push(("pca".into(), clock.elapsed().as_secs_f64()));
     let pca_error = |k: usize| pca_errors.get(k).copied().unwrap_or(0.0);
     if options.progress {
@@ -194,8 +234,14 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
             options.progress,
         );
         let rms = |ae: &Autoencoder| -> anyhow::Result<f64> {
+            if encoding.strand_bends() {
+                let refs: Vec<&[f32]> = frames_f32.iter().map(Vec::as_slice).collect();
+                let rebuilt = tensor_to_rows(&ae.reconstruct(&rows_to_tensor(&refs, encoding.encoded_len())?)?)?;
+                let rebuilt: Vec<Vec<f64>> = rebuilt.iter().map(|r| r.iter().map(|&v| v as f64).collect()).collect();
+                return decoded_rms_error(&encoding, &sequences, &rebuilt, diagonal);
+            }
             let mse = train::mean_reconstruction_error(ae, &frames_f32, 256)?;
-            Ok((mse * dim as f64).sqrt() / diagonal)
+            Ok((mse * per_vertex as f64).sqrt() / diagonal)
         };
         let report = train::train_autoencoder(&ae, &frames_f32, &config, options.resume)?;
         let mut error = rms(&ae)?;
@@ -282,7 +328,10 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
 
     let max_radius = frames_f64
         .iter()
-        .flat_map(|q| q.chunks_exact(dim).map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt()))
+        .flat_map(|q| {
+            q.chunks_exact(per_vertex)
+                .map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt())
+        })
         .fold(0.0, f64::max);
     let masses = problem.simulator.masses().to_vec();
     let max_kinetic_energy = sequences
@@ -636,8 +685,9 @@ impl<'a> PhysicsObjective<'a> {
                     let value = loss.value_and_gradient(&x, prev, prev2, targets, &mut grad);
                     let balance = loss.balance(prev, prev2, min_speed);
                     total += value / balance;
+                    let q: Vec<f64> = q_rows[i].iter().map(|&v| v as f64).collect();
                     data.encoding
-                        .encode_gradient(&grad, frame, balance, &mut local)
+                        .encode_gradient(&q, &grad, frame, balance, &mut local)
                         .map_err(|e| e.to_string())?;
                     for (out, l) in g[row * n..(row + 1) * n].iter_mut().zip(&local) {
                         *out = *l as f32;

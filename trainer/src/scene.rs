@@ -406,6 +406,20 @@ pub struct LatentSpec {
     pub min_speed: f64,
     /// Seed of initialisation, shuffling and noise.
     pub seed: u64,
+    /// What the latent space of a rods scene encodes (`positions` or `bends`).
+    pub rods: RodEncoding,
+}
+
+/// How rod strands are encoded for the latent space (scene field `latent.rods`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RodEncoding {
+    /// Vertex positions relative to the strand's root (Li et al. 2025, Sec. 3.2).
+    #[default]
+    Positions,
+    /// The bend of every edge, decoded at rest length ([`crate::encoding::Encoding::with_strand_bends`]):
+    /// no latent state can stretch a rod.
+    Bends,
 }
 
 impl Default for LatentSpec {
@@ -433,6 +447,7 @@ impl Default for LatentSpec {
             bc_weight: crate::loss::PAPER_BC_WEIGHT,
             min_speed: 0.05,
             seed: 0,
+            rods: RodEncoding::Positions,
         }
     }
 }
