@@ -75,10 +75,11 @@ fn main() -> anyhow::Result<()> {
             let mut grad = vec![0.0; encoding.state_len()];
             // Value and reduced gradient B^T R^T dE/dx at z.
             let mut reduced = |z: &[f64]| -> anyhow::Result<(f64, DVector<f64>)> {
-                let x = decode(z, t)?;
+                let q = pca.reconstruct(z)?;
+                let x = encoding.decode(&q, &targets)?;
                 let value = loss.value_and_gradient(&x, prev, prev2, &targets, &mut grad);
                 let mut local = vec![0.0; encoding.encoded_len()];
-                encoding.encode_gradient(&pca.reconstruct(z)?, &grad, &frame, 1.0, &mut local)?;
+                encoding.encode_gradient(&q, &grad, &frame, 1.0, &mut local)?;
                 let gz = pca.basis.iter().map(|b| b.iter().zip(&local).map(|(a, c)| a * c).sum());
                 Ok((value, DVector::from_iterator(k, gz)))
             };

@@ -496,13 +496,7 @@ impl Encoding {
     /// encoded vertex `j`.
     fn decode_bends(&self, q: &[f64], frame: &Frame, mut place: impl FnMut(usize, &Vector3<f64>)) {
         for (chain, start) in self.chains.iter().zip(&frame.chains) {
-            let (mut position, mut axes) = (start.anchor, start.axes);
-            for (&j, &length) in chain.slots.iter().zip(&chain.lengths) {
-                let g = (axes[1] * q[2 * j] + axes[2] * q[2 * j + 1]) / length;
-                axes = axes.map(|y| cayley(&g, &y));
-                position += axes[0] * length;
-                place(j, &position);
-            }
+            walk_chain(chain, start, q, |j, _, _, position| place(j, position));
         }
     }
 
@@ -510,13 +504,8 @@ impl Encoding {
     fn bends_gradient(&self, q: &[f64], grad: &[f64], frame: &Frame, scale: f64, out: &mut [f64]) {
         for (chain, start) in self.chains.iter().zip(&frame.chains) {
             // Forward: the axes before each edge and its Gibbs vector.
-            let mut axes = start.axes;
             let mut before = Vec::with_capacity(chain.slots.len());
-            for (&j, &length) in chain.slots.iter().zip(&chain.lengths) {
-                let g = (axes[1] * q[2 * j] + axes[2] * q[2 * j + 1]) / length;
-                before.push((axes, g));
-                axes = axes.map(|y| cayley(&g, &y));
-            }
+            walk_chain(chain, start, q, |_, axes, g, _| before.push((*axes, *g)));
             // Backward: `tail` sums dE/dx over the vertices from edge e to the tip; `carry`
             // is the adjoint of the axes after edge e from the edges beyond it.
             let mut tail = Vector3::zeros();
@@ -709,6 +698,24 @@ fn strand_roots(mesh: &Mesh, slot_of: &[Option<usize>], free: &[usize]) -> Optio
         .map(|&v| strand_of_vertex[v])
         .collect::<Option<Vec<usize>>>()?;
     Some((root_slots, strand_of))
+}
+
+/// Walks one chain of `q` from `start`, edge by edge, calling
+/// `visit(j, axes before the edge, its Gibbs vector, position of encoded vertex j)`.
+fn walk_chain(
+    chain: &Chain,
+    start: &ChainStart,
+    q: &[f64],
+    mut visit: impl FnMut(usize, &[Vector3<f64>; 3], &Vector3<f64>, &Vector3<f64>),
+) {
+    let (mut position, mut axes) = (start.anchor, start.axes);
+    for (&j, &length) in chain.slots.iter().zip(&chain.lengths) {
+        let g = (axes[1] * q[2 * j] + axes[2] * q[2 * j + 1]) / length;
+        let before = axes;
+        axes = axes.map(|y| cayley(&g, &y));
+        position += axes[0] * length;
+        visit(j, &before, &g, &position);
+    }
 }
 
 /// `y` turned by the rotation whose Gibbs vector is `g` (the Cayley map:

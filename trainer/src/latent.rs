@@ -676,16 +676,22 @@ impl<'a> PhysicsObjective<'a> {
                 let mut total = 0.0;
                 let mut g = vec![0.0f32; range.len() * n];
                 let mut grad = vec![0.0; data.encoding.state_len()];
+                let mut x = vec![0.0; data.encoding.state_len()];
+                let mut q = vec![0.0; n];
                 let mut local = vec![0.0; n];
                 for (row, i) in range.enumerate() {
                     let s = all_samples[i];
                     let (frame, targets) = data.step(s);
-                    let x = decode_world(data.encoding, &q_rows[i], frame, targets).map_err(|e| e.to_string())?;
+                    for (q, &v) in q.iter_mut().zip(&q_rows[i]) {
+                        *q = v as f64;
+                    }
+                    data.encoding
+                        .decode_into(&q, frame, targets, &mut x)
+                        .map_err(|e| e.to_string())?;
                     let (prev, prev2) = &prevs[i];
                     let value = loss.value_and_gradient(&x, prev, prev2, targets, &mut grad);
                     let balance = loss.balance(prev, prev2, min_speed);
                     total += value / balance;
-                    let q: Vec<f64> = q_rows[i].iter().map(|&v| v as f64).collect();
                     data.encoding
                         .encode_gradient(&q, &grad, frame, balance, &mut local)
                         .map_err(|e| e.to_string())?;
