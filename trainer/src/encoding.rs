@@ -858,26 +858,23 @@ mod tests {
     #[test]
     fn encoding_ignores_rigid_motion_of_state_and_handles_together() {
         let (beam, traj) = simulate("beam", 8);
-        let enc = Encoding::new(&beam).unwrap();
+        encoding_ignores_rigid_motion(&Encoding::new(&beam).unwrap(), &traj.positions);
+        // Rods with their roots' rotation removed as well.
+        let (rods, traj) = simulate("rods", 4);
+        let enc = Encoding::from_parts(&rods.mesh, &rods.handles, true).unwrap();
+        encoding_ignores_rigid_motion(&enc, &traj.positions[traj.positions.len() - 1..]);
+        round_trip_is_exact(&enc, &traj.positions);
+    }
+
+    /// Asserts that moving each 3D state rigidly (handles included) leaves its encoding unchanged.
+    fn encoding_ignores_rigid_motion(enc: &Encoding, states: &[Vec<f64>]) {
         let rotation = *Rotation3::from_scaled_axis(Vector3::new(0.3, -1.1, 0.7)).matrix();
         let shift = Vector3::new(0.4, -2.0, 1.5);
-        for x in &traj.positions {
+        for x in states {
             let q = enc.encode_state(x).unwrap();
             let q_moved = enc.encode_state(&moved(x, 3, &rotation, shift)).unwrap();
             assert!(max_abs_diff(&q, &q_moved) < 1e-12, "{}", max_abs_diff(&q, &q_moved));
         }
-        // Rods with their roots' rotation removed as well.
-        let (rods, traj) = simulate("rods", 4);
-        let enc = Encoding::from_parts(&rods.mesh, &rods.handles, true).unwrap();
-        let x = traj.positions.last().unwrap();
-        let q = enc.encode_state(x).unwrap();
-        let q_moved = enc.encode_state(&moved(x, 3, &rotation, shift)).unwrap();
-        assert!(
-            max_abs_diff(&q, &q_moved) < 1e-12,
-            "rods {}",
-            max_abs_diff(&q, &q_moved)
-        );
-        round_trip_is_exact(&enc, &traj.positions);
     }
 
     /// The rods scene's encoding by strand bends, with or without the roots' rotation removed.
@@ -946,14 +943,7 @@ mod tests {
     #[test]
     fn strand_bends_ignore_rigid_motion_of_state_and_handles_together() {
         let (rods, traj) = simulate("rods", 6);
-        let enc = rod_bends(&rods, true);
-        let rotation = *Rotation3::from_scaled_axis(Vector3::new(0.3, -1.1, 0.7)).matrix();
-        let shift = Vector3::new(0.4, -2.0, 1.5);
-        for x in &traj.positions {
-            let q = enc.encode_state(x).unwrap();
-            let q_moved = enc.encode_state(&moved(x, 3, &rotation, shift)).unwrap();
-            assert!(max_abs_diff(&q, &q_moved) < 1e-12, "{}", max_abs_diff(&q, &q_moved));
-        }
+        encoding_ignores_rigid_motion(&rod_bends(&rods, true), &traj.positions);
     }
 
     #[test]
