@@ -22,7 +22,7 @@ fn every_shipped_scene_builds_at_its_documented_size() {
         match name.as_str() {
             "beam" => assert!((1400..1700).contains(&n), "beam has {n} vertices"),
             "beam-xl" => assert!((3100..3500).contains(&n), "beam-xl has {n} vertices"),
-            "cloth" => {
+            "cloth" | "cloth-line" => {
                 assert_eq!(n, 576);
                 assert!(matches!(problem.mesh.elements, Elements::Shell(_)));
                 assert_eq!(problem.handles[0].vertices.len(), 2, "two pinned corners");
