@@ -15,48 +15,25 @@
 //! the self-supervised integrator fails while this solve follows the reference closely.
 //! The dataset (both splits) is generated in `DATASET_DIR` if missing.
 
+mod common;
+
+use common::subspace_from_args;
 use mochi_trainer::dataset::{self, Split};
-use mochi_trainer::encoding::Encoding;
 use mochi_trainer::eval::vertex_errors;
-use mochi_trainer::latent::encode_sequences;
 use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
 use mochi_trainer::mesh::Elements;
-use mochi_trainer::pca::Pca;
-use mochi_trainer::scene::Scene;
 use nalgebra::{DMatrix, DVector};
 
 /// Newton iterations per frame at most.
 const MAX_ITERATIONS: usize = 30;
 
 fn main() -> anyhow::Result<()> {
-    let args: Vec<String> = std::env::args().collect();
-    if args.len() < 4 {
-        anyhow::bail!("usage: pca_rollout SCENE K DATASET_DIR [FRAMES]");
-    }
-    let mut problem = Scene::load(&args[1])?.build()?;
-    let k: usize = args[2].parse()?;
-    let dir = std::path::PathBuf::from(&args[3]);
-    let frames: usize = args.get(4).map_or(Ok(300), |s| s.parse())?;
-    dataset::generate(&mut problem, &dir, None, false, true)?;
-    let encoding = Encoding::new(&problem)?;
-    let train = dataset::load(&problem, &dir, Split::Train)?
-        .into_iter()
-        .map(|(_, t)| t)
-        .collect();
-    let encoded: Vec<Vec<f64>> = encode_sequences(&encoding, train)?
-        .into_iter()
-        .flat_map(|s| s.encoded)
-        .collect();
-    let pca = Pca::fit(&encoded, k)?;
+    let (problem, encoding, pca, k, dir, frames) = subspace_from_args("pca_rollout")?;
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
     // Rod roots are placed exactly by the decoding; other bodies get the training penalty.
     let penalty = (!matches!(problem.mesh.elements, Elements::Rods(_))).then_some(PAPER_BC_WEIGHT);
     let mut loss = PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, penalty)?;
-    println!(
-        "{}: PCA k={k} from {} training frames",
-        problem.scene.name,
-        encoded.len()
-    );
+    println!("{}: PCA k={k} of the training frames", problem.scene.name);
     for (plan, reference) in dataset::load(&problem, &dir, Split::Test)? {
         let n = frames.min(reference.num_frames() - 1);
         let decode = |z: &[f64], t: usize| -> anyhow::Result<Vec<f64>> {

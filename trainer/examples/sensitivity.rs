@@ -13,33 +13,14 @@
 //! what a latent rollout can reach; (b) shows whether the motion itself amplifies errors.
 //! The dataset (both splits) is generated in `DATASET_DIR` if missing.
 
+mod common;
+
+use common::subspace_from_args;
 use mochi_trainer::dataset::{self, Split};
-use mochi_trainer::encoding::Encoding;
 use mochi_trainer::eval::vertex_errors;
-use mochi_trainer::latent::encode_sequences;
-use mochi_trainer::pca::Pca;
-use mochi_trainer::scene::Scene;
 
 fn main() -> anyhow::Result<()> {
-    let args: Vec<String> = std::env::args().collect();
-    if args.len() < 4 {
-        anyhow::bail!("usage: sensitivity SCENE K DATASET_DIR [FRAMES]");
-    }
-    let mut problem = Scene::load(&args[1])?.build()?;
-    let k: usize = args[2].parse()?;
-    let dir = std::path::PathBuf::from(&args[3]);
-    let frames: usize = args.get(4).map_or(Ok(300), |s| s.parse())?;
-    dataset::generate(&mut problem, &dir, None, false, true)?;
-    let encoding = Encoding::new(&problem)?;
-    let train = dataset::load(&problem, &dir, Split::Train)?
-        .into_iter()
-        .map(|(_, t)| t)
-        .collect();
-    let encoded: Vec<Vec<f64>> = encode_sequences(&encoding, train)?
-        .into_iter()
-        .flat_map(|s| s.encoded)
-        .collect();
-    let pca = Pca::fit(&encoded, k)?;
+    let (mut problem, encoding, pca, k, dir, frames) = subspace_from_args("sensitivity")?;
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
     let nv = problem.mesh.num_vertices();
     println!("{}: starts perturbed in full space", problem.scene.name);
