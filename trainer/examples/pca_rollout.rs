@@ -17,15 +17,45 @@
 
 mod common;
 
-use common::subspace_from_args;
+use common::{newton, report, subspace_from_args, StepObjective};
 use mochi_trainer::dataset::{self, Split};
+use mochi_trainer::encoding::{Encoding, Frame};
 use mochi_trainer::eval::vertex_errors;
 use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
 use mochi_trainer::mesh::Elements;
-use nalgebra::{DMatrix, DVector};
+use mochi_trainer::pca::Pca;
+use nalgebra::DVector;
 
-/// Newton iterations per frame at most.
-const MAX_ITERATIONS: usize = 30;
+/// One step's potential over the PCA coordinates: `x = decode(mean + B z)`.
+struct PcaStep<'a> {
+    loss: &'a mut PhysicsLoss,
+    encoding: &'a Encoding,
+    pca: &'a Pca,
+    frame: Frame,
+    targets: Vec<f64>,
+    prev: &'a [f64],
+    prev2: &'a [f64],
+}
+
+impl StepObjective for PcaStep<'_> {
+    /// The value and the reduced gradient `B^T R^T dE/dx`.
+    fn value_gradient(&mut self, z: &[f64]) -> anyhow::Result<(f64, DVector<f64>)> {
+        let q = self.pca.reconstruct(z)?;
+        let x = self.encoding.decode(&q, &self.targets)?;
+        let mut grad = vec![0.0; self.encoding.state_len()];
+        let value = self
+            .loss
+            .value_and_gradient(&x, self.prev, self.prev2, &self.targets, &mut grad);
+        let mut local = vec![0.0; self.encoding.encoded_len()];
+        self.encoding.encode_gradient(&q, &grad, &self.frame, 1.0, &mut local)?;
+        let gz = self
+            .pca
+            .basis
+            .iter()
+            .map(|b| b.iter().zip(&local).map(|(a, c)| a * c).sum());
+        Ok((value, DVector::from_iterator(z.len(), gz)))
+    }
+}
 
 fn main() -> anyhow::Result<()> {
     let (problem, encoding, pca, k, dir, frames) = subspace_from_args("pca_rollout")?;
@@ -49,53 +79,22 @@ fn main() -> anyhow::Result<()> {
         let mut iterations = 0;
         for t in 1..=n {
             let targets = encoding.handle_targets(&reference.positions[t])?;
-            let frame = encoding.frame(&targets)?;
-            let (prev, prev2) = (&states[t], &states[t - 1]);
-            let mut grad = vec![0.0; encoding.state_len()];
-            // Value and reduced gradient B^T R^T dE/dx at z.
-            let mut reduced = |z: &[f64]| -> anyhow::Result<(f64, DVector<f64>)> {
-                let q = pca.reconstruct(z)?;
-                let x = encoding.decode(&q, &targets)?;
-                let value = loss.value_and_gradient(&x, prev, prev2, &targets, &mut grad);
-                let mut local = vec![0.0; encoding.encoded_len()];
-                encoding.encode_gradient(&q, &grad, &frame, 1.0, &mut local)?;
-                let gz = pca.basis.iter().map(|b| b.iter().zip(&local).map(|(a, c)| a * c).sum());
-                Ok((value, DVector::from_iterator(k, gz)))
+            let mut step = PcaStep {
+                loss: &mut loss,
+                encoding: &encoding,
+                pca: &pca,
+                frame: encoding.frame(&targets)?,
+                targets,
+                prev: &states[t],
+                prev2: &states[t - 1],
             };
-            let (a, b) = (&latents[t], &latents[t - 1]);
-            let mut z: Vec<f64> = a.iter().zip(b).map(|(a, b)| 2.0 * a - b).collect();
-            for _ in 0..MAX_ITERATIONS {
-                iterations += 1;
-                let (value, g) = reduced(&z)?;
-                let h = 1e-6 * diagonal;
-                let mut hessian = DMatrix::zeros(k, k);
-                for i in 0..k {
-                    let mut shifted = z.clone();
-                    shifted[i] += h;
-                    let (_, plus) = reduced(&shifted)?;
-                    shifted[i] -= 2.0 * h;
-                    let (_, minus) = reduced(&shifted)?;
-                    hessian.set_column(i, &((plus - minus) / (2.0 * h)));
-                }
-                let eigen = ((&hessian + hessian.transpose()) * 0.5).symmetric_eigen();
-                let mut direction = DVector::zeros(k);
-                for (lambda, v) in eigen.eigenvalues.iter().zip(eigen.eigenvectors.column_iter()) {
-                    direction -= v * (v.dot(&g) / lambda.abs().max(1e-12));
-                }
-                let slope = g.dot(&direction);
-                let mut alpha = 1.0;
-                loop {
-                    let trial: Vec<f64> = z.iter().zip(direction.iter()).map(|(z, d)| z + alpha * d).collect();
-                    if reduced(&trial)?.0 <= value + 1e-4 * alpha * slope || alpha < 1e-8 {
-                        z = trial;
-                        break;
-                    }
-                    alpha *= 0.5;
-                }
-                if alpha * direction.norm() < 1e-9 * diagonal {
-                    break;
-                }
-            }
+            let start: Vec<f64> = latents[t]
+                .iter()
+                .zip(&latents[t - 1])
+                .map(|(a, b)| 2.0 * a - b)
+                .collect();
+            let (z, taken) = newton(&mut step, start, diagonal)?;
+            iterations += taken;
             let x = decode(&z, t)?;
             let mean_error = |x: &[f64]| {
                 vertex_errors(x, &reference.positions[t], dim, diagonal).sum::<f64>()
@@ -107,23 +106,7 @@ fn main() -> anyhow::Result<()> {
             latents.push(z);
             states.push(x);
         }
-        let samples: Vec<String> = [1, 10, 30, 100, 300, 1000]
-            .iter()
-            .filter(|&&f| f <= errors.len())
-            .map(|&f| format!("{f}: {:.3}", 100.0 * errors[f - 1]))
-            .collect();
-        println!(
-            "{} ({}): mean vertex error {:.3}% of the diagonal over {n} frames, max of frame means {:.3}%, \
-             {:.1} Newton iterations per frame; by frame (%) {}; reference frames projected onto \
-             the subspace: mean error {:.3}%",
-            plan.name,
-            plan.description,
-            100.0 * errors.iter().sum::<f64>() / n as f64,
-            100.0 * errors.iter().copied().fold(0.0, f64::max),
-            iterations as f64 / n as f64,
-            samples.join(", "),
-            100.0 * projection_error
-        );
+        report(&plan.name, &plan.description, &errors, iterations, projection_error);
     }
     Ok(())
 }

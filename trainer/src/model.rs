@@ -53,8 +53,45 @@ fn invalid<T>(message: impl Into<String>) -> ModelResult<T> {
 }
 
 /// `v * sigmoid(v)`, written as candle writes its `silu` (`v / (1 + exp(-v))`).
-pub fn swish(v: f32) -> f32 {
-    v / (1.0 + (-v).exp())
+pub fn swish<T: Real>(v: T) -> T {
+    v / (T::from_f32(1.0) + (-v).exp())
+}
+
+/// The number types the plain-Rust forward pass ([`forward_exported`]) runs in: `f32`, the
+/// reference for the runtime's kernels, and `f64`, for diagnostics that differentiate a
+/// frozen decoder by finite differences.
+pub trait Real:
+    Copy
+    + Default
+    + std::ops::Add<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
+    + std::ops::Neg<Output = Self>
+    + std::ops::AddAssign
+    + std::iter::Sum
+{
+    /// A weight or bias in this type.
+    fn from_f32(v: f32) -> Self;
+    /// `e^self`.
+    fn exp(self) -> Self;
+}
+
+impl Real for f32 {
+    fn from_f32(v: f32) -> Self {
+        v
+    }
+    fn exp(self) -> Self {
+        f32::exp(self)
+    }
+}
+
+impl Real for f64 {
+    fn from_f32(v: f32) -> Self {
+        v as f64
+    }
+    fn exp(self) -> Self {
+        f64::exp(self)
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -92,10 +129,10 @@ impl DenseLayer {
     }
 
     /// Writes `W x + b` into `y` (`x.len() == cols`, `y.len() == rows`, checked by callers).
-    fn apply(&self, x: &[f32], y: &mut [f32]) {
+    fn apply<T: Real>(&self, x: &[T], y: &mut [T]) {
         for (r, out) in y.iter_mut().enumerate() {
             let row = &self.weights[r * self.cols..(r + 1) * self.cols];
-            *out = self.bias[r] + row.iter().zip(x).map(|(w, v)| w * v).sum::<f32>();
+            *out = T::from_f32(self.bias[r]) + row.iter().zip(x).map(|(&w, &v)| T::from_f32(w) * v).sum::<T>();
         }
     }
 }
@@ -188,9 +225,9 @@ impl ExportedMlp {
     }
 }
 
-/// The plain-Rust f32 forward pass of a frozen residual MLP (the layout of the module
-/// documentation); the reference for the runtime's kernels.
-pub fn forward_exported(mlp: &ExportedMlp, x: &[f32]) -> ModelResult<Vec<f32>> {
+/// The plain-Rust forward pass of a frozen residual MLP (the layout of the module
+/// documentation); in `f32`, the reference for the runtime's kernels.
+pub fn forward_exported<T: Real>(mlp: &ExportedMlp, x: &[T]) -> ModelResult<Vec<T>> {
     if x.len() != mlp.input.cols {
         return invalid(format!(
             "input has {} values, the network takes {}",
@@ -199,18 +236,18 @@ pub fn forward_exported(mlp: &ExportedMlp, x: &[f32]) -> ModelResult<Vec<f32>> {
         ));
     }
     let hidden = mlp.input.rows;
-    let mut h = vec![0.0f32; hidden];
+    let mut h = vec![T::default(); hidden];
     mlp.input.apply(x, &mut h);
-    let mut a = vec![0.0f32; hidden];
-    let mut r = vec![0.0f32; hidden];
+    let mut a = vec![T::default(); hidden];
+    let mut r = vec![T::default(); hidden];
     for block in &mlp.blocks {
         block.inner.apply(&h, &mut a);
         a.iter_mut().for_each(|v| *v = swish(*v));
         block.outer.apply(&a, &mut r);
-        h.iter_mut().zip(&r).for_each(|(h, r)| *h += r);
+        h.iter_mut().zip(&r).for_each(|(h, r)| *h += *r);
     }
     h.iter_mut().for_each(|v| *v = swish(*v));
-    let mut y = vec![0.0f32; mlp.output.rows];
+    let mut y = vec![T::default(); mlp.output.rows];
     mlp.output.apply(&h, &mut y);
     Ok(y)
 }
