@@ -1,15 +1,18 @@
 //! What the subspace diagnostics (`pca_rollout`, `latent_rollout`, `sensitivity`) share:
 //! their arguments `SCENE K DATASET_DIR [FRAMES]`, the PCA subspace of the scene's training
 //! frames, Newton's method in a subspace and the report of a rollout.
-#![allow(dead_code)] // each example uses a part
+#![allow(dead_code)] // `sensitivity` uses only the subspace
 
 use mochi_trainer::dataset::{self, Split};
-use mochi_trainer::encoding::Encoding;
+use mochi_trainer::encoding::{Encoding, Frame};
+use mochi_trainer::eval::vertex_errors;
 use mochi_trainer::latent::encode_sequences;
+use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
+use mochi_trainer::mesh::Elements;
 use mochi_trainer::pca::Pca;
 use mochi_trainer::scene::{Problem, Scene};
 use nalgebra::{DMatrix, DVector};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Reads `SCENE K DATASET_DIR [FRAMES]` (300 frames by default) from the command line of
 /// `example`, generates the dataset in `DATASET_DIR` if missing and fits the subspace.
@@ -38,28 +41,61 @@ pub fn subspace_from_args(example: &str) -> anyhow::Result<(Problem, Encoding, P
     Ok((problem, encoding, pca, k, dir, frames))
 }
 
-/// A subspace that implicit Euler can be solved in: the incremental potential of one step
-/// as a function of the subspace coordinates `z`.
-pub trait StepObjective {
-    /// The potential at `z` and its gradient in `z`.
-    fn value_gradient(&mut self, z: &[f64]) -> anyhow::Result<(f64, DVector<f64>)>;
+/// A subspace of the encoded vectors that implicit Euler can be solved in.
+pub trait Subspace {
+    /// A short description for the report's first line.
+    fn describe(&self) -> String;
+    /// The encoded vector of subspace coordinates `z`.
+    fn lower(&self, z: &[f64]) -> anyhow::Result<Vec<f64>>;
+    /// The subspace coordinates of (or nearest to) the encoded vector `q`.
+    fn lift(&self, q: &[f64]) -> anyhow::Result<Vec<f64>>;
+    /// `d lower / d z` at `z` (encoded coordinates x subspace coordinates).
+    fn jacobian(&self, z: &[f64]) -> anyhow::Result<DMatrix<f64>>;
+}
 
-    /// The potential at `z` alone (the line search's); by default from [`Self::value_gradient`].
-    fn value(&mut self, z: &[f64]) -> anyhow::Result<f64> {
-        Ok(self.value_gradient(z)?.0)
+/// One implicit Euler step's potential ([`PhysicsLoss`]) over the coordinates of a subspace.
+struct Step<'a, S: Subspace> {
+    subspace: &'a S,
+    loss: &'a mut PhysicsLoss,
+    encoding: &'a Encoding,
+    frame: Frame,
+    targets: Vec<f64>,
+    prev: &'a [f64],
+    prev2: &'a [f64],
+}
+
+impl<S: Subspace> Step<'_, S> {
+    /// The potential at `z` and its gradient in the encoded coordinates.
+    fn encoded_gradient(&mut self, z: &[f64]) -> anyhow::Result<(f64, DVector<f64>)> {
+        let q = self.subspace.lower(z)?;
+        let x = self.encoding.decode(&q, &self.targets)?;
+        let mut grad = vec![0.0; self.encoding.state_len()];
+        let value = self
+            .loss
+            .value_and_gradient(&x, self.prev, self.prev2, &self.targets, &mut grad);
+        let mut local = vec![0.0; self.encoding.encoded_len()];
+        self.encoding.encode_gradient(&q, &grad, &self.frame, 1.0, &mut local)?;
+        Ok((value, DVector::from_vec(local)))
     }
 
-    /// The Hessian in `z`; by default central differences of the gradient with step `h`.
+    /// The potential at `z` and its gradient `J^T dE/dq`.
+    fn value_gradient(&mut self, z: &[f64]) -> anyhow::Result<(f64, DVector<f64>)> {
+        let (value, local) = self.encoded_gradient(z)?;
+        Ok((value, self.subspace.jacobian(z)?.tr_mul(&local)))
+    }
+
+    /// `J^T (dE/dq (z + h e_i) - dE/dq (z - h e_i)) / 2h` with the Jacobian `J` taken at `z`:
+    /// the exact Hessian for a linear subspace; for a decoder, its curvature is left out.
     fn hessian(&mut self, z: &[f64], h: f64) -> anyhow::Result<DMatrix<f64>> {
-        let k = z.len();
-        let mut hessian = DMatrix::zeros(k, k);
-        for i in 0..k {
+        let jacobian = self.subspace.jacobian(z)?;
+        let mut hessian = DMatrix::zeros(z.len(), z.len());
+        for i in 0..z.len() {
             let mut shifted = z.to_vec();
             shifted[i] += h;
-            let (_, plus) = self.value_gradient(&shifted)?;
+            let (_, plus) = self.encoded_gradient(&shifted)?;
             shifted[i] -= 2.0 * h;
-            let (_, minus) = self.value_gradient(&shifted)?;
-            hessian.set_column(i, &((plus - minus) / (2.0 * h)));
+            let (_, minus) = self.encoded_gradient(&shifted)?;
+            hessian.set_column(i, &jacobian.tr_mul(&((plus - minus) / (2.0 * h))));
         }
         Ok(hessian)
     }
@@ -68,14 +104,14 @@ pub trait StepObjective {
 /// Newton iterations per frame at most.
 const MAX_ITERATIONS: usize = 30;
 
-/// Minimises `objective` from `z` by Newton's method (the Hessian symmetrised, its
+/// Minimises one step's potential from `z` by Newton's method (the Hessian symmetrised, its
 /// eigenvalues taken in absolute value) with backtracking line search, until a step moves
 /// less than `1e-9 * diagonal`. Returns the minimiser and the iterations taken.
-pub fn newton(objective: &mut impl StepObjective, mut z: Vec<f64>, diagonal: f64) -> anyhow::Result<(Vec<f64>, usize)> {
+fn newton<S: Subspace>(step: &mut Step<'_, S>, mut z: Vec<f64>, diagonal: f64) -> anyhow::Result<(Vec<f64>, usize)> {
     let k = z.len();
     for iteration in 1..=MAX_ITERATIONS {
-        let (value, g) = objective.value_gradient(&z)?;
-        let hessian = objective.hessian(&z, 1e-6 * diagonal)?;
+        let (value, g) = step.value_gradient(&z)?;
+        let hessian = step.hessian(&z, 1e-6 * diagonal)?;
         let eigen = ((&hessian + hessian.transpose()) * 0.5).symmetric_eigen();
         let mut direction = DVector::zeros(k);
         for (lambda, v) in eigen.eigenvalues.iter().zip(eigen.eigenvectors.column_iter()) {
@@ -85,7 +121,7 @@ pub fn newton(objective: &mut impl StepObjective, mut z: Vec<f64>, diagonal: f64
         let mut alpha = 1.0;
         loop {
             let trial: Vec<f64> = z.iter().zip(direction.iter()).map(|(z, d)| z + alpha * d).collect();
-            if objective.value(&trial)? <= value + 1e-4 * alpha * slope || alpha < 1e-8 {
+            if step.encoded_gradient(&trial)?.0 <= value + 1e-4 * alpha * slope || alpha < 1e-8 {
                 z = trial;
                 break;
             }
@@ -98,24 +134,81 @@ pub fn newton(objective: &mut impl StepObjective, mut z: Vec<f64>, diagonal: f64
     Ok((z, MAX_ITERATIONS))
 }
 
-/// Prints one test sequence's summary: mean and largest frame-mean vertex error (fractions
-/// of the diagonal, one per frame), samples of the curve, Newton iterations per frame, and
-/// the mean error of the reference frames mapped into the subspace and back.
-pub fn report(name: &str, description: &str, errors: &[f64], iterations: usize, round_trip_error: f64) {
-    let n = errors.len().max(1);
-    let samples: Vec<String> = [1, 10, 30, 100, 300, 1000]
-        .iter()
-        .filter(|&&f| f <= errors.len())
-        .map(|&f| format!("{f}: {:.3}", 100.0 * errors[f - 1]))
-        .collect();
-    println!(
-        "{name} ({description}): mean vertex error {:.3}% of the diagonal over {n} frames, max of frame means {:.3}%, \
-         {:.1} Newton iterations per frame; by frame (%) {}; reference frames mapped into the \
-         subspace and back: mean error {:.3}%",
-        100.0 * errors.iter().sum::<f64>() / n as f64,
-        100.0 * errors.iter().copied().fold(0.0, f64::max),
-        iterations as f64 / n as f64,
-        samples.join(", "),
-        100.0 * round_trip_error
-    );
+/// Rolls implicit Euler restricted to `subspace` out on every test sequence in `dir` (at
+/// most `frames` frames each), starting from the first reference frame lifted into the
+/// subspace, and prints per sequence: mean and largest frame-mean vertex error (% of the
+/// rest diagonal), samples of the curve, Newton iterations per frame, and the mean error of
+/// the reference frames lifted into the subspace and lowered back (the best it can do).
+pub fn rollout(
+    problem: &Problem,
+    encoding: &Encoding,
+    subspace: &impl Subspace,
+    dir: &Path,
+    frames: usize,
+) -> anyhow::Result<()> {
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    // Rod roots are placed exactly by the decoding; other bodies get the training penalty.
+    let penalty = (!matches!(problem.mesh.elements, Elements::Rods(_))).then_some(PAPER_BC_WEIGHT);
+    let mut loss = PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, penalty)?;
+    println!("{}: {}", problem.scene.name, subspace.describe());
+    for (plan, reference) in dataset::load(problem, dir, Split::Test)? {
+        let n = frames.min(reference.num_frames() - 1);
+        let decode = |z: &[f64], t: usize| -> anyhow::Result<Vec<f64>> {
+            let targets = encoding.handle_targets(&reference.positions[t])?;
+            Ok(encoding.decode(&subspace.lower(z)?, &targets)?)
+        };
+        let lifted = |t: usize| subspace.lift(&encoding.encode_state(&reference.positions[t])?);
+        let z0 = lifted(0)?;
+        let mut latents = vec![z0.clone(), z0.clone()];
+        let mut states = vec![decode(&z0, 0)?, decode(&z0, 0)?];
+        let mut errors = Vec::with_capacity(n);
+        let mut round_trip_error = 0.0;
+        let mut iterations = 0;
+        for t in 1..=n {
+            let targets = encoding.handle_targets(&reference.positions[t])?;
+            let mut step = Step {
+                subspace,
+                loss: &mut loss,
+                encoding,
+                frame: encoding.frame(&targets)?,
+                targets,
+                prev: &states[t],
+                prev2: &states[t - 1],
+            };
+            let start: Vec<f64> = latents[t]
+                .iter()
+                .zip(&latents[t - 1])
+                .map(|(a, b)| 2.0 * a - b)
+                .collect();
+            let (z, taken) = newton(&mut step, start, diagonal)?;
+            iterations += taken;
+            let x = decode(&z, t)?;
+            let mean_error = |x: &[f64]| {
+                vertex_errors(x, &reference.positions[t], dim, diagonal).sum::<f64>()
+                    / problem.mesh.num_vertices() as f64
+            };
+            errors.push(mean_error(&x));
+            round_trip_error += mean_error(&decode(&lifted(t)?, t)?) / n as f64;
+            latents.push(z);
+            states.push(x);
+        }
+        let samples: Vec<String> = [1, 10, 30, 100, 300, 1000]
+            .iter()
+            .filter(|&&f| f <= errors.len())
+            .map(|&f| format!("{f}: {:.3}", 100.0 * errors[f - 1]))
+            .collect();
+        println!(
+            "{} ({}): mean vertex error {:.3}% of the diagonal over {n} frames, max of frame means {:.3}%, \
+             {:.1} Newton iterations per frame; by frame (%) {}; reference frames lifted into the \
+             subspace and back: mean error {:.3}%",
+            plan.name,
+            plan.description,
+            100.0 * errors.iter().sum::<f64>() / n as f64,
+            100.0 * errors.iter().copied().fold(0.0, f64::max),
+            iterations as f64 / n as f64,
+            samples.join(", "),
+            100.0 * round_trip_error
+        );
+    }
+    Ok(())
 }
