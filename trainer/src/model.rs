@@ -1089,6 +1089,20 @@ mod tests {
         assert!(diff < 1e-5, "exported forward differs from candle by {diff}");
         // The outputs are not trivially small, so the comparison means something.
         assert!(candle.iter().flatten().any(|v| v.abs() > 0.1));
+        // In f64 (the diagnostics' decoder) the same network gives the same outputs.
+        let wide: Vec<Vec<f32>> = x
+            .iter()
+            .map(|x| {
+                let x: Vec<f64> = x.iter().map(|&v| v as f64).collect();
+                forward_exported(&exported, &x)
+                    .unwrap()
+                    .iter()
+                    .map(|&v| v as f32)
+                    .collect()
+            })
+            .collect();
+        let diff = max_relative_difference(&wide, &plain);
+        assert!(diff < 1e-5, "f64 forward differs from f32 by {diff}");
     }
 
     #[test]
