@@ -289,6 +289,11 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
         hidden: spec.integrator.hidden,
         blocks: spec.integrator.blocks,
     };
+    let augmentation = Augmentation {
+        noise: spec.noise,
+        rollout: spec.rollout,
+        epochs: spec.integrator.epochs,
+    };
     let mut outcomes = Vec::new();
     for method in [Method::SelfSupervised, Method::Supervised] {
         let clock = Instant::now();
@@ -298,8 +303,14 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
             set.increment_norm.clone(),
             spec.seed + 1,
         )?;
+        // Runs with rollout augmentation get their own checkpoints.
+        let rolled = if spec.rollout > 0 {
+            format!("-rollout{}", spec.rollout)
+        } else {
+            String::new()
+        };
         let config = train_config(
-            &format!("integrator-{}-k{k}", method.label()),
+            &format!("integrator-{}-k{k}{rolled}", method.label()),
             &spec.integrator,
             spec.seed + 1,
             &checkpoints,
@@ -310,11 +321,11 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
         type Loss<'l> = Box<dyn FnMut(&Batch<'_>, &mut ChaCha8Rng) -> candle_core::Result<BatchLoss> + 'l>;
         let loss: Loss<'_> = match method {
             Method::SelfSupervised => {
-                physics = PhysicsObjective::new(problem, &set, &ae, spec.noise, spec.bc_weight, spec.min_speed)?;
+                physics = PhysicsObjective::new(problem, &set, &ae, augmentation, spec.bc_weight, spec.min_speed)?;
                 Box::new(|batch, rng| physics.batch_loss(&integrator, batch, rng))
             }
             Method::Supervised => {
-                supervised = SupervisedObjective::new(&set, spec.noise)?;
+                supervised = SupervisedObjective::new(&set, augmentation)?;
                 Box::new(|batch, rng| supervised.batch_loss(&integrator, batch, rng))
             }
         };
@@ -586,23 +597,120 @@ fn perturbed(rows: &[Vec<f32>], k: usize, scale: f64, rng: &mut ChaCha8Rng) -> V
         .collect()
 }
 
+/// How the integrator's inputs are augmented beyond the ground-truth latents; both the
+/// self-supervised objective and the supervised baseline use the same.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Augmentation {
+    /// Noise on the input latents as a fraction of the batch standard deviation (Eq. 5); 0
+    /// turns it off.
+    pub noise: f64,
+    /// Longest rollout of the integrator's own predictions (see [`rolled_inputs`]); 0 turns
+    /// it off.
+    pub rollout: usize,
+    /// Training epochs, over which the rollout limit grows from 1 to `rollout`.
+    pub epochs: usize,
+}
+
+impl Augmentation {
+    /// Ground-truth inputs only.
+    pub const NONE: Augmentation = Augmentation {
+        noise: 0.0,
+        rollout: 0,
+        epochs: 1,
+    };
+
+    /// The rollout limit at 0-based `epoch`: 1 at the start, `rollout` at the last epoch.
+    fn rollout_at(&self, epoch: usize) -> usize {
+        if self.rollout == 0 {
+            return 0;
+        }
+        let progress = epoch.min(self.epochs) as f64 / self.epochs.saturating_sub(1).max(1) as f64;
+        1 + ((self.rollout - 1) as f64 * progress.min(1.0)).round() as usize
+    }
+}
+
+/// Packed inputs for the predicted frame of each of `samples` whose latents `z_{t-1}`
+/// (and `z_{t-2}` after two or more steps) are `integrator`'s own predictions: a rollout of
+/// between 1 and `limit` steps (fewer near a sequence's start) from the ground-truth latents
+/// before it, without gradient. Samples at frame 1 have nothing to roll and are left out;
+/// returns the samples kept and their inputs.
+pub fn rolled_inputs(
+    data: &IntegratorData<'_>,
+    integrator: &Integrator,
+    samples: &[SampleRef],
+    limit: usize,
+    rng: &mut ChaCha8Rng,
+) -> candle_core::Result<(Vec<SampleRef>, Vec<Vec<f32>>)> {
+    struct Roll {
+        sample: SampleRef,
+        next: usize,
+        z_prev: Vec<f32>,
+        z_prev2: Vec<f32>,
+    }
+    let mut rolls: Vec<Roll> = samples
+        .iter()
+        .filter(|s| s.frame >= 2 && limit > 0)
+        .map(|&sample| {
+            let steps = rng.random_range(1..=limit.min(sample.frame - 1));
+            let next = sample.frame - steps;
+            let latents = &data.latents[sample.sequence];
+            Roll {
+                sample,
+                next,
+                z_prev: latents[next - 1].clone(),
+                z_prev2: latents[next.saturating_sub(2)].clone(),
+            }
+        })
+        .collect();
+    loop {
+        let active: Vec<usize> = (0..rolls.len())
+            .filter(|&i| rolls[i].next < rolls[i].sample.frame)
+            .collect();
+        if active.is_empty() {
+            break;
+        }
+        let rows: Vec<Vec<f32>> = active
+            .iter()
+            .map(|&i| {
+                let r = &rolls[i];
+                let signal = &data.sequences[r.sample.sequence].trajectory.bc_signal;
+                pack(&r.z_prev, &r.z_prev2, signal, r.next)
+            })
+            .collect();
+        let refs: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
+        let predicted = tensor_to_rows(&integrator.forward(&to_tensor(&refs, rows[0].len())?)?)?;
+        for (&i, z) in active.iter().zip(predicted) {
+            let r = &mut rolls[i];
+            r.z_prev2 = std::mem::replace(&mut r.z_prev, z);
+            r.next += 1;
+        }
+    }
+    Ok(rolls
+        .into_iter()
+        .map(|r| {
+            let signal = &data.sequences[r.sample.sequence].trajectory.bc_signal;
+            (r.sample, pack(&r.z_prev, &r.z_prev2, signal, r.sample.frame))
+        })
+        .unzip())
+}
+
 /// The self-supervised objective (Eq. 4-6) on minibatches of [`IntegratorData`].
 pub struct PhysicsObjective<'a> {
     data: &'a IntegratorData<'a>,
     ae: &'a Autoencoder,
     losses: Vec<PhysicsLoss>,
-    noise: f64,
+    augmentation: Augmentation,
     min_speed: f64,
 }
 
 impl<'a> PhysicsObjective<'a> {
-    /// The objective of `problem`'s body with penalty weight `bc_weight` (Eq. 4), noise
-    /// fraction `noise` (Eq. 5) and balancing floor `min_speed` (Eq. 6).
+    /// The objective of `problem`'s body with penalty weight `bc_weight` (Eq. 4), input
+    /// augmentation `augmentation` (Eq. 5) and balancing floor `min_speed` (Eq. 6).
     pub fn new(
         problem: &Problem,
         data: &'a IntegratorData<'a>,
         ae: &'a Autoencoder,
-        noise: f64,
+        augmentation: Augmentation,
         bc_weight: f64,
         min_speed: f64,
     ) -> anyhow::Result<Self> {
@@ -613,13 +721,38 @@ impl<'a> PhysicsObjective<'a> {
             data,
             ae,
             losses,
-            noise,
+            augmentation,
             min_speed,
         })
     }
 
+    /// Decoded world-space `(x_{t-1}, x_{t-2})` of packed `rows` predicting `samples`.
+    fn decoded_previous(
+        &self,
+        rows: &[Vec<f32>],
+        samples: &[SampleRef],
+    ) -> candle_core::Result<Vec<(Vec<f64>, Vec<f64>)>> {
+        let (data, k) = (self.data, self.data.latent);
+        let z1: Vec<&[f32]> = rows.iter().map(|r| &r[..k]).collect();
+        let z2: Vec<&[f32]> = rows.iter().map(|r| &r[k..2 * k]).collect();
+        let q1 = tensor_to_rows(&self.ae.decoder().forward_frozen(&to_tensor(&z1, k)?)?)?;
+        let q2 = tensor_to_rows(&self.ae.decoder().forward_frozen(&to_tensor(&z2, k)?)?)?;
+        samples
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let seq = &data.sequences[s.sequence];
+                let world = |q: &[f32], f: usize| decode_world(data.encoding, q, &seq.frames[f], &seq.targets[f]);
+                let prev = world(&q1[i], s.frame - 1).map_err(candle_err)?;
+                let prev2 = world(&q2[i], s.prev2()).map_err(candle_err)?;
+                Ok((prev, prev2))
+            })
+            .collect()
+    }
+
     /// The surrogate objective and the mean balanced loss of one minibatch (clean samples,
-    /// then as many perturbed ones when noise is on).
+    /// then as many perturbed ones when noise is on, then rolled-out ones when rollout
+    /// augmentation is on).
     pub fn batch_loss(
         &mut self,
         integrator: &Integrator,
@@ -640,22 +773,19 @@ impl<'a> PhysicsObjective<'a> {
             .collect();
         let mut rows = clean.clone();
         let mut all_samples = samples.clone();
-        if self.noise > 0.0 {
-            let noisy = perturbed(&clean, k, self.noise, rng);
-            let z1: Vec<&[f32]> = noisy.iter().map(|r| &r[..k]).collect();
-            let z2: Vec<&[f32]> = noisy.iter().map(|r| &r[k..2 * k]).collect();
-            let q1 = tensor_to_rows(&self.ae.decoder().forward_frozen(&to_tensor(&z1, k)?)?)?;
-            let q2 = tensor_to_rows(&self.ae.decoder().forward_frozen(&to_tensor(&z2, k)?)?)?;
-            for (i, s) in samples.iter().enumerate() {
-                let seq = &data.sequences[s.sequence];
-                let p = s.frame - 1;
-                let world = |q: &[f32], f: usize| decode_world(data.encoding, q, &seq.frames[f], &seq.targets[f]);
-                let prev = world(&q1[i], p).map_err(candle_err)?;
-                let prev2 = world(&q2[i], s.prev2()).map_err(candle_err)?;
-                prevs.push((prev, prev2));
-            }
+        let augmentation = self.augmentation;
+        if augmentation.noise > 0.0 {
+            let noisy = perturbed(&clean, k, augmentation.noise, rng);
+            prevs.extend(self.decoded_previous(&noisy, &samples)?);
             rows.extend(noisy);
             all_samples.extend(samples.iter().copied());
+        }
+        let limit = augmentation.rollout_at(batch.epoch);
+        if limit > 0 {
+            let (kept, rolled) = rolled_inputs(data, integrator, &samples, limit, rng)?;
+            prevs.extend(self.decoded_previous(&rolled, &kept)?);
+            rows.extend(rolled);
+            all_samples.extend(kept);
         }
         let refs: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
         let inputs = to_tensor(&refs, rows[0].len())?;
@@ -722,16 +852,20 @@ impl<'a> PhysicsObjective<'a> {
 /// ground truth, per coordinate in units of the increment's standard deviation.
 pub struct SupervisedObjective<'a> {
     data: &'a IntegratorData<'a>,
-    noise: f64,
+    augmentation: Augmentation,
     scale: Tensor,
 }
 
 impl<'a> SupervisedObjective<'a> {
-    /// The objective on `data`, with the same noise augmentation as the physics one.
-    pub fn new(data: &'a IntegratorData<'a>, noise: f64) -> candle_core::Result<Self> {
+    /// The objective on `data`, with the same input augmentation as the physics one.
+    pub fn new(data: &'a IntegratorData<'a>, augmentation: Augmentation) -> candle_core::Result<Self> {
         let inv: Vec<f32> = data.increment_norm.std.iter().map(|s| 1.0 / s).collect();
         let scale = Tensor::from_vec(inv, (1, data.latent), &Device::Cpu)?;
-        Ok(SupervisedObjective { data, noise, scale })
+        Ok(SupervisedObjective {
+            data,
+            augmentation,
+            scale,
+        })
     }
 
     /// Objective of one minibatch.
@@ -743,18 +877,20 @@ impl<'a> SupervisedObjective<'a> {
     ) -> candle_core::Result<BatchLoss> {
         let k = self.data.latent;
         let clean = tensor_to_rows(&batch.inputs)?;
+        let samples: Vec<SampleRef> = batch.indices.iter().map(|&i| self.data.samples[i]).collect();
+        let truth_of = |s: &SampleRef| self.data.latents[s.sequence][s.frame].clone();
         let mut rows = clean.clone();
-        let mut truth: Vec<Vec<f32>> = batch
-            .indices
-            .iter()
-            .map(|&i| {
-                let s = self.data.samples[i];
-                self.data.latents[s.sequence][s.frame].clone()
-            })
-            .collect();
-        if self.noise > 0.0 {
-            rows.extend(perturbed(&clean, k, self.noise, rng));
+        let mut truth: Vec<Vec<f32>> = samples.iter().map(truth_of).collect();
+        let augmentation = self.augmentation;
+        if augmentation.noise > 0.0 {
+            rows.extend(perturbed(&clean, k, augmentation.noise, rng));
             truth.extend(truth.clone());
+        }
+        let limit = augmentation.rollout_at(batch.epoch);
+        if limit > 0 {
+            let (kept, rolled) = rolled_inputs(self.data, integrator, &samples, limit, rng)?;
+            rows.extend(rolled);
+            truth.extend(kept.iter().map(truth_of));
         }
         let refs: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
         let truth_refs: Vec<&[f32]> = truth.iter().map(Vec::as_slice).collect();
@@ -853,10 +989,15 @@ mod tests {
     use crate::scene::{MeshSpec, Scene};
     use rand::SeedableRng;
 
-    /// The surrogate objective's gradient with respect to an integrator weight equals the
-    /// derivative of the balanced physics loss itself (central finite difference).
-    #[test]
-    fn surrogate_gradient_matches_finite_difference_of_the_loss() {
+    /// A 6-cell beam, one short trajectory, its encoding and a PCA-initialised autoencoder.
+    struct TinyBeam {
+        problem: Problem,
+        encoding: Encoding,
+        sequences: Vec<EncodedSequence>,
+        ae: Autoencoder,
+    }
+
+    fn tiny_beam() -> TinyBeam {
         let mut scene = Scene::load("beam").unwrap();
         scene.mesh = MeshSpec::Box {
             min: [0.0, -0.05, -0.05],
@@ -877,15 +1018,37 @@ mod tests {
             blocks: 1,
         };
         let ae = Autoencoder::new_pca_init(spec, &pca.mean, &pca.basis, 1).unwrap();
-        let data = IntegratorData::new(&problem, &encoding, &ae, &sequences).unwrap();
+        TinyBeam {
+            problem,
+            encoding,
+            sequences,
+            ae,
+        }
+    }
+
+    fn tiny_integrator(data: &IntegratorData<'_>) -> Integrator {
         let int_spec = IntegratorSpec {
-            latent: 3,
+            latent: data.latent,
             bc: data.bc_len,
             hidden: 16,
             blocks: 1,
         };
-        let integrator = Integrator::new(int_spec, data.input_norm.clone(), data.increment_norm.clone(), 2).unwrap();
-        let mut objective = PhysicsObjective::new(&problem, &data, &ae, 0.0, 1e5, 1e-3).unwrap();
+        Integrator::new(int_spec, data.input_norm.clone(), data.increment_norm.clone(), 2).unwrap()
+    }
+
+    /// The surrogate objective's gradient with respect to an integrator weight equals the
+    /// derivative of the balanced physics loss itself (central finite difference).
+    #[test]
+    fn surrogate_gradient_matches_finite_difference_of_the_loss() {
+        let TinyBeam {
+            problem,
+            encoding,
+            sequences,
+            ae,
+        } = tiny_beam();
+        let data = IntegratorData::new(&problem, &encoding, &ae, &sequences).unwrap();
+        let integrator = tiny_integrator(&data);
+        let mut objective = PhysicsObjective::new(&problem, &data, &ae, Augmentation::NONE, 1e5, 1e-3).unwrap();
         let indices: Vec<usize> = (2..10).collect();
         let rows: Vec<&[f32]> = indices.iter().map(|&i| data.inputs[i].as_slice()).collect();
         let batch = Batch {
@@ -927,5 +1090,78 @@ mod tests {
             }
         }
         assert_eq!(checked, 4);
+    }
+
+    /// Rolled inputs are the integrator's own rollout from ground truth: each equals a
+    /// rollout of between 1 and `limit` steps computed one step at a time here, frame-1
+    /// samples are dropped, and the limit grows from 1 to `rollout` over training.
+    #[test]
+    fn rolled_inputs_are_the_integrators_own_rollout() {
+        let TinyBeam {
+            problem,
+            encoding,
+            sequences,
+            ae,
+        } = tiny_beam();
+        let data = IntegratorData::new(&problem, &encoding, &ae, &sequences).unwrap();
+        let integrator = tiny_integrator(&data);
+        let signal = &sequences[0].trajectory.bc_signal;
+        let k = data.latent;
+        let step = |z1: &[f32], z2: &[f32], t: usize| -> Vec<f32> {
+            let row = pack(z1, z2, signal, t);
+            tensor_to_rows(&integrator.forward(&to_tensor(&[&row], row.len()).unwrap()).unwrap()).unwrap()[0].clone()
+        };
+        // Packed input of frame `t` after `steps` own steps from ground truth.
+        let by_hand = |t: usize, steps: usize| -> Vec<f32> {
+            let z = &data.latents[0];
+            let first = t - steps;
+            let (mut z1, mut z2) = (z[first - 1].clone(), z[first.saturating_sub(2)].clone());
+            for f in first..t {
+                let next = step(&z1, &z2, f);
+                z2 = std::mem::replace(&mut z1, next);
+            }
+            pack(&z1, &z2, signal, t)
+        };
+        let samples: Vec<SampleRef> = (1..data.samples.len() + 1)
+            .map(|frame| SampleRef { sequence: 0, frame })
+            .collect();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut steps_seen = std::collections::BTreeSet::new();
+        for limit in [1, 3] {
+            let (kept, rows) = rolled_inputs(&data, &integrator, &samples, limit, &mut rng).unwrap();
+            assert_eq!(kept, samples[1..].to_vec(), "frame 1 has nothing to roll");
+            for (s, row) in kept.iter().zip(&rows) {
+                let close = |steps: usize| {
+                    let want = by_hand(s.frame, steps);
+                    row.iter()
+                        .zip(&want)
+                        .all(|(a, b)| (a - b).abs() <= 1e-5 * (1.0 + b.abs()))
+                };
+                let steps = (1..=limit.min(s.frame - 1)).find(|&n| close(n));
+                let steps =
+                    steps.unwrap_or_else(|| panic!("frame {}: no rollout of 1..={limit} steps gives {row:?}", s.frame));
+                steps_seen.insert((limit, steps));
+                assert_ne!(
+                    &row[..2 * k],
+                    &data.inputs[s.frame - 1][..2 * k],
+                    "frame {}: not rolled",
+                    s.frame
+                );
+            }
+        }
+        assert!(
+            steps_seen.contains(&(3, 3)) && steps_seen.contains(&(3, 1)),
+            "{steps_seen:?}"
+        );
+        let ramp = Augmentation {
+            noise: 0.0,
+            rollout: 8,
+            epochs: 100,
+        };
+        assert_eq!(
+            (ramp.rollout_at(0), ramp.rollout_at(50), ramp.rollout_at(99)),
+            (1, 5, 8)
+        );
+        assert_eq!(Augmentation::NONE.rollout_at(10), 0);
     }
 }

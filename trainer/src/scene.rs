@@ -396,6 +396,11 @@ pub struct LatentSpec {
     /// Noise augmentation (Eq. 5): uniform noise on the input latents, as a fraction of the
     /// batch standard deviation; 0 turns augmentation off.
     pub noise: f64,
+    /// Rollout augmentation: each minibatch also trains on inputs whose two latents are the
+    /// integrator's own prediction, rolled out without gradient from ground truth for up to
+    /// this many steps (the limit grows from 1 over training), so the integrator learns to
+    /// step from the states its own errors lead to; 0 turns it off.
+    pub rollout: usize,
     /// Penalty weight on the boundary conditions in the physics loss (Eq. 4).
     pub bc_weight: f64,
     /// Floor of the data-balancing speed (Eq. 6), in length units per second. Without a
@@ -444,6 +449,7 @@ impl Default for LatentSpec {
                 final_learning_rate: 1e-5,
             },
             noise: 0.1,
+            rollout: 0,
             bc_weight: crate::loss::PAPER_BC_WEIGHT,
             min_speed: 0.05,
             seed: 0,
