@@ -2,8 +2,10 @@
 //! rolled out on the scene's test sequences against the full-space reference.
 //!
 //! ```sh
-//! cargo run --release -p mochi-trainer --example latent_rollout -- ARTIFACT.mochi DATASET_DIR [FRAMES]
+//! cargo run --release -p mochi-trainer --example latent_rollout -- ARTIFACT.mochi DATASET_DIR [FRAMES] [SEQUENCE,...]
 //! ```
+//!
+//! `SEQUENCE,...` (e.g. `test-00,test-01`) limits the rollout to those test sequences.
 //!
 //! The counterpart of `pca_rollout` for the autoencoder's nonlinear subspace: each step
 //! minimises the potential the integrator is trained on
@@ -62,7 +64,7 @@ impl Subspace for DecoderSubspace {
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 3 {
-        anyhow::bail!("usage: latent_rollout ARTIFACT.mochi DATASET_DIR [FRAMES]");
+        anyhow::bail!("usage: latent_rollout ARTIFACT.mochi DATASET_DIR [FRAMES] [SEQUENCE,...]");
     }
     let model = LoadedModel::new(Artifact::read(std::path::Path::new(&args[1]))?)?;
     let frames: usize = args.get(3).map_or(Ok(300), |s| s.parse())?;
@@ -72,5 +74,15 @@ fn main() -> anyhow::Result<()> {
         encoder: model.artifact.encoder().map_err(anyhow::Error::msg)?,
         decoder: model.decoder.clone(),
     };
-    rollout(&problem, &encoding, &subspace, std::path::Path::new(&args[2]), frames)
+    let only: Vec<String> = args
+        .get(4)
+        .map_or(Vec::new(), |s| s.split(',').map(String::from).collect());
+    rollout(
+        &problem,
+        &encoding,
+        &subspace,
+        std::path::Path::new(&args[2]),
+        frames,
+        &only,
+    )
 }

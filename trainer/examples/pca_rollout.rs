@@ -44,5 +44,5 @@ impl Subspace for PcaSubspace {
 
 fn main() -> anyhow::Result<()> {
     let (problem, encoding, pca, _, dir, frames) = subspace_from_args("pca_rollout")?;
-    rollout(&problem, &encoding, &PcaSubspace(pca), &dir, frames)
+    rollout(&problem, &encoding, &PcaSubspace(pca), &dir, frames, &[])
 }
