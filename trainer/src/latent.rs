@@ -1026,6 +1026,12 @@ mod tests {
         }
     }
 
+    impl TinyBeam {
+        fn data(&self) -> IntegratorData<'_> {
+            IntegratorData::new(&self.problem, &self.encoding, &self.ae, &self.sequences).unwrap()
+        }
+    }
+
     fn tiny_integrator(data: &IntegratorData<'_>) -> Integrator {
         let int_spec = IntegratorSpec {
             latent: data.latent,
@@ -1040,15 +1046,10 @@ mod tests {
     /// derivative of the balanced physics loss itself (central finite difference).
     #[test]
     fn surrogate_gradient_matches_finite_difference_of_the_loss() {
-        let TinyBeam {
-            problem,
-            encoding,
-            sequences,
-            ae,
-        } = tiny_beam();
-        let data = IntegratorData::new(&problem, &encoding, &ae, &sequences).unwrap();
+        let beam = tiny_beam();
+        let (problem, ae, data) = (&beam.problem, &beam.ae, beam.data());
         let integrator = tiny_integrator(&data);
-        let mut objective = PhysicsObjective::new(&problem, &data, &ae, Augmentation::NONE, 1e5, 1e-3).unwrap();
+        let mut objective = PhysicsObjective::new(problem, &data, ae, Augmentation::NONE, 1e5, 1e-3).unwrap();
         let indices: Vec<usize> = (2..10).collect();
         let rows: Vec<&[f32]> = indices.iter().map(|&i| data.inputs[i].as_slice()).collect();
         let batch = Batch {
@@ -1097,15 +1098,10 @@ mod tests {
     /// samples are dropped, and the limit grows from 1 to `rollout` over training.
     #[test]
     fn rolled_inputs_are_the_integrators_own_rollout() {
-        let TinyBeam {
-            problem,
-            encoding,
-            sequences,
-            ae,
-        } = tiny_beam();
-        let data = IntegratorData::new(&problem, &encoding, &ae, &sequences).unwrap();
+        let beam = tiny_beam();
+        let data = beam.data();
         let integrator = tiny_integrator(&data);
-        let signal = &sequences[0].trajectory.bc_signal;
+        let signal = &beam.sequences[0].trajectory.bc_signal;
         let k = data.latent;
         let step = |z1: &[f32], z2: &[f32], t: usize| -> Vec<f32> {
             let row = pack(z1, z2, signal, t);
