@@ -15,7 +15,7 @@
 
 mod common;
 
-use common::subspace_from_args;
+use common::{curve_samples, subspace_from_args};
 use mochi_trainer::dataset::{self, Split};
 use mochi_trainer::eval::vertex_errors;
 
@@ -54,11 +54,6 @@ fn main() -> anyhow::Result<()> {
                 problem.simulator.step(&seq.targets(&problem.handles, t, dim))?;
                 errors.push(error(problem.simulator.positions(), t));
             }
-            let samples: Vec<String> = [1, 10, 30, 100, 300, 1000]
-                .iter()
-                .filter(|&&f| f <= errors.len())
-                .map(|&f| format!("{f}: {:.4}", 100.0 * errors[f - 1]))
-                .collect();
             println!(
                 "{} ({}), {label}: start {:.4}%, mean vertex error {:.3}% of the diagonal over {n} frames, \
                  max of frame means {:.3}%; by frame (%) {}",
@@ -67,7 +62,7 @@ fn main() -> anyhow::Result<()> {
                 100.0 * start_error,
                 100.0 * errors.iter().sum::<f64>() / n as f64,
                 100.0 * errors.iter().copied().fold(0.0, f64::max),
-                samples.join(", ")
+                curve_samples(&errors, 4)
             );
         }
     }

@@ -195,24 +195,20 @@ pub fn rollout(
             let (z, taken) = newton(&mut step, start, diagonal)?;
             iterations += taken;
             let x = decode(&z, t)?;
-            let mean_error = |x: &[f64]| {
-                vertex_errors(x, &reference.positions[t], dim, diagonal).sum::<f64>()
-                    / problem.mesh.num_vertices() as f64
+            // Mean and largest vertex error of a state at frame `t`.
+            let error = |x: &[f64]| {
+                vertex_errors(x, &reference.positions[t], dim, diagonal)
+                    .fold((0.0, 0.0), |(sum, max): (f64, f64), e| (sum + e, max.max(e)))
             };
-            errors.push(mean_error(&x));
-            let max_error = vertex_errors(&x, &reference.positions[t], dim, diagonal).fold(0.0, f64::max);
+            let (sum, max_error) = error(&x);
+            errors.push(sum / problem.mesh.num_vertices() as f64);
             if max_error > 0.5 && first_over_half.is_none() {
                 first_over_half = Some(t);
             }
-            round_trip_error += mean_error(&decode(&lifted(t)?, t)?) / n as f64;
+            round_trip_error += error(&decode(&lifted(t)?, t)?).0 / problem.mesh.num_vertices() as f64 / n as f64;
             latents.push(z);
             states.push(x);
         }
-        let samples: Vec<String> = [1, 10, 30, 100, 300, 1000]
-            .iter()
-            .filter(|&&f| f <= errors.len())
-            .map(|&f| format!("{f}: {:.3}", 100.0 * errors[f - 1]))
-            .collect();
         println!(
             "{} ({}): mean vertex error {:.3}% of the diagonal over {n} frames, max of frame means {:.3}%, \
              first vertex half a diagonal off at frame {}, {:.1} Newton iterations per frame; by frame (%) {}; \
@@ -223,9 +219,20 @@ pub fn rollout(
             100.0 * errors.iter().copied().fold(0.0, f64::max),
             first_over_half.map_or("none".to_string(), |t| t.to_string()),
             iterations as f64 / n as f64,
-            samples.join(", "),
+            curve_samples(&errors, 3),
             100.0 * round_trip_error
         );
     }
     Ok(())
+}
+
+/// Samples of an error curve (fractions of the diagonal, frame 1 first) at frames 1, 10, 30,
+/// 100, 300 and 1000 as `frame: percent` with `decimals` decimals, comma-separated.
+pub fn curve_samples(errors: &[f64], decimals: usize) -> String {
+    [1, 10, 30, 100, 300, 1000]
+        .iter()
+        .filter(|&&f| f <= errors.len())
+        .map(|&f| format!("{f}: {:.decimals$}", 100.0 * errors[f - 1]))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
