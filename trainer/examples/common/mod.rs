@@ -1,4 +1,4 @@
-//! What the subspace diagnostics (`pca_rollout`, `latent_rollout`, `sensitivity`) share:
+//! What the subspace diagnostics (`pca_rollout`, `swing_rollout`, `latent_rollout`, `sensitivity`) share:
 //! their arguments `SCENE K DATASET_DIR [FRAMES]`, the PCA subspace of the scene's training
 //! frames, Newton's method in a subspace and the report of a rollout.
 #![allow(dead_code)] // `sensitivity` uses only the subspace
@@ -19,26 +19,59 @@ use std::path::{Path, PathBuf};
 /// Returns the built scene, its boundary-relative encoding, the subspace, `K`, the dataset
 /// directory and the frames of each test sequence to roll out.
 pub fn subspace_from_args(example: &str) -> anyhow::Result<(Problem, Encoding, Pca, usize, PathBuf, usize)> {
-    let args: Vec<String> = std::env::args().collect();
-    if args.len() < 4 {
-        anyhow::bail!("usage: {example} SCENE K DATASET_DIR [FRAMES]");
+    let args = DiagnosticArgs::parse(example)?;
+    let pca = Pca::fit(&args.encoded, args.k)?;
+    Ok((args.problem, args.encoding, pca, args.k, args.dir, args.frames))
+}
+
+/// What [`subspace_from_args`] reads and prepares, with the encoded training frames in place
+/// of their PCA (for subspaces built otherwise).
+pub struct DiagnosticArgs {
+    /// The built scene.
+    pub problem: Problem,
+    /// Its boundary-relative encoding.
+    pub encoding: Encoding,
+    /// Every training frame, encoded.
+    pub encoded: Vec<Vec<f64>>,
+    /// The subspace size `K`.
+    pub k: usize,
+    /// The dataset directory.
+    pub dir: PathBuf,
+    /// Frames of each test sequence to roll out.
+    pub frames: usize,
+}
+
+impl DiagnosticArgs {
+    /// Reads `SCENE K DATASET_DIR [FRAMES]` from the command line of `example` and
+    /// generates the dataset if missing.
+    pub fn parse(example: &str) -> anyhow::Result<Self> {
+        let args: Vec<String> = std::env::args().collect();
+        if args.len() < 4 {
+            anyhow::bail!("usage: {example} SCENE K DATASET_DIR [FRAMES]");
+        }
+        let mut problem = Scene::load(&args[1])?.build()?;
+        let k: usize = args[2].parse()?;
+        let dir = PathBuf::from(&args[3]);
+        let frames: usize = args.get(4).map_or(Ok(300), |s| s.parse())?;
+        dataset::generate(&mut problem, &dir, None, false, true)?;
+        let encoding = Encoding::new(&problem)?;
+        let train = dataset::load(&problem, &dir, Split::Train)?
+            .into_iter()
+            .map(|(_, t)| t)
+            .collect();
+        let encoded = encode_sequences(&encoding, train)?
+            .into_iter()
+            .flat_map(|s| s.encoded)
+            .collect();
+        Ok(DiagnosticArgs {
+            problem,
+            encoding,
+            encoded,
+            k,
+            dir,
+            frames,
+        })
     }
-    let mut problem = Scene::load(&args[1])?.build()?;
-    let k: usize = args[2].parse()?;
-    let dir = PathBuf::from(&args[3]);
-    let frames: usize = args.get(4).map_or(Ok(300), |s| s.parse())?;
-    dataset::generate(&mut problem, &dir, None, false, true)?;
-    let encoding = Encoding::new(&problem)?;
-    let train = dataset::load(&problem, &dir, Split::Train)?
-        .into_iter()
-        .map(|(_, t)| t)
-        .collect();
-    let encoded: Vec<Vec<f64>> = encode_sequences(&encoding, train)?
-        .into_iter()
-        .flat_map(|s| s.encoded)
-        .collect();
-    let pca = Pca::fit(&encoded, k)?;
-    Ok((problem, encoding, pca, k, dir, frames))
 }
 
 /// A subspace of the encoded vectors that implicit Euler can be solved in.
