@@ -28,27 +28,25 @@ use mochi_trainer::pca::Pca;
 use mochi_trainer::scene::Problem;
 use nalgebra::{DMatrix, Rotation3, Unit, Vector3};
 
-/// A swing angle about the handle line and the principal components of the unswung shapes.
-struct SwingSubspace {
-    pca: Pca,
+/// The line of a scene's handle vertices and the directions that measure a swing about it.
+struct HandleLine {
     axis: Unit<Vector3<f64>>,
     down: Vector3<f64>,
     side: Vector3<f64>,
-    /// Length that turns the angle into the first coordinate (`|mean|`), so that all
-    /// columns of the Jacobian have comparable norms.
-    scale: f64,
 }
 
-impl SwingSubspace {
-    /// The handle line of `problem` (its handle vertices must lie on one line) and the
-    /// shapes of `encoded` turned back by their swing angles.
-    fn fit(problem: &Problem, encoded: &[Vec<f64>], k: usize) -> anyhow::Result<Self> {
+impl HandleLine {
+    /// The line through `problem`'s handle vertices (they must lie on one line), with
+    /// `down` the direction of gravity across it.
+    fn of(problem: &Problem) -> anyhow::Result<Self> {
         let points: Vec<Vector3<f64>> = problem
             .handles
             .iter()
             .flat_map(|h| h.reference.iter().map(|&p| Vector3::from(p)))
             .collect();
-        let (first, last) = (points[0], points[points.len() - 1]);
+        let (Some(&first), Some(&last)) = (points.first(), points.last()) else {
+            anyhow::bail!("the scene has no handle vertices");
+        };
         let axis = Unit::try_new(last - first, 1e-12)
             .ok_or_else(|| anyhow::anyhow!("the handle vertices do not span a line"))?;
         for p in &points {
@@ -56,25 +54,11 @@ impl SwingSubspace {
             anyhow::ensure!(off.norm() < 1e-9, "the handle vertices are not collinear");
         }
         let gravity = Vector3::from(problem.scene.gravity);
-        let down = gravity - axis.into_inner() * axis.dot(&gravity);
-        let down = down
+        let down = (gravity - axis.into_inner() * axis.dot(&gravity))
             .try_normalize(1e-12)
             .ok_or_else(|| anyhow::anyhow!("gravity is along the handle line"))?;
         let side = axis.cross(&down);
-        let mut subspace = SwingSubspace {
-            pca: Pca::fit(&encoded[..1], 1)?,
-            axis,
-            down,
-            side,
-            scale: 1.0,
-        };
-        let unswung: Vec<Vec<f64>> = encoded
-            .iter()
-            .map(|q| subspace.rotated(q, -subspace.angle(q)))
-            .collect();
-        subspace.pca = Pca::fit(&unswung, k)?;
-        subspace.scale = subspace.pca.mean.iter().map(|v| v * v).sum::<f64>().sqrt();
-        Ok(subspace)
+        Ok(HandleLine { axis, down, side })
     }
 
     /// The swing angle of an encoded state: its vertex centroid about the handle line,
@@ -108,6 +92,25 @@ impl SwingSubspace {
     }
 }
 
+/// A swing angle about the handle line and the principal components of the unswung shapes.
+struct SwingSubspace {
+    line: HandleLine,
+    pca: Pca,
+    /// Length that turns the angle into the first coordinate (`|mean|`), so that all
+    /// columns of the Jacobian have comparable norms.
+    scale: f64,
+}
+
+impl SwingSubspace {
+    /// The first `k` principal components of `encoded` turned back by their swing angles.
+    fn fit(line: HandleLine, encoded: &[Vec<f64>], k: usize) -> anyhow::Result<Self> {
+        let unswung: Vec<Vec<f64>> = encoded.iter().map(|q| line.rotated(q, -line.angle(q))).collect();
+        let pca = Pca::fit(&unswung, k)?;
+        let scale = pca.mean.iter().map(|v| v * v).sum::<f64>().sqrt();
+        Ok(SwingSubspace { line, pca, scale })
+    }
+}
+
 impl Subspace for SwingSubspace {
     fn describe(&self) -> String {
         format!(
@@ -116,12 +119,12 @@ impl Subspace for SwingSubspace {
         )
     }
     fn lower(&self, z: &[f64]) -> anyhow::Result<Vec<f64>> {
-        Ok(self.rotated(&self.pca.reconstruct(&z[1..])?, z[0] / self.scale))
+        Ok(self.line.rotated(&self.pca.reconstruct(&z[1..])?, z[0] / self.scale))
     }
     fn lift(&self, q: &[f64]) -> anyhow::Result<Vec<f64>> {
-        let angle = self.angle(q);
+        let angle = self.line.angle(q);
         let mut z = vec![angle * self.scale];
-        z.extend(self.pca.project(&self.rotated(q, -angle))?);
+        z.extend(self.pca.project(&self.line.rotated(q, -angle))?);
         Ok(z)
     }
     fn jacobian(&self, z: &[f64]) -> anyhow::Result<DMatrix<f64>> {
@@ -130,13 +133,13 @@ impl Subspace for SwingSubspace {
         let mut jacobian = DMatrix::zeros(q.len(), z.len());
         // d/d theta of R(theta) p is axis x (R p).
         for (i, v) in q.chunks(3).enumerate() {
-            let d = self.axis.cross(&Vector3::new(v[0], v[1], v[2])) / self.scale;
+            let d = self.line.axis.cross(&Vector3::new(v[0], v[1], v[2])) / self.scale;
             for c in 0..3 {
                 jacobian[(3 * i + c, 0)] = d[c];
             }
         }
         for (j, b) in self.pca.basis.iter().enumerate() {
-            for (i, v) in self.rotated(b, angle).into_iter().enumerate() {
+            for (i, v) in self.line.rotated(b, angle).into_iter().enumerate() {
                 jacobian[(i, j + 1)] = v;
             }
         }
@@ -154,10 +157,10 @@ fn main() -> anyhow::Result<()> {
         frames,
     } = DiagnosticArgs::parse("swing_rollout")?;
     anyhow::ensure!(problem.mesh.dim == 3, "swing_rollout needs a 3D scene");
-    let subspace = SwingSubspace::fit(&problem, &encoded, k)?;
+    let subspace = SwingSubspace::fit(HandleLine::of(&problem)?, &encoded, k)?;
     println!(
         "swing angles (degrees) of the training frames: {}",
-        subspace.angle_range(encoded.iter().map(Vec::as_slice))
+        subspace.line.angle_range(encoded.iter().map(Vec::as_slice))
     );
     for (plan, reference) in dataset::load(&problem, &dir, Split::Test)? {
         let states: Vec<Vec<f64>> = reference
@@ -168,7 +171,7 @@ fn main() -> anyhow::Result<()> {
         println!(
             "swing angles (degrees) of the reference, {}: {}",
             plan.name,
-            subspace.angle_range(states.iter().map(Vec::as_slice))
+            subspace.line.angle_range(states.iter().map(Vec::as_slice))
         );
     }
     rollout(&problem, &encoding, &subspace, &dir, frames, &[])
