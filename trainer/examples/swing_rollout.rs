@@ -163,11 +163,7 @@ fn main() -> anyhow::Result<()> {
         subspace.line.angle_range(encoded.iter().map(Vec::as_slice))
     );
     for (plan, reference) in dataset::load(&problem, &dir, Split::Test)? {
-        let states: Vec<Vec<f64>> = reference
-            .positions
-            .iter()
-            .map(|x| encoding.encode_state(x))
-            .collect::<Result<_, _>>()?;
+        let states = encoding.encode_trajectory(&reference)?;
         println!(
             "swing angles (degrees) of the reference, {}: {}",
             plan.name,
