@@ -229,6 +229,17 @@ impl MotionSpec {
         (lerp(self.speed), lerp(self.angular_speed))
     }
 
+    /// The same motion with every segment of one length, the fraction `share` (0 shortest,
+    /// 1 longest, clamped) of the way through `segment_frames`: a steady rhythm.
+    pub fn steady(&self, share: f64) -> MotionSpec {
+        let [lo, hi] = self.segment_frames;
+        let len = lo + (share.clamp(0.0, 1.0) * (hi - lo) as f64).round() as usize;
+        MotionSpec {
+            segment_frames: [len, len],
+            ..self.clone()
+        }
+    }
+
     /// Samples segments covering `frames`, using `speeds(frame) = (linear, angular)` for a
     /// segment starting at `frame`, with directions and lengths drawn from `rng`.
     pub fn sample(&self, frames: usize, speeds: &dyn Fn(usize) -> (f64, f64), rng: &mut ChaCha8Rng) -> Vec<Segment> {
@@ -338,6 +349,29 @@ mod tests {
             let w = V3::from(s.angular_velocity).norm();
             assert!((v - 0.3).abs() < 1e-12 || (w - 0.75).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn steady_motion_keeps_one_segment_length() {
+        let spec = MotionSpec {
+            segment_frames: [10, 20],
+            directions: vec![[0.0, 0.0, 1.0]],
+            rotation_axes: vec![],
+            rotation_share: 0.0,
+            speed: [0.2, 1.0],
+            angular_speed: [0.0, 0.0],
+            back_and_forth: true,
+        };
+        assert_eq!(spec.steady(0.0).segment_frames, [10, 10]);
+        assert_eq!(spec.steady(0.5).segment_frames, [15, 15]);
+        assert_eq!(spec.steady(7.0).segment_frames, [20, 20]);
+        let speeds = |_| spec.speeds_at(1.0);
+        let segments = spec.steady(0.5).sample(200, &speeds, &mut rng(5));
+        assert!(segments.len() > 10);
+        assert!(segments.iter().all(|s| s.frames == 15));
+        // Random lengths, from the same seed, do vary.
+        let random = spec.sample(200, &speeds, &mut rng(5));
+        assert!(random.iter().any(|s| s.frames != random[0].frames));
     }
 
     #[test]

@@ -33,11 +33,16 @@ impl Split {
 }
 
 /// How fast the handles move over a sequence: from each `start_frame`, speeds are the
-/// scene's speeds at `level` (0 bottom, 1 top of the training range) times `factor`.
+/// scene's speeds at `level` (0 bottom, 1 top of the training range) times `factor`; and
+/// in what rhythm (segment lengths random, or all one length).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpeedPlan {
     /// `(start_frame, level, factor)`, sorted by start frame, the first at frame 0.
     pub pieces: Vec<(usize, f64, f64)>,
+    /// `None`: segment lengths drawn at random from the motion's `segment_frames`.
+    /// `Some(s)`: every segment lasts one length, the fraction `s` (0 shortest, 1 longest)
+    /// of the way through that range (a steady rhythm).
+    pub steady: Option<f64>,
 }
 
 impl SpeedPlan {
@@ -45,6 +50,7 @@ impl SpeedPlan {
     pub fn constant(level: f64) -> Self {
         SpeedPlan {
             pieces: vec![(0, level, 1.0)],
+            steady: None,
         }
     }
     /// The `(level, factor)` in force at `frame`.
@@ -89,6 +95,24 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
             seed: spec.seed.wrapping_mul(1000).wrapping_add(k as u64),
         });
     }
+    for j in 0..spec.steady {
+        let k = n + j;
+        let share = if spec.steady == 1 {
+            0.5
+        } else {
+            j as f64 / (spec.steady - 1) as f64
+        };
+        plans.push(SequencePlan {
+            name: format!("train-{k:02}"),
+            split: Split::Train,
+            description: format!("speed level 1.00, steady segments {share:.2} of the way through their range"),
+            speeds: SpeedPlan {
+                pieces: vec![(0, 1.0, 1.0)],
+                steady: Some(share),
+            },
+            seed: spec.seed.wrapping_mul(1000).wrapping_add(k as u64),
+        });
+    }
     let half = spec.frames_of(Split::Test) / 2;
     let mut tests = Vec::new();
     if spec.test >= 1 {
@@ -96,6 +120,7 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
             format!("sudden drop from {:.2}x the top speed to a tenth of it", spec.beyond),
             SpeedPlan {
                 pieces: vec![(0, 1.0, spec.beyond), (half, 1.0, spec.beyond / 10.0)],
+                steady: None,
             },
         ));
     }
@@ -104,6 +129,7 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
             format!("{:.2}x the top training speed", spec.beyond),
             SpeedPlan {
                 pieces: vec![(0, 1.0, spec.beyond)],
+                steady: None,
             },
         ));
     }
@@ -149,7 +175,11 @@ impl Problem {
                         let (lin, ang) = motion.speeds_at(level);
                         (lin * factor, ang * factor)
                     };
-                    motion.sample(frames, &at, &mut bc::rng(seed.wrapping_add(7919 * k as u64)))
+                    let rng = &mut bc::rng(seed.wrapping_add(7919 * k as u64));
+                    match speeds.steady {
+                        Some(share) => motion.steady(share).sample(frames, &at, rng),
+                        None => motion.sample(frames, &at, rng),
+                    }
                 } else {
                     Vec::new()
                 };
@@ -357,6 +387,7 @@ mod tests {
             seed: 3,
             beyond: 1.5,
             test_frames: None,
+            steady: 0,
         };
         let plans = plan(&spec);
         let train: Vec<f64> = plans
@@ -385,5 +416,38 @@ mod tests {
         seeds.sort();
         seeds.dedup();
         assert_eq!(seeds.len(), plans.len());
+    }
+
+    #[test]
+    fn steady_sequences_are_added_at_the_top_speed_and_leave_the_tests_alone() {
+        let random = DatasetSpec {
+            train: 3,
+            test: 4,
+            ..DatasetSpec::default()
+        };
+        let with_steady = DatasetSpec { steady: 3, ..random };
+        let (a, b) = (plan(&random), plan(&with_steady));
+        let train = |plans: &[SequencePlan]| {
+            plans
+                .iter()
+                .filter(|p| p.split == Split::Train)
+                .cloned()
+                .collect::<Vec<_>>()
+        };
+        let test = |plans: &[SequencePlan]| {
+            plans
+                .iter()
+                .filter(|p| p.split == Split::Test)
+                .cloned()
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(test(&a), test(&b));
+        let (ta, tb) = (train(&a), train(&b));
+        assert_eq!(tb.len(), 6);
+        assert_eq!(ta[..], tb[..3]);
+        let shares: Vec<Option<f64>> = tb[3..].iter().map(|p| p.speeds.steady).collect();
+        assert_eq!(shares, vec![Some(0.0), Some(0.5), Some(1.0)]);
+        assert!(tb[3..].iter().all(|p| p.speeds.at(0) == (1.0, 1.0)));
+        assert_eq!(tb[5].name, "train-05");
     }
 }

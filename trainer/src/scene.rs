@@ -336,6 +336,11 @@ pub struct DatasetSpec {
     pub beyond: f64,
     /// Frames per test sequence (default: `frames`); evaluation measures accuracy over these.
     pub test_frames: Option<usize>,
+    /// Extra training sequences at the top training speed in a steady rhythm: all segments
+    /// of one sequence last one length, the lengths spread evenly over each motion's
+    /// `segment_frames`. A steady back-and-forth pumps a swinging body near its resonance
+    /// to the large swings that random segment lengths rarely reach (default 0).
+    pub steady: usize,
 }
 
 impl Default for DatasetSpec {
@@ -347,6 +352,7 @@ impl Default for DatasetSpec {
             seed: 1,
             beyond: 1.5,
             test_frames: None,
+            steady: 0,
         }
     }
 }
