@@ -9,10 +9,15 @@
 //! diagonal) of the decoded truth, of the prediction and of the previous frame's latent kept
 //! ("stay"), and the incremental potential the integrator was trained on ([`PhysicsLoss`],
 //! unbalanced) at each: a model that cannot even fit its training steps shows up here before
-//! any rollout.
+//! any rollout. A second line splits the scene's potentials (elastic, gravity, ...) at the
+//! reference frame itself, the decoded truth and the prediction, with the whole incremental
+//! potential at the reference frame: where the decoded truth has far more elastic energy
+//! than the reference, the decoder's small errors stretch the body and the loss pulls the
+//! integrator towards states that relieve that stretch instead of following the truth.
 
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::dataset::{self, Split};
+use mochi_trainer::energy;
 use mochi_trainer::eval::{rebuild_problem, vertex_errors, LoadedModel};
 use mochi_trainer::latent::{decode_world, encode_sequences, pack};
 use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
@@ -36,6 +41,14 @@ fn main() -> anyhow::Result<()> {
     let sequences = encode_sequences(&encoding, train)?;
     let penalty = (!matches!(problem.mesh.elements, Elements::Rods(_))).then_some(PAPER_BC_WEIGHT);
     let mut loss = PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, penalty)?;
+    let potentials = problem.scene.build_energies(&problem.mesh)?.potentials;
+    let terms = |x: &[f64]| -> String {
+        potentials
+            .iter()
+            .map(|p| format!("{} {:.4e}", p.name(), energy::value(p.as_ref(), x)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     let dim = problem.mesh.dim;
     let mut grad = vec![0.0; encoding.state_len()];
     for (s, seq) in sequences.iter().enumerate().step_by(2) {
@@ -67,6 +80,14 @@ fn main() -> anyhow::Result<()> {
                 "train-{s:02} frame {t}: error % truth {:.3}, predicted {:.3}, stay {:.3} | potential truth {:.4e}, \
                  predicted {:.4e}, stay {:.4e}",
                 truth.0, pred.0, stay.0, truth.1, pred.1, stay.1
+            );
+            let reference = &seq.trajectory.positions[t];
+            let reference_potential = loss.value_and_gradient(reference, &prev, &prev2, &seq.targets[t], &mut grad);
+            println!(
+                "    potential reference {reference_potential:.4e} | terms: reference {}; truth {}; predicted {}",
+                terms(reference),
+                terms(&world(&latents[t], t)?),
+                terms(&world(&predicted, t)?)
             );
         }
     }
