@@ -427,22 +427,11 @@ mod tests {
         };
         let with_steady = DatasetSpec { steady: 3, ..random };
         let (a, b) = (plan(&random), plan(&with_steady));
-        let train = |plans: &[SequencePlan]| {
-            plans
-                .iter()
-                .filter(|p| p.split == Split::Train)
-                .cloned()
-                .collect::<Vec<_>>()
+        let of = |plans: &[SequencePlan], split: Split| {
+            plans.iter().filter(|p| p.split == split).cloned().collect::<Vec<_>>()
         };
-        let test = |plans: &[SequencePlan]| {
-            plans
-                .iter()
-                .filter(|p| p.split == Split::Test)
-                .cloned()
-                .collect::<Vec<_>>()
-        };
-        assert_eq!(test(&a), test(&b));
-        let (ta, tb) = (train(&a), train(&b));
+        assert_eq!(of(&a, Split::Test), of(&b, Split::Test));
+        let (ta, tb) = (of(&a, Split::Train), of(&b, Split::Train));
         assert_eq!(tb.len(), 6);
         assert_eq!(ta[..], tb[..3]);
         let shares: Vec<Option<f64>> = tb[3..].iter().map(|p| p.speeds.steady).collect();
