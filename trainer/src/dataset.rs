@@ -84,34 +84,33 @@ pub struct SequencePlan {
 pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
     let mut plans = Vec::new();
     let n = spec.train;
-    let train_level = |k: usize| if n == 1 { 0.5 } else { k as f64 / (n - 1) as f64 };
+    // The k-th of `count` points spread evenly over [0, 1] (the middle for one).
+    let spread = |k: usize, count: usize| if count == 1 { 0.5 } else { k as f64 / (count - 1) as f64 };
+    let train_plan = |k: usize, description: String, speeds: SpeedPlan| SequencePlan {
+        name: format!("train-{k:02}"),
+        split: Split::Train,
+        description,
+        speeds,
+        seed: spec.seed.wrapping_mul(1000).wrapping_add(k as u64),
+    };
     for k in 0..n {
-        let level = train_level(k);
-        plans.push(SequencePlan {
-            name: format!("train-{k:02}"),
-            split: Split::Train,
-            description: format!("speed level {level:.2}"),
-            speeds: SpeedPlan::constant(level),
-            seed: spec.seed.wrapping_mul(1000).wrapping_add(k as u64),
-        });
+        let level = spread(k, n);
+        plans.push(train_plan(
+            k,
+            format!("speed level {level:.2}"),
+            SpeedPlan::constant(level),
+        ));
     }
     for j in 0..spec.steady {
-        let k = n + j;
-        let share = if spec.steady == 1 {
-            0.5
-        } else {
-            j as f64 / (spec.steady - 1) as f64
-        };
-        plans.push(SequencePlan {
-            name: format!("train-{k:02}"),
-            split: Split::Train,
-            description: format!("speed level 1.00, steady segments {share:.2} of the way through their range"),
-            speeds: SpeedPlan {
+        let share = spread(j, spec.steady);
+        plans.push(train_plan(
+            n + j,
+            format!("speed level 1.00, steady segments {share:.2} of the way through their range"),
+            SpeedPlan {
                 pieces: vec![(0, 1.0, 1.0)],
                 steady: Some(share),
             },
-            seed: spec.seed.wrapping_mul(1000).wrapping_add(k as u64),
-        });
+        ));
     }
     let half = spec.frames_of(Split::Test) / 2;
     let mut tests = Vec::new();
@@ -138,7 +137,7 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
         // Midpoints between training levels (or evenly inside the range for one level).
         let level = if n >= 2 {
             let gap = ((j * (n - 1)) / held_out.max(1)).min(n - 2);
-            (train_level(gap) + train_level(gap + 1)) / 2.0
+            (spread(gap, n) + spread(gap + 1, n)) / 2.0
         } else {
             (j as f64 + 0.5) / held_out as f64
         };
