@@ -68,14 +68,18 @@ fn main() -> anyhow::Result<()> {
                 model
                     .integrator
                     .step(&pack(&latents[t - 1], &latents[t - 2], &seq.trajectory.bc_signal, t))?;
-            let mut measure = |z: &[f32]| -> anyhow::Result<(f64, f64)> {
-                let x = world(z, t)?;
-                let error = vertex_errors(&x, &seq.trajectory.positions[t], dim, a.diagonal).sum::<f64>()
+            let (truth_x, pred_x, stay_x) = (
+                world(&latents[t], t)?,
+                world(&predicted, t)?,
+                world(&latents[t - 1], t)?,
+            );
+            let mut measure = |x: &[f64]| -> (f64, f64) {
+                let error = vertex_errors(x, &seq.trajectory.positions[t], dim, a.diagonal).sum::<f64>()
                     / problem.mesh.num_vertices() as f64;
-                let energy = loss.value_and_gradient(&x, &prev, &prev2, &seq.targets[t], &mut grad);
-                Ok((100.0 * error, energy))
+                let energy = loss.value_and_gradient(x, &prev, &prev2, &seq.targets[t], &mut grad);
+                (100.0 * error, energy)
             };
-            let (truth, pred, stay) = (measure(&latents[t])?, measure(&predicted)?, measure(&latents[t - 1])?);
+            let (truth, pred, stay) = (measure(&truth_x), measure(&pred_x), measure(&stay_x));
             println!(
                 "train-{s:02} frame {t}: error % truth {:.3}, predicted {:.3}, stay {:.3} | potential truth {:.4e}, \
                  predicted {:.4e}, stay {:.4e}",
@@ -86,8 +90,8 @@ fn main() -> anyhow::Result<()> {
             println!(
                 "    potential reference {reference_potential:.4e} | terms: reference {}; truth {}; predicted {}",
                 terms(reference),
-                terms(&world(&latents[t], t)?),
-                terms(&world(&predicted, t)?)
+                terms(&truth_x),
+                terms(&pred_x)
             );
         }
     }
