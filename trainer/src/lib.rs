@@ -21,6 +21,7 @@ pub mod runtime_bench;
 pub mod scene;
 pub mod solver;
 pub mod storage;
+pub mod stretch;
 pub mod train;
 pub mod trajectory;
 

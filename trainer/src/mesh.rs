@@ -80,6 +80,28 @@ impl Mesh {
         }
     }
 
+    /// Every edge of the elements once, as `[low, high]` vertex pairs in ascending order:
+    /// the six edges of each tet, the three of each triangle, the segments of each rod.
+    pub fn edges(&self) -> Vec<[usize; 2]> {
+        let mut edges: Vec<[usize; 2]> = match &self.elements {
+            Elements::Tets(tets) => tets
+                .iter()
+                .flat_map(|t| TET_EDGES.iter().map(move |&[a, b]| [t[a], t[b]]))
+                .collect(),
+            Elements::Triangles(tris) | Elements::Shell(tris) => tris
+                .iter()
+                .flat_map(|t| TRIANGLE_EDGES.iter().map(move |&[a, b]| [t[a], t[b]]))
+                .collect(),
+            Elements::Rods(strands) => strands.iter().flat_map(|s| s.windows(2).map(|w| [w[0], w[1]])).collect(),
+        };
+        for e in &mut edges {
+            e.sort_unstable();
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        edges
+    }
+
     /// Sorted vertices that are drawn: those on the surface of a tet mesh, all otherwise.
     pub fn surface_vertices(&self) -> Vec<usize> {
         match &self.elements {
@@ -103,6 +125,9 @@ const TET_FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
 
 /// Edges of a triangle, in its winding order.
 const TRIANGLE_EDGES: [[usize; 2]; 3] = [[0, 1], [1, 2], [2, 0]];
+
+/// Edges of a tet.
+const TET_EDGES: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
 
 impl Mesh {
     /// The mesh centred on its bounding-box centre and divided by its largest bounding-box
@@ -657,6 +682,20 @@ mod tests {
 
     fn total_volume(mesh: &Mesh) -> f64 {
         mesh.signed_measures().unwrap().iter().sum()
+    }
+
+    #[test]
+    fn edges_are_listed_once() {
+        assert_eq!(unit_tet().edges(), vec![[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]]);
+        // A 3 x 3 grid of squares: 12 horizontal, 12 vertical and 9 diagonal edges.
+        let grid = cloth_grid([1.0, 1.0], [4, 4], [0.0; 3], ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0])).unwrap();
+        assert_eq!(grid.edges().len(), 33);
+        let rods = Mesh {
+            dim: 3,
+            rest: vec![0.0; 15],
+            elements: Elements::Rods(vec![vec![0, 1, 2], vec![4, 3]]),
+        };
+        assert_eq!(rods.edges(), vec![[0, 1], [1, 2], [3, 4]]);
     }
 
     #[test]

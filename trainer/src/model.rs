@@ -655,7 +655,12 @@ impl Autoencoder {
     /// The reconstruction loss of Eq. 2 on a batch, as the mean over the batch and the
     /// coordinates of `(D(E(x)) - x)^2` (Eq. 2's sum divided by `batch * input`).
     pub fn reconstruction_loss(&self, x: &Tensor) -> candle_core::Result<Tensor> {
-        (self.reconstruct(x)? - x)?.sqr()?.mean_all()
+        Autoencoder::reconstruction_loss_of(&self.reconstruct(x)?, x)
+    }
+
+    /// [`Autoencoder::reconstruction_loss`] of states `x` already reconstructed as `decoded`.
+    pub fn reconstruction_loss_of(decoded: &Tensor, x: &Tensor) -> candle_core::Result<Tensor> {
+        (decoded - x)?.sqr()?.mean_all()
     }
 
     /// The trainable variables (`encoder.*`, then `decoder.*`).

@@ -416,6 +416,11 @@ pub struct LatentSpec {
     /// integrator learns little else: on `beam`, a floor of 1e-3 m/s left the sudden-drop
     /// test diverging at frame 621, 0.05 m/s kept all four test sequences stable.
     pub min_speed: f64,
+    /// Weight of the edge-stretch term in the autoencoder's loss ([`crate::stretch`]): the
+    /// mean squared change of edge lengths between decoded and true states, added to the
+    /// mean squared reconstruction error (both in squared length units). 0 (the default)
+    /// trains on Eq. 2 alone; positions only (not `rods = "bends"`).
+    pub stretch: f64,
     /// Seed of initialisation, shuffling and noise.
     pub seed: u64,
     /// What the latent space of a rods scene encodes (`positions` or `bends`).
@@ -459,6 +464,7 @@ impl Default for LatentSpec {
             rollout: 0,
             bc_weight: crate::loss::PAPER_BC_WEIGHT,
             min_speed: 0.05,
+            stretch: 0.0,
             seed: 0,
             rods: RodEncoding::Positions,
         }
@@ -498,6 +504,15 @@ impl LatentSpec {
         }
         if !positive(self.bc_weight) || !positive(self.min_speed) {
             return Err(("bc_weight".into(), "bc_weight and min_speed must be positive".into()));
+        }
+        if !(self.stretch.is_finite() && self.stretch >= 0.0) {
+            return Err(("stretch".into(), "must be a non-negative number".into()));
+        }
+        if self.stretch > 0.0 && self.rods == RodEncoding::Bends {
+            return Err((
+                "stretch".into(),
+                "needs encoded positions; rods encoded by bends cannot stretch".into(),
+            ));
         }
         Ok(())
     }

@@ -38,6 +38,7 @@ use safetensors::SafeTensors;
 use crate::error::{InputError, Location};
 use crate::framing;
 use crate::model::{rows_to_tensor, Autoencoder};
+use crate::stretch::EdgeStretch;
 
 /// Errors of a training run.
 #[derive(Debug, thiserror::Error)]
@@ -364,12 +365,14 @@ where
     Ok(TrainReport { start_epoch, losses })
 }
 
-/// Trains the autoencoder on states `data` with the reconstruction loss of Eq. 2.
+/// Trains the autoencoder on states `data` with the reconstruction loss of Eq. 2, plus
+/// `weight` times the edge-stretch penalty ([`EdgeStretch::penalty`]) when `stretch` is given.
 pub fn train_autoencoder(
     autoencoder: &Autoencoder,
     data: &[Vec<f32>],
     config: &TrainConfig,
     resume: bool,
+    stretch: Option<(&EdgeStretch, f64)>,
 ) -> TrainResult<TrainReport> {
     let dim = check_dataset(data)?;
     if dim != autoencoder.spec().input {
@@ -379,22 +382,47 @@ pub fn train_autoencoder(
         )));
     }
     train(&autoencoder.parameters(), data, config, resume, |batch, _| {
-        BatchLoss::new(autoencoder.reconstruction_loss(&batch.inputs)?)
+        BatchLoss::new(autoencoder_loss(autoencoder, &batch.inputs, stretch)?)
     })
 }
 
-/// Mean squared reconstruction error of the autoencoder over all of `data` (Eq. 2 divided by
-/// the number of values), evaluated in chunks of `chunk` samples.
-pub fn mean_reconstruction_error(autoencoder: &Autoencoder, data: &[Vec<f32>], chunk: usize) -> TrainResult<f64> {
+/// The autoencoder's objective on states `x`: the reconstruction loss of Eq. 2, plus `weight`
+/// times the edge-stretch penalty when `stretch` is given.
+pub fn autoencoder_loss(
+    autoencoder: &Autoencoder,
+    x: &Tensor,
+    stretch: Option<(&EdgeStretch, f64)>,
+) -> candle_core::Result<Tensor> {
+    let decoded = autoencoder.reconstruct(x)?;
+    let loss = Autoencoder::reconstruction_loss_of(&decoded, x)?;
+    match stretch {
+        Some((stretch, weight)) => loss + (stretch.penalty(&decoded, x)? * weight)?,
+        None => Ok(loss),
+    }
+}
+
+/// [`autoencoder_loss`] over all of `data`, evaluated in chunks of `chunk` samples.
+pub fn mean_autoencoder_loss(
+    autoencoder: &Autoencoder,
+    data: &[Vec<f32>],
+    chunk: usize,
+    stretch: Option<(&EdgeStretch, f64)>,
+) -> TrainResult<f64> {
     let dim = check_dataset(data)?;
     let mut total = 0.0;
     for rows in data.chunks(chunk.max(1)) {
         let refs: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
         let x = rows_to_tensor(&refs, dim).map_err(|e| TrainError::Invalid(e.to_string()))?;
-        let mse = autoencoder.reconstruction_loss(&x)?.to_scalar::<f32>()?;
-        total += mse as f64 * rows.len() as f64;
+        let loss = autoencoder_loss(autoencoder, &x, stretch)?.to_scalar::<f32>()?;
+        total += loss as f64 * rows.len() as f64;
     }
     Ok(total / data.len() as f64)
+}
+
+/// Mean squared reconstruction error of the autoencoder over all of `data` (Eq. 2 divided by
+/// the number of values), evaluated in chunks of `chunk` samples.
+pub fn mean_reconstruction_error(autoencoder: &Autoencoder, data: &[Vec<f32>], chunk: usize) -> TrainResult<f64> {
+    mean_autoencoder_loss(autoencoder, data, chunk, None)
 }
 
 fn check_dataset(data: &[Vec<f32>]) -> TrainResult<usize> {
@@ -649,7 +677,7 @@ mod tests {
         };
         let ae = Autoencoder::new(spec, 7).unwrap();
         let initial = mean_reconstruction_error(&ae, &data, 64).unwrap();
-        let report = train_autoencoder(&ae, &data, &config("ae", 150, 32, 3e-3), false).unwrap();
+        let report = train_autoencoder(&ae, &data, &config("ae", 150, 32, 3e-3), false, None).unwrap();
         let trained = mean_reconstruction_error(&ae, &data, 64).unwrap();
         assert_eq!(report.start_epoch, 0);
         assert_eq!(report.losses.len(), 150);
@@ -677,7 +705,7 @@ mod tests {
             (initial - linear).abs() < 1e-3 * linear,
             "initial error {initial}, PCA error {linear}"
         );
-        let report = train_autoencoder(&ae, &data, &config("pca", 40, 32, 1e-3), false).unwrap();
+        let report = train_autoencoder(&ae, &data, &config("pca", 40, 32, 1e-3), false, None).unwrap();
         let trained = mean_reconstruction_error(&ae, &data, 64).unwrap();
         // Training starts from the PCA and only improves on it.
         assert!((report.losses[0] - linear).abs() < 0.5 * linear);
@@ -760,7 +788,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let cfg = with_checkpoints(config("run", 2, 8, 1e-2), dir.path(), 1);
         let ae = Autoencoder::new(TINY, 1).unwrap();
-        train_autoencoder(&ae, &data, &cfg, false).unwrap();
+        train_autoencoder(&ae, &data, &cfg, false, None).unwrap();
         let path = cfg.checkpoint_path().unwrap();
         let good = fs::read(&path).unwrap();
 
@@ -772,7 +800,7 @@ mod tests {
         };
         let refused = |bytes: &[u8], cfg: &TrainConfig, ae: &Autoencoder| -> String {
             fs::write(&path, bytes).unwrap();
-            let err = train_autoencoder(ae, &data, cfg, true).unwrap_err();
+            let err = train_autoencoder(ae, &data, cfg, true, None).unwrap_err();
             assert!(matches!(err, TrainError::Checkpoint(_)), "{err:?}");
             err.to_string()
         };
@@ -803,7 +831,7 @@ mod tests {
 
         // The intact file still resumes.
         fs::write(&path, &good).unwrap();
-        let report = train_autoencoder(&fresh, &data, &more, true).unwrap();
+        let report = train_autoencoder(&fresh, &data, &more, true, None).unwrap();
         assert_eq!(report.start_epoch, 2);
     }
 
@@ -812,27 +840,27 @@ mod tests {
         let ae = Autoencoder::new(TINY, 1).unwrap();
         let cfg = config("x", 1, 4, 1e-3);
         assert!(matches!(
-            train_autoencoder(&ae, &[], &cfg, false),
+            train_autoencoder(&ae, &[], &cfg, false, None),
             Err(TrainError::Invalid(_))
         ));
         let ragged = vec![vec![0.0; 6], vec![0.0; 5]];
         assert!(matches!(
-            train_autoencoder(&ae, &ragged, &cfg, false),
+            train_autoencoder(&ae, &ragged, &cfg, false, None),
             Err(TrainError::Invalid(_))
         ));
         let wrong_dim = vec![vec![0.0; 7]; 3];
         assert!(matches!(
-            train_autoencoder(&ae, &wrong_dim, &cfg, false),
+            train_autoencoder(&ae, &wrong_dim, &cfg, false, None),
             Err(TrainError::Invalid(_))
         ));
         let zero_batch = TrainConfig {
             batch_size: 0,
             ..cfg.clone()
         };
-        assert!(train_autoencoder(&ae, &[vec![0.0; 6]], &zero_batch, false).is_err());
+        assert!(train_autoencoder(&ae, &[vec![0.0; 6]], &zero_batch, false, None).is_err());
         let nan = vec![vec![f32::NAN; 6]; 3];
         assert!(matches!(
-            train_autoencoder(&ae, &nan, &cfg, false),
+            train_autoencoder(&ae, &nan, &cfg, false, None),
             Err(TrainError::NonFinite { .. })
         ));
         let mut params = ae.parameters();

@@ -200,6 +200,8 @@ fn bad_latent_settings_name_the_field() {
         ("sizes = [8, 4]", "latent.sizes"),
         ("tolerance = -1.0", "latent.tolerance"),
         ("noise = -0.5", "latent.noise"),
+        ("stretch = -1.0", "latent.stretch"),
+        ("stretch = 1.0\nrods = \"bends\"", "latent.stretch"),
         ("sizes = [40]", "latent.autoencoder.hidden"),
     ] {
         let text = TINY.replace("tolerance = 1e-3\nsizes = [2, 4, 8]", patch);
