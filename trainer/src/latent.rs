@@ -197,9 +197,10 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
     }
 
     let stretch = if spec.stretch > 0.0 {
-        Some(EdgeStretch::new(&problem.mesh, &encoding).map_err(|e| {
-            anyhow::anyhow!("scene `{}`, latent.stretch: {e}", problem.scene.name)
-        })?)
+        Some(
+            EdgeStretch::new(&problem.mesh, &encoding)
+                .map_err(|e| anyhow::anyhow!("scene `{}`, latent.stretch: {e}", problem.scene.name))?,
+        )
     } else {
         None
     };
@@ -271,7 +272,12 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
         let initial = Autoencoder::new_pca_init(ae_spec, &pca_k.mean, &basis, spec.seed)?;
         let objective = |ae: &Autoencoder| -> anyhow::Result<f64> {
             match &stretch {
-                Some(s) => Ok(train::mean_autoencoder_loss(ae, &frames_f32, 256, Some((s, spec.stretch)))?),
+                Some(s) => Ok(train::mean_autoencoder_loss(
+                    ae,
+                    &frames_f32,
+                    256,
+                    Some((s, spec.stretch)),
+                )?),
                 None => rms(ae),
             }
         };

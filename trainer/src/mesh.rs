@@ -92,7 +92,10 @@ impl Mesh {
                 .iter()
                 .flat_map(|t| TRIANGLE_EDGES.iter().map(move |&[a, b]| [t[a], t[b]]))
                 .collect(),
-            Elements::Rods(strands) => strands.iter().flat_map(|s| s.windows(2).map(|w| [w[0], w[1]])).collect(),
+            Elements::Rods(strands) => strands
+                .iter()
+                .flat_map(|s| s.windows(2).map(|w| [w[0], w[1]]))
+                .collect(),
         };
         for e in &mut edges {
             e.sort_unstable();

@@ -166,7 +166,9 @@ mod tests {
         let s: Vec<f32> = s.flatten_all().unwrap().to_vec1().unwrap();
         let mut lengths: Vec<f64> = Vec::new();
         for [a, b] in mesh.edges().into_iter().filter(|&[a, _]| a != 0) {
-            let d: f64 = (0..3).map(|c| (mesh.rest[a * 3 + c] - mesh.rest[b * 3 + c]).powi(2)).sum();
+            let d: f64 = (0..3)
+                .map(|c| (mesh.rest[a * 3 + c] - mesh.rest[b * 3 + c]).powi(2))
+                .sum();
             lengths.push(d.sqrt());
         }
         assert_eq!(s.len(), lengths.len());
@@ -181,11 +183,22 @@ mod tests {
         let (mesh, encoding) = sheet();
         let stretch = EdgeStretch::new(&mesh, &encoding).unwrap();
         let truth = encoded(&encoding, &mesh.rest);
-        let pulled: Vec<f64> = mesh.rest.iter().enumerate().map(|(i, v)| if i == 15 { v + 0.1 } else { *v }).collect();
+        let pulled: Vec<f64> = mesh
+            .rest
+            .iter()
+            .enumerate()
+            .map(|(i, v)| if i == 15 { v + 0.1 } else { *v })
+            .collect();
         let decoded = candle_core::Var::from_tensor(&encoded(&encoding, &pulled)).unwrap();
         let penalty = stretch.penalty(decoded.as_tensor(), &truth).unwrap();
         let grads = penalty.backward().unwrap();
-        let g: Vec<f32> = grads.get(decoded.as_tensor()).unwrap().flatten_all().unwrap().to_vec1().unwrap();
+        let g: Vec<f32> = grads
+            .get(decoded.as_tensor())
+            .unwrap()
+            .flatten_all()
+            .unwrap()
+            .to_vec1()
+            .unwrap();
         // Vertex 5 (x of vertex 5 is value 15 of the state; slot 4 once vertex 0 is dropped)
         // was pulled along +x: the penalty pulls it back.
         assert!(g[4 * 3] > 0.0);
@@ -194,7 +207,11 @@ mod tests {
         let at = |delta: f64| {
             let mut x = pulled.clone();
             x[15] += delta;
-            stretch.penalty(&encoded(&encoding, &x), &truth).unwrap().to_scalar::<f32>().unwrap() as f64
+            stretch
+                .penalty(&encoded(&encoding, &x), &truth)
+                .unwrap()
+                .to_scalar::<f32>()
+                .unwrap() as f64
         };
         let fd = (at(h) - at(-h)) / (2.0 * h);
         assert!((fd - g[4 * 3] as f64).abs() < 1e-2 * fd.abs(), "{fd} vs {}", g[4 * 3]);
