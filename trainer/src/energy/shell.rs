@@ -262,28 +262,31 @@ impl StencilEnergy for ShellBending {
         let e = (vertex(x, 1) - x0) * scale;
         let a = (vertex(x, 2) - x0) * scale;
         let b = (vertex(x, 3) - x0) * scale;
-        let angle = match want {
-            Want::Value => DihedralAngle::value(&e, &a, &b),
-            Want::Gradient => DihedralAngle::with_gradient(&e, &a, &b),
-            Want::Hessian { .. } => DihedralAngle::with_hessian(&e, &a, &b),
-        };
-        let delta = wrap_angle(angle.theta - p.rest_angle);
-        let value = p.stiffness * delta * delta;
-        if !want.gradient() {
-            return value;
-        }
         // E = k delta^2: dE = 2 k delta dtheta, d2E = 2 k (dtheta dtheta^T + delta d2theta),
         // with d/dx = scale d/d(scaled x).
-        let grad = angle.grad * (2.0 * p.stiffness * delta * scale);
-        match want.hessian() {
-            None => scatter_relative(&HINGE_RELATIVE, &grad, None, out),
-            Some(project) => {
+        match want {
+            Want::Value => {
+                let delta = wrap_angle(dihedral_angle(&e, &a, &b) - p.rest_angle);
+                p.stiffness * delta * delta
+            }
+            // The training loss's hot path: no Hessian is formed.
+            Want::Gradient => {
+                let (theta, dtheta) = DihedralAngle::with_gradient(&e, &a, &b);
+                let delta = wrap_angle(theta - p.rest_angle);
+                let grad = dtheta * (2.0 * p.stiffness * delta * scale);
+                scatter_relative(&HINGE_RELATIVE, &grad, None, out);
+                p.stiffness * delta * delta
+            }
+            Want::Hessian { project } => {
+                let angle = DihedralAngle::with_hessian(&e, &a, &b);
+                let delta = wrap_angle(angle.theta - p.rest_angle);
+                let grad = angle.grad * (2.0 * p.stiffness * delta * scale);
                 let hess =
                     (angle.grad * angle.grad.transpose() + angle.hess * delta) * (2.0 * p.stiffness * scale * scale);
                 scatter_relative(&HINGE_RELATIVE, &grad, Some((&hess, project)), out);
+                p.stiffness * delta * delta
             }
         }
-        value
     }
 }
 
@@ -296,7 +299,8 @@ const HINGE_RELATIVE: [[f64; 3]; 4] = [[-1.0, -1.0, -1.0], [1.0, 0.0, 0.0], [0.0
 /// `n2 = b x e`, positive when the faces turn about `e` by the right-hand rule from `n1` to
 /// `n2`; zero for a flat hinge with `x2` and `x3` on opposite sides of the edge.
 fn dihedral_angle(e: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
-    DihedralAngle::value(e, a, b).theta
+    let parts = AngleParts::new(e, a, b);
+    parts.y.atan2(parts.x)
 }
 
 /// The dihedral angle of a hinge with (optionally) its gradient and Hessian with respect to
@@ -314,30 +318,16 @@ struct DihedralAngle {
 }
 
 impl DihedralAngle {
-    /// Only the angle.
-    fn value(e: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> Self {
-        let parts = AngleParts::new(e, a, b);
-        DihedralAngle {
-            theta: parts.y.atan2(parts.x),
-            grad: SVector::zeros(),
-            hess: SMatrix::zeros(),
-        }
-    }
-
     /// The angle and its gradient (zero where a face has collapsed and the angle is
     /// undefined).
-    fn with_gradient(e: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> Self {
+    fn with_gradient(e: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> (f64, SVector<f64, 9>) {
         let parts = AngleParts::new(e, a, b);
         let mut grad = SVector::zeros();
         if parts.r2 > 0.0 {
             let (dx, dy) = parts.argument_gradients();
             grad = (dy * parts.x - dx * parts.y) / parts.r2;
         }
-        DihedralAngle {
-            theta: parts.y.atan2(parts.x),
-            grad,
-            hess: SMatrix::zeros(),
-        }
+        (parts.y.atan2(parts.x), grad)
     }
 
     /// The angle, its gradient and its Hessian.
