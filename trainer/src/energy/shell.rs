@@ -299,12 +299,12 @@ const HINGE_RELATIVE: [[f64; 3]; 4] = [[-1.0, -1.0, -1.0], [1.0, 0.0, 0.0], [0.0
 /// `n2 = b x e`, positive when the faces turn about `e` by the right-hand rule from `n1` to
 /// `n2`; zero for a flat hinge with `x2` and `x3` on opposite sides of the edge.
 fn dihedral_angle(e: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
-    let parts = AngleParts::new(e, a, b);
-    parts.y.atan2(parts.x)
+    AngleParts::new(e, a, b).theta()
 }
 
-/// The dihedral angle of a hinge with (optionally) its gradient and Hessian with respect to
-/// the stacked relative vectors `(e, a, b)`.
+/// The dihedral angle of a hinge with its gradient and Hessian with respect to the stacked
+/// relative vectors `(e, a, b)` (the angle alone: [`dihedral_angle`]; with only the
+/// gradient: [`DihedralAngle::with_gradient`]).
 ///
 /// With `n1 = e x a`, `n2 = b x e`: `n1 x n2 = -det(e, a, b) e` and
 /// `n1 . n2 = (e.a)(e.b) - |e|^2 (a.b)`, so `theta = atan2(y, x)` with
@@ -327,13 +327,13 @@ impl DihedralAngle {
             let (dx, dy) = parts.argument_gradients();
             grad = (dy * parts.x - dx * parts.y) / parts.r2;
         }
-        (parts.y.atan2(parts.x), grad)
+        (parts.theta(), grad)
     }
 
     /// The angle, its gradient and its Hessian.
     fn with_hessian(e: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> Self {
         let parts = AngleParts::new(e, a, b);
-        let theta = parts.y.atan2(parts.x);
+        let theta = parts.theta();
         if parts.r2 <= 0.0 {
             // A collapsed face: the angle is undefined, leave it to the membrane.
             return DihedralAngle {
@@ -390,6 +390,11 @@ impl AngleParts {
             y,
             r2: x * x + y * y,
         }
+    }
+
+    /// The signed angle, `atan2(y, x)`.
+    fn theta(&self) -> f64 {
+        self.y.atan2(self.x)
     }
 
     /// Gradient of det(e, a, b) with respect to (e, a, b).
