@@ -2,7 +2,7 @@
 //! rolled out on the scene's test sequences against the full-space reference.
 //!
 //! ```sh
-//! cargo run --release -p mochi-trainer --example pca_rollout -- SCENE K DATASET_DIR [FRAMES]
+//! cargo run --release -p mochi-trainer --example pca_rollout -- SCENE K DATASET_DIR [FRAMES] [SEQUENCE,...]
 //! ```
 //!
 //! Each step minimises the same incremental potential the latent integrator is trained on
@@ -43,6 +43,13 @@ impl Subspace for PcaSubspace {
 }
 
 fn main() -> anyhow::Result<()> {
-    let (problem, encoding, pca, _, dir, frames) = subspace_from_args("pca_rollout")?;
-    rollout(&problem, &encoding, &PcaSubspace(pca), &dir, frames, &[])
+    let (args, pca) = subspace_from_args("pca_rollout")?;
+    rollout(
+        &args.problem,
+        &args.encoding,
+        &PcaSubspace(pca),
+        &args.dir,
+        args.frames,
+        &args.only,
+    )
 }

@@ -2,7 +2,7 @@
 //! initial state, on a scene's test sequences.
 //!
 //! ```sh
-//! cargo run --release -p mochi-trainer --example sensitivity -- SCENE K DATASET_DIR [FRAMES]
+//! cargo run --release -p mochi-trainer --example sensitivity -- SCENE K DATASET_DIR [FRAMES] [SEQUENCE,...]
 //! ```
 //!
 //! For each test sequence the full-space solver is run again from two perturbed starts
@@ -15,16 +15,16 @@
 
 mod common;
 
-use common::{curve_samples, subspace_from_args};
-use mochi_trainer::dataset::{self, Split};
+use common::{curve_samples, subspace_from_args, test_sequences};
 use mochi_trainer::eval::vertex_errors;
 
 fn main() -> anyhow::Result<()> {
-    let (mut problem, encoding, pca, k, dir, frames) = subspace_from_args("sensitivity")?;
+    let (args, pca) = subspace_from_args("sensitivity")?;
+    let (mut problem, encoding, k, frames) = (args.problem, args.encoding, args.k, args.frames);
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
     let nv = problem.mesh.num_vertices();
     println!("{}: starts perturbed in full space", problem.scene.name);
-    for (plan, reference) in dataset::load(&problem, &dir, Split::Test)? {
+    for (plan, reference) in test_sequences(&problem, &args.dir, &args.only)? {
         let n = frames.min(reference.num_frames() - 1);
         let seq = problem.sequence(&plan.speeds, reference.num_frames() - 1, plan.seed);
         let first = &reference.positions[0];
@@ -47,21 +47,33 @@ fn main() -> anyhow::Result<()> {
         ] {
             problem.simulator.reset(&start);
             let mut errors = Vec::with_capacity(n);
-            let error =
-                |x: &[f64], t: usize| vertex_errors(x, &reference.positions[t], dim, diagonal).sum::<f64>() / nv as f64;
-            let start_error = error(&start, 0);
+            // Mean and largest vertex error of a state at frame `t`.
+            let error = |x: &[f64], t: usize| {
+                vertex_errors(x, &reference.positions[t], dim, diagonal)
+                    .fold((0.0, 0.0), |(sum, max): (f64, f64), e| {
+                        (sum + e / nv as f64, max.max(e))
+                    })
+            };
+            // The first frame `mochi eval` would count a latent model as diverged at.
+            let mut first_over_half = None;
+            let start_error = error(&start, 0).0;
             for t in 1..=n {
                 problem.simulator.step(&seq.targets(&problem.handles, t, dim))?;
-                errors.push(error(problem.simulator.positions(), t));
+                let (mean, max) = error(problem.simulator.positions(), t);
+                errors.push(mean);
+                if max > 0.5 && first_over_half.is_none() {
+                    first_over_half = Some(t);
+                }
             }
             println!(
                 "{} ({}), {label}: start {:.4}%, mean vertex error {:.3}% of the diagonal over {n} frames, \
-                 max of frame means {:.3}%; by frame (%) {}",
+                 max of frame means {:.3}%, first vertex half a diagonal off at frame {}; by frame (%) {}",
                 plan.name,
                 plan.description,
                 100.0 * start_error,
                 100.0 * errors.iter().sum::<f64>() / n as f64,
                 100.0 * errors.iter().copied().fold(0.0, f64::max),
+                first_over_half.map_or("none".to_string(), |t| t.to_string()),
                 curve_samples(&errors, 4)
             );
         }

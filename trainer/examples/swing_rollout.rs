@@ -3,7 +3,7 @@
 //! the scene's test sequences against the full-space reference.
 //!
 //! ```sh
-//! cargo run --release -p mochi-trainer --example swing_rollout -- SCENE K DATASET_DIR [FRAMES]
+//! cargo run --release -p mochi-trainer --example swing_rollout -- SCENE K DATASET_DIR [FRAMES] [SEQUENCE,...]
 //! ```
 //!
 //! Handles on one line leave the sheet free to rotate about that line. A linear subspace
@@ -22,8 +22,7 @@
 
 mod common;
 
-use common::{rollout, DiagnosticArgs, Subspace};
-use mochi_trainer::dataset::{self, Split};
+use common::{rollout, test_sequences, DiagnosticArgs, Subspace};
 use mochi_trainer::pca::Pca;
 use mochi_trainer::scene::Problem;
 use nalgebra::{DMatrix, Rotation3, Unit, Vector3};
@@ -155,6 +154,7 @@ fn main() -> anyhow::Result<()> {
         k,
         dir,
         frames,
+        only,
     } = DiagnosticArgs::parse("swing_rollout")?;
     anyhow::ensure!(problem.mesh.dim == 3, "swing_rollout needs a 3D scene");
     let subspace = SwingSubspace::fit(HandleLine::of(&problem)?, &encoded, k)?;
@@ -162,7 +162,7 @@ fn main() -> anyhow::Result<()> {
         "swing angles (degrees) of the training frames: {}",
         subspace.line.angle_range(encoded.iter().map(Vec::as_slice))
     );
-    for (plan, reference) in dataset::load(&problem, &dir, Split::Test)? {
+    for (plan, reference) in test_sequences(&problem, &dir, &only)? {
         let states = encoding.encode_trajectory(&reference)?;
         println!(
             "swing angles (degrees) of the reference, {}: {}",
@@ -170,5 +170,5 @@ fn main() -> anyhow::Result<()> {
             subspace.line.angle_range(states.iter().map(Vec::as_slice))
         );
     }
-    rollout(&problem, &encoding, &subspace, &dir, frames, &[])
+    rollout(&problem, &encoding, &subspace, &dir, frames, &only)
 }

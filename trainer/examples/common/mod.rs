@@ -1,5 +1,5 @@
 //! What the subspace diagnostics (`pca_rollout`, `swing_rollout`, `latent_rollout`, `sensitivity`) share:
-//! their arguments `SCENE K DATASET_DIR [FRAMES]`, the PCA subspace of the scene's training
+//! their arguments `SCENE K DATASET_DIR [FRAMES] [SEQUENCE,...]`, the PCA subspace of the scene's training
 //! frames, Newton's method in a subspace and the report of a rollout.
 #![allow(dead_code)] // `sensitivity` uses only the subspace
 
@@ -11,17 +11,17 @@ use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
 use mochi_trainer::mesh::Elements;
 use mochi_trainer::pca::Pca;
 use mochi_trainer::scene::{Problem, Scene};
+use mochi_trainer::trajectory::Trajectory;
 use nalgebra::{DMatrix, DVector};
 use std::path::{Path, PathBuf};
 
-/// Reads `SCENE K DATASET_DIR [FRAMES]` (300 frames by default) from the command line of
-/// `example`, generates the dataset in `DATASET_DIR` if missing and fits the subspace.
-/// Returns the built scene, its boundary-relative encoding, the subspace, `K`, the dataset
-/// directory and the frames of each test sequence to roll out.
-pub fn subspace_from_args(example: &str) -> anyhow::Result<(Problem, Encoding, Pca, usize, PathBuf, usize)> {
+/// Reads `SCENE K DATASET_DIR [FRAMES] [SEQUENCE,...]` (300 frames and every test sequence
+/// by default) from the command line of `example`, generates the dataset in `DATASET_DIR`
+/// if missing and fits the `K`-dimensional PCA subspace of its training frames.
+pub fn subspace_from_args(example: &str) -> anyhow::Result<(DiagnosticArgs, Pca)> {
     let args = DiagnosticArgs::parse(example)?;
     let pca = Pca::fit(&args.encoded, args.k)?;
-    Ok((args.problem, args.encoding, pca, args.k, args.dir, args.frames))
+    Ok((args, pca))
 }
 
 /// What [`subspace_from_args`] reads and prepares, with the encoded training frames in place
@@ -39,20 +39,25 @@ pub struct DiagnosticArgs {
     pub dir: PathBuf,
     /// Frames of each test sequence to roll out.
     pub frames: usize,
+    /// The test sequences to roll out (e.g. `test-00`); empty for all of them.
+    pub only: Vec<String>,
 }
 
 impl DiagnosticArgs {
-    /// Reads `SCENE K DATASET_DIR [FRAMES]` from the command line of `example` and
-    /// generates the dataset if missing.
+    /// Reads `SCENE K DATASET_DIR [FRAMES] [SEQUENCE,...]` from the command line of
+    /// `example` and generates the dataset if missing.
     pub fn parse(example: &str) -> anyhow::Result<Self> {
         let args: Vec<String> = std::env::args().collect();
         if args.len() < 4 {
-            anyhow::bail!("usage: {example} SCENE K DATASET_DIR [FRAMES]");
+            anyhow::bail!("usage: {example} SCENE K DATASET_DIR [FRAMES] [SEQUENCE,...]");
         }
         let mut problem = Scene::load(&args[1])?.build()?;
         let k: usize = args[2].parse()?;
         let dir = PathBuf::from(&args[3]);
         let frames: usize = args.get(4).map_or(Ok(300), |s| s.parse())?;
+        let only = args
+            .get(5)
+            .map_or(Vec::new(), |s| s.split(',').map(String::from).collect());
         dataset::generate(&mut problem, &dir, None, false, true)?;
         let encoding = Encoding::new(&problem)?;
         let train = dataset::load(&problem, &dir, Split::Train)?
@@ -70,6 +75,7 @@ impl DiagnosticArgs {
             k,
             dir,
             frames,
+            only,
         })
     }
 }
@@ -185,16 +191,7 @@ pub fn rollout(
     let penalty = (!matches!(problem.mesh.elements, Elements::Rods(_))).then_some(PAPER_BC_WEIGHT);
     let mut loss = PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, penalty)?;
     println!("{}: {}", problem.scene.name, subspace.describe());
-    let sequences = dataset::load(problem, dir, Split::Test)?;
-    for name in only {
-        if !sequences.iter().any(|(plan, _)| &plan.name == name) {
-            anyhow::bail!("{}: no test sequence named {name}", dir.display());
-        }
-    }
-    for (plan, reference) in sequences {
-        if !only.is_empty() && !only.contains(&plan.name) {
-            continue;
-        }
+    for (plan, reference) in test_sequences(problem, dir, only)? {
         let n = frames.min(reference.num_frames() - 1);
         let decode = |z: &[f64], t: usize| -> anyhow::Result<Vec<f64>> {
             let targets = encoding.handle_targets(&reference.positions[t])?;
@@ -257,6 +254,25 @@ pub fn rollout(
         );
     }
     Ok(())
+}
+
+/// The test sequences in `dir` named in `only` (all of them when it is empty), with their
+/// plans; a name that is not there is an error.
+pub fn test_sequences(
+    problem: &Problem,
+    dir: &Path,
+    only: &[String],
+) -> anyhow::Result<Vec<(dataset::SequencePlan, Trajectory)>> {
+    let sequences = dataset::load(problem, dir, Split::Test)?;
+    for name in only {
+        if !sequences.iter().any(|(plan, _)| &plan.name == name) {
+            anyhow::bail!("{}: no test sequence named {name}", dir.display());
+        }
+    }
+    Ok(sequences
+        .into_iter()
+        .filter(|(plan, _)| only.is_empty() || only.contains(&plan.name))
+        .collect())
 }
 
 /// Samples of an error curve (fractions of the diagonal, frame 1 first) at frames 1, 10, 30,
