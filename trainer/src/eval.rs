@@ -11,7 +11,10 @@
 //! A rollout counts as diverged at the first frame whose latent or state is not finite, whose
 //! error exceeds half the diagonal (where a reference exists), whose vertices leave the
 //! training envelope (farther from their encoding origin than any training frame, plus half
-//! the diagonal), or whose kinetic energy exceeds 100 times the training maximum.
+//! the diagonal), or whose kinetic energy exceeds 100 times the training maximum. The report
+//! says which; a rollout that drifted off the reference rolls on, its errors are measured
+//! to the end of the window, and the report also gives the frames it stayed bounded (the
+//! other three tests): drift, not a blow-up.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -71,6 +74,33 @@ pub fn rebuild_problem(artifact: &Artifact) -> anyhow::Result<(Problem, Encoding
     Ok((problem, encoding))
 }
 
+/// Why a rollout counts as diverged (the tests of the module documentation, in the order
+/// they are made).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Divergence {
+    /// A latent or a position is not finite.
+    NotFinite,
+    /// A vertex left the training envelope: the state blew up.
+    LeftEnvelope,
+    /// The kinetic energy passed 100 times the training maximum.
+    KineticEnergy,
+    /// A vertex is more than half the diagonal from the reference: the state is finite
+    /// and bounded but has drifted from the motion it should follow.
+    OffReference,
+}
+
+impl Divergence {
+    /// A few words for reports.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Divergence::NotFinite => "not finite",
+            Divergence::LeftEnvelope => "left the envelope",
+            Divergence::KineticEnergy => "kinetic energy over 100x",
+            Divergence::OffReference => "half a diagonal off the reference",
+        }
+    }
+}
+
 /// What one rollout measured.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RolloutMetrics {
@@ -82,6 +112,12 @@ pub struct RolloutMetrics {
     pub kinetic_energy_ratio: f64,
     /// Frames completed before divergence, capped at the rollout length.
     pub stable_frames: usize,
+    /// Why the rollout diverged; `None` when it ran its length.
+    pub divergence: Option<Divergence>,
+    /// Frames before the state blew up (not finite, out of the envelope, or the kinetic
+    /// energy cap), capped at the rollout length: a rollout that drifted off the reference
+    /// rolls on to measure this.
+    pub bounded_frames: usize,
     /// Mean vertex error / diagonal of every measured frame.
     pub error_curve: Vec<f64>,
     /// Seconds per latent step.
@@ -207,13 +243,34 @@ pub fn rollout(
     let mut x_prev = reference.positions[0].clone();
     let mut metrics = RolloutMetrics {
         stable_frames: frames,
+        bounded_frames: frames,
         ..Default::default()
     };
     let (mut ke_ours, mut ke_ref) = (0.0, 0.0);
+    let mut rolled = 0;
+    // A rollout that drifts off the reference is diverged, but rolls on to measure how long
+    // it stays bounded.
     let (step_time, decode_time) = roll(model, problem, encoding, bc, frames, |t, z, q, x| {
+        rolled = t;
         let finite = z.iter().all(|v| v.is_finite()) && x.iter().all(|v| v.is_finite());
         let ke = kinetic_energy(masses, x, &x_prev, a.dt, dim);
-        let mut diverged = !finite || max_radius(q, encoding.values_per_vertex()) > envelope || ke > energy_cap;
+        let blown_up = if !finite {
+            Some(Divergence::NotFinite)
+        } else if max_radius(q, encoding.values_per_vertex()) > envelope {
+            Some(Divergence::LeftEnvelope)
+        } else if ke > energy_cap {
+            Some(Divergence::KineticEnergy)
+        } else {
+            None
+        };
+        if let Some(reason) = blown_up {
+            metrics.bounded_frames = t - 1;
+            if metrics.divergence.is_none() {
+                metrics.stable_frames = t - 1;
+                metrics.divergence = Some(reason);
+            }
+            return false;
+        }
         if t <= measured {
             let xr = &reference.positions[t];
             let errors: Vec<f64> = vertex_errors(x, xr, dim, a.diagonal).collect();
@@ -223,20 +280,20 @@ pub fn rollout(
             metrics.max_error = metrics.max_error.max(max);
             ke_ours += ke;
             ke_ref += kinetic_energy(masses, xr, &reference.positions[t - 1], a.dt, dim);
-            diverged |= max > 0.5 || !mean.is_finite();
-        }
-        if diverged {
-            metrics.stable_frames = t - 1;
-            return false;
+            if (max > 0.5 || !mean.is_finite()) && metrics.divergence.is_none() {
+                metrics.stable_frames = t - 1;
+                metrics.divergence = Some(Divergence::OffReference);
+            }
         }
         x_prev.copy_from_slice(x);
         true
     })?;
-    let done = metrics.stable_frames.max(1) as f64;
+    let done = rolled.max(1) as f64;
     metrics.step_seconds = step_time / done;
     metrics.decode_seconds = decode_time / done;
     if metrics.error_curve.len() < measured {
-        // Diverged inside the measured window: the error there counts as unbounded.
+        // Blew up inside the measured window: the error there counts as unbounded. (A
+        // rollout that only drifted off the reference was measured to the end.)
         metrics.mean_error = f64::INFINITY;
         metrics.max_error = f64::INFINITY;
         metrics.kinetic_energy_ratio = f64::NAN;
@@ -327,14 +384,14 @@ pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec
             )?;
             if options.progress {
                 println!(
-                    "{} {} on {}: mean error {:.3}%, max {:.2}%, KE ratio {:.3}, stable {} frames",
+                    "{} {} on {}: mean error {:.3}%, max {:.2}%, KE ratio {:.3}, stable {}",
                     model.artifact.scene,
                     model.artifact.method.label(),
                     plan.name,
                     100.0 * metrics.mean_error,
                     100.0 * metrics.max_error,
                     metrics.kinetic_energy_ratio,
-                    metrics.stable_frames
+                    stability(&metrics)
                 );
             }
             sequences.push((plan.clone(), metrics));
@@ -444,6 +501,22 @@ fn write_charts(dir: &Path, scene: &str, reports: &[ModelReport], reference_seco
     )
 }
 
+/// Stable frames, with the reason where the rollout diverged and, where it drifted off the
+/// reference, how long it stayed bounded: `154 (half a diagonal off the reference; bounded
+/// 10000)`.
+fn stability(m: &RolloutMetrics) -> String {
+    match m.divergence {
+        Some(Divergence::OffReference) => format!(
+            "{} ({}; bounded {})",
+            m.stable_frames,
+            Divergence::OffReference.describe(),
+            m.bounded_frames
+        ),
+        Some(d) => format!("{} ({})", m.stable_frames, d.describe()),
+        None => m.stable_frames.to_string(),
+    }
+}
+
 fn report_markdown(scene: &str, reports: &[ModelReport], reference_seconds: f64, options: &EvalOptions) -> String {
     let mut s = format!(
         "# {scene}: evaluation\n\nErrors are vertex distances as % of the rest bounding-box diagonal over the first {} \
@@ -465,7 +538,7 @@ fn report_markdown(scene: &str, reports: &[ModelReport], reference_seconds: f64,
                 100.0 * m.mean_error,
                 100.0 * m.max_error,
                 m.kinetic_energy_ratio,
-                m.stable_frames,
+                stability(m),
                 1e3 * cost,
                 reference_seconds / cost
             );
