@@ -16,13 +16,12 @@
 mod common;
 
 use common::{curve_samples, subspace_from_args, test_sequences};
-use mochi_trainer::eval::vertex_errors;
+use mochi_trainer::eval::mean_and_max_error;
 
 fn main() -> anyhow::Result<()> {
     let (args, pca) = subspace_from_args("sensitivity")?;
     let (mut problem, encoding, k, frames) = (args.problem, args.encoding, args.k, args.frames);
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
-    let nv = problem.mesh.num_vertices();
     println!("{}: starts perturbed in full space", problem.scene.name);
     for (plan, reference) in test_sequences(&problem, &args.dir, &args.only)? {
         let n = frames.min(reference.num_frames() - 1);
@@ -47,13 +46,7 @@ fn main() -> anyhow::Result<()> {
         ] {
             problem.simulator.reset(&start);
             let mut errors = Vec::with_capacity(n);
-            // Mean and largest vertex error of a state at frame `t`.
-            let error = |x: &[f64], t: usize| {
-                vertex_errors(x, &reference.positions[t], dim, diagonal)
-                    .fold((0.0, 0.0), |(sum, max): (f64, f64), e| {
-                        (sum + e / nv as f64, max.max(e))
-                    })
-            };
+            let error = |x: &[f64], t: usize| mean_and_max_error(x, &reference.positions[t], dim, diagonal);
             // The first frame `mochi eval` would count a latent model as diverged at.
             let mut first_over_half = None;
             let start_error = error(&start, 0).0;

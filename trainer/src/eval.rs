@@ -140,6 +140,16 @@ pub fn vertex_errors<'a, T: Copy + Into<f64>>(
     })
 }
 
+/// The mean and the largest of [`vertex_errors`]: one frame's error in the units every report
+/// uses.
+pub fn mean_and_max_error<T: Copy + Into<f64>>(x: &[T], reference: &[f64], dim: usize, diagonal: f64) -> (f64, f64) {
+    let (sum, max, count) = vertex_errors(x, reference, dim, diagonal)
+        .fold((0.0, 0.0, 0usize), |(sum, max, count): (f64, f64, usize), e| {
+            (sum + e, max.max(e), count + 1)
+        });
+    (sum / count.max(1) as f64, max)
+}
+
 /// Largest norm of an encoded vertex's values (`per_vertex` each): its distance from its
 /// origin for positions, its edge's bend for strand bends.
 fn max_radius(q: &[f32], per_vertex: usize) -> f64 {
@@ -273,9 +283,7 @@ pub fn rollout(
         }
         if t <= measured {
             let xr = &reference.positions[t];
-            let errors: Vec<f64> = vertex_errors(x, xr, dim, a.diagonal).collect();
-            let mean = errors.iter().sum::<f64>() / errors.len() as f64;
-            let max = errors.iter().copied().fold(0.0, f64::max);
+            let (mean, max) = mean_and_max_error(x, xr, dim, a.diagonal);
             metrics.error_curve.push(mean);
             metrics.max_error = metrics.max_error.max(max);
             ke_ours += ke;

@@ -11,7 +11,7 @@ use mochi_runtime::{AnyInstance, OwnedModel, ValidModel, WeightFormat};
 
 use crate::chart::{self, LabelledPoint};
 use crate::dataset::SequencePlan;
-use crate::eval::vertex_errors;
+use crate::eval::{mean_and_max_error, vertex_errors};
 use crate::runtime_bench::motions;
 use crate::scene::Problem;
 use crate::trajectory::Trajectory;
@@ -101,13 +101,12 @@ pub fn evaluate(
             let dim = base.dim();
             let (mut mean_sum, mut stable) = (0.0, rolled.len());
             for (t, x) in rolled.iter().enumerate() {
-                let errors: Vec<f64> = vertex_errors(x, &reference.positions[t + 1], dim, diagonal).collect();
-                let worst = errors.iter().copied().fold(0.0, f64::max);
+                let (mean, worst) = mean_and_max_error(x, &reference.positions[t + 1], dim, diagonal);
                 if worst > DIVERGED {
                     stable = t;
                     break;
                 }
-                mean_sum += errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+                mean_sum += mean;
                 report.max_error = report.max_error.max(worst);
                 if let Some(ours) = f32_positions.get(s).and_then(|p| p.get(t)) {
                     let ours: Vec<f64> = ours.iter().map(|&v| v as f64).collect();

@@ -5,7 +5,7 @@
 
 use mochi_trainer::dataset::{self, Split};
 use mochi_trainer::encoding::{Encoding, Frame};
-use mochi_trainer::eval::vertex_errors;
+use mochi_trainer::eval::mean_and_max_error;
 use mochi_trainer::latent::encode_sequences;
 use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
 use mochi_trainer::mesh::Elements;
@@ -225,17 +225,13 @@ pub fn rollout(
             let (z, taken) = newton(&mut step, start, diagonal)?;
             iterations += taken;
             let x = decode(&z, t)?;
-            // Mean and largest vertex error of a state at frame `t`.
-            let error = |x: &[f64]| {
-                vertex_errors(x, &reference.positions[t], dim, diagonal)
-                    .fold((0.0, 0.0), |(sum, max): (f64, f64), e| (sum + e, max.max(e)))
-            };
-            let (sum, max_error) = error(&x);
-            errors.push(sum / problem.mesh.num_vertices() as f64);
+            let error = |x: &[f64]| mean_and_max_error(x, &reference.positions[t], dim, diagonal);
+            let (mean, max_error) = error(&x);
+            errors.push(mean);
             if max_error > 0.5 && first_over_half.is_none() {
                 first_over_half = Some(t);
             }
-            round_trip_error += error(&decode(&lifted(t)?, t)?).0 / problem.mesh.num_vertices() as f64 / n as f64;
+            round_trip_error += error(&decode(&lifted(t)?, t)?).0 / n as f64;
             latents.push(z);
             states.push(x);
         }
