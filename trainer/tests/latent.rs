@@ -117,6 +117,26 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
             assert!(m.step_seconds > 0.0 && m.decode_seconds > 0.0);
         }
     }
+    // The weight-storage table: one row per storage; a runtime rollout that ran the whole
+    // window (bounded 60) has a finite mean error, however far it drifted; the f32 row is
+    // the one the others are compared with.
+    let report = std::fs::read_to_string(dir.path().join("eval/report.md")).unwrap();
+    let storage = &report[report.find("## Weight storage").expect("storage section")..];
+    let rows: Vec<Vec<&str>> = storage
+        .lines()
+        .filter(|l| l.starts_with("| f") || l.starts_with("| int8"))
+        .map(|l| l.split('|').map(str::trim).collect())
+        .collect();
+    assert_eq!(rows.len(), 4, "{storage}");
+    for cells in &rows {
+        let mean: f64 = cells[3].parse().unwrap();
+        let (stable, bounded) = cells[6].split_once(" (").unwrap();
+        let (stable, bounded): (usize, usize) =
+            (stable.parse().unwrap(), bounded.trim_end_matches(')').parse().unwrap());
+        assert!(stable <= bounded && bounded <= 60, "{cells:?}");
+        assert_eq!(mean.is_finite(), bounded == 60, "{cells:?}");
+    }
+    assert_eq!(rows[0][5], "0.0000", "{:?}", rows[0]);
     for file in [
         "report.md",
         "speed-accuracy.png",
