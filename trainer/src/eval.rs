@@ -209,10 +209,43 @@ pub fn roll(
     Ok((step_time, decode_time))
 }
 
+/// The limits a rollout of `model` must stay inside: the training envelope (a vertex farther
+/// from its encoding origin than in any training frame plus half the diagonal) and 100 times
+/// the training maximum of the kinetic energy.
+struct BlowUpLimits {
+    envelope: f64,
+    kinetic_energy: f64,
+    values_per_vertex: usize,
+}
+
+impl BlowUpLimits {
+    fn new(model: &LoadedModel, encoding: &Encoding) -> Self {
+        let a = &model.artifact;
+        BlowUpLimits {
+            envelope: a.summary.max_radius + 0.5 * a.diagonal,
+            kinetic_energy: 100.0 * a.summary.max_kinetic_energy.max(1e-12),
+            values_per_vertex: encoding.values_per_vertex(),
+        }
+    }
+
+    /// Why the state with latent `z`, decoded encoded state `q`, world state `x` and kinetic
+    /// energy `ke` (`None`: not checked) has blown up, if it has.
+    fn check(&self, z: &[f32], q: &[f32], x: &[f64], ke: Option<f64>) -> Option<Divergence> {
+        if !(z.iter().all(|v| v.is_finite()) && x.iter().all(|v| v.is_finite())) {
+            Some(Divergence::NotFinite)
+        } else if max_radius(q, self.values_per_vertex) > self.envelope {
+            Some(Divergence::LeftEnvelope)
+        } else if ke.is_some_and(|ke| ke > self.kinetic_energy) {
+            Some(Divergence::KineticEnergy)
+        } else {
+            None
+        }
+    }
+}
+
 /// The trainer's rollout of `model` over `bc` (world states of frames `1..`) up to the first
-/// frame that leaves the training envelope (a vertex farther from its encoding origin than in
-/// any training frame plus half the diagonal) or is not finite: the frames on which another
-/// implementation of the same model can be expected to agree with it.
+/// frame that is not finite or leaves the training envelope (see [`BlowUpLimits`]): the
+/// frames on which another implementation of the same model can be expected to agree with it.
 pub fn stable_rollout(
     model: &LoadedModel,
     problem: &Problem,
@@ -220,11 +253,10 @@ pub fn stable_rollout(
     bc: &BcSequence,
     frames: usize,
 ) -> anyhow::Result<Vec<Vec<f64>>> {
-    let a = &model.artifact;
-    let envelope = a.summary.max_radius + 0.5 * a.diagonal;
+    let limits = BlowUpLimits::new(model, encoding);
     let mut states = Vec::new();
-    roll(model, problem, encoding, bc, frames, |_, _, q, x| {
-        let stable = max_radius(q, encoding.values_per_vertex()) <= envelope && x.iter().all(|v| v.is_finite());
+    roll(model, problem, encoding, bc, frames, |_, z, q, x| {
+        let stable = limits.check(z, q, x, None).is_none();
         if stable {
             states.push(x.to_vec());
         }
@@ -248,8 +280,7 @@ pub fn rollout(
     let dim = problem.mesh.dim;
     let masses = problem.simulator.masses();
     let measured = accuracy_frames.min(reference.num_frames() - 1).min(frames);
-    let envelope = a.summary.max_radius + 0.5 * a.diagonal;
-    let energy_cap = 100.0 * a.summary.max_kinetic_energy.max(1e-12);
+    let limits = BlowUpLimits::new(model, encoding);
     let mut x_prev = reference.positions[0].clone();
     let mut metrics = RolloutMetrics {
         stable_frames: frames,
@@ -262,18 +293,8 @@ pub fn rollout(
     // it stays bounded.
     let (step_time, decode_time) = roll(model, problem, encoding, bc, frames, |t, z, q, x| {
         rolled = t;
-        let finite = z.iter().all(|v| v.is_finite()) && x.iter().all(|v| v.is_finite());
         let ke = kinetic_energy(masses, x, &x_prev, a.dt, dim);
-        let blown_up = if !finite {
-            Some(Divergence::NotFinite)
-        } else if max_radius(q, encoding.values_per_vertex()) > envelope {
-            Some(Divergence::LeftEnvelope)
-        } else if ke > energy_cap {
-            Some(Divergence::KineticEnergy)
-        } else {
-            None
-        };
-        if let Some(reason) = blown_up {
+        if let Some(reason) = limits.check(z, q, x, Some(ke)) {
             metrics.bounded_frames = t - 1;
             if metrics.divergence.is_none() {
                 metrics.stable_frames = t - 1;

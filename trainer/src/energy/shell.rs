@@ -262,31 +262,30 @@ impl StencilEnergy for ShellBending {
         let e = (vertex(x, 1) - x0) * scale;
         let a = (vertex(x, 2) - x0) * scale;
         let b = (vertex(x, 3) - x0) * scale;
-        // E = k delta^2: dE = 2 k delta dtheta, d2E = 2 k (dtheta dtheta^T + delta d2theta),
-        // with d/dx = scale d/d(scaled x).
-        match want {
-            Want::Value => {
-                let delta = wrap_angle(dihedral_angle(&e, &a, &b) - p.rest_angle);
-                p.stiffness * delta * delta
-            }
-            // The training loss's hot path: no Hessian is formed.
+        // The angle with as many of its derivatives as asked for (the training loss's hot
+        // path, the gradient alone, forms no Hessian).
+        let (theta, derivatives) = match want {
+            Want::Value => (dihedral_angle(&e, &a, &b), None),
             Want::Gradient => {
                 let (theta, dtheta) = DihedralAngle::with_gradient(&e, &a, &b);
-                let delta = wrap_angle(theta - p.rest_angle);
-                let grad = dtheta * (2.0 * p.stiffness * delta * scale);
-                scatter_relative(&HINGE_RELATIVE, &grad, None, out);
-                p.stiffness * delta * delta
+                (theta, Some((dtheta, None)))
             }
-            Want::Hessian { project } => {
+            Want::Hessian { .. } => {
                 let angle = DihedralAngle::with_hessian(&e, &a, &b);
-                let delta = wrap_angle(angle.theta - p.rest_angle);
-                let grad = angle.grad * (2.0 * p.stiffness * delta * scale);
-                let hess =
-                    (angle.grad * angle.grad.transpose() + angle.hess * delta) * (2.0 * p.stiffness * scale * scale);
-                scatter_relative(&HINGE_RELATIVE, &grad, Some((&hess, project)), out);
-                p.stiffness * delta * delta
+                (angle.theta, Some((angle.grad, Some(angle.hess))))
             }
+        };
+        // E = k delta^2: dE = 2 k delta dtheta, d2E = 2 k (dtheta dtheta^T + delta d2theta),
+        // with d/dx = scale d/d(scaled x).
+        let delta = wrap_angle(theta - p.rest_angle);
+        if let Some((dtheta, d2theta)) = derivatives {
+            let grad = dtheta * (2.0 * p.stiffness * delta * scale);
+            let hess = d2theta
+                .map(|d2theta| (dtheta * dtheta.transpose() + d2theta * delta) * (2.0 * p.stiffness * scale * scale));
+            let project = want.hessian().unwrap_or(false);
+            scatter_relative(&HINGE_RELATIVE, &grad, hess.as_ref().map(|h| (h, project)), out);
         }
+        p.stiffness * delta * delta
     }
 }
 
