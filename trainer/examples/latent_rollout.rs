@@ -62,6 +62,7 @@ impl Subspace for DecoderSubspace {
 }
 
 fn main() -> anyhow::Result<()> {
+    mochi_trainer::configure_threads();
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 3 {
         anyhow::bail!("usage: latent_rollout ARTIFACT.mochi DATASET_DIR [FRAMES] [SEQUENCE,...]");

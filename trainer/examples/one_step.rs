@@ -25,6 +25,7 @@ use mochi_trainer::mesh::Elements;
 use mochi_trainer::model::forward_exported;
 
 fn main() -> anyhow::Result<()> {
+    mochi_trainer::configure_threads();
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 3 {
         anyhow::bail!("usage: one_step ARTIFACT.mochi DATASET_DIR");

@@ -43,6 +43,7 @@ impl Subspace for PcaSubspace {
 }
 
 fn main() -> anyhow::Result<()> {
+    mochi_trainer::configure_threads();
     let (args, pca) = subspace_from_args("pca_rollout")?;
     rollout(
         &args.problem,

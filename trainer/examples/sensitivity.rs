@@ -19,6 +19,7 @@ use common::{curve_samples, subspace_from_args, test_sequences};
 use mochi_trainer::eval::mean_and_max_error;
 
 fn main() -> anyhow::Result<()> {
+    mochi_trainer::configure_threads();
     let (args, pca) = subspace_from_args("sensitivity")?;
     let (mut problem, encoding, k, frames) = (args.problem, args.encoding, args.k, args.frames);
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());

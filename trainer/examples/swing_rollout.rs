@@ -147,6 +147,7 @@ impl Subspace for SwingSubspace {
 }
 
 fn main() -> anyhow::Result<()> {
+    mochi_trainer::configure_threads();
     let DiagnosticArgs {
         problem,
         encoding,

@@ -154,27 +154,7 @@ fn parse_weights(name: &str) -> std::result::Result<mochi_runtime::WeightFormat,
 }
 
 fn main() {
-    // Assembly runs in parallel (rayon); the sparse factorisation runs sequentially: at these
-    // sizes on small machines faer's parallel factorisation spends more time synchronising
-    // than it saves (beam: 80 -> 61 ms/step on 2 cores, `mochi bench sim beam`).
-    faer::set_global_parallelism(faer::Par::Seq);
-    // Thread pools for training. candle asks for its thread count on every matrix product
-    // and, unless RAYON_NUM_THREADS is set, answers by parsing /proc/cpuinfo each time
-    // (candle-core 0.11, `utils::get_num_threads`); setting it once to rayon's own default
-    // (the logical cores) keeps every rayon pool's size and skips the reads. candle's
-    // element-wise kernels run on a separate pool of spinning threads (CANDLE_NUM_THREADS)
-    // that competes with the physics loss's rayon workers for the same cores: on one thread
-    // they run inline. With the bending kernel's gradient-only path, 6-epoch integrator runs
-    // on `cloth` went from 25.7 / 29.5 s to 17.7 / 19.7 s on 2 cores. A value the user set
-    // wins.
-    for (name, threads) in [
-        (THREADS_VAR, std::thread::available_parallelism().map_or(1, |n| n.get())),
-        ("CANDLE_NUM_THREADS", 1),
-    ] {
-        if std::env::var_os(name).is_none() {
-            std::env::set_var(name, threads.to_string());
-        }
-    }
+    mochi_trainer::configure_threads();
     if let Err(e) = run(Cli::parse()) {
         eprintln!("error: {e:#}");
         std::process::exit(1);
@@ -418,9 +398,6 @@ fn bench_sim(scenes: Vec<String>, frames: usize) -> Result<()> {
     Ok(())
 }
 
-/// Environment variable candle (and rayon) read for their thread count.
-const THREADS_VAR: &str = "RAYON_NUM_THREADS";
-
 fn bench_runtime(
     artifacts: &[PathBuf],
     frames: usize,
@@ -429,10 +406,10 @@ fn bench_runtime(
 ) -> Result<()> {
     // Both sides run on one thread: candle reads its thread count from the environment, so
     // the benchmark re-runs itself with it set when it is not.
-    if std::env::var(THREADS_VAR).as_deref() != Ok("1") {
+    if std::env::var(mochi_trainer::THREADS_VAR).as_deref() != Ok("1") {
         let status = std::process::Command::new(std::env::current_exe()?)
             .args(std::env::args_os().skip(1))
-            .env(THREADS_VAR, "1")
+            .env(mochi_trainer::THREADS_VAR, "1")
             .status()?;
         std::process::exit(status.code().unwrap_or(1));
     }
