@@ -10,6 +10,7 @@ use crate::solver::{StepError, StepReport};
 use crate::trajectory::Trajectory;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
+use rand::Rng;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -80,6 +81,13 @@ pub struct SequencePlan {
     pub seed: u64,
 }
 
+/// Frames between the speed draws of a `dataset.varied` training sequence.
+pub const VARIED_PIECE_FRAMES: usize = 30;
+
+/// Added to a varied sequence's seed for its speed draws, so they do not repeat the draws
+/// of its directions and segment lengths.
+const VARIED_SEED_OFFSET: u64 = 0x5eed;
+
 /// The train and test sequences of a dataset.
 pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
     let mut plans = Vec::new();
@@ -110,6 +118,20 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
                 pieces: vec![(0, 1.0, 1.0)],
                 steady: Some(share),
             },
+        ));
+    }
+    for j in 0..spec.varied {
+        let k = n + spec.steady + j;
+        let seed = spec.seed.wrapping_mul(1000).wrapping_add(k as u64);
+        let rng = &mut bc::rng(seed.wrapping_add(VARIED_SEED_OFFSET));
+        let pieces = (0..spec.frames.max(1))
+            .step_by(VARIED_PIECE_FRAMES)
+            .map(|frame| (frame, rng.random_range(0.0..=1.0), 1.0))
+            .collect();
+        plans.push(train_plan(
+            k,
+            format!("speed level drawn anew every {VARIED_PIECE_FRAMES} frames"),
+            SpeedPlan { pieces, steady: None },
         ));
     }
     let half = spec.frames_of(Split::Test) / 2;
@@ -387,6 +409,7 @@ mod tests {
             beyond: 1.5,
             test_frames: None,
             steady: 0,
+            varied: 0,
         };
         let plans = plan(&spec);
         let train: Vec<f64> = plans
@@ -437,5 +460,37 @@ mod tests {
         assert_eq!(shares, vec![Some(0.0), Some(0.5), Some(1.0)]);
         assert!(tb[3..].iter().all(|p| p.speeds.at(0) == (1.0, 1.0)));
         assert_eq!(tb[5].name, "train-05");
+    }
+
+    #[test]
+    fn varied_sequences_redraw_the_level_and_leave_the_rest_alone() {
+        let base = DatasetSpec {
+            train: 3,
+            steady: 2,
+            test: 4,
+            frames: 200,
+            ..DatasetSpec::default()
+        };
+        let with_varied = DatasetSpec { varied: 2, ..base };
+        let (a, b) = (plan(&base), plan(&with_varied));
+        // The same sequences as before, then the varied ones (named after them), then the tests.
+        assert_eq!(a[..5], b[..5]);
+        assert_eq!(a[5..], b[7..]);
+        let varied = &b[5..7];
+        assert_eq!(
+            (varied[0].name.as_str(), varied[1].name.as_str()),
+            ("train-05", "train-06")
+        );
+        for p in varied {
+            assert_eq!(p.split, Split::Train);
+            let starts: Vec<usize> = p.speeds.pieces.iter().map(|q| q.0).collect();
+            assert_eq!(starts, (0..200).step_by(VARIED_PIECE_FRAMES).collect::<Vec<_>>());
+            assert!(p.speeds.pieces.iter().all(|q| (0.0..=1.0).contains(&q.1) && q.2 == 1.0));
+            // The level changes from piece to piece.
+            assert!(p.speeds.at(0) != p.speeds.at(VARIED_PIECE_FRAMES));
+        }
+        assert_ne!(varied[0].speeds, varied[1].speeds);
+        // Planning is deterministic.
+        assert_eq!(plan(&with_varied), b);
     }
 }

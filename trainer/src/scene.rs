@@ -342,6 +342,11 @@ pub struct DatasetSpec {
     /// the swings grew little, but the latent space of these frames follows the fast test
     /// motions far better (README, "Training motions in a steady rhythm"). Default 0.
     pub steady: usize,
+    /// Extra training sequences whose speed level is drawn anew, uniformly over the training
+    /// range, every [`crate::dataset::VARIED_PIECE_FRAMES`] frames: fast and slow motions in
+    /// one sequence, so the training states include a body still swinging from a fast
+    /// motion while its handles move slowly. Default 0.
+    pub varied: usize,
 }
 
 impl Default for DatasetSpec {
@@ -354,6 +359,7 @@ impl Default for DatasetSpec {
             beyond: 1.5,
             test_frames: None,
             steady: 0,
+            varied: 0,
         }
     }
 }
