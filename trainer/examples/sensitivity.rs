@@ -16,7 +16,7 @@
 mod common;
 
 use common::{curve_samples, subspace_from_args, test_sequences};
-use mochi_trainer::eval::mean_and_max_error;
+use mochi_trainer::eval::{mean_and_max_error, OFF_REFERENCE};
 
 fn main() -> anyhow::Result<()> {
     mochi_trainer::configure_threads();
@@ -55,7 +55,7 @@ fn main() -> anyhow::Result<()> {
                 problem.simulator.step(&seq.targets(&problem.handles, t, dim))?;
                 let (mean, max) = error(problem.simulator.positions(), t);
                 errors.push(mean);
-                if max > 0.5 && first_over_half.is_none() {
+                if max > OFF_REFERENCE && first_over_half.is_none() {
                     first_over_half = Some(t);
                 }
             }

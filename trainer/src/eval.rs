@@ -74,6 +74,11 @@ pub fn rebuild_problem(artifact: &Artifact) -> anyhow::Result<(Problem, Encoding
     Ok((problem, encoding))
 }
 
+/// A vertex farther than this from the reference (fraction of the rest diagonal) has drifted
+/// off it: the one threshold of [`Divergence::OffReference`], the weight-storage table and
+/// the subspace diagnostics.
+pub const OFF_REFERENCE: f64 = 0.5;
+
 /// Why a rollout counts as diverged (the tests of the module documentation, in the order
 /// they are made).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -309,7 +314,7 @@ pub fn rollout(
             metrics.max_error = metrics.max_error.max(max);
             ke_ours += ke;
             ke_ref += kinetic_energy(masses, xr, &reference.positions[t - 1], a.dt, dim);
-            if (max > 0.5 || !mean.is_finite()) && metrics.divergence.is_none() {
+            if (max > OFF_REFERENCE || !mean.is_finite()) && metrics.divergence.is_none() {
                 metrics.stable_frames = t - 1;
                 metrics.divergence = Some(Divergence::OffReference);
             }

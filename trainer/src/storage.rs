@@ -11,7 +11,7 @@ use mochi_runtime::{AnyInstance, OwnedModel, ValidModel, WeightFormat};
 
 use crate::chart::{self, LabelledPoint};
 use crate::dataset::SequencePlan;
-use crate::eval::{mean_and_max_error, vertex_errors};
+use crate::eval::{mean_and_max_error, vertex_errors, OFF_REFERENCE};
 use crate::runtime_bench::motions;
 use crate::scene::Problem;
 use crate::trajectory::Trajectory;
@@ -42,10 +42,6 @@ pub fn storage_name(options: &Options) -> String {
         )
     }
 }
-
-/// A vertex farther than this from the reference (fraction of the diagonal) counts as
-/// drifted off it, as in the rest of `mochi eval`.
-const DIVERGED: f64 = 0.5;
 
 /// One format's results over the test sequences.
 #[derive(Clone, Debug, PartialEq)]
@@ -109,7 +105,7 @@ pub fn evaluate(
             let (mut mean_sum, mut stable) = (0.0, rolled.len());
             for (t, x) in rolled.iter().enumerate() {
                 let (mean, worst) = mean_and_max_error(x, &reference.positions[t + 1], dim, diagonal);
-                if worst > DIVERGED {
+                if worst > OFF_REFERENCE {
                     stable = stable.min(t);
                 }
                 mean_sum += mean;

@@ -5,7 +5,7 @@
 
 use mochi_trainer::dataset::{self, Split};
 use mochi_trainer::encoding::{Encoding, Frame};
-use mochi_trainer::eval::mean_and_max_error;
+use mochi_trainer::eval::{mean_and_max_error, OFF_REFERENCE};
 use mochi_trainer::latent::encode_sequences;
 use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
 use mochi_trainer::mesh::Elements;
@@ -228,7 +228,7 @@ pub fn rollout(
             let error = |x: &[f64]| mean_and_max_error(x, &reference.positions[t], dim, diagonal);
             let (mean, max_error) = error(&x);
             errors.push(mean);
-            if max_error > 0.5 && first_over_half.is_none() {
+            if max_error > OFF_REFERENCE && first_over_half.is_none() {
                 first_over_half = Some(t);
             }
             round_trip_error += error(&decode(&lifted(t)?, t)?).0 / n as f64;
