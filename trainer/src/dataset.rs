@@ -94,12 +94,14 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
     let n = spec.train;
     // The k-th of `count` points spread evenly over [0, 1] (the middle for one).
     let spread = |k: usize, count: usize| if count == 1 { 0.5 } else { k as f64 / (count - 1) as f64 };
+    // The seed of the k-th training sequence.
+    let train_seed = |k: usize| spec.seed.wrapping_mul(1000).wrapping_add(k as u64);
     let train_plan = |k: usize, description: String, speeds: SpeedPlan| SequencePlan {
         name: format!("train-{k:02}"),
         split: Split::Train,
         description,
         speeds,
-        seed: spec.seed.wrapping_mul(1000).wrapping_add(k as u64),
+        seed: train_seed(k),
     };
     for k in 0..n {
         let level = spread(k, n);
@@ -122,8 +124,7 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
     }
     for j in 0..spec.varied {
         let k = n + spec.steady + j;
-        let seed = spec.seed.wrapping_mul(1000).wrapping_add(k as u64);
-        let rng = &mut bc::rng(seed.wrapping_add(VARIED_SEED_OFFSET));
+        let rng = &mut bc::rng(train_seed(k).wrapping_add(VARIED_SEED_OFFSET));
         let pieces = (0..spec.frames.max(1))
             .step_by(VARIED_PIECE_FRAMES)
             .map(|frame| (frame, rng.random_range(0.0..=1.0), 1.0))
