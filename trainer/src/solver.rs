@@ -225,6 +225,19 @@ impl Simulator {
         self.steps = 0;
     }
 
+    /// Restarts mid-motion: positions `x`, with the velocity of one implicit-Euler step
+    /// from `x_prev` (`(x - x_prev) / dt`). The next step is an implicit-Euler step also
+    /// under BDF2, as after [`Simulator::reset`]. Both slices hold every vertex.
+    pub fn restart(&mut self, x: &[f64], x_prev: &[f64]) {
+        self.x.copy_from_slice(x);
+        self.x_prev.copy_from_slice(x_prev);
+        for k in 0..self.v.len() {
+            self.v[k] = (x[k] - x_prev[k]) / self.dt;
+        }
+        self.v_prev.copy_from_slice(&self.v);
+        self.steps = 0;
+    }
+
     /// Kinetic energy and the value of each potential at the current state.
     pub fn energies(&self) -> Vec<(&'static str, f64)> {
         let mut out = vec![("kinetic", self.inertia.kinetic_energy(&self.v))];

@@ -233,6 +233,40 @@ fn implicit_euler_never_gains_energy_in_free_vibration() {
 }
 
 #[test]
+fn restart_mid_motion_continues_the_implicit_euler_run_exactly() {
+    // One run of 10 steps, and a second simulator restarted from the first's frames 4
+    // and 5 (positions and velocity), then stepped 5 times: the same frame 10.
+    let mut beam = released_beam("implicit-euler");
+    let mut frames = vec![beam.simulator.positions().to_vec()];
+    for _ in 0..10 {
+        vibrate(&mut beam, 1);
+        frames.push(beam.simulator.positions().to_vec());
+    }
+    let mut restarted = released_beam("implicit-euler");
+    restarted.simulator.restart(&frames[5], &frames[4]);
+    assert_eq!(
+        restarted.simulator.velocities(),
+        beam_velocity(&frames[5], &frames[4], restarted.simulator.dt())
+    );
+    vibrate(&mut restarted, 5);
+    let gap = max_distance(restarted.simulator.positions(), &frames[10]);
+    assert!(gap < 1e-12, "restarted run is {gap:e} off");
+    // A restart at rest (the two frames equal) is not the continuation.
+    let mut at_rest = released_beam("implicit-euler");
+    at_rest.simulator.restart(&frames[5], &frames[5]);
+    vibrate(&mut at_rest, 5);
+    assert!(max_distance(at_rest.simulator.positions(), &frames[10]) > 1e-4);
+}
+
+fn max_distance(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+fn beam_velocity(x: &[f64], x_prev: &[f64], dt: f64) -> Vec<f64> {
+    x.iter().zip(x_prev).map(|(a, b)| (a - b) / dt).collect()
+}
+
+#[test]
 fn bdf2_dissipates_less_than_implicit_euler() {
     let ie = vibrate(&mut released_beam("implicit-euler"), 30);
     let bdf2 = vibrate(&mut released_beam("bdf2"), 30);
