@@ -26,6 +26,7 @@ use crate::bc::BcSequence;
 use crate::chart::{self, LabelledPoint, Series};
 use crate::dataset::{self, SequencePlan, Split};
 use crate::encoding::Encoding;
+use crate::error::InputError;
 use crate::latent::{decode_world, pack_signals};
 use crate::model::{forward_exported, ExportedIntegrator, ExportedMlp};
 use crate::scene::{Problem, Scene};
@@ -358,6 +359,43 @@ impl ModelReport {
     }
 }
 
+/// Refuses a stored test sequence (`path`) whose prescribed vertices do not follow `bc`,
+/// the scene's plan for it, over the frames both cover: a dataset made from another copy of
+/// the scene (another `beyond`, seed or motion) would otherwise be measured against a
+/// rollout driven by a different motion.
+fn check_follows_plan(
+    problem: &Problem,
+    encoding: &Encoding,
+    bc: &BcSequence,
+    reference: &Trajectory,
+    path: &Path,
+) -> anyhow::Result<()> {
+    let dim = problem.mesh.dim;
+    let tolerance = 1e-9 * problem.mesh.rest_diagonal();
+    let frames = (reference.num_frames() - 1).min(bc.frames());
+    for t in 0..=frames {
+        let planned = bc.targets(&problem.handles, t, dim);
+        let stored = encoding.handle_targets(&reference.positions[t])?;
+        let gap = planned
+            .iter()
+            .zip(&stored)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        if gap > tolerance || stored.iter().any(|v| !v.is_finite()) {
+            return Err(InputError::file(
+                path,
+                format!(
+                    "its prescribed vertices at frame {t} are {gap:.3e} from where the scene `{}` moves \
+                     them (made from another copy of the scene?); regenerate it with `mochi dataset`",
+                    problem.scene.name
+                ),
+            )
+            .into());
+        }
+    }
+    Ok(())
+}
+
 /// Options of `mochi eval`.
 #[derive(Clone, Debug)]
 pub struct EvalOptions {
@@ -394,6 +432,21 @@ pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec
     let data_dir = paths[0].parent().unwrap_or(Path::new(".")).join("dataset");
     dataset::generate(&mut problem, &data_dir, Some(Split::Test), false, options.progress)?;
     let tests = dataset::load(&problem, &data_dir, Split::Test)?;
+    // The rollouts' boundary conditions come from the scene's plan, each sequence's errors
+    // from its stored frames: the two must be the same motion.
+    let plans: Vec<BcSequence> = tests
+        .iter()
+        .map(|(plan, _)| problem.sequence(&plan.speeds, options.stability_frames, plan.seed))
+        .collect();
+    for ((plan, reference), bc) in tests.iter().zip(&plans) {
+        check_follows_plan(
+            &problem,
+            &encoding,
+            bc,
+            reference,
+            &dataset::sequence_path(&data_dir, plan),
+        )?;
+    }
 
     // Full-space cost per frame, timed here (first 30 frames of the first test sequence).
     let timing_frames = 30.min(problem.scene.dataset.frames_of(Split::Test));
@@ -405,13 +458,12 @@ pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec
     let mut reports = Vec::new();
     for (path, model) in &all {
         let mut sequences = Vec::new();
-        for (plan, reference) in &tests {
-            let bc = problem.sequence(&plan.speeds, options.stability_frames, plan.seed);
+        for ((plan, reference), bc) in tests.iter().zip(&plans) {
             let metrics = rollout(
                 model,
                 &problem,
                 &encoding,
-                &bc,
+                bc,
                 options.stability_frames,
                 reference,
                 options.accuracy_frames,

@@ -145,6 +145,26 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     ] {
         assert!(dir.path().join("eval").join(file).is_file(), "{file} missing");
     }
+
+    // A test sequence of another motion in the dataset (here test-00's frames stored as
+    // test-01) is refused by name, not measured against the planned motion.
+    let data = dir.path().join("out/dataset");
+    std::fs::copy(data.join("test-00.npz"), data.join("test-01.npz")).unwrap();
+    let err = eval::evaluate(
+        std::slice::from_ref(&model_path),
+        &EvalOptions {
+            out_dir: dir.path().join("eval-swapped"),
+            stability_frames: 300,
+            accuracy_frames: 60,
+            progress: false,
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("test-01.npz") && err.contains("prescribed vertices"),
+        "{err}"
+    );
 }
 
 #[test]
