@@ -218,11 +218,7 @@ impl Simulator {
 
     /// Resets the state to positions `x` at rest.
     pub fn reset(&mut self, x: &[f64]) {
-        self.x.copy_from_slice(x);
-        self.x_prev.copy_from_slice(x);
-        self.v.fill(0.0);
-        self.v_prev.fill(0.0);
-        self.steps = 0;
+        self.restart(x, x);
     }
 
     /// Restarts mid-motion: positions `x`, with the velocity of one implicit-Euler step

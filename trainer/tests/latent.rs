@@ -48,6 +48,16 @@ fn tiny_scene(dir: &Path) -> Scene {
     Scene::load(path.to_str().unwrap()).unwrap()
 }
 
+/// `mochi eval`'s options for the tiny scene, writing into `dir/out`.
+fn eval_options(dir: &Path, out: &str) -> EvalOptions {
+    EvalOptions {
+        out_dir: dir.join(out),
+        stability_frames: 300,
+        accuracy_frames: 60,
+        progress: false,
+    }
+}
+
 fn options(dir: &Path, resume: bool) -> TrainOptions {
     TrainOptions {
         out_dir: dir.join("out"),
@@ -94,16 +104,8 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
 
     // Evaluation runs on the artifacts and measures a stable rollout of the tiny scene.
     let (model_path, _) = latent::artifact_paths(&dir.path().join("out"), "tiny");
-    let (reports, reference_seconds) = eval::evaluate(
-        std::slice::from_ref(&model_path),
-        &EvalOptions {
-            out_dir: dir.path().join("eval"),
-            stability_frames: 300,
-            accuracy_frames: 60,
-            progress: false,
-        },
-    )
-    .unwrap();
+    let (reports, reference_seconds) =
+        eval::evaluate(std::slice::from_ref(&model_path), &eval_options(dir.path(), "eval")).unwrap();
     assert!(reference_seconds > 0.0);
     assert_eq!(reports.len(), 2, "the supervised sibling is evaluated too");
     for r in &reports {
@@ -152,12 +154,7 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     std::fs::copy(data.join("test-00.npz"), data.join("test-01.npz")).unwrap();
     let err = eval::evaluate(
         std::slice::from_ref(&model_path),
-        &EvalOptions {
-            out_dir: dir.path().join("eval-swapped"),
-            stability_frames: 300,
-            accuracy_frames: 60,
-            progress: false,
-        },
+        &eval_options(dir.path(), "eval-swapped"),
     )
     .unwrap_err()
     .to_string();
