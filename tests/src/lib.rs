@@ -1,7 +1,7 @@
 //! Shared helpers of the workspace integration tests: models generated from the committed
 //! artifacts by `build.rs`.
 
-pub use mochi_trainer::runtime_bench::motions;
+pub use mochi_trainer::eval::rollout::motions;
 
 /// Generated from `artifacts/tiny.mochi`.
 pub mod tiny {

@@ -13,12 +13,12 @@
 use std::path::Path;
 
 use mochi_runtime::{Model, OwnedModel, Stepped, ValidModel};
+use mochi_sim::bc::BcSequence;
+use mochi_sim::dataset::{self, Split};
 use mochi_tests::motions;
 use mochi_trainer::artifact::Artifact;
-use mochi_trainer::bc::BcSequence;
-use mochi_trainer::dataset::{self, Split};
+use mochi_trainer::eval::runtime_bench::agreement;
 use mochi_trainer::eval::{self, LoadedModel as TrainerModel};
-use mochi_trainer::runtime_bench::agreement;
 
 const FRAMES: usize = 1000;
 const TOLERANCE: f64 = 1e-4;
@@ -29,8 +29,8 @@ fn test_sequences(
 ) -> (
     TrainerModel,
     Vec<BcSequence>,
-    mochi_trainer::scene::Problem,
-    mochi_trainer::encoding::Encoding,
+    mochi_sim::BuiltScene,
+    mochi_trainer::learn::encoding::Encoding,
 ) {
     let (problem, encoding) = eval::rebuild_problem(artifact).unwrap();
     let plans = dataset::plan(&problem.scene.dataset);

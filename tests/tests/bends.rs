@@ -7,14 +7,14 @@
 use std::path::Path;
 
 use mochi_runtime::{AnyInstance, LoadError, Model, OwnedModel, Problem, ValidModel};
+use mochi_sim::bc::BcSequence;
+use mochi_sim::dataset::{self, Split};
+use mochi_sim::BuiltScene as Scene;
 use mochi_tests::{motions, strands};
 use mochi_trainer::artifact::Artifact;
-use mochi_trainer::bc::BcSequence;
-use mochi_trainer::dataset::{self, Split};
-use mochi_trainer::encoding::Encoding;
 use mochi_trainer::eval;
-use mochi_trainer::model::{forward_exported, DenseLayer};
-use mochi_trainer::scene::Problem as Scene;
+use mochi_trainer::learn::encoding::Encoding;
+use mochi_trainer::learn::network::{forward_exported, DenseLayer};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -42,7 +42,7 @@ fn scene(artifact: &Artifact, frames: usize) -> (Scene, Encoding, Vec<BcSequence
 
 /// Largest vertex distance / diagonal between a runtime decode and the trainer's.
 fn distance(runtime: &[f32], trainer: &[f64], diagonal: f64) -> f64 {
-    eval::vertex_errors(runtime, trainer, 3, diagonal).fold(0.0, f64::max)
+    mochi_sim::measure::vertex_errors(runtime, trainer, 3, diagonal).fold(0.0, f64::max)
 }
 
 #[test]

@@ -177,7 +177,7 @@ fn corrupted_payloads_with_a_valid_checksum_are_refused_without_panic() {
         } else {
             p.truncate(rng.random_range(0..p.len()));
         }
-        let wrapped = mochi_trainer::framing::wrap(
+        let wrapped = mochi_trainer::artifact::framing::wrap(
             mochi_runtime::artifact::MAGIC,
             mochi_runtime::artifact::FORMAT_VERSION,
             &p,

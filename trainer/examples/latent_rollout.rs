@@ -9,7 +9,7 @@
 //!
 //! The counterpart of `pca_rollout` for the autoencoder's nonlinear subspace: each step
 //! minimises the potential the integrator is trained on
-//! ([`mochi_trainer::loss::PhysicsLoss`]) over the latent `z` of `x = decode(decoder(z))`, by
+//! ([`mochi_trainer::learn::loss::PhysicsLoss`]) over the latent `z` of `x = decode(decoder(z))`, by
 //! Newton's method in `z`, starting from the encoder's latent of the first reference frame.
 //! The decoder runs in `f64` and is differentiated by central differences; the Hessian keeps
 //! the decoder's Jacobian fixed at `z` (the decoder's curvature is left out; the line search
@@ -22,7 +22,7 @@ mod common;
 use common::{rollout, Subspace};
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::eval::{rebuild_problem, LoadedModel};
-use mochi_trainer::model::{forward_exported, ExportedMlp};
+use mochi_trainer::learn::network::{forward_exported, ExportedMlp};
 use nalgebra::{DMatrix, DVector};
 
 /// Step of the decoder's central differences, in latent units.

@@ -15,14 +15,17 @@
 //! than the reference, the decoder's small errors stretch the body and the loss pulls the
 //! integrator towards states that relieve that stretch instead of following the truth.
 
+use mochi_sim::dataset::{self, Split};
+use mochi_sim::energy;
+use mochi_sim::measure::vertex_errors;
+use mochi_sim::mesh::Elements;
 use mochi_trainer::artifact::Artifact;
-use mochi_trainer::dataset::{self, Split};
-use mochi_trainer::energy;
-use mochi_trainer::eval::{rebuild_problem, vertex_errors, LoadedModel};
-use mochi_trainer::latent::{decode_world, encode_sequences, pack};
-use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
-use mochi_trainer::mesh::Elements;
-use mochi_trainer::model::forward_exported;
+use mochi_trainer::eval::{rebuild_problem, LoadedModel};
+use mochi_trainer::learn::encoding::decode_world;
+use mochi_trainer::learn::latent::{encode_sequences, pack};
+use mochi_trainer::learn::loss::PhysicsLoss;
+use mochi_trainer::learn::network::forward_exported;
+use mochi_trainer::learn::recipe::PAPER_BC_WEIGHT;
 
 fn main() -> anyhow::Result<()> {
     mochi_trainer::configure_threads();

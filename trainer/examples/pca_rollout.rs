@@ -6,7 +6,7 @@
 //! ```
 //!
 //! Each step minimises the same incremental potential the latent integrator is trained on
-//! ([`mochi_trainer::loss::PhysicsLoss`]: inertia, the scene's energies, the handle penalty
+//! ([`mochi_trainer::learn::loss::PhysicsLoss`]: inertia, the scene's energies, the handle penalty
 //! for cloth and solids) over the latent `z` of `x = decode(mean + B z)` (the BC-relative
 //! encoding of `mochi train` with its first `K` principal components `B`), by Newton's
 //! method in `z`: the reduced
@@ -20,7 +20,7 @@
 mod common;
 
 use common::{rollout, subspace_from_args, Subspace};
-use mochi_trainer::pca::Pca;
+use mochi_trainer::learn::pca::Pca;
 use nalgebra::{DMatrix, DVector};
 
 /// The first `K` principal components of the training frames: `q = mean + B z`.

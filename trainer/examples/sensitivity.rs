@@ -20,7 +20,8 @@
 mod common;
 
 use common::{curve_samples, subspace_from_args, test_sequences};
-use mochi_trainer::eval::{mean_and_max_error, OFF_REFERENCE};
+use mochi_sim::measure::mean_and_max_error;
+use mochi_trainer::eval::OFF_REFERENCE;
 
 /// Frames of the (c) restarts.
 const RESTART_FRAMES: [usize; 5] = [30, 60, 90, 100, 105];

@@ -23,8 +23,8 @@
 mod common;
 
 use common::{rollout, test_sequences, DiagnosticArgs, Subspace};
-use mochi_trainer::pca::Pca;
-use mochi_trainer::scene::Problem;
+use mochi_sim::BuiltScene;
+use mochi_trainer::learn::pca::Pca;
 use nalgebra::{DMatrix, Rotation3, Unit, Vector3};
 
 /// The line of a scene's handle vertices and the directions that measure a swing about it.
@@ -37,7 +37,7 @@ struct HandleLine {
 impl HandleLine {
     /// The line through `problem`'s handle vertices (they must lie on one line), with
     /// `down` the direction of gravity across it.
-    fn of(problem: &Problem) -> anyhow::Result<Self> {
+    fn of(problem: &BuiltScene) -> anyhow::Result<Self> {
         let points: Vec<Vector3<f64>> = problem
             .handles
             .iter()

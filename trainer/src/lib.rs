@@ -1,31 +1,19 @@
-//! mochi trainer: full-space finite-element simulation, datasets, training and evaluation.
+//! mochi trainer: learns latent spaces and integrators for the scenes that [`mochi_sim`]
+//! simulates, writes them as artifacts for the runtime, and evaluates every method against
+//! the full-space reference.
+//!
+//! Data flows one way, folder by folder: [`learn`] (encoding, PCA, networks, losses, the
+//! training loop and `mochi train`'s recipe) → [`artifact`] (the `.mochi` file) → [`eval`]
+//! (rollouts, `mochi eval`, weight storage, the runtime benchmark) → [`cli`] (`mochi demo`);
+//! [`report`] draws charts and previews for any of them.
 
 pub mod artifact;
-pub mod bc;
-pub mod chart;
-pub mod dataset;
-pub mod demo;
-pub mod encoding;
-pub mod energy;
-pub mod error;
+pub mod cli;
 pub mod eval;
-pub mod framing;
-pub mod latent;
-pub mod loss;
-pub mod material;
-pub mod mesh;
-pub mod model;
-pub mod pca;
-pub mod render;
-pub mod runtime_bench;
-pub mod scene;
-pub mod solver;
-pub mod storage;
-pub mod stretch;
-pub mod train;
-pub mod trajectory;
+pub mod learn;
+pub mod report;
 
-pub use error::{InputError, Location};
+pub use mochi_sim::{InputError, Location};
 
 /// Environment variable candle (and rayon) read for their thread count.
 pub const THREADS_VAR: &str = "RAYON_NUM_THREADS";
@@ -35,15 +23,13 @@ pub const THREADS_VAR: &str = "RAYON_NUM_THREADS";
 ///
 /// Assembly runs in parallel (rayon); the sparse factorisation runs sequentially: at these
 /// sizes on small machines faer's parallel factorisation spends more time synchronising than
-/// it saves (beam: 80 -> 61 ms/step on 2 cores, `mochi bench sim beam`). candle asks for its
-/// thread count on every matrix product and, unless `RAYON_NUM_THREADS` is set, answers by
-/// parsing /proc/cpuinfo each time (candle-core 0.11, `utils::get_num_threads`); setting it
-/// once to rayon's own default (the logical cores) keeps every rayon pool's size and skips
-/// the reads. candle's element-wise kernels run on a separate pool of spinning threads
-/// (`CANDLE_NUM_THREADS`) that competes with the physics loss's rayon workers for the same
-/// cores: on one thread they run inline. With the bending kernel's gradient-only path,
-/// 6-epoch integrator runs on `cloth` went from 25.7 / 29.5 s to 17.7 / 19.7 s on 2 cores. A
-/// value the user set wins.
+/// it saves (`mochi bench sim`). candle asks for its thread count on every matrix product
+/// and, unless `RAYON_NUM_THREADS` is set, answers by parsing /proc/cpuinfo each time
+/// (candle-core 0.11, `utils::get_num_threads`); setting it once to rayon's own default (the
+/// logical cores) keeps every rayon pool's size and skips the reads. candle's element-wise
+/// kernels run on a separate pool of spinning threads (`CANDLE_NUM_THREADS`) that competes
+/// with the physics loss's rayon workers for the same cores: on one thread they run inline.
+/// A value the user set wins.
 pub fn configure_threads() {
     faer::set_global_parallelism(faer::Par::Seq);
     for (name, threads) in [

@@ -2,9 +2,13 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use mochi_trainer::dataset::{self, SpeedPlan, Split};
-use mochi_trainer::scene::{shipped_scene_names, Scene};
-use mochi_trainer::{eval, latent, render};
+use mochi_sim::dataset::{self, SpeedPlan, Split};
+use mochi_sim::{Progress, Scene};
+use mochi_trainer::eval;
+use mochi_trainer::learn::latent;
+use mochi_trainer::learn::recipe::{shipped_scene_names, Recipe};
+use mochi_trainer::report::progress::FramesBar;
+use mochi_trainer::report::render;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -216,7 +220,7 @@ fn run(cli: Cli) -> Result<()> {
         } => bench_runtime(&artifacts, frames, out, &weights),
         Command::Scenes => {
             for name in shipped_scene_names() {
-                let scene = Scene::load(&name)?;
+                let scene = Recipe::load(&name)?.scene;
                 println!("{name:10} {}", scene.description);
             }
             Ok(())
@@ -241,12 +245,13 @@ fn simulate(
     if !level.is_finite() || level < 0.0 {
         bail!("--level must be a non-negative number, got {level}");
     }
-    let scene = Scene::load(name)?;
+    let scene = Recipe::load(name)?.scene;
     let mut problem = scene.build()?;
     let seq = problem.sequence(&SpeedPlan::constant(level), frames, seed.unwrap_or(scene.dataset.seed));
-    let bar = dataset::frames_bar(frames as u64, format!("simulate {}", scene.name));
+    let bar = FramesBar::new(&format!("simulate {}", scene.name), true);
+    bar.start(frames as u64);
     let traj = problem
-        .run(&seq, Some(&bar))
+        .run(&seq, &bar)
         .with_context(|| format!("simulating scene `{}`", scene.name))?;
     bar.finish();
     let out = out.unwrap_or_else(|| default_out(&scene, "simulate.npz"));
@@ -287,10 +292,10 @@ fn simulate(
 }
 
 fn make_dataset(name: &str, out: Option<PathBuf>) -> Result<()> {
-    let scene = Scene::load(name)?;
+    let scene = Recipe::load(name)?.scene;
     let mut problem = scene.build()?;
     let dir = out.unwrap_or_else(|| default_out(&scene, "dataset"));
-    let report = dataset::generate(&mut problem, &dir, None, true, true)?;
+    let report = dataset::generate(&mut problem, &dir, None, true, &FramesBar::new("dataset", true))?;
     let plans = dataset::plan(&scene.dataset);
     let count = |s: Split| plans.iter().filter(|p| p.split == s).count();
     println!(
@@ -309,11 +314,11 @@ fn make_dataset(name: &str, out: Option<PathBuf>) -> Result<()> {
 }
 
 fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, latent_size: Option<usize>) -> Result<()> {
-    let scene = Scene::load(name)?;
+    let recipe = Recipe::load(name)?;
+    let scene = &recipe.scene;
     if latent_size == Some(0) {
         bail!("--latent must be at least 1");
     }
-    let mut problem = scene.build()?;
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
     let options = latent::TrainOptions {
         out_dir: out_dir.clone(),
@@ -322,7 +327,7 @@ fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, latent_size: Opti
         latent: latent_size,
     };
     let start = Instant::now();
-    let outcome = latent::train_scene(&mut problem, &options)?;
+    let outcome = latent::train_scene(&recipe, &options)?;
     let summary = &outcome.model.summary;
     println!("\n{}: latent size {}", scene.name, outcome.model.latent);
     for t in &summary.trials {
@@ -379,11 +384,11 @@ fn bench_sim(scenes: Vec<String>, frames: usize) -> Result<()> {
         "scene", "DOF", "ms/step", "Newton it.", "max it."
     );
     for name in scenes {
-        let scene = Scene::load(&name)?;
+        let scene = Recipe::load(&name)?.scene;
         let mut problem = scene.build()?;
         let seq = problem.sequence(&SpeedPlan::constant(0.5), frames, scene.dataset.seed);
         let traj = problem
-            .run(&seq, None)
+            .run(&seq, &mochi_sim::Silent)
             .with_context(|| format!("simulating `{name}`"))?;
         let iters: Vec<f64> = traj.newton_iterations[1..].iter().map(|&i| i as f64).collect();
         println!(
@@ -413,8 +418,8 @@ fn bench_runtime(
             .status()?;
         std::process::exit(status.code().unwrap_or(1));
     }
-    let timings = mochi_trainer::runtime_bench::bench(artifacts, frames, weights)?;
-    let table = mochi_trainer::runtime_bench::table(&timings);
+    let timings = mochi_trainer::eval::runtime_bench::bench(artifacts, frames, weights)?;
+    let table = mochi_trainer::eval::runtime_bench::table(&timings);
     println!("{table}");
     if let Some(out) = out {
         std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;
@@ -424,16 +429,16 @@ fn bench_runtime(
 }
 
 fn demo(name: &str, out: Option<PathBuf>, frames: usize, retrain: bool) -> Result<()> {
-    let scene = Scene::load(name)?;
+    let scene = Recipe::load(name)?.scene;
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
     let start = Instant::now();
-    let options = mochi_trainer::demo::DemoOptions {
+    let options = mochi_trainer::cli::demo::DemoOptions {
         scene: name.to_string(),
         out_dir: out_dir.clone(),
         frames,
         retrain,
     };
-    let report = mochi_trainer::demo::run(&options)?;
+    let report = mochi_trainer::cli::demo::run(&options)?;
     println!("\n{}", std::fs::read_to_string(out_dir.join("report.md"))?);
     println!(
         "{}: mean error {:.3}% of the diagonal, {:.1} µs/frame in the runtime vs {:.1} ms/frame full space; total {:.0} s -> {}",

@@ -1,7 +1,7 @@
 //! The `mochi` command line: outputs land where asked, bad input exits non-zero with an
 //! error naming the file.
 
-use mochi_trainer::trajectory::Trajectory;
+use mochi_sim::trajectory::Trajectory;
 use std::path::Path;
 use std::process::Command;
 

@@ -3,8 +3,8 @@
 
 use mochi_trainer::artifact::{Artifact, Method};
 use mochi_trainer::eval::{self, EvalOptions};
-use mochi_trainer::latent::{self, TrainOptions};
-use mochi_trainer::scene::Scene;
+use mochi_trainer::learn::latent::{self, TrainOptions};
+use mochi_trainer::learn::recipe::Recipe;
 use std::path::Path;
 
 /// A 8x2x2-cell cantilever whose clamp translates and rotates, with small networks.
@@ -42,10 +42,10 @@ autoencoder = { hidden = 32, blocks = 1, epochs = 30, batch = 16, learning_rate 
 integrator = { hidden = 32, blocks = 1, epochs = 30, batch = 16, learning_rate = 1e-3, final_learning_rate = 1e-4 }
 "#;
 
-fn tiny_scene(dir: &Path) -> Scene {
+fn tiny_scene(dir: &Path) -> Recipe {
     let path = dir.join("tiny.toml");
     std::fs::write(&path, TINY).unwrap();
-    Scene::load(path.to_str().unwrap()).unwrap()
+    Recipe::load(path.to_str().unwrap()).unwrap()
 }
 
 /// `mochi eval`'s options for the tiny scene, writing into `dir/out`.
@@ -70,9 +70,8 @@ fn options(dir: &Path, resume: bool) -> TrainOptions {
 #[test]
 fn tiny_scene_trains_end_to_end_and_losses_fall() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = tiny_scene(dir.path());
-    let mut problem = scene.build().unwrap();
-    let outcome = latent::train_scene(&mut problem, &options(dir.path(), false)).unwrap();
+    let recipe = tiny_scene(dir.path());
+    let outcome = latent::train_scene(&recipe, &options(dir.path(), false)).unwrap();
 
     let falls = |name: &str, losses: &[f64]| {
         let (first, last) = (losses[0], *losses.last().unwrap());
@@ -167,11 +166,10 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
 #[test]
 fn artifact_round_trips_bit_exactly_and_damage_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = tiny_scene(dir.path());
-    let mut problem = scene.build().unwrap();
+    let recipe = tiny_scene(dir.path());
     let mut opts = options(dir.path(), false);
     opts.latent = Some(2);
-    latent::train_scene(&mut problem, &opts).unwrap();
+    latent::train_scene(&recipe, &opts).unwrap();
     let (path, _) = latent::artifact_paths(&opts.out_dir, "tiny");
     let bytes = std::fs::read(&path).unwrap();
     let artifact = Artifact::read(&path).unwrap();
@@ -211,17 +209,16 @@ fn artifact_round_trips_bit_exactly_and_damage_is_refused() {
 #[test]
 fn interrupted_training_resumes_from_its_checkpoints() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = tiny_scene(dir.path());
-    let mut problem = scene.build().unwrap();
+    let recipe = tiny_scene(dir.path());
     let mut opts = options(dir.path(), false);
     opts.latent = Some(2);
-    let first = latent::train_scene(&mut problem, &opts).unwrap();
+    let first = latent::train_scene(&recipe, &opts).unwrap();
     // "Interrupt" after the last checkpoint, before the artifacts were written.
     let (model, baseline) = latent::artifact_paths(&opts.out_dir, "tiny");
     std::fs::remove_file(&model).unwrap();
     std::fs::remove_file(&baseline).unwrap();
     opts.resume = true;
-    let resumed = latent::train_scene(&mut problem, &opts).unwrap();
+    let resumed = latent::train_scene(&recipe, &opts).unwrap();
     // Nothing is retrained: every loss history comes back from the checkpoints as it was.
     assert_eq!(resumed.autoencoder_losses, first.autoencoder_losses);
     assert_eq!(resumed.losses, first.losses);
@@ -245,7 +242,7 @@ fn bad_latent_settings_name_the_field() {
     ] {
         let text = TINY.replace("tolerance = 1e-3\nsizes = [2, 4, 8]", patch);
         std::fs::write(&path, &text).unwrap();
-        let e = Scene::load(path.to_str().unwrap()).unwrap_err().to_string();
+        let e = Recipe::load(path.to_str().unwrap()).unwrap_err().to_string();
         assert!(e.contains("bad.toml") && e.contains(field), "{patch}: {e}");
     }
 }

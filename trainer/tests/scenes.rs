@@ -1,8 +1,9 @@
 //! Shipped scenes build; malformed scenes are refused with errors naming file and line or field.
 
-use mochi_trainer::error::Location;
-use mochi_trainer::mesh::Elements;
-use mochi_trainer::scene::{shipped_scene_names, Scene};
+use mochi_sim::error::Location;
+use mochi_sim::mesh::Elements;
+use mochi_sim::Scene;
+use mochi_trainer::learn::recipe::{shipped_scene_names, Recipe};
 use std::path::Path;
 
 #[test]
@@ -15,7 +16,7 @@ fn every_shipped_scene_builds_at_its_documented_size() {
         );
     }
     for name in names {
-        let scene = Scene::load(&name).unwrap_or_else(|e| panic!("{e}"));
+        let scene = Recipe::load(&name).map(|r| r.scene).unwrap_or_else(|e| panic!("{e}"));
         let problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
         let n = problem.mesh.num_vertices();
         assert!(!problem.handles.is_empty(), "{name} has handles");
@@ -132,19 +133,41 @@ fn missing_mesh_file_names_the_file() {
 
 #[test]
 fn unknown_scene_name_lists_the_shipped_ones() {
-    let err = Scene::load("no-such-scene").unwrap_err();
+    let err = Recipe::load("no-such-scene").unwrap_err();
     assert!(err.to_string().contains("beam"), "{err}");
 }
 
 #[test]
 fn every_shipped_scene_simulates_a_few_frames() {
-    use mochi_trainer::dataset::SpeedPlan;
+    use mochi_sim::dataset::SpeedPlan;
     for name in shipped_scene_names() {
-        let scene = Scene::load(&name).unwrap();
+        let scene = Recipe::load(&name).map(|r| r.scene).unwrap();
         let mut problem = scene.build().unwrap();
         let seq = problem.sequence(&SpeedPlan::constant(1.0), 2, scene.dataset.seed);
-        let traj = problem.run(&seq, None).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let traj = problem
+            .run(&seq, &mochi_sim::Silent)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(traj.positions.len(), 3);
         assert!(traj.positions.iter().flatten().all(|c| c.is_finite()), "{name}");
     }
+}
+
+#[test]
+fn the_latent_table_is_the_recipes_and_its_errors_keep_their_lines() {
+    let text = format!("{GOOD}\n[latent]\nnoise = -1.0\n");
+    let err = Recipe::parse(&text, Path::new("bad.toml")).unwrap_err();
+    assert!(err.to_string().contains("latent.noise"), "{err}");
+    let text = format!("{GOOD}\n[latent]\nnosie = 0.1\n");
+    let err = Recipe::parse(&text, Path::new("bad.toml")).unwrap_err();
+    let line = text.lines().position(|l| l.starts_with("nosie")).unwrap() + 1;
+    assert_eq!(err.location, Location::Line(line), "{err}");
+    // The simulator's scene alone does not know the table.
+    let text = format!("{GOOD}\n[latent]\nnoise = 0.1\n");
+    assert!(Scene::parse(&text, Path::new("s.toml")).is_err());
+    let recipe = Recipe::parse(&text, Path::new("s.toml")).unwrap();
+    assert_eq!(recipe.latent.noise, 0.1);
+    // What an artifact stores reads back the same.
+    let again = Recipe::parse(&recipe.to_toml().unwrap(), Path::new("s.toml")).unwrap();
+    assert_eq!(again.latent, recipe.latent);
+    assert_eq!(again.scene.handles, recipe.scene.handles);
 }

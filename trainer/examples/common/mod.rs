@@ -3,15 +3,18 @@
 //! frames, Newton's method in a subspace and the report of a rollout.
 #![allow(dead_code)] // `sensitivity` uses only the subspace
 
-use mochi_trainer::dataset::{self, Split};
-use mochi_trainer::encoding::{Encoding, Frame};
-use mochi_trainer::eval::{mean_and_max_error, OFF_REFERENCE};
-use mochi_trainer::latent::encode_sequences;
-use mochi_trainer::loss::{PhysicsLoss, PAPER_BC_WEIGHT};
-use mochi_trainer::mesh::Elements;
-use mochi_trainer::pca::Pca;
-use mochi_trainer::scene::{Problem, Scene};
-use mochi_trainer::trajectory::Trajectory;
+use mochi_sim::dataset::{self, Split};
+use mochi_sim::measure::mean_and_max_error;
+use mochi_sim::mesh::Elements;
+use mochi_sim::trajectory::Trajectory;
+use mochi_sim::BuiltScene;
+use mochi_trainer::eval::OFF_REFERENCE;
+use mochi_trainer::learn::encoding::{Encoding, Frame};
+use mochi_trainer::learn::latent::encode_sequences;
+use mochi_trainer::learn::loss::PhysicsLoss;
+use mochi_trainer::learn::pca::Pca;
+use mochi_trainer::learn::recipe::{Recipe, PAPER_BC_WEIGHT};
+use mochi_trainer::report::progress::FramesBar;
 use nalgebra::{DMatrix, DVector};
 use std::path::{Path, PathBuf};
 
@@ -28,7 +31,7 @@ pub fn subspace_from_args(example: &str) -> anyhow::Result<(DiagnosticArgs, Pca)
 /// of their PCA (for subspaces built otherwise).
 pub struct DiagnosticArgs {
     /// The built scene.
-    pub problem: Problem,
+    pub problem: BuiltScene,
     /// Its boundary-relative encoding.
     pub encoding: Encoding,
     /// Every training frame, encoded.
@@ -51,15 +54,16 @@ impl DiagnosticArgs {
         if args.len() < 4 {
             anyhow::bail!("usage: {example} SCENE K DATASET_DIR [FRAMES] [SEQUENCE,...]");
         }
-        let mut problem = Scene::load(&args[1])?.build()?;
+        let recipe = Recipe::load(&args[1])?;
+        let mut problem = recipe.build()?;
         let k: usize = args[2].parse()?;
         let dir = PathBuf::from(&args[3]);
         let frames: usize = args.get(4).map_or(Ok(300), |s| s.parse())?;
         let only = args
             .get(5)
             .map_or(Vec::new(), |s| s.split(',').map(String::from).collect());
-        dataset::generate(&mut problem, &dir, None, false, true)?;
-        let encoding = Encoding::new(&problem)?;
+        dataset::generate(&mut problem, &dir, None, false, &FramesBar::new("dataset", true))?;
+        let encoding = Encoding::new(&problem, recipe.latent.rods)?;
         let train = dataset::load(&problem, &dir, Split::Train)?
             .into_iter()
             .map(|(_, t)| t)
@@ -179,7 +183,7 @@ fn newton<S: Subspace>(step: &mut Step<'_, S>, mut z: Vec<f64>, diagonal: f64) -
 /// rest diagonal), samples of the curve, Newton iterations per frame, and the mean error of
 /// the reference frames lifted into the subspace and lowered back (the best it can do).
 pub fn rollout(
-    problem: &Problem,
+    problem: &BuiltScene,
     encoding: &Encoding,
     subspace: &impl Subspace,
     dir: &Path,
@@ -255,7 +259,7 @@ pub fn rollout(
 /// The test sequences in `dir` named in `only` (all of them when it is empty), with their
 /// plans; a name that is not there is an error.
 pub fn test_sequences(
-    problem: &Problem,
+    problem: &BuiltScene,
     dir: &Path,
     only: &[String],
 ) -> anyhow::Result<Vec<(dataset::SequencePlan, Trajectory)>> {

@@ -8,14 +8,11 @@
 //! quadratic penalty pulling handle vertices to their targets `x*`. Rods leave the penalty
 //! out: their roots are placed exactly on decode (hard constraints).
 
-use crate::bc::Handle;
-use crate::energy::{self, external::Penalty, inertia::Inertia, StencilEnergy};
-use crate::error::InputError;
-use crate::mesh::Mesh;
-use crate::scene::{Energies, Scene};
-
-/// Penalty weight on boundary conditions used by the paper for cloth and solids.
-pub const PAPER_BC_WEIGHT: f64 = 1e5;
+use mochi_sim::bc::Handle;
+use mochi_sim::energy::{self, external::Penalty, inertia::Inertia, StencilEnergy};
+use mochi_sim::error::InputError;
+use mochi_sim::mesh::Mesh;
+use mochi_sim::scene::{Energies, Scene};
 
 /// The incremental potential of one body, evaluated for predicted states.
 pub struct PhysicsLoss {
@@ -88,16 +85,16 @@ impl PhysicsLoss {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::SpeedPlan;
-    use crate::scene::Scene;
+    use crate::learn::recipe::{Recipe, PAPER_BC_WEIGHT};
+    use mochi_sim::dataset::SpeedPlan;
 
     fn beam_frames() -> (
-        crate::scene::Problem,
-        crate::trajectory::Trajectory,
-        crate::bc::BcSequence,
+        mochi_sim::BuiltScene,
+        mochi_sim::trajectory::Trajectory,
+        mochi_sim::bc::BcSequence,
     ) {
-        let mut scene = Scene::load("beam").unwrap();
-        scene.mesh = crate::scene::MeshSpec::Box {
+        let mut scene = Recipe::load("beam").unwrap().scene;
+        scene.mesh = mochi_sim::scene::MeshSpec::Box {
             min: [0.0, -0.075, -0.075],
             max: [1.0, 0.075, 0.075],
             cells: [8, 2, 2],
@@ -105,7 +102,7 @@ mod tests {
         scene.newton.tolerance = 1e-9;
         let mut problem = scene.build().unwrap();
         let seq = problem.sequence(&SpeedPlan::constant(1.0), 6, 5);
-        let traj = problem.run(&seq, None).unwrap();
+        let traj = problem.run(&seq, &mochi_sim::Silent).unwrap();
         (problem, traj, seq)
     }
 

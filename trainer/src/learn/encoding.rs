@@ -29,11 +29,12 @@
 use faer::Mat;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
-use crate::bc::Handle;
-use crate::error::InputError;
-use crate::mesh::{Elements, Mesh};
-use crate::scene::{HandleSpec, Problem, RodEncoding};
-use crate::trajectory::Trajectory;
+use crate::learn::recipe::RodEncoding;
+use mochi_sim::bc::Handle;
+use mochi_sim::error::InputError;
+use mochi_sim::mesh::{Elements, Mesh};
+use mochi_sim::scene::{BuiltScene, HandleSpec};
+use mochi_sim::trajectory::Trajectory;
 
 /// Spread of the handle points along a principal direction, relative to the largest, below
 /// which that direction counts as absent.
@@ -156,13 +157,13 @@ pub struct ChainStart {
 }
 
 impl Encoding {
-    /// The encoding of a built scene: rotation is removed when some handle can rotate
+    /// The encoding of a built scene, rod strands encoded as `rods` says: rotation is removed when some handle can rotate
     /// (see [`handles_rotate`]).
-    pub fn new(problem: &Problem) -> Result<Encoding, InputError> {
+    pub fn new(problem: &BuiltScene, rods: RodEncoding) -> Result<Encoding, InputError> {
         let rotates = handles_rotate(&problem.scene.handles);
         let encoding = Encoding::from_parts(&problem.mesh, &problem.handles, rotates)
             .map_err(|e| InputError::field(&problem.scene.source, "handles", e.to_string()))?;
-        match problem.scene.latent.rods {
+        match rods {
             RodEncoding::Positions => Ok(encoding),
             RodEncoding::Bends => encoding
                 .with_strand_bends(&problem.mesh)
@@ -757,18 +758,35 @@ fn centroid(points: &[f64], dim: usize) -> Vector3<f64> {
     points.chunks_exact(dim).map(pad).sum::<Vector3<f64>>() / n as f64
 }
 
+/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` from the three signals.
+pub fn pack_signals(z_prev: &[f32], z_prev2: &[f32], signals: [&[f64]; 3]) -> Vec<f32> {
+    let mut row: Vec<f32> = z_prev.iter().chain(z_prev2).copied().collect();
+    for p in signals {
+        row.extend(p.iter().map(|&v| v as f32));
+    }
+    row
+}
+
+/// The world-space state of an encoded vector `q` (f32, as decoded) in `frame`.
+pub fn decode_world(encoding: &Encoding, q: &[f32], frame: &Frame, targets: &[f64]) -> anyhow::Result<Vec<f64>> {
+    let q64: Vec<f64> = q.iter().map(|&v| v as f64).collect();
+    let mut out = vec![0.0; encoding.state_len()];
+    encoding.decode_into(&q64, frame, targets, &mut out)?;
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::SpeedPlan;
-    use crate::scene::Scene;
+    use crate::learn::recipe::Recipe;
+    use mochi_sim::dataset::SpeedPlan;
     use nalgebra::{Rotation3, UnitQuaternion};
 
     /// A built scene and a short simulated trajectory of it.
-    fn simulate(name: &str, frames: usize) -> (Problem, Trajectory) {
-        let mut problem = Scene::load(name).unwrap().build().unwrap();
+    fn simulate(name: &str, frames: usize) -> (BuiltScene, Trajectory) {
+        let mut problem = Recipe::load(name).unwrap().build().unwrap();
         let seq = problem.sequence(&SpeedPlan::constant(0.5), frames, 1);
-        let traj = problem.run(&seq, None).unwrap();
+        let traj = problem.run(&seq, &mochi_sim::Silent).unwrap();
         (problem, traj)
     }
 
@@ -814,7 +832,7 @@ mod tests {
     #[test]
     fn encoding_round_trip_is_exact_on_simulated_beam_and_rods() {
         let (beam, traj) = simulate("beam", 10);
-        let enc = Encoding::new(&beam).unwrap();
+        let enc = Encoding::new(&beam, RodEncoding::Positions).unwrap();
         assert!(enc.rotates());
         assert_eq!(enc.origins(), &Origins::HandleCentroid);
         let clamp = beam.handles[0].vertices.len();
@@ -858,7 +876,7 @@ mod tests {
     #[test]
     fn encoding_ignores_rigid_motion_of_state_and_handles_together() {
         let (beam, traj) = simulate("beam", 8);
-        encoding_ignores_rigid_motion(&Encoding::new(&beam).unwrap(), &traj.positions);
+        encoding_ignores_rigid_motion(&Encoding::new(&beam, RodEncoding::Positions).unwrap(), &traj.positions);
         // Rods with their roots' rotation removed as well.
         let (rods, traj) = simulate("rods", 4);
         let enc = Encoding::from_parts(&rods.mesh, &rods.handles, true).unwrap();
@@ -878,7 +896,7 @@ mod tests {
     }
 
     /// The rods scene's encoding by strand bends, with or without the roots' rotation removed.
-    fn rod_bends(rods: &Problem, rotates: bool) -> Encoding {
+    fn rod_bends(rods: &BuiltScene, rotates: bool) -> Encoding {
         Encoding::from_parts(&rods.mesh, &rods.handles, rotates)
             .unwrap()
             .with_strand_bends(&rods.mesh)
@@ -901,8 +919,9 @@ mod tests {
     #[test]
     fn strand_bends_decode_at_rest_length_and_track_simulated_rods() {
         let (rods, traj) = simulate("rods", 20);
-        assert_eq!(rods.scene.latent.rods, RodEncoding::Bends);
-        let enc = Encoding::new(&rods).unwrap();
+        let bends = Recipe::load("rods").unwrap().latent.rods;
+        assert_eq!(bends, RodEncoding::Bends);
+        let enc = Encoding::new(&rods, bends).unwrap();
         assert!(enc.strand_bends());
         assert_eq!(enc.values_per_vertex(), 2);
         assert_eq!(enc.encoded_len(), 16 * 28 * 2);
@@ -992,12 +1011,12 @@ mod tests {
 
     #[test]
     fn strand_bends_refuse_what_they_cannot_encode() {
-        let beam = Scene::load("beam").unwrap().build().unwrap();
+        let beam = Recipe::load("beam").unwrap().build().unwrap();
         let enc = Encoding::from_parts(&beam.mesh, &beam.handles, false).unwrap();
         let err = enc.with_strand_bends(&beam.mesh).unwrap_err().to_string();
         assert!(err.contains("rods mesh"), "{err}");
         // Only the roots prescribed: the first free edge would have no parent edge.
-        let rods = Scene::load("rods").unwrap().build().unwrap();
+        let rods = Recipe::load("rods").unwrap().build().unwrap();
         let Elements::Rods(strands) = &rods.mesh.elements else {
             unreachable!()
         };
@@ -1018,7 +1037,7 @@ mod tests {
 
     /// States of a scene with its handles at the targets of a sampled sequence and the
     /// other vertices displaced from rest by a smooth pattern (no simulation).
-    fn displaced_states(problem: &Problem, frames: usize) -> Vec<Vec<f64>> {
+    fn displaced_states(problem: &BuiltScene, frames: usize) -> Vec<Vec<f64>> {
         let dim = problem.mesh.dim;
         let seq = problem.sequence(&SpeedPlan::constant(1.0), frames, 2);
         (0..=frames)
@@ -1038,17 +1057,17 @@ mod tests {
 
     #[test]
     fn encoding_ignores_translation_in_every_scene() {
-        for name in crate::scene::shipped_scene_names() {
-            let problem = Scene::load(&name).unwrap().build().unwrap();
+        for name in crate::learn::recipe::shipped_scene_names() {
+            let problem = Recipe::load(&name).unwrap().build().unwrap();
             // 3D scenes use simulated states. 2D ones use displaced states: in debug builds
             // `energy::value` trips a debug assertion on 2D elements (it passes all
-            // MAX_DOF gathered values to `eval`), and `Problem::run` calls it.
+            // MAX_DOF gathered values to `eval`), and `BuiltScene::run` calls it.
             let states = if problem.mesh.dim == 3 {
                 simulate(&name, 2).1.positions
             } else {
                 displaced_states(&problem, 5)
             };
-            let enc = Encoding::new(&problem).unwrap();
+            let enc = Encoding::new(&problem, RodEncoding::Positions).unwrap();
             let dim = enc.dim();
             let shift = Vector3::new(0.7, -0.3, if dim == 3 { 1.9 } else { 0.0 });
             for x in &states {
@@ -1100,8 +1119,8 @@ mod tests {
 
     #[test]
     fn encoding_bad_input_is_an_error() {
-        let problem = Scene::load("beam").unwrap().build().unwrap();
-        let enc = Encoding::new(&problem).unwrap();
+        let problem = Recipe::load("beam").unwrap().build().unwrap();
+        let enc = Encoding::new(&problem, RodEncoding::Positions).unwrap();
         let x = problem.mesh.rest.clone();
         let targets = enc.handle_targets(&x).unwrap();
         let frame = enc.frame(&targets).unwrap();
@@ -1136,8 +1155,8 @@ mod tests {
         assert!(is_length(enc.encode_trajectory(&traj)));
 
         // The cloth's two corners cannot fix a rotation.
-        let cloth = Scene::load("cloth").unwrap().build().unwrap();
-        assert!(!Encoding::new(&cloth).unwrap().rotates());
+        let cloth = Recipe::load("cloth").unwrap().build().unwrap();
+        assert!(!Encoding::new(&cloth, RodEncoding::Positions).unwrap().rotates());
         assert_eq!(
             Encoding::from_parts(&cloth.mesh, &cloth.handles, true),
             Err(EncodingError::DegenerateHandles { count: 2, span: 1 })
@@ -1165,7 +1184,7 @@ mod tests {
 
     #[test]
     fn encoding_without_handles_is_the_identity() {
-        let problem = Scene::load("beam").unwrap().build().unwrap();
+        let problem = Recipe::load("beam").unwrap().build().unwrap();
         let enc = Encoding::from_parts(&problem.mesh, &[], false).unwrap();
         assert_eq!(enc.encoded_len(), problem.mesh.rest.len());
         let q = enc.encode_state(&problem.mesh.rest).unwrap();

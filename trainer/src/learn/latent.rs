@@ -24,19 +24,21 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use crate::artifact::{Artifact, EncodingData, HandleData, Method, SizeTrial, TrainingSummary};
-use crate::bc::SIGNAL_PER_HANDLE;
-use crate::dataset::{self, Split};
-use crate::encoding::{Encoding, Frame};
-use crate::loss::PhysicsLoss;
-use crate::mesh::Elements;
-use crate::model::{
+use crate::learn::encoding::{decode_world, pack_signals, Encoding, Frame};
+use crate::learn::loss::PhysicsLoss;
+use crate::learn::network::{
     rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, Integrator, IntegratorSpec, Normalisation,
 };
-use crate::pca::{self, Pca};
-use crate::scene::{NetworkSpec, Problem};
-use crate::stretch::EdgeStretch;
-use crate::train::{self, AdamWConfig, Batch, BatchLoss, CheckpointConfig, TrainConfig};
-use crate::trajectory::Trajectory;
+use crate::learn::pca::{self, Pca};
+use crate::learn::recipe::{NetworkSpec, Recipe};
+use crate::learn::stretch::EdgeStretch;
+use crate::learn::train::{self, AdamWConfig, Batch, BatchLoss, CheckpointConfig, TrainConfig};
+use crate::report::progress::FramesBar;
+use mochi_sim::bc::SIGNAL_PER_HANDLE;
+use mochi_sim::dataset::{self, Split};
+use mochi_sim::mesh::Elements;
+use mochi_sim::trajectory::Trajectory;
+use mochi_sim::BuiltScene;
 
 /// Where `mochi train` works and how it reports.
 #[derive(Clone, Debug)]
@@ -141,8 +143,9 @@ fn decoded_rms_error(
 
 /// Runs the whole of `mochi train` for `problem`: dataset (train split, if missing),
 /// latent-size selection, autoencoder, both integrators; writes both artifacts.
-pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Result<TrainOutcome> {
-    let spec = problem.scene.latent.clone();
+pub fn train_scene(recipe: &Recipe, options: &TrainOptions) -> anyhow::Result<TrainOutcome> {
+    let problem = &mut recipe.build()?;
+    let spec = recipe.latent.clone();
     let diagonal = problem.mesh.rest_diagonal();
     let dim = problem.mesh.dim;
     let mut stages: Vec<(String, f64)> = Vec::new();
@@ -151,7 +154,13 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
     // Dataset.
     let clock = Instant::now();
     let data_dir = options.out_dir.join("dataset");
-    let made = dataset::generate(problem, &data_dir, Some(Split::Train), false, options.progress)?;
+    let made = dataset::generate(
+        problem,
+        &data_dir,
+        Some(Split::Train),
+        false,
+        &FramesBar::new("dataset", options.progress),
+    )?;
     if made.sequences > 0 {
         stages.push(("dataset (train split)".into(), clock.elapsed().as_secs_f64()));
     }
@@ -159,7 +168,7 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
         .into_iter()
         .map(|(_, t)| t)
         .collect();
-    let encoding = Encoding::new(problem)?;
+    let encoding = Encoding::new(problem, spec.rods)?;
     let sequences = encode_sequences(&encoding, trajectories)?;
     let frames_f64: Vec<Vec<f64>> = sequences.iter().flat_map(|s| s.encoded.iter().cloned()).collect();
     let frames_f32: Vec<Vec<f32>> = frames_f64
@@ -383,7 +392,7 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
             s.trajectory
                 .positions
                 .windows(2)
-                .map(|w| crate::eval::kinetic_energy(&masses, &w[1], &w[0], problem.scene.dt, dim))
+                .map(|w| mochi_sim::measure::kinetic_energy(&masses, &w[1], &w[0], problem.scene.dt, dim))
         })
         .fold(0.0, f64::max);
     let mut artifacts = Vec::new();
@@ -399,6 +408,7 @@ pub fn train_scene(problem: &mut Problem, options: &TrainOptions) -> anyhow::Res
             max_kinetic_energy,
         };
         artifacts.push(build_artifact(
+            recipe,
             problem,
             &encoding,
             &ae,
@@ -489,7 +499,7 @@ pub struct IntegratorData<'a> {
 impl<'a> IntegratorData<'a> {
     /// Encodes every frame with `ae` and packs one sample per predicted frame.
     pub fn new(
-        problem: &Problem,
+        problem: &BuiltScene,
         encoding: &'a Encoding,
         ae: &Autoencoder,
         sequences: &'a [EncodedSequence],
@@ -588,23 +598,6 @@ pub fn pack(z_prev: &[f32], z_prev2: &[f32], signal: &[Vec<f64>], t: usize) -> V
         z_prev2,
         [&signal[t], &signal[t.saturating_sub(1)], &signal[t.saturating_sub(2)]],
     )
-}
-
-/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` from the three signals.
-pub fn pack_signals(z_prev: &[f32], z_prev2: &[f32], signals: [&[f64]; 3]) -> Vec<f32> {
-    let mut row: Vec<f32> = z_prev.iter().chain(z_prev2).copied().collect();
-    for p in signals {
-        row.extend(p.iter().map(|&v| v as f32));
-    }
-    row
-}
-
-/// The world-space state of an encoded vector `q` (f32, as decoded) in `frame`.
-pub fn decode_world(encoding: &Encoding, q: &[f32], frame: &Frame, targets: &[f64]) -> anyhow::Result<Vec<f64>> {
-    let q64: Vec<f64> = q.iter().map(|&v| v as f64).collect();
-    let mut out = vec![0.0; encoding.state_len()];
-    encoding.decode_into(&q64, frame, targets, &mut out)?;
-    Ok(out)
 }
 
 /// Uniform noise in `±scale * std` per latent coordinate, `std` over the batch's `z_{t-1}`
@@ -739,7 +732,7 @@ impl<'a> PhysicsObjective<'a> {
     /// The objective of `problem`'s body with penalty weight `bc_weight` (Eq. 4), input
     /// augmentation `augmentation` (Eq. 5) and balancing floor `min_speed` (Eq. 6).
     pub fn new(
-        problem: &Problem,
+        problem: &BuiltScene,
         data: &'a IntegratorData<'a>,
         ae: &'a Autoencoder,
         augmentation: Augmentation,
@@ -944,7 +937,8 @@ fn candle_err(e: impl std::fmt::Display) -> candle_core::Error {
 /// Assembles the artifact of a trained model; `pca` is the PCA of the encoded training
 /// frames the autoencoder was initialised with.
 pub fn build_artifact(
-    problem: &Problem,
+    recipe: &Recipe,
+    problem: &BuiltScene,
     encoding: &Encoding,
     ae: &Autoencoder,
     integrator: &Integrator,
@@ -959,7 +953,7 @@ pub fn build_artifact(
     let u32s = |v: &[usize]| v.iter().map(|&x| x as u32).collect::<Vec<u32>>();
     let x0 = &data.sequences[0].trajectory.positions[0];
     let q0: Vec<f32> = encoding.encode_state(x0)?.iter().map(|&v| v as f32).collect();
-    let initial_latent = crate::model::forward_exported(&exported.encoder, &q0)?;
+    let initial_latent = crate::learn::network::forward_exported(&exported.encoder, &q0)?;
     let mut pca_basis: Vec<f32> = pca.basis.iter().flat_map(|b| f32s(b)).collect();
     pca_basis.resize(k * encoding.encoded_len(), 0.0);
     let polylines = match &problem.mesh.elements {
@@ -979,7 +973,7 @@ pub fn build_artifact(
     let artifact = Artifact {
         scene: problem.scene.name.clone(),
         scene_path: problem.scene.source.display().to_string(),
-        scene_toml: toml::to_string(&problem.scene)?,
+        scene_toml: recipe.to_toml()?,
         method,
         dt: problem.scene.dt,
         dim: problem.mesh.dim as u32,
@@ -1017,20 +1011,21 @@ pub fn build_artifact(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::SpeedPlan;
-    use crate::scene::{MeshSpec, Scene};
+    use crate::learn::recipe::{Recipe, RodEncoding};
+    use mochi_sim::dataset::SpeedPlan;
+    use mochi_sim::scene::MeshSpec;
     use rand::SeedableRng;
 
     /// A 6-cell beam, one short trajectory, its encoding and a PCA-initialised autoencoder.
     struct TinyBeam {
-        problem: Problem,
+        problem: BuiltScene,
         encoding: Encoding,
         sequences: Vec<EncodedSequence>,
         ae: Autoencoder,
     }
 
     fn tiny_beam() -> TinyBeam {
-        let mut scene = Scene::load("beam").unwrap();
+        let mut scene = Recipe::load("beam").unwrap().scene;
         scene.mesh = MeshSpec::Box {
             min: [0.0, -0.05, -0.05],
             max: [0.6, 0.05, 0.05],
@@ -1038,8 +1033,8 @@ mod tests {
         };
         let mut problem = scene.build().unwrap();
         let seq = problem.sequence(&SpeedPlan::constant(1.0), 12, 4);
-        let traj = problem.run(&seq, None).unwrap();
-        let encoding = Encoding::new(&problem).unwrap();
+        let traj = problem.run(&seq, &mochi_sim::Silent).unwrap();
+        let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
         let sequences = encode_sequences(&encoding, vec![traj]).unwrap();
         let frames: Vec<Vec<f64>> = sequences[0].encoded.clone();
         let pca = Pca::fit(&frames, 3).unwrap();

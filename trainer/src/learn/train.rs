@@ -35,10 +35,10 @@ use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, TensorView};
 use safetensors::SafeTensors;
 
-use crate::error::{InputError, Location};
-use crate::framing;
-use crate::model::{rows_to_tensor, Autoencoder};
-use crate::stretch::EdgeStretch;
+use crate::artifact::framing;
+use crate::learn::network::{rows_to_tensor, Autoencoder};
+use crate::learn::stretch::EdgeStretch;
+use mochi_sim::error::{InputError, Location};
 
 /// Errors of a training run.
 #[derive(Debug, thiserror::Error)]
@@ -628,8 +628,8 @@ fn load_checkpoint(path: &Path, run: &RunIdentity, max_epochs: usize, optimizer:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::test_support::{manifold_data, pca, pca_reconstruction_error};
-    use crate::model::AutoencoderSpec;
+    use crate::learn::network::test_support::{manifold_data, pca, pca_reconstruction_error};
+    use crate::learn::network::AutoencoderSpec;
 
     fn config(name: &str, epochs: usize, batch_size: usize, lr: f64) -> TrainConfig {
         TrainConfig {

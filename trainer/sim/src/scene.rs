@@ -17,27 +17,6 @@ use crate::solver::{Integrator, NewtonSettings, Simulator};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// Directory of the scenes shipped with mochi.
-pub fn shipped_scenes_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
-}
-
-/// Names of the shipped scenes, sorted.
-pub fn shipped_scene_names() -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(shipped_scenes_dir())
-        .map(|dir| {
-            dir.filter_map(|e| e.ok())
-                .filter_map(|e| {
-                    let p = e.path();
-                    (p.extension()? == "toml").then(|| p.file_stem()?.to_str().map(String::from))?
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    names.sort();
-    names
-}
-
 /// A scene as written in its TOML file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -81,9 +60,6 @@ pub struct Scene {
     /// Dataset sampling.
     #[serde(default)]
     pub dataset: DatasetSpec,
-    /// Latent space and integrator training.
-    #[serde(default)]
-    pub latent: LatentSpec,
     /// The file this scene was read from (set on load; relative mesh paths resolve
     /// against its directory).
     #[serde(skip)]
@@ -308,6 +284,25 @@ impl Default for CollisionSpec {
     }
 }
 
+/// Train or test.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Split {
+    /// Used for training.
+    Train,
+    /// Held out for evaluation.
+    Test,
+}
+
+impl Split {
+    /// Lower-case name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Split::Train => "train",
+            Split::Test => "test",
+        }
+    }
+}
+
 /// Initial state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -343,7 +338,7 @@ pub struct DatasetSpec {
     /// motions far better (README, "Training motions in a steady rhythm"). Default 0.
     pub steady: usize,
     /// Extra training sequences whose speed level is drawn anew, uniformly over the training
-    /// range, every [`crate::dataset::VARIED_PIECE_FRAMES`] frames: fast and slow motions in
+    /// range, every `dataset::VARIED_PIECE_FRAMES` frames: fast and slow motions in
     /// one sequence, so the training states include a body still swinging from a fast
     /// motion while its handles move slowly. Default 0.
     pub varied: usize,
@@ -366,202 +361,25 @@ impl Default for DatasetSpec {
 
 impl DatasetSpec {
     /// Frames of a sequence of `split`.
-    pub fn frames_of(&self, split: crate::dataset::Split) -> usize {
+    pub fn frames_of(&self, split: Split) -> usize {
         match split {
-            crate::dataset::Split::Train => self.frames,
-            crate::dataset::Split::Test => self.test_frames.unwrap_or(self.frames),
+            Split::Train => self.frames,
+            Split::Test => self.test_frames.unwrap_or(self.frames),
         }
-    }
-}
-
-/// Sizes and schedule of one network trained by `mochi train`.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NetworkSpec {
-    /// Width of the hidden layers.
-    pub hidden: usize,
-    /// Residual blocks.
-    pub blocks: usize,
-    /// Training epochs.
-    pub epochs: usize,
-    /// Samples per minibatch.
-    pub batch: usize,
-    /// Initial learning rate.
-    pub learning_rate: f64,
-    /// Learning rate at the last epoch (cosine decay from `learning_rate`).
-    pub final_learning_rate: f64,
-}
-
-/// How `mochi train` builds the latent space and its integrator (scene table `[latent]`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct LatentSpec {
-    /// Reconstruction tolerance: RMS vertex error of the autoencoder over the training frames
-    /// as a fraction of the rest bounding-box diagonal. The latent size is the smallest of
-    /// `sizes` that meets it.
-    pub tolerance: f64,
-    /// Candidate latent sizes, tried in ascending order.
-    pub sizes: Vec<usize>,
-    /// Autoencoder (Eq. 2).
-    pub autoencoder: NetworkSpec,
-    /// Latent integrator (Eq. 3), both the self-supervised one and the supervised baseline.
-    pub integrator: NetworkSpec,
-    /// Noise augmentation (Eq. 5): uniform noise on the input latents, as a fraction of the
-    /// batch standard deviation; 0 turns augmentation off.
-    pub noise: f64,
-    /// Rollout augmentation: each minibatch also trains on inputs whose two latents are the
-    /// integrator's own prediction, rolled out without gradient from ground truth for up to
-    /// this many steps (the limit grows from 1 over training), so the integrator learns to
-    /// step from the states its own errors lead to; 0 turns it off.
-    pub rollout: usize,
-    /// Penalty weight on the boundary conditions in the physics loss (Eq. 4).
-    pub bc_weight: f64,
-    /// Floor of the data-balancing speed (Eq. 6), in length units per second. Without a
-    /// sensible floor, samples near rest (the first frames, every reversal of a
-    /// back-and-forth motion) get weights hundreds of times larger than the rest and the
-    /// integrator learns little else: on `beam`, a floor of 1e-3 m/s left the sudden-drop
-    /// test diverging at frame 621, 0.05 m/s kept all four test sequences stable.
-    pub min_speed: f64,
-    /// Weight of the edge-stretch term in the autoencoder's loss ([`crate::stretch`]): the
-    /// mean squared change of edge lengths between decoded and true states, added to the
-    /// mean squared reconstruction error (both in squared length units). 0 (the default)
-    /// trains on Eq. 2 alone; positions only (not `rods = "bends"`).
-    pub stretch: f64,
-    /// Seed of initialisation, shuffling and noise.
-    pub seed: u64,
-    /// What the latent space of a rods scene encodes (`positions` or `bends`).
-    pub rods: RodEncoding,
-}
-
-/// How rod strands are encoded for the latent space (scene field `latent.rods`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum RodEncoding {
-    /// Vertex positions relative to the strand's root (Li et al. 2025, Sec. 3.2).
-    #[default]
-    Positions,
-    /// The bend of every edge, decoded at rest length ([`crate::encoding::Encoding::with_strand_bends`]):
-    /// no latent state can stretch a rod.
-    Bends,
-}
-
-impl Default for LatentSpec {
-    fn default() -> Self {
-        LatentSpec {
-            tolerance: 2e-3,
-            sizes: vec![2, 4, 6, 8, 12, 16],
-            autoencoder: NetworkSpec {
-                hidden: 128,
-                blocks: 2,
-                epochs: 300,
-                batch: 32,
-                learning_rate: 3e-4,
-                final_learning_rate: 1e-5,
-            },
-            integrator: NetworkSpec {
-                hidden: 128,
-                blocks: 2,
-                epochs: 200,
-                batch: 32,
-                learning_rate: 1e-3,
-                final_learning_rate: 1e-5,
-            },
-            noise: 0.1,
-            rollout: 0,
-            bc_weight: crate::loss::PAPER_BC_WEIGHT,
-            min_speed: 0.05,
-            stretch: 0.0,
-            seed: 0,
-            rods: RodEncoding::Positions,
-        }
-    }
-}
-
-impl LatentSpec {
-    /// Checks ranges; returns the offending field (relative to `latent`) and a message.
-    pub fn validate(&self) -> Result<(), (String, String)> {
-        let positive = |v: f64| v.is_finite() && v > 0.0;
-        if !positive(self.tolerance) {
-            return Err(("tolerance".into(), format!("must be positive, got {}", self.tolerance)));
-        }
-        if self.sizes.is_empty() || self.sizes.contains(&0) || !self.sizes.is_sorted() {
-            return Err(("sizes".into(), "needs positive sizes in ascending order".into()));
-        }
-        let largest = *self.sizes.last().unwrap_or(&0);
-        for (name, net) in [("autoencoder", &self.autoencoder), ("integrator", &self.integrator)] {
-            if net.hidden == 0 || net.epochs == 0 || net.batch == 0 {
-                return Err((name.into(), "hidden, epochs and batch must be at least 1".into()));
-            }
-            if !positive(net.learning_rate) || !positive(net.final_learning_rate) {
-                return Err((name.into(), "learning rates must be positive".into()));
-            }
-        }
-        if self.autoencoder.hidden < 2 * largest {
-            return Err((
-                "autoencoder.hidden".into(),
-                format!(
-                    "PCA initialisation needs at least twice the largest size ({})",
-                    2 * largest
-                ),
-            ));
-        }
-        if !(self.noise.is_finite() && self.noise >= 0.0) {
-            return Err(("noise".into(), "must be a non-negative number".into()));
-        }
-        if !positive(self.bc_weight) || !positive(self.min_speed) {
-            return Err(("bc_weight".into(), "bc_weight and min_speed must be positive".into()));
-        }
-        if !(self.stretch.is_finite() && self.stretch >= 0.0) {
-            return Err(("stretch".into(), "must be a non-negative number".into()));
-        }
-        if self.stretch > 0.0 && self.rods == RodEncoding::Bends {
-            return Err((
-                "stretch".into(),
-                "needs encoded positions; rods encoded by bends cannot stretch".into(),
-            ));
-        }
-        Ok(())
     }
 }
 
 impl Scene {
-    /// Finds a scene by name among the shipped scenes, or by path.
-    pub fn resolve(name_or_path: &str) -> Result<PathBuf, InputError> {
-        let as_path = Path::new(name_or_path);
-        if as_path.is_file() {
-            return Ok(as_path.to_path_buf());
-        }
-        let shipped = shipped_scenes_dir().join(format!("{name_or_path}.toml"));
-        if shipped.is_file() {
-            return Ok(shipped);
-        }
-        Err(InputError::file(
-            as_path,
-            format!(
-                "no such scene file, and not a shipped scene name (shipped: {})",
-                shipped_scene_names().join(", ")
-            ),
-        ))
-    }
-
-    /// Loads a scene by name or path.
-    pub fn load(name_or_path: &str) -> Result<Scene, InputError> {
-        let path = Scene::resolve(name_or_path)?;
-        let text = std::fs::read_to_string(&path).map_err(|e| InputError::file(&path, format!("cannot read: {e}")))?;
-        Scene::parse(&text, &path)
+    /// Loads a scene file. A file that also holds tables for other layers (the trainer's
+    /// `[latent]`) is read through [`SceneDocument`], which takes them out first.
+    pub fn load(path: &Path) -> Result<Scene, InputError> {
+        let text = read_text(path)?;
+        SceneDocument::parse(&text, path)?.into_scene()
     }
 
     /// Parses and validates scene text; `path` is used in errors and to resolve mesh files.
     pub fn parse(text: &str, path: &Path) -> Result<Scene, InputError> {
-        let mut scene: Scene = toml::from_str(text).map_err(|e| {
-            let line = e
-                .span()
-                .map_or(1, |s| text[..s.start.min(text.len())].matches('\n').count() + 1);
-            InputError::line(path, line, e.message().to_string())
-        })?;
-        scene.source = path.to_path_buf();
-        scene.validate()?;
-        Ok(scene)
+        SceneDocument::parse(text, path)?.into_scene()
     }
 
     fn field_error(&self, field: impl Into<String>, message: impl Into<String>) -> InputError {
@@ -636,9 +454,6 @@ impl Scene {
         if d.test_frames == Some(0) {
             return Err(self.field_error("dataset.test_frames", "must be at least 1"));
         }
-        self.latent
-            .validate()
-            .map_err(|(f, msg)| self.field_error(format!("latent.{f}"), msg))?;
         Ok(())
     }
 
@@ -648,7 +463,7 @@ impl Scene {
     }
 
     /// Builds the mesh, energies, handles and simulator.
-    pub fn build(&self) -> Result<Problem, InputError> {
+    pub fn build(&self) -> Result<BuiltScene, InputError> {
         let mesh = self.build_mesh()?;
         let Energies { masses, potentials } = self.build_energies(&mesh)?;
         let handles = self.build_handles(&mesh)?;
@@ -664,7 +479,7 @@ impl Scene {
             self.newton,
             mesh.rest_diagonal(),
         );
-        Ok(Problem {
+        Ok(BuiltScene {
             scene: self.clone(),
             mesh,
             handles,
@@ -953,7 +768,7 @@ pub struct Energies {
 }
 
 /// A scene built and ready to simulate.
-pub struct Problem {
+pub struct BuiltScene {
     /// The scene it came from.
     pub scene: Scene,
     /// The body.
@@ -962,4 +777,61 @@ pub struct Problem {
     pub handles: Vec<Handle>,
     /// The full-space simulator.
     pub simulator: Simulator,
+}
+
+/// Reads a text file, naming it in the error.
+pub fn read_text(path: &Path) -> Result<String, InputError> {
+    std::fs::read_to_string(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))
+}
+
+/// A scene file parsed as TOML but not yet read as a [`Scene`]: layers above the simulator
+/// take their own tables out of it (the trainer's `[latent]`) before the rest is read as the
+/// scene, so one file describes the body and how to learn it while [`Scene`] knows only
+/// the physics. Errors keep the line numbers of the original text.
+pub struct SceneDocument<'a> {
+    text: &'a str,
+    path: PathBuf,
+    root: toml::Spanned<toml::de::DeTable<'a>>,
+}
+
+impl<'a> SceneDocument<'a> {
+    /// Parses `text` (the contents of `path`) as TOML.
+    pub fn parse(text: &'a str, path: &Path) -> Result<Self, InputError> {
+        let root = toml::de::DeTable::parse(text).map_err(|e| toml_error(text, path, &e))?;
+        Ok(SceneDocument {
+            text,
+            path: path.to_path_buf(),
+            root,
+        })
+    }
+
+    /// Takes the top-level table `name` out of the document and reads it as a `T`; a missing
+    /// table gives `T::default()`.
+    pub fn take_section<T: serde::de::DeserializeOwned + Default>(&mut self, name: &str) -> Result<T, InputError> {
+        let table = self.root.get_mut();
+        let Some(key) = table.keys().find(|k| k.get_ref().as_ref() == name).cloned() else {
+            return Ok(T::default());
+        };
+        let value = table
+            .remove(&key)
+            .unwrap_or_else(|| unreachable!("the key was just found"));
+        T::deserialize(toml::de::ValueDeserializer::from(value)).map_err(|e| toml_error(self.text, &self.path, &e))
+    }
+
+    /// Reads what is left as the scene and validates it.
+    pub fn into_scene(self) -> Result<Scene, InputError> {
+        let mut scene = Scene::deserialize(toml::de::Deserializer::from(self.root))
+            .map_err(|e| toml_error(self.text, &self.path, &e))?;
+        scene.source = self.path;
+        scene.validate()?;
+        Ok(scene)
+    }
+}
+
+/// A TOML error at its line of `text`.
+fn toml_error(text: &str, path: &Path, e: &toml::de::Error) -> InputError {
+    let line = e
+        .span()
+        .map_or(1, |s| text[..s.start.min(text.len())].matches('\n').count() + 1);
+    InputError::line(path, line, e.message().to_string())
 }

@@ -9,12 +9,13 @@ use anyhow::{Context, Result};
 use mochi_codegen::{format_name, Options, Quantized};
 use mochi_runtime::{AnyInstance, OwnedModel, ValidModel, WeightFormat};
 
-use crate::chart::{self, LabelledPoint};
-use crate::dataset::SequencePlan;
-use crate::eval::{mean_and_max_error, vertex_errors, OFF_REFERENCE};
-use crate::runtime_bench::motions;
-use crate::scene::Problem;
-use crate::trajectory::Trajectory;
+use crate::eval::rollout::motions;
+use crate::eval::rollout::OFF_REFERENCE;
+use crate::report::chart::{self, LabelledPoint};
+use mochi_sim::dataset::SequencePlan;
+use mochi_sim::measure::{mean_and_max_error, vertex_errors};
+use mochi_sim::trajectory::Trajectory;
+use mochi_sim::BuiltScene;
 
 /// The storages compared: `--weights f32`, `f16` and `int8` (which keeps the integrator in
 /// `f16`), and int8 for both networks, the reason it does.
@@ -72,7 +73,7 @@ pub struct StorageReport {
 pub fn evaluate(
     bytes: &[u8],
     source: &Path,
-    problem: &Problem,
+    problem: &BuiltScene,
     tests: &[(SequencePlan, Trajectory)],
     frames: usize,
 ) -> Result<Vec<StorageReport>> {

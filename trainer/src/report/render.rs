@@ -14,8 +14,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{anyhow, bail, Context};
 use plotters::prelude::*;
 
-use crate::chart::register_font;
-use crate::mesh::{Elements, Mesh};
+use crate::report::chart::register_font;
+use mochi_sim::mesh::{Elements, Mesh};
 
 // ---------------------------------------------------------------------------------------
 // OBJ

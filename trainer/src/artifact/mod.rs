@@ -1,6 +1,6 @@
 //! Model artifacts (`SCENE.mochi`): everything the runtime needs to step and decode a trained
 //! model, as data (DESIGN.md, decision 4). The payload is postcard in the envelope of
-//! [`crate::framing`] (magic `MOCHIMDL`, format version, length, CRC-32), so corrupt, truncated
+//! [`crate::artifact::framing`] (magic `MOCHIMDL`, format version, length, CRC-32), so corrupt, truncated
 //! or foreign files are refused before parsing, and every shape is validated after it.
 //!
 //! Networks are stored as flat lists of dense layers in the order of
@@ -9,14 +9,15 @@
 //! folded into the first and last layers. The integrator predicts the increment
 //! `z_t - z_{t-1}` from `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`.
 
+pub mod framing;
+
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::encoding::{Encoding, Origins};
-use crate::error::InputError;
-use crate::framing;
-use crate::model::{DenseLayer, ExportedIntegrator, ExportedMlp};
+use crate::learn::encoding::{Encoding, Origins};
+use crate::learn::network::{DenseLayer, ExportedIntegrator, ExportedMlp};
+use mochi_sim::error::InputError;
 
 /// First bytes of every artifact.
 pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
@@ -59,11 +60,11 @@ pub struct EncodingData {
     /// slot of its root among the handle vertices.
     pub root_slots: Vec<u32>,
     /// Empty: encoded vertices are positions. Otherwise the rod strands, encoded by their
-    /// bends ([`crate::encoding::Encoding::with_strand_bends`]), two numbers per vertex.
+    /// bends ([`crate::learn::encoding::Encoding::with_strand_bends`]), two numbers per vertex.
     pub chains: Vec<ChainData>,
 }
 
-/// One rod strand of the bend encoding (see [`crate::encoding::Chain`]).
+/// One rod strand of the bend encoding (see [`crate::learn::encoding::Chain`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ChainData {
     /// Handle slots of the strand's two prescribed vertices (parent edge: first to second).
@@ -303,7 +304,7 @@ impl Artifact {
         {
             return err("handles", "handle vertices disagree with the encoding".into());
         }
-        if self.bc_len as usize != crate::bc::SIGNAL_PER_HANDLE * self.handles.len() {
+        if self.bc_len as usize != mochi_sim::bc::SIGNAL_PER_HANDLE * self.handles.len() {
             return err("bc_len", format!("{} for {} handles", self.bc_len, self.handles.len()));
         }
         if !in_range(&self.surface_vertices)
@@ -381,7 +382,7 @@ impl Artifact {
     /// Writes the artifact atomically.
     pub fn write(&self, path: &Path) -> anyhow::Result<()> {
         let bytes = self.to_bytes().map_err(anyhow::Error::msg)?;
-        crate::train::write_atomically(path, &bytes)
+        crate::learn::train::write_atomically(path, &bytes)
             .map_err(|e| anyhow::anyhow!("writing artifact {}: {e}", path.display()))
     }
 

@@ -215,20 +215,20 @@ impl Mesh {
     }
 
     /// [`Mesh::validate`] with vertices and elements named as `naming` says.
-    pub(crate) fn check(&self, naming: &Naming) -> Result<(), Problem> {
+    pub(crate) fn check(&self, naming: &Naming) -> Result<(), MeshDefect> {
         let expected_dim = match self.elements {
             Elements::Triangles(_) => 2,
             _ => 3,
         };
         if self.dim != expected_dim {
-            return Err(Problem::whole(format!(
+            return Err(MeshDefect::whole(format!(
                 "{} need {expected_dim} coordinates per vertex, the mesh has {}",
                 self.element_noun_plural(),
                 self.dim
             )));
         }
         if !self.rest.chunks_exact(self.dim).remainder().is_empty() {
-            return Err(Problem::whole(format!(
+            return Err(MeshDefect::whole(format!(
                 "{} coordinates is not a whole number of {}D vertices",
                 self.rest.len(),
                 self.dim
@@ -236,18 +236,18 @@ impl Mesh {
         }
         let num_vertices = self.num_vertices();
         if num_vertices == 0 {
-            return Err(Problem::whole("the mesh has no vertices"));
+            return Err(MeshDefect::whole("the mesh has no vertices"));
         }
         let elements = self.element_slices();
         if elements.is_empty() {
-            return Err(Problem::whole(format!(
+            return Err(MeshDefect::whole(format!(
                 "the mesh has no {}",
                 self.element_noun_plural()
             )));
         }
         for (v, p) in self.rest.chunks_exact(self.dim).enumerate() {
             if !p.iter().all(|c| c.is_finite()) {
-                return Err(Problem::vertex(
+                return Err(MeshDefect::vertex(
                     v,
                     format!("vertex {} has a non-finite coordinate {p:?}", naming.vertex(v)),
                 ));
@@ -265,20 +265,20 @@ impl Mesh {
     }
 
     /// Index checks: in range, not repeated in an element, rods long enough, every vertex used.
-    fn check_indices(&self, elements: &[&[usize]], naming: &Naming) -> Result<(), Problem> {
+    fn check_indices(&self, elements: &[&[usize]], naming: &Naming) -> Result<(), MeshDefect> {
         let noun = self.element_noun();
         let num_vertices = self.num_vertices();
         let mut used = vec![false; num_vertices];
         for (e, vertices) in elements.iter().enumerate() {
             if vertices.len() < 2 {
-                return Err(Problem::element(
+                return Err(MeshDefect::element(
                     e,
                     format!("{noun} has {} vertices, at least 2 are needed", vertices.len()),
                 ));
             }
             for (k, &v) in vertices.iter().enumerate() {
                 if v >= num_vertices {
-                    return Err(Problem::element(
+                    return Err(MeshDefect::element(
                         e,
                         format!(
                             "{noun} refers to vertex {}, but the vertices are {}..={}",
@@ -289,7 +289,7 @@ impl Mesh {
                     ));
                 }
                 if vertices[..k].contains(&v) {
-                    return Err(Problem::element(
+                    return Err(MeshDefect::element(
                         e,
                         format!("{noun} repeats vertex {}", naming.vertex(v)),
                     ));
@@ -299,7 +299,7 @@ impl Mesh {
         }
         if let Some(v) = used.iter().position(|&u| !u) {
             let unused = used.iter().filter(|&&u| !u).count();
-            return Err(Problem::vertex(
+            return Err(MeshDefect::vertex(
                 v,
                 format!(
                     "vertex {} is used by no element, so it would have no mass \
@@ -312,7 +312,7 @@ impl Mesh {
     }
 
     /// Degenerate elements, and orientation of tets and 2D triangles. Indices must be in range.
-    fn check_measures(&self, elements: &[&[usize]]) -> Result<(), Problem> {
+    fn check_measures(&self, elements: &[&[usize]]) -> Result<(), MeshDefect> {
         let noun = self.element_noun();
         let kind = self.kind();
         let diagonal = self.rest_diagonal();
@@ -359,7 +359,7 @@ impl Mesh {
                 } else {
                     format!("longest edge {longest_edge:e}")
                 };
-                return Err(Problem::element(
+                return Err(MeshDefect::element(
                     e,
                     format!("{noun} is degenerate: {what} {measure:e} ({scale})"),
                 ));
@@ -370,7 +370,7 @@ impl Mesh {
             let negative = signed.iter().filter(|&&m| m < 0.0).count();
             let positive = signed.len() - negative;
             if positive == 0 {
-                return Err(Problem::whole(format!(
+                return Err(MeshDefect::whole(format!(
                     "all {negative} {} are negatively oriented \
                      (Mesh::with_positive_orientation flips them)",
                     self.element_noun_plural()
@@ -385,7 +385,7 @@ impl Mesh {
                 } else {
                     "signed area"
                 };
-                return Err(Problem::element(
+                return Err(MeshDefect::element(
                     e,
                     format!(
                         "{noun} is inverted relative to the others: {what} {:e} \
@@ -527,26 +527,26 @@ pub(crate) enum Culprit {
 
 /// A validation problem, before it is placed in a file.
 #[derive(Clone, Debug)]
-pub(crate) struct Problem {
+pub(crate) struct MeshDefect {
     pub culprit: Culprit,
     pub message: String,
 }
 
-impl Problem {
+impl MeshDefect {
     fn whole(message: impl Into<String>) -> Self {
-        Problem {
+        MeshDefect {
             culprit: Culprit::Whole,
             message: message.into(),
         }
     }
     fn vertex(v: usize, message: String) -> Self {
-        Problem {
+        MeshDefect {
             culprit: Culprit::Vertex(v),
             message,
         }
     }
     fn element(e: usize, message: String) -> Self {
-        Problem {
+        MeshDefect {
             culprit: Culprit::Element(e),
             message,
         }
@@ -561,7 +561,7 @@ fn check_shared_facets<const K: usize>(
     local: &[[usize; K]],
     kind: Kind,
     naming: &Naming,
-) -> Result<(), Problem> {
+) -> Result<(), MeshDefect> {
     let facet_noun = if K == 3 { "face" } else { "edge" };
     // Sorted facet -> (elements holding it, orientation parity of the first).
     let mut seen: HashMap<[usize; K], (Vec<usize>, bool)> = HashMap::new();
@@ -595,11 +595,11 @@ fn check_shared_facets<const K: usize>(
                             named()
                         )
                     };
-                    return Err(Problem::element(e, message));
+                    return Err(MeshDefect::element(e, message));
                 }
                 [_] => {}
                 [first, second, ..] => {
-                    return Err(Problem::element(
+                    return Err(MeshDefect::element(
                         e,
                         format!(
                             "{facet_noun} ({}) is shared by more than two {}: also by {} and {}",

@@ -21,323 +21,24 @@ use std::time::Instant;
 
 use anyhow::Context;
 
+use mochi_sim::bc::BcSequence;
+use mochi_sim::dataset::{self, SequencePlan, Split};
+use mochi_sim::trajectory::Trajectory;
+use mochi_sim::{BuiltScene, InputError};
+
 use crate::artifact::{Artifact, Method};
-use crate::bc::BcSequence;
-use crate::chart::{self, LabelledPoint, Series};
-use crate::dataset::{self, SequencePlan, Split};
-use crate::encoding::Encoding;
-use crate::error::InputError;
-use crate::latent::{decode_world, pack_signals};
-use crate::model::{forward_exported, ExportedIntegrator, ExportedMlp};
-use crate::scene::{Problem, Scene};
-use crate::storage;
-use crate::trajectory::Trajectory;
+use crate::learn::encoding::Encoding;
+use crate::report::chart::{self, LabelledPoint, Series};
+use crate::report::progress::FramesBar;
 
-/// Frames over which accuracy is measured (from the start of each test sequence).
-pub const ACCURACY_FRAMES: usize = 1000;
-/// Length of the stability rollout.
-pub const STABILITY_FRAMES: usize = 10_000;
+pub mod rollout;
+pub mod runtime_bench;
+pub mod storage;
 
-/// A loaded model ready to roll out.
-pub struct LoadedModel {
-    /// The artifact.
-    pub artifact: Artifact,
-    /// Its decoder.
-    pub decoder: ExportedMlp,
-    /// Its integrator.
-    pub integrator: ExportedIntegrator,
-}
-
-impl LoadedModel {
-    /// Builds the runnable networks of `artifact`.
-    pub fn new(artifact: Artifact) -> anyhow::Result<Self> {
-        let decoder = artifact.decoder().map_err(anyhow::Error::msg)?;
-        let integrator = artifact.integrator().map_err(anyhow::Error::msg)?;
-        Ok(LoadedModel {
-            artifact,
-            decoder,
-            integrator,
-        })
-    }
-}
-
-/// Rebuilds the scene an artifact was trained on and checks that its encoding is the same.
-pub fn rebuild_problem(artifact: &Artifact) -> anyhow::Result<(Problem, Encoding)> {
-    let scene = Scene::parse(&artifact.scene_toml, Path::new(&artifact.scene_path))?;
-    let problem = scene.build()?;
-    let encoding = Encoding::new(&problem)?;
-    if crate::artifact::EncodingData::new(&encoding) != artifact.encoding {
-        anyhow::bail!(
-            "the artifact's boundary-condition encoding does not match scene `{}` as rebuilt from it",
-            artifact.scene
-        );
-    }
-    Ok((problem, encoding))
-}
-
-/// A vertex farther than this from the reference (fraction of the rest diagonal) has drifted
-/// off it: the one threshold of [`Divergence::OffReference`], the weight-storage table and
-/// the subspace diagnostics.
-pub const OFF_REFERENCE: f64 = 0.5;
-
-/// Why a rollout counts as diverged (the tests of the module documentation, in the order
-/// they are made).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Divergence {
-    /// A latent or a position is not finite.
-    NotFinite,
-    /// A vertex left the training envelope: the state blew up.
-    LeftEnvelope,
-    /// The kinetic energy passed 100 times the training maximum.
-    KineticEnergy,
-    /// A vertex is more than half the diagonal from the reference: the state is finite
-    /// and bounded but has drifted from the motion it should follow.
-    OffReference,
-}
-
-impl Divergence {
-    /// A few words for reports.
-    pub fn describe(self) -> &'static str {
-        match self {
-            Divergence::NotFinite => "not finite",
-            Divergence::LeftEnvelope => "left the envelope",
-            Divergence::KineticEnergy => "kinetic energy over 100x",
-            Divergence::OffReference => "half a diagonal off the reference",
-        }
-    }
-}
-
-/// What one rollout measured.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct RolloutMetrics {
-    /// Mean over frames of the mean vertex error / diagonal.
-    pub mean_error: f64,
-    /// Max over frames of the max vertex error / diagonal.
-    pub max_error: f64,
-    /// Kinetic energy summed over the measured frames, ours over the reference's.
-    pub kinetic_energy_ratio: f64,
-    /// Frames completed before divergence, capped at the rollout length.
-    pub stable_frames: usize,
-    /// Why the rollout diverged; `None` when it ran its length.
-    pub divergence: Option<Divergence>,
-    /// Frames before the state blew up (not finite, out of the envelope, or the kinetic
-    /// energy cap), capped at the rollout length: a rollout that drifted off the reference
-    /// rolls on to measure this.
-    pub bounded_frames: usize,
-    /// Mean vertex error / diagonal of every measured frame.
-    pub error_curve: Vec<f64>,
-    /// Seconds per latent step.
-    pub step_seconds: f64,
-    /// Seconds per full decode (network and world frame).
-    pub decode_seconds: f64,
-}
-
-/// Per vertex, the distance between `x` and `reference` (`dim` numbers per vertex, f32 or f64)
-/// as a fraction of `diagonal`.
-pub fn vertex_errors<'a, T: Copy + Into<f64>>(
-    x: &'a [T],
-    reference: &'a [f64],
-    dim: usize,
-    diagonal: f64,
-) -> impl Iterator<Item = f64> + 'a {
-    x.chunks_exact(dim).zip(reference.chunks_exact(dim)).map(move |(p, r)| {
-        let squared: f64 = p.iter().zip(r).map(|(&a, &b)| (a.into() - b).powi(2)).sum();
-        squared.sqrt() / diagonal
-    })
-}
-
-/// The mean and the largest of [`vertex_errors`]: one frame's error in the units every report
-/// uses.
-pub fn mean_and_max_error<T: Copy + Into<f64>>(x: &[T], reference: &[f64], dim: usize, diagonal: f64) -> (f64, f64) {
-    let (sum, max, count) = vertex_errors(x, reference, dim, diagonal)
-        .fold((0.0, 0.0, 0usize), |(sum, max, count): (f64, f64, usize), e| {
-            (sum + e, max.max(e), count + 1)
-        });
-    (sum / count.max(1) as f64, max)
-}
-
-/// Largest norm of an encoded vertex's values (`per_vertex` each): its distance from its
-/// origin for positions, its edge's bend for strand bends.
-fn max_radius(q: &[f32], per_vertex: usize) -> f64 {
-    q.chunks_exact(per_vertex)
-        .map(|c| c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>().sqrt())
-        .fold(0.0, f64::max)
-}
-
-/// Kinetic energy of the step from `prev` to `x`.
-pub fn kinetic_energy(masses: &[f64], x: &[f64], prev: &[f64], dt: f64, dim: usize) -> f64 {
-    masses
-        .iter()
-        .enumerate()
-        .map(|(v, m)| {
-            let s: f64 = (0..dim).map(|c| (x[v * dim + c] - prev[v * dim + c]).powi(2)).sum();
-            0.5 * m * s / (dt * dt)
-        })
-        .sum()
-}
-
-/// The trainer's own rollout of `model` over `bc` (the reference the runtime is checked
-/// against): from the initial latent, calls `visit(t, z_t, q_t, x_t)` for `t = 1..=frames` with
-/// the latent, the decoded encoded state and the world state, until `visit` returns `false`.
-/// Returns the seconds spent stepping and decoding.
-pub fn roll(
-    model: &LoadedModel,
-    problem: &Problem,
-    encoding: &Encoding,
-    bc: &BcSequence,
-    frames: usize,
-    mut visit: impl FnMut(usize, &[f32], &[f32], &[f64]) -> bool,
-) -> anyhow::Result<(f64, f64)> {
-    let a = &model.artifact;
-    let dim = problem.mesh.dim;
-    let mut z_prev = a.initial_latent.clone();
-    let mut z_prev2 = a.initial_latent.clone();
-    let mut signals = [bc.signal(0), bc.signal(0), bc.signal(0)];
-    let (mut step_time, mut decode_time) = (0.0, 0.0);
-    for t in 1..=frames {
-        signals.rotate_right(1);
-        signals[0] = bc.signal(t);
-        let clock = Instant::now();
-        let q_in = pack_signals(&z_prev, &z_prev2, [&signals[0], &signals[1], &signals[2]]);
-        let z = model.integrator.step(&q_in)?;
-        let mid = Instant::now();
-        let targets = bc.targets(&problem.handles, t, dim);
-        let frame = encoding.frame(&targets)?;
-        let q = forward_exported(&model.decoder, &z)?;
-        let x = decode_world(encoding, &q, &frame, &targets)?;
-        step_time += (mid - clock).as_secs_f64();
-        decode_time += mid.elapsed().as_secs_f64();
-        if !visit(t, &z, &q, &x) {
-            break;
-        }
-        z_prev2 = std::mem::replace(&mut z_prev, z);
-    }
-    Ok((step_time, decode_time))
-}
-
-/// The limits a rollout of `model` must stay inside: the training envelope (a vertex farther
-/// from its encoding origin than in any training frame plus half the diagonal) and 100 times
-/// the training maximum of the kinetic energy.
-struct BlowUpLimits {
-    envelope: f64,
-    kinetic_energy: f64,
-    values_per_vertex: usize,
-}
-
-impl BlowUpLimits {
-    fn new(model: &LoadedModel, encoding: &Encoding) -> Self {
-        let a = &model.artifact;
-        BlowUpLimits {
-            envelope: a.summary.max_radius + 0.5 * a.diagonal,
-            kinetic_energy: 100.0 * a.summary.max_kinetic_energy.max(1e-12),
-            values_per_vertex: encoding.values_per_vertex(),
-        }
-    }
-
-    /// Why the state with latent `z`, decoded encoded state `q`, world state `x` and kinetic
-    /// energy `ke` (`None`: not checked) has blown up, if it has.
-    fn check(&self, z: &[f32], q: &[f32], x: &[f64], ke: Option<f64>) -> Option<Divergence> {
-        if !(z.iter().all(|v| v.is_finite()) && x.iter().all(|v| v.is_finite())) {
-            Some(Divergence::NotFinite)
-        } else if max_radius(q, self.values_per_vertex) > self.envelope {
-            Some(Divergence::LeftEnvelope)
-        } else if ke.is_some_and(|ke| ke > self.kinetic_energy) {
-            Some(Divergence::KineticEnergy)
-        } else {
-            None
-        }
-    }
-}
-
-/// The trainer's rollout of `model` over `bc` (world states of frames `1..`) up to the first
-/// frame that is not finite or leaves the training envelope (see [`BlowUpLimits`]): the
-/// frames on which another implementation of the same model can be expected to agree with it.
-pub fn stable_rollout(
-    model: &LoadedModel,
-    problem: &Problem,
-    encoding: &Encoding,
-    bc: &BcSequence,
-    frames: usize,
-) -> anyhow::Result<Vec<Vec<f64>>> {
-    let limits = BlowUpLimits::new(model, encoding);
-    let mut states = Vec::new();
-    roll(model, problem, encoding, bc, frames, |_, z, q, x| {
-        let stable = limits.check(z, q, x, None).is_none();
-        if stable {
-            states.push(x.to_vec());
-        }
-        stable
-    })?;
-    Ok(states)
-}
-
-/// Rolls `model` out over `bc` for `frames` frames from its initial latent, comparing with
-/// `reference` where it has frames (at most `accuracy_frames` of them).
-pub fn rollout(
-    model: &LoadedModel,
-    problem: &Problem,
-    encoding: &Encoding,
-    bc: &BcSequence,
-    frames: usize,
-    reference: &Trajectory,
-    accuracy_frames: usize,
-) -> anyhow::Result<RolloutMetrics> {
-    let a = &model.artifact;
-    let dim = problem.mesh.dim;
-    let masses = problem.simulator.masses();
-    let measured = accuracy_frames.min(reference.num_frames() - 1).min(frames);
-    let limits = BlowUpLimits::new(model, encoding);
-    let mut x_prev = reference.positions[0].clone();
-    let mut metrics = RolloutMetrics {
-        stable_frames: frames,
-        bounded_frames: frames,
-        ..Default::default()
-    };
-    let (mut ke_ours, mut ke_ref) = (0.0, 0.0);
-    let mut rolled = 0;
-    // A rollout that drifts off the reference is diverged, but rolls on to measure how long
-    // it stays bounded.
-    let (step_time, decode_time) = roll(model, problem, encoding, bc, frames, |t, z, q, x| {
-        rolled = t;
-        let ke = kinetic_energy(masses, x, &x_prev, a.dt, dim);
-        if let Some(reason) = limits.check(z, q, x, Some(ke)) {
-            metrics.bounded_frames = t - 1;
-            if metrics.divergence.is_none() {
-                metrics.stable_frames = t - 1;
-                metrics.divergence = Some(reason);
-            }
-            return false;
-        }
-        if t <= measured {
-            let xr = &reference.positions[t];
-            let (mean, max) = mean_and_max_error(x, xr, dim, a.diagonal);
-            metrics.error_curve.push(mean);
-            metrics.max_error = metrics.max_error.max(max);
-            ke_ours += ke;
-            ke_ref += kinetic_energy(masses, xr, &reference.positions[t - 1], a.dt, dim);
-            if (max > OFF_REFERENCE || !mean.is_finite()) && metrics.divergence.is_none() {
-                metrics.stable_frames = t - 1;
-                metrics.divergence = Some(Divergence::OffReference);
-            }
-        }
-        x_prev.copy_from_slice(x);
-        true
-    })?;
-    let done = rolled.max(1) as f64;
-    metrics.step_seconds = step_time / done;
-    metrics.decode_seconds = decode_time / done;
-    if metrics.error_curve.len() < measured {
-        // Blew up inside the measured window: the error there counts as unbounded. (A
-        // rollout that only drifted off the reference was measured to the end.)
-        metrics.mean_error = f64::INFINITY;
-        metrics.max_error = f64::INFINITY;
-        metrics.kinetic_energy_ratio = f64::NAN;
-    } else {
-        metrics.mean_error = metrics.error_curve.iter().sum::<f64>() / measured.max(1) as f64;
-        metrics.kinetic_energy_ratio = if ke_ref > 0.0 { ke_ours / ke_ref } else { f64::NAN };
-    }
-    Ok(metrics)
-}
+pub use rollout::{
+    rebuild_problem, roll, rollout, stable_rollout, Divergence, LoadedModel, RolloutMetrics, ACCURACY_FRAMES,
+    OFF_REFERENCE, STABILITY_FRAMES,
+};
 
 /// Results of one model on every test sequence.
 #[derive(Clone, Debug)]
@@ -364,7 +65,7 @@ impl ModelReport {
 /// the scene (another `beyond`, seed or motion) would otherwise be measured against a
 /// rollout driven by a different motion.
 fn check_follows_plan(
-    problem: &Problem,
+    problem: &BuiltScene,
     encoding: &Encoding,
     bc: &BcSequence,
     reference: &Trajectory,
@@ -430,7 +131,13 @@ pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec
     }
     let (mut problem, encoding) = rebuild_problem(first)?;
     let data_dir = paths[0].parent().unwrap_or(Path::new(".")).join("dataset");
-    dataset::generate(&mut problem, &data_dir, Some(Split::Test), false, options.progress)?;
+    dataset::generate(
+        &mut problem,
+        &data_dir,
+        Some(Split::Test),
+        false,
+        &FramesBar::new("dataset", options.progress),
+    )?;
     let tests = dataset::load(&problem, &data_dir, Split::Test)?;
     // The rollouts' boundary conditions come from the scene's plan, each sequence's errors
     // from its stored frames: the two must be the same motion.
@@ -452,7 +159,7 @@ pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec
     let timing_frames = 30.min(problem.scene.dataset.frames_of(Split::Test));
     let seq = problem.sequence(&tests[0].0.speeds, timing_frames, tests[0].0.seed);
     let clock = Instant::now();
-    problem.run(&seq, None)?;
+    problem.run(&seq, &mochi_sim::Silent)?;
     let reference_seconds = clock.elapsed().as_secs_f64() / timing_frames as f64;
 
     let mut reports = Vec::new();

@@ -23,12 +23,11 @@ use std::fs::File;
 use std::io::{self, BufReader, BufWriter, Cursor, Read};
 use std::path::Path;
 
-use anyhow::Context;
 use npyz::npz::NpzWriter;
 use npyz::zip::{self, CompressionMethod};
 use npyz::{DType, Deserialize, NpyFile, TypeStr, WriterBuilder};
 
-use crate::error::InputError;
+use crate::error::{InputError, SimError};
 
 /// Version number stored in `format_version`; bumped when the layout changes.
 pub const FORMAT_VERSION: u32 = 1;
@@ -131,11 +130,13 @@ impl Trajectory {
     }
 
     /// Writes the trajectory as an uncompressed `.npz` archive (see the module docs).
-    pub fn write_npz(&self, path: &Path) -> anyhow::Result<()> {
-        self.validate()
-            .map_err(|msg| anyhow::anyhow!("{}: invalid trajectory: {msg}", path.display()))?;
-        self.write_arrays(path)
-            .with_context(|| format!("writing trajectory {}", path.display()))
+    pub fn write_npz(&self, path: &Path) -> Result<(), SimError> {
+        self.check()
+            .map_err(|(field, msg)| InputError::field(path, field, format!("invalid trajectory: {msg}")))?;
+        self.write_arrays(path).map_err(|source| SimError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
     }
 
     fn write_arrays(&self, path: &Path) -> io::Result<()> {

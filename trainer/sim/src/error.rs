@@ -67,3 +67,30 @@ impl fmt::Display for InputError {
 }
 
 impl std::error::Error for InputError {}
+
+/// Errors of the simulator's library calls: bad input, a failed step, a file that cannot be
+/// written.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// A problem with an input file or value.
+    #[error(transparent)]
+    Input(#[from] InputError),
+    /// A full-space step failed while simulating a sequence.
+    #[error("simulating {sequence} of `{scene}`: {source}")]
+    Step {
+        /// The scene's name.
+        scene: String,
+        /// The sequence's name.
+        sequence: String,
+        /// Why the step failed.
+        source: crate::solver::StepError,
+    },
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+}

@@ -1,11 +1,20 @@
 //! Validation of the full-space simulator against analytic solutions and physical laws.
 
-use mochi_trainer::dataset::SpeedPlan;
-use mochi_trainer::scene::{Problem, Scene};
-use mochi_trainer::solver::StepError;
+use mochi_sim::dataset::SpeedPlan;
+use mochi_sim::solver::StepError;
+use mochi_sim::{BuiltScene, Scene, SceneDocument};
 use std::path::Path;
 
-fn build(toml: &str) -> Problem {
+/// A scene shipped with the trainer (its `[latent]` table, the trainer's, set aside).
+fn shipped(name: &str) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../scenes/{name}.toml"));
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut document = SceneDocument::parse(&text, &path).unwrap();
+    document.take_section::<toml::Table>("latent").unwrap();
+    document.into_scene().unwrap()
+}
+
+fn build(toml: &str) -> BuiltScene {
     Scene::parse(toml, Path::new("<test scene>"))
         .expect("valid scene")
         .build()
@@ -14,7 +23,7 @@ fn build(toml: &str) -> Problem {
 
 /// Static tip deflection (mean displacement along `axis` of the vertices at the free end,
 /// x = x_max) under the scene's loads with the handles at rest.
-fn static_tip_deflection(problem: &mut Problem, axis: usize) -> f64 {
+fn static_tip_deflection(problem: &mut BuiltScene, axis: usize) -> f64 {
     let dim = problem.mesh.dim;
     let targets: Vec<f64> = problem
         .handles
@@ -188,7 +197,7 @@ select = { side = { axis = 0, end = "min" } }
 
 /// Bends the beam with a tip load, then releases it: returns the problem in the bent
 /// static state with the load removed.
-fn released_beam(integrator: &str) -> Problem {
+fn released_beam(integrator: &str) -> BuiltScene {
     let loaded =
         format!("{BEAM}\n[[loads]]\nselect = {{ side = {{ axis = 0, end = \"max\" }} }}\nforce = [0.0, -20.0, 0.0]\n");
     let mut bent = build(&loaded);
@@ -201,7 +210,7 @@ fn released_beam(integrator: &str) -> Problem {
     free
 }
 
-fn vibrate(problem: &mut Problem, frames: usize) -> Vec<f64> {
+fn vibrate(problem: &mut BuiltScene, frames: usize) -> Vec<f64> {
     let dim = problem.mesh.dim;
     let targets: Vec<f64> = problem
         .handles
@@ -280,7 +289,7 @@ fn bdf2_dissipates_less_than_implicit_euler() {
 
 #[test]
 fn newton_converges_superlinearly() {
-    let scene = Scene::load("beam").unwrap();
+    let scene = shipped("beam");
     let mut problem = scene.build().unwrap();
     problem.simulator = {
         // Tighter tolerance so the tail of the iteration is visible.

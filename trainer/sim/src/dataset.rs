@@ -4,34 +4,15 @@
 //! and include a sudden speed drop.
 
 use crate::bc::{self, BcSequence, Track};
-use crate::error::InputError;
-use crate::scene::{DatasetSpec, Problem, Start};
+use crate::error::{InputError, SimError};
+use crate::progress::Progress;
+pub use crate::scene::Split;
+use crate::scene::{BuiltScene, DatasetSpec, Start};
 use crate::solver::{StepError, StepReport};
 use crate::trajectory::Trajectory;
-use anyhow::Context;
-use indicatif::{ProgressBar, ProgressStyle};
 use rand::Rng;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// Train or test.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Split {
-    /// Used for training.
-    Train,
-    /// Held out for evaluation.
-    Test,
-}
-
-impl Split {
-    /// Lower-case name.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Split::Train => "train",
-            Split::Test => "test",
-        }
-    }
-}
 
 /// How fast the handles move over a sequence: from each `start_frame`, speeds are the
 /// scene's speeds at `level` (0 bottom, 1 top of the training range) times `factor`; and
@@ -178,7 +159,7 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
     plans
 }
 
-impl Problem {
+impl BuiltScene {
     /// The boundary conditions of a sequence: scripted handles follow their script;
     /// handles with a motion sample it with the plan's speeds; others stay put.
     pub fn sequence(&self, speeds: &SpeedPlan, frames: usize, seed: u64) -> BcSequence {
@@ -212,7 +193,7 @@ impl Problem {
     }
 
     /// Simulates `seq` from the scene's initial state and records the trajectory.
-    pub fn run(&mut self, seq: &BcSequence, progress: Option<&ProgressBar>) -> Result<Trajectory, StepError> {
+    pub fn run(&mut self, seq: &BcSequence, progress: &dyn Progress) -> Result<Trajectory, StepError> {
         let dim = self.mesh.dim;
         self.simulator.reset(&self.mesh.rest.clone());
         let targets0 = seq.targets(&self.handles, 0, dim);
@@ -261,24 +242,10 @@ impl Problem {
                 .push(self.simulator.energies().iter().map(|(_, e)| *e).collect());
             traj.newton_iterations.push(report.iterations as u32);
             traj.step_seconds.push(seconds);
-            if let Some(p) = progress {
-                p.inc(1);
-            }
+            progress.advance(1);
         }
         Ok(traj)
     }
-}
-
-/// A progress bar counting frames, labelled `message`.
-pub fn frames_bar(len: u64, message: String) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template("{msg:24} [{bar:40}] {pos}/{len} frames, {elapsed} (eta {eta})")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    bar.set_message(message);
-    bar
 }
 
 /// What [`generate`] did.
@@ -302,13 +269,16 @@ pub fn sequence_path(dir: &Path, plan: &SequencePlan) -> PathBuf {
 /// Simulates the sequences of `problem`'s dataset (only those of `split` when given) into
 /// `dir`, skipping files that already exist unless `overwrite`.
 pub fn generate(
-    problem: &mut Problem,
+    problem: &mut BuiltScene,
     dir: &Path,
     split: Option<Split>,
     overwrite: bool,
-    progress: bool,
-) -> anyhow::Result<GenerateReport> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    progress: &dyn Progress,
+) -> Result<GenerateReport, SimError> {
+    std::fs::create_dir_all(dir).map_err(|source| SimError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     let spec = problem.scene.dataset;
     let todo: Vec<SequencePlan> = plan(&spec)
         .into_iter()
@@ -317,19 +287,17 @@ pub fn generate(
         .collect();
     let total: usize = todo.iter().map(|p| spec.frames_of(p.split)).sum();
     let name = problem.scene.name.clone();
-    let bar = if progress {
-        frames_bar(total as u64, format!("dataset {name}"))
-    } else {
-        ProgressBar::hidden()
-    };
+    progress.start(total as u64);
     let start = Instant::now();
     let mut report = GenerateReport::default();
     for plan in &todo {
-        bar.set_message(format!("{name} {}", plan.name));
+        progress.message(&format!("{name} {}", plan.name));
         let seq = problem.sequence(&plan.speeds, spec.frames_of(plan.split), plan.seed);
-        let mut traj = problem
-            .run(&seq, Some(&bar))
-            .with_context(|| format!("simulating {} of `{name}`", plan.name))?;
+        let mut traj = problem.run(&seq, progress).map_err(|source| SimError::Step {
+            scene: name.clone(),
+            sequence: plan.name.clone(),
+            source,
+        })?;
         traj.meta.push(("split".into(), plan.split.as_str().into()));
         traj.meta.push(("sequence".into(), plan.description.clone()));
         traj.meta.push(("seed".into(), plan.seed.to_string()));
@@ -340,7 +308,7 @@ pub fn generate(
             .extend(traj.newton_iterations[1..].iter().map(|&i| i as f64));
         report.sequences += 1;
     }
-    bar.finish_and_clear();
+    progress.finish();
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
 }
@@ -352,7 +320,7 @@ fn is_current(path: &Path, frames: usize) -> bool {
 
 /// Reads the sequences of `split` of `problem`'s dataset from `dir`, in plan order, checking
 /// that each belongs to the scene and has the planned length.
-pub fn load(problem: &Problem, dir: &Path, split: Split) -> Result<Vec<(SequencePlan, Trajectory)>, InputError> {
+pub fn load(problem: &BuiltScene, dir: &Path, split: Split) -> Result<Vec<(SequencePlan, Trajectory)>, InputError> {
     let spec = problem.scene.dataset;
     let mut out = Vec::new();
     for plan in plan(&spec).into_iter().filter(|p| p.split == split) {

@@ -12,14 +12,17 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 
 use crate::artifact::Artifact;
-use crate::chart::{self, Series};
-use crate::dataset::{self, Split};
-use crate::encoding::Encoding;
+use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
-use crate::latent::{self, TrainOptions};
-use crate::render::{self, RenderOptions};
-use crate::runtime_bench::motions;
-use crate::scene::Scene;
+use crate::learn::encoding::Encoding;
+use crate::learn::latent::{self, TrainOptions};
+use crate::learn::recipe::Recipe;
+use crate::report::chart::{self, Series};
+use crate::report::progress::FramesBar;
+use crate::report::render::{self, RenderOptions};
+use mochi_sim::dataset::{self, Split};
+use mochi_sim::measure::vertex_errors;
+use mochi_sim::Progress;
 
 /// What the demo does.
 #[derive(Clone, Debug)]
@@ -89,7 +92,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// Runs the demo.
 pub fn run(options: &DemoOptions) -> Result<DemoReport> {
     let mut stages = Vec::new();
-    let scene = Scene::load(&options.scene)?;
+    let recipe = Recipe::load(&options.scene)?;
+    let scene = &recipe.scene;
     let mut problem = scene.build()?;
     let out = &options.out_dir;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
@@ -98,7 +102,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
     //    is now).
     let (artifact_path, _) = latent::artifact_paths(out, &scene.name);
     let clock = Instant::now();
-    let scene_toml = toml::to_string(&scene)?;
+    let scene_toml = recipe.to_toml()?;
     let artifact = match Artifact::read(&artifact_path) {
         Ok(artifact) if !options.retrain && artifact.scene_toml == scene_toml => {
             println!("== reusing {} (pass --retrain to train again)", artifact_path.display());
@@ -112,7 +116,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
                 progress: true,
                 latent: None,
             };
-            latent::train_scene(&mut problem, &train)?;
+            latent::train_scene(&recipe, &train)?;
             Artifact::read(&artifact_path)?
         }
     };
@@ -145,8 +149,9 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
         plan.name, plan.description
     );
     let clock = Instant::now();
-    let bar = dataset::frames_bar(frames as u64, format!("full space {}", scene.name));
-    let reference = problem.run(&bc, Some(&bar))?;
+    let bar = FramesBar::new(&format!("full space {}", scene.name), true);
+    bar.start(frames as u64);
+    let reference = problem.run(&bc, &bar)?;
     bar.finish();
     let full_space_seconds = clock.elapsed().as_secs_f64() / frames as f64;
     stages.push(("full-space reference".to_string(), clock.elapsed().as_secs_f64()));
@@ -199,17 +204,17 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
     let dim = problem.mesh.dim;
     let diagonal = artifact.diagonal;
     let errors: Vec<Vec<f64>> = (0..frames)
-        .map(|t| eval::vertex_errors(runtime[t], &reference.positions[t + 1], dim, diagonal).collect())
+        .map(|t| vertex_errors(runtime[t], &reference.positions[t + 1], dim, diagonal).collect())
         .collect();
     let mean_curve: Vec<f64> = errors.iter().map(|e| e.iter().sum::<f64>() / e.len() as f64).collect();
     let mean_error = mean_curve.iter().sum::<f64>() / frames as f64;
     let max_error = errors.iter().flatten().copied().fold(0.0, f64::max);
     // The artifact was trained on this scene (checked above), so its encoding is this one.
-    let encoding = Encoding::new(&problem)?;
+    let encoding = Encoding::new(&problem, recipe.latent.rods)?;
     let trainer = LoadedModel::new(artifact)?;
     let mut disagreement = 0.0f64;
     eval::roll(&trainer, &problem, &encoding, &bc, frames, |t, _, _, x| {
-        disagreement = eval::vertex_errors(runtime[t - 1], x, dim, diagonal).fold(disagreement, f64::max);
+        disagreement = vertex_errors(runtime[t - 1], x, dim, diagonal).fold(disagreement, f64::max);
         true
     })?;
     let artifact = trainer.artifact;

@@ -13,13 +13,14 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use candle_core::{Device, Tensor};
 use mochi_codegen::{format_name, Options, Quantized};
-use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, WeightFormat, SIGNAL_PER_HANDLE};
+use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, WeightFormat};
 
 use crate::artifact::Artifact;
-use crate::bc::BcSequence;
-use crate::dataset::{self, Split};
+use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
-use crate::model::ResMlp;
+use crate::learn::network::ResMlp;
+use mochi_sim::dataset::{self, Split};
+use mochi_sim::measure::vertex_errors;
 
 /// Widest hidden layer the benchmark's instances can run.
 pub const MAX_HIDDEN: usize = 512;
@@ -66,18 +67,6 @@ impl RuntimeTiming {
     pub fn gflops(&self) -> f64 {
         2.0 * self.multiply_adds as f64 / self.full / 1e9
     }
-}
-
-/// The handle motions of frame `t` of `bc`.
-pub fn motions(bc: &BcSequence, t: usize) -> Vec<HandleMotion> {
-    bc.signal(t)
-        .chunks_exact(SIGNAL_PER_HANDLE)
-        .map(|c| {
-            let mut s = [0.0f32; SIGNAL_PER_HANDLE];
-            s.iter_mut().zip(c).for_each(|(s, &v)| *s = v as f32);
-            HandleMotion::from_signal(&s)
-        })
-        .collect()
 }
 
 /// Best seconds per call of `f` over 5 rounds of `calls` calls (after a warm-up round).
@@ -203,7 +192,7 @@ pub fn agreement<const K: usize, const S: usize, const H: usize>(
             break;
         }
         body.decode_into(model, &mut x)?;
-        worst = eval::vertex_errors(&x, r, m.dim(), diagonal).fold(worst, f64::max);
+        worst = vertex_errors(&x, r, m.dim(), diagonal).fold(worst, f64::max);
         compared += 1;
     }
     Ok((worst, compared))

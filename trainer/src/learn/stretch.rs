@@ -10,7 +10,7 @@
 //! length in length units, and the penalty is the mean of `s^2` over the batch and the edges.
 //! Edge lengths of a triangle fix its metric, so on cloth a decoding with no edge stretch has
 //! the truth's in-plane strain. It is geometry, not an energy: the energies themselves are
-//! defined once, in [`crate::energy`].
+//! defined once, in [`mochi_sim::energy`].
 //!
 //! Encoded positions are `R^T (x - o)` per vertex ([`Encoding::encode`]), a rigid map, so
 //! edge lengths are the same in encoded and world coordinates; edges to prescribed vertices
@@ -18,8 +18,8 @@
 
 use candle_core::{DType, Device, Tensor};
 
-use crate::encoding::Encoding;
-use crate::mesh::Mesh;
+use crate::learn::encoding::Encoding;
+use mochi_sim::mesh::Mesh;
 
 /// The edges between encoded vertices and their rest lengths, ready for candle.
 #[derive(Debug, Clone)]
@@ -107,8 +107,8 @@ impl EdgeStretch {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bc::Handle;
-    use crate::mesh::procedural::cloth_grid;
+    use mochi_sim::bc::Handle;
+    use mochi_sim::mesh::procedural::cloth_grid;
     use nalgebra::{Rotation3, Vector3};
 
     /// A handle holding `vertices` of `mesh` (3D) where they rest.
@@ -222,7 +222,7 @@ mod tests {
         let mesh = Mesh {
             dim: 3,
             rest: vec![0.0, 0.0, 0.0, 0.0, -0.1, 0.0, 0.0, -0.2, 0.0],
-            elements: crate::mesh::Elements::Rods(vec![vec![0, 1, 2]]),
+            elements: mochi_sim::mesh::Elements::Rods(vec![vec![0, 1, 2]]),
         };
         // Strands encoded by bends are held by their first two vertices.
         let encoding = Encoding::from_parts(&mesh, &[pin(&mesh, &[0, 1])], false)

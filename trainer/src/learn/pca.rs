@@ -3,7 +3,7 @@
 //!
 //! Errors are reported as the RMS vertex error, `sqrt(mean over frames and vertices of
 //! |x_v - x̂_v|^2)`, divided by a length scale; pass the rest bounding-box diagonal
-//! ([`crate::mesh::Mesh::rest_diagonal`]), the unit in which `mochi eval` reports errors.
+//! ([`mochi_sim::mesh::Mesh::rest_diagonal`]), the unit in which `mochi eval` reports errors.
 //! On encoded frames the mean runs over the encoded (non-handle) vertices; the encoding's
 //! rotation does not change distances and handle vertices are reconstructed exactly.
 
@@ -266,13 +266,13 @@ fn check_scale(dims: usize, dim: usize, length_scale: f64) -> Result<(), PcaErro
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::SpeedPlan;
-    use crate::encoding::Encoding;
-    use crate::scene::Scene;
+    use crate::learn::encoding::Encoding;
+    use crate::learn::recipe::Recipe;
+    use mochi_sim::dataset::SpeedPlan;
     use rand::Rng;
 
     fn random_frames(frames: usize, dims: usize, seed: u64) -> Vec<Vec<f64>> {
-        let mut rng = crate::bc::rng(seed);
+        let mut rng = mochi_sim::bc::rng(seed);
         (0..frames)
             .map(|_| (0..dims).map(|_| rng.random_range(-1.0..1.0)).collect())
             .collect()
@@ -413,11 +413,14 @@ mod tests {
     #[ignore = "report of PCA errors (simulates 270 frames); run with --ignored --nocapture"]
     fn pca_report_error_against_k_for_beam_cloth_and_rods() {
         for name in ["beam", "cloth", "rods"] {
-            let mut problem = Scene::load(name).unwrap().build().unwrap();
-            let encoding = Encoding::new(&problem).unwrap();
+            let recipe = Recipe::load(name).unwrap();
+            let mut problem = recipe.build().unwrap();
+            let encoding = Encoding::new(&problem, recipe.latent.rods).unwrap();
             let mut run = |seed: u64, level: f64| {
                 let seq = problem.sequence(&SpeedPlan::constant(level), 30, seed);
-                encoding.encode_trajectory(&problem.run(&seq, None).unwrap()).unwrap()
+                encoding
+                    .encode_trajectory(&problem.run(&seq, &mochi_sim::Silent).unwrap())
+                    .unwrap()
             };
             let mut frames = run(1, 0.2);
             frames.extend(run(2, 0.8));

@@ -98,7 +98,7 @@ pub fn scatter_chart(
 /// Registers the built-in font as plotters' `sans-serif` family (once per process).
 pub(crate) fn register_font() -> anyhow::Result<()> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
-    const DEJAVU_SANS: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+    const DEJAVU_SANS: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
     let ok = *REGISTERED
         .get_or_init(|| plotters::style::register_font("sans-serif", FontStyle::Normal, DEJAVU_SANS).is_ok());
     if ok {

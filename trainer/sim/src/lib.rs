@@ -1,0 +1,24 @@
+//! mochi's full-space simulator: meshes and their readers, materials, one definition of
+//! every energy (elastic, inertia, external, collision), the Newton solver with implicit
+//! Euler or BDF2, boundary conditions, scenes (`Scene`, read from TOML), dataset sequences
+//! and trajectories (`.npz`).
+//!
+//! Depends on no learning, charting or command-line crate: someone who wants the FEM
+//! solver gets only that. The layers above (the trainer's learning, evaluation and CLI)
+//! build on it; nothing here reaches up to them.
+
+pub mod bc;
+pub mod dataset;
+pub mod energy;
+pub mod error;
+pub mod material;
+pub mod measure;
+pub mod mesh;
+pub mod progress;
+pub mod scene;
+pub mod solver;
+pub mod trajectory;
+
+pub use error::{InputError, Location, SimError};
+pub use progress::{Progress, Silent};
+pub use scene::{BuiltScene, Scene, SceneDocument};
