@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 /// Hyperelastic model of solids, 2D triangles and cloth membranes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
-pub enum Model {
+pub enum MaterialLaw {
     /// Stable neo-Hookean (Smith et al. 2018).
     #[default]
     StableNeoHookean,

@@ -11,9 +11,9 @@ use crate::energy::tet::TetElastic;
 use crate::energy::tri2d::Tri2dElastic;
 use crate::energy::StencilEnergy;
 use crate::error::InputError;
-use crate::material::{ElementMaterial, Model};
+use crate::material::{ElementMaterial, MaterialLaw};
 use crate::mesh::{self, Elements, Mesh};
-use crate::solver::{Integrator, NewtonSettings, Simulator};
+use crate::solver::{NewtonSettings, Simulator, SimulatorConfig, TimeScheme};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -34,7 +34,7 @@ pub struct Scene {
     pub gravity: [f64; 3],
     /// Time integration scheme.
     #[serde(default)]
-    pub integrator: Integrator,
+    pub integrator: TimeScheme,
     /// Newton settings.
     #[serde(default)]
     pub newton: NewtonSettings,
@@ -142,7 +142,7 @@ fn default_rod_direction() -> [f64; 3] {
 pub struct MaterialSpec {
     /// Constitutive model of solids and membranes.
     #[serde(default)]
-    pub model: Model,
+    pub model: MaterialLaw,
     /// Young's modulus (Pa).
     pub youngs: f64,
     /// Poisson ratio.
@@ -468,17 +468,17 @@ impl Scene {
         let Energies { masses, potentials } = self.build_energies(&mesh)?;
         let handles = self.build_handles(&mesh)?;
         let fixed: Vec<usize> = handles.iter().flat_map(|h| h.vertices.iter().copied()).collect();
-        let simulator = Simulator::new(
-            mesh.dim,
-            mesh.rest.clone(),
+        let simulator = Simulator::new(SimulatorConfig {
+            dim: mesh.dim,
+            x0: mesh.rest.clone(),
             masses,
             potentials,
-            fixed,
-            self.dt,
-            self.integrator,
-            self.newton,
-            mesh.rest_diagonal(),
-        );
+            fixed_vertices: fixed,
+            dt: self.dt,
+            scheme: self.integrator,
+            settings: self.newton,
+            length_scale: mesh.rest_diagonal(),
+        });
         Ok(BuiltScene {
             scene: self.clone(),
             mesh,

@@ -18,7 +18,7 @@ use std::time::Instant;
 /// Time integration scheme.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
-pub enum Integrator {
+pub enum TimeScheme {
     /// First-order implicit (backward) Euler.
     #[default]
     ImplicitEuler,
@@ -109,7 +109,7 @@ pub enum StepError {
 pub struct Simulator {
     dim: usize,
     dt: f64,
-    integrator: Integrator,
+    integrator: TimeScheme,
     settings: NewtonSettings,
     length_scale: f64,
     inertia: Inertia,
@@ -127,24 +127,43 @@ pub struct Simulator {
 
 const NOT_FREE: usize = usize::MAX;
 
+/// What a [`Simulator`] is built from.
+pub struct SimulatorConfig {
+    /// Spatial dimension (2 or 3).
+    pub dim: usize,
+    /// Initial positions (`dim` per vertex); the body starts at rest there.
+    pub x0: Vec<f64>,
+    /// Lumped vertex masses; the inertia term is built from them.
+    pub masses: Vec<f64>,
+    /// Conservative terms (elastic, gravity, loads, collision).
+    pub potentials: Vec<Box<dyn StencilEnergy>>,
+    /// Vertices that follow the targets passed to [`Simulator::step`].
+    pub fixed_vertices: Vec<usize>,
+    /// Time step in seconds.
+    pub dt: f64,
+    /// Implicit Euler or BDF2.
+    pub scheme: TimeScheme,
+    /// Newton's tolerance, iteration cap and Hessian choice.
+    pub settings: NewtonSettings,
+    /// Length that makes the convergence tolerance unit-free (the rest bounding-box
+    /// diagonal).
+    pub length_scale: f64,
+}
+
 impl Simulator {
-    /// Builds a simulator starting at rest at `x0`.
-    ///
-    /// `potentials` are the conservative terms (elastic, gravity, collision); the inertia
-    /// term is built from `masses`. Vertices in `fixed_vertices` follow the targets passed
-    /// to [`Simulator::step`]. `length_scale` (the rest bounding-box diagonal) makes the
-    /// convergence tolerance unit-free.
-    pub fn new(
-        dim: usize,
-        x0: Vec<f64>,
-        masses: Vec<f64>,
-        potentials: Vec<Box<dyn StencilEnergy>>,
-        fixed_vertices: Vec<usize>,
-        dt: f64,
-        integrator: Integrator,
-        settings: NewtonSettings,
-        length_scale: f64,
-    ) -> Self {
+    /// Builds a simulator starting at rest at `config.x0`.
+    pub fn new(config: SimulatorConfig) -> Self {
+        let SimulatorConfig {
+            dim,
+            x0,
+            masses,
+            potentials,
+            fixed_vertices,
+            dt,
+            scheme: integrator,
+            settings,
+            length_scale,
+        } = config;
         let n = x0.len();
         let mut fixed = vec![false; n];
         for &v in &fixed_vertices {
@@ -256,7 +275,7 @@ impl Simulator {
         self.check_targets(targets)?;
         let start = Instant::now();
         let h = self.dt;
-        let bdf2 = self.integrator == Integrator::Bdf2 && self.steps > 0;
+        let bdf2 = self.integrator == TimeScheme::Bdf2 && self.steps > 0;
         // Predicted positions and the weight of the potentials in the incremental potential.
         let (xhat, weight): (Vec<f64>, f64) = if bdf2 {
             let xhat = (0..self.x.len())

@@ -27,7 +27,7 @@ use crate::artifact::{Artifact, EncodingData, HandleData, Method, SizeTrial, Tra
 use crate::learn::encoding::{decode_world, pack_signals, Encoding, Frame};
 use crate::learn::loss::PhysicsLoss;
 use crate::learn::network::{
-    rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, Integrator, IntegratorSpec, Normalisation,
+    rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, IntegratorSpec, LatentIntegrator, Normalisation,
 };
 use crate::learn::pca::{self, Pca};
 use crate::learn::recipe::{NetworkSpec, Recipe};
@@ -338,7 +338,7 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions) -> anyhow::Result<Tr
     let mut outcomes = Vec::new();
     for method in [Method::SelfSupervised, Method::Supervised] {
         let clock = Instant::now();
-        let integrator = Integrator::new(
+        let integrator = LatentIntegrator::new(
             int_spec,
             set.input_norm.clone(),
             set.increment_norm.clone(),
@@ -661,7 +661,7 @@ impl Augmentation {
 /// returns the samples kept and their inputs.
 pub fn rolled_inputs(
     data: &IntegratorData<'_>,
-    integrator: &Integrator,
+    integrator: &LatentIntegrator,
     samples: &[SampleRef],
     limit: usize,
     rng: &mut ChaCha8Rng,
@@ -780,7 +780,7 @@ impl<'a> PhysicsObjective<'a> {
     /// augmentation is on).
     pub fn batch_loss(
         &mut self,
-        integrator: &Integrator,
+        integrator: &LatentIntegrator,
         batch: &Batch<'_>,
         rng: &mut ChaCha8Rng,
     ) -> candle_core::Result<BatchLoss> {
@@ -896,7 +896,7 @@ impl<'a> SupervisedObjective<'a> {
     /// Objective of one minibatch.
     pub fn batch_loss(
         &self,
-        integrator: &Integrator,
+        integrator: &LatentIntegrator,
         batch: &Batch<'_>,
         rng: &mut ChaCha8Rng,
     ) -> candle_core::Result<BatchLoss> {
@@ -941,7 +941,7 @@ pub fn build_artifact(
     problem: &BuiltScene,
     encoding: &Encoding,
     ae: &Autoencoder,
-    integrator: &Integrator,
+    integrator: &LatentIntegrator,
     data: &IntegratorData<'_>,
     pca: &Pca,
     method: Method,
@@ -1059,14 +1059,14 @@ mod tests {
         }
     }
 
-    fn tiny_integrator(data: &IntegratorData<'_>) -> Integrator {
+    fn tiny_integrator(data: &IntegratorData<'_>) -> LatentIntegrator {
         let int_spec = IntegratorSpec {
             latent: data.latent,
             bc: data.bc_len,
             hidden: 16,
             blocks: 1,
         };
-        Integrator::new(int_spec, data.input_norm.clone(), data.increment_norm.clone(), 2).unwrap()
+        LatentIntegrator::new(int_spec, data.input_norm.clone(), data.increment_norm.clone(), 2).unwrap()
     }
 
     /// The surrogate objective's gradient with respect to an integrator weight equals the

@@ -36,7 +36,7 @@ use serde::{Deserialize, Serialize};
 
 /// Errors building, running or exporting a network.
 #[derive(Debug, thiserror::Error)]
-pub enum ModelError {
+pub enum NetworkError {
     /// A size or value given to a constructor or an exported forward pass does not fit.
     #[error("{0}")]
     Invalid(String),
@@ -46,10 +46,10 @@ pub enum ModelError {
 }
 
 /// Result of this module's functions.
-pub type ModelResult<T> = Result<T, ModelError>;
+pub type ModelResult<T> = Result<T, NetworkError>;
 
 fn invalid<T>(message: impl Into<String>) -> ModelResult<T> {
-    Err(ModelError::Invalid(message.into()))
+    Err(NetworkError::Invalid(message.into()))
 }
 
 /// `v * sigmoid(v)`, written as candle writes its `silu` (`v / (1 + exp(-v))`).
@@ -799,7 +799,7 @@ impl Normalisation {
 /// error then becomes a small absolute error per step. The normalisations are constants (not
 /// trained); on export they are folded into the first and last dense layers.
 #[derive(Debug, Clone)]
-pub struct Integrator {
+pub struct LatentIntegrator {
     spec: IntegratorSpec,
     mlp: ResMlp,
     input_norm: Normalisation,
@@ -847,7 +847,7 @@ impl ExportedIntegrator {
     }
 }
 
-impl Integrator {
+impl LatentIntegrator {
     /// A randomly initialised integrator. `input_norm` normalises the packed input (length
     /// [`IntegratorSpec::input`]), `increment_norm` de-normalises the predicted
     /// `z_t - z_{t-1}` (length `latent`); fit both to training data with
@@ -871,7 +871,7 @@ impl Integrator {
         let mlp = ResMlp::new(spec.mlp(), &mut rng)?;
         let (input_mean, input_std) = input_norm.tensors()?;
         let (increment_mean, increment_std) = increment_norm.tensors()?;
-        Ok(Integrator {
+        Ok(LatentIntegrator {
             spec,
             mlp,
             input_norm,
@@ -1163,7 +1163,7 @@ mod tests {
             .collect();
         let input_norm = Normalisation::fit(&inputs).unwrap();
         let increment_norm = Normalisation::fit(&increments).unwrap();
-        let integrator = Integrator::new(spec, input_norm, increment_norm, 6).unwrap();
+        let integrator = LatentIntegrator::new(spec, input_norm, increment_norm, 6).unwrap();
         randomise(&integrator.parameters(), 0.3, &mut rng);
         let q = &inputs[..10];
         let candle = tensor_to_rows(&integrator.forward(&as_tensor(q)).unwrap()).unwrap();
@@ -1200,7 +1200,7 @@ mod tests {
     #[test]
     fn integrator_pack_orders_inputs() {
         let t = |v: &[f32]| Tensor::from_slice(v, (1, v.len()), &Device::Cpu).unwrap();
-        let q = Integrator::pack(&t(&[1., 2.]), &t(&[3., 4.]), &t(&[5.]), &t(&[6.]), &t(&[7.])).unwrap();
+        let q = LatentIntegrator::pack(&t(&[1., 2.]), &t(&[3., 4.]), &t(&[5.]), &t(&[6.]), &t(&[7.])).unwrap();
         assert_eq!(tensor_to_rows(&q).unwrap(), vec![vec![1., 2., 3., 4., 5., 6., 7.]]);
     }
 
@@ -1331,7 +1331,7 @@ mod tests {
             hidden: 8,
             blocks: 0,
         };
-        let wrong = Integrator::new(spec, Normalisation::identity(6), Normalisation::identity(2), 0);
+        let wrong = LatentIntegrator::new(spec, Normalisation::identity(6), Normalisation::identity(2), 0);
         assert!(wrong.is_err());
     }
 

@@ -19,7 +19,8 @@ mod simplex;
 pub mod tet;
 pub mod tri2d;
 
-pub mod fd;
+#[cfg(test)]
+mod fd;
 pub mod psd;
 
 use rayon::prelude::*;

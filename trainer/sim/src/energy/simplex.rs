@@ -33,7 +33,7 @@ use nalgebra::{
 
 use super::{Local, Want};
 use crate::error::InputError;
-use crate::material::{ElementMaterial, Model};
+use crate::material::{ElementMaterial, MaterialLaw};
 
 /// A simplex whose rest measure (volume, area) is at most this times its longest edge
 /// to the power `D` is rejected as degenerate (a regular tet has about 0.118, an
@@ -66,7 +66,7 @@ struct ElementConstants<const D: usize> {
 /// Hyperelastic energy of a mesh of `D`-simplices in `D` dimensions:
 /// `sum_e measure_e * Psi(F_e)`, one stencil (`D + 1` vertices) per element.
 pub struct SimplexElastic<const D: usize, const N: usize> {
-    model: Model,
+    model: MaterialLaw,
     /// Vertex indices, `D + 1` per element.
     indices: Vec<usize>,
     /// Rest measures (volumes, areas), positive.
@@ -82,7 +82,7 @@ where
     /// rest positions `rest`. `materials` holds one material for all elements or one per
     /// element. Errors name `source` and the offending field or element.
     pub fn new<const V: usize>(
-        model: Model,
+        model: MaterialLaw,
         rest: &[f64],
         elements: &[[usize; V]],
         materials: &[ElementMaterial],
@@ -322,7 +322,7 @@ where
 /// Energy density `Psi(F)` of `model`; writes `dPsi/dF` into `grad` and `d2Psi/dF2` into
 /// `hess` when given.
 pub fn energy_density<const D: usize, const N: usize>(
-    model: Model,
+    model: MaterialLaw,
     f: &SMatrix<f64, D, D>,
     mu: f64,
     lambda: f64,
@@ -333,8 +333,8 @@ where
     SMatrix<f64, D, D>: DeformationGradient<D, N>,
 {
     match model {
-        Model::StableNeoHookean => stable_neo_hookean(f, mu, lambda, grad, hess),
-        Model::Stvk => stvk(f, mu, lambda, grad, hess),
+        MaterialLaw::StableNeoHookean => stable_neo_hookean(f, mu, lambda, grad, hess),
+        MaterialLaw::Stvk => stvk(f, mu, lambda, grad, hess),
     }
 }
 
@@ -343,7 +343,7 @@ where
 /// test) and one with non-finite entries are left as they are; stable neo-Hookean uses
 /// its analytic eigensystem, StVK a numerical eigen-decomposition.
 pub fn project_density_hessian<const D: usize, const N: usize>(
-    model: Model,
+    model: MaterialLaw,
     f: &SMatrix<f64, D, D>,
     mu: f64,
     lambda: f64,
@@ -355,8 +355,8 @@ pub fn project_density_hessian<const D: usize, const N: usize>(
         return;
     }
     let analytic = match model {
-        Model::StableNeoHookean => project_stable_neo_hookean(f, mu, lambda, h),
-        Model::Stvk => false,
+        MaterialLaw::StableNeoHookean => project_stable_neo_hookean(f, mu, lambda, h),
+        MaterialLaw::Stvk => false,
     };
     if !analytic {
         <SMatrix<f64, D, D> as DeformationGradient<D, N>>::clamp_negative_eigenvalues(h);
@@ -852,7 +852,7 @@ mod tests {
     {
         let (mu, lambda) = (3.0, 5.0);
         let mut exact = SMatrix::<f64, N, N>::zeros();
-        let model = Model::StableNeoHookean;
+        let model = MaterialLaw::StableNeoHookean;
         energy_density(model, f, mu, lambda, None, Some(&mut exact));
         let mut analytic = exact;
         assert!(project_stable_neo_hookean(f, mu, lambda, &mut analytic));

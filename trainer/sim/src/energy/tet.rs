@@ -8,7 +8,7 @@
 use super::simplex::{Names, SimplexElastic};
 use super::{Local, StencilEnergy, Want};
 use crate::error::InputError;
-use crate::material::{ElementMaterial, Model};
+use crate::material::{ElementMaterial, MaterialLaw};
 
 /// Elastic energy of a tet mesh; one stencil (4 vertices, 12 local dofs) per tet.
 pub struct TetElastic {
@@ -20,7 +20,7 @@ impl TetElastic {
     /// material for all tets or one per tet. Rejects bad materials, out-of-range vertex
     /// indices and degenerate or inverted rest tets, naming `source` and the field or tet.
     pub fn new(
-        model: Model,
+        model: MaterialLaw,
         rest: &[f64],
         tets: &[[usize; 4]],
         materials: &[ElementMaterial],
@@ -79,7 +79,7 @@ mod tests {
     use crate::energy::simplex::checks;
     use crate::error::Location;
 
-    const MODELS: [Model; 2] = [Model::StableNeoHookean, Model::Stvk];
+    const MODELS: [MaterialLaw; 2] = [MaterialLaw::StableNeoHookean, MaterialLaw::Stvk];
 
     /// A generic, well-shaped, positively oriented tet.
     const REST: [f64; 12] = [
@@ -97,7 +97,7 @@ mod tests {
         }
     }
 
-    fn single(model: Model) -> TetElastic {
+    fn single(model: MaterialLaw) -> TetElastic {
         TetElastic::new(model, &REST, &[[0, 1, 2, 3]], &[material(100.0)], Path::new("t")).unwrap()
     }
 
@@ -111,7 +111,7 @@ mod tests {
         assert!((signed_volume(unit) - 1.0 / 6.0).abs() < 1e-15);
         let flipped = [unit[0], unit[2], unit[1], unit[3]];
         assert!((signed_volume(flipped) + 1.0 / 6.0).abs() < 1e-15);
-        let tet = single(Model::Stvk);
+        let tet = single(MaterialLaw::Stvk);
         let p = [0, 1, 2, 3].map(|a| [REST[3 * a], REST[3 * a + 1], REST[3 * a + 2]]);
         assert_eq!(tet.rest_volumes(), &[signed_volume(p)]);
     }
@@ -150,7 +150,7 @@ mod tests {
     }
 
     /// Two tets sharing a face, their vertices moved independently.
-    fn two_tets(model: Model, materials: &[ElementMaterial]) -> (TetElastic, Vec<f64>) {
+    fn two_tets(model: MaterialLaw, materials: &[ElementMaterial]) -> (TetElastic, Vec<f64>) {
         let mut rest = REST.to_vec();
         rest.extend([1.0, 1.0, 0.6]);
         let tets = [[0, 1, 2, 3], [1, 2, 3, 4]];
@@ -187,7 +187,7 @@ mod tests {
     }
 
     fn error(rest: &[f64], tets: &[[usize; 4]], materials: &[ElementMaterial]) -> InputError {
-        let result = TetElastic::new(Model::StableNeoHookean, rest, tets, materials, Path::new("m"));
+        let result = TetElastic::new(MaterialLaw::StableNeoHookean, rest, tets, materials, Path::new("m"));
         let error = result.err().expect("input should be rejected");
         eprintln!("{error}");
         error

@@ -9,7 +9,7 @@
 use super::simplex::{Names, SimplexElastic};
 use super::{Local, StencilEnergy, Want};
 use crate::error::InputError;
-use crate::material::{ElementMaterial, Model};
+use crate::material::{ElementMaterial, MaterialLaw};
 
 /// Elastic energy of a 2D triangle mesh; one stencil (3 vertices, 6 local dofs) per
 /// triangle.
@@ -23,7 +23,7 @@ impl Tri2dElastic {
     /// Rejects bad materials, out-of-range vertex indices and degenerate or inverted
     /// (clockwise) rest triangles, naming `source` and the field or triangle.
     pub fn new(
-        model: Model,
+        model: MaterialLaw,
         rest: &[f64],
         tris: &[[usize; 3]],
         materials: &[ElementMaterial],
@@ -82,7 +82,7 @@ mod tests {
     use crate::energy::simplex::checks;
     use crate::error::Location;
 
-    const MODELS: [Model; 2] = [Model::StableNeoHookean, Model::Stvk];
+    const MODELS: [MaterialLaw; 2] = [MaterialLaw::StableNeoHookean, MaterialLaw::Stvk];
 
     /// A generic, well-shaped, counter-clockwise triangle.
     const REST: [f64; 6] = [0.1, -0.2, 1.2, 0.1, 0.3, 0.9];
@@ -95,7 +95,7 @@ mod tests {
         }
     }
 
-    fn single(model: Model) -> Tri2dElastic {
+    fn single(model: MaterialLaw) -> Tri2dElastic {
         Tri2dElastic::new(model, &REST, &[[0, 1, 2]], &[material(100.0)], Path::new("t")).unwrap()
     }
 
@@ -108,7 +108,7 @@ mod tests {
         let unit = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
         assert!((signed_area(unit) - 0.5).abs() < 1e-15);
         assert!((signed_area([unit[0], unit[2], unit[1]]) + 0.5).abs() < 1e-15);
-        let tri = single(Model::Stvk);
+        let tri = single(MaterialLaw::Stvk);
         let p = [0, 1, 2].map(|a| [REST[2 * a], REST[2 * a + 1]]);
         assert_eq!(tri.rest_areas(), &[signed_area(p)]);
     }
@@ -147,7 +147,7 @@ mod tests {
     }
 
     /// Two triangles sharing an edge, their vertices moved independently.
-    fn two_tris(model: Model, materials: &[ElementMaterial]) -> (Tri2dElastic, Vec<f64>) {
+    fn two_tris(model: MaterialLaw, materials: &[ElementMaterial]) -> (Tri2dElastic, Vec<f64>) {
         let mut rest = REST.to_vec();
         rest.extend([1.3, 1.0]);
         let tris = [[0, 1, 2], [1, 3, 2]];
@@ -184,7 +184,7 @@ mod tests {
     }
 
     fn error(rest: &[f64], tris: &[[usize; 3]], materials: &[ElementMaterial]) -> InputError {
-        let result = Tri2dElastic::new(Model::StableNeoHookean, rest, tris, materials, Path::new("m"));
+        let result = Tri2dElastic::new(MaterialLaw::StableNeoHookean, rest, tris, materials, Path::new("m"));
         let error = result.err().expect("input should be rejected");
         eprintln!("{error}");
         error

@@ -1045,7 +1045,7 @@ mod tests {
     use std::path::PathBuf;
 
     fn data(name: &str) -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(name)
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../data").join(name)
     }
 
     /// Writes `files` (name, text) into a fresh temporary directory and loads the first.
