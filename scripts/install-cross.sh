@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs what cross-compiling and running the targets need on these machines (DESIGN.md,
+# Installs what cross-compiling and running the targets need on these machines (docs/design.md,
 # "Cross-compiling"): Debian's rustc-web (a rustc that can build `core` for any target with
 # -Zbuild-std), the standard library sources for it, rust-web-llvm (which provides the
 # `rust-lld` that links the firmware and the wasm module; apt does not pull it in when

@@ -335,7 +335,7 @@ pub struct DatasetSpec {
     /// of one sequence last one length, the lengths spread evenly over each motion's
     /// `segment_frames`. Meant to drive a swinging body near its resonance; on `cloth-line`
     /// the swings grew little, but the latent space of these frames follows the fast test
-    /// motions far better (README, "Training motions in a steady rhythm"). Default 0.
+    /// motions far better (docs/notes/2026-11-24-steady-rhythm-training.md). Default 0.
     pub steady: usize,
     /// Extra training sequences whose speed level is drawn anew, uniformly over the training
     /// range, every `dataset::VARIED_PIECE_FRAMES` frames: fast and slow motions in

@@ -1,5 +1,5 @@
 //! `mochi eval`: latent rollouts of trained models on the held-out test sequences, against
-//! the full-space reference (DESIGN.md, "Measuring").
+//! the full-space reference (docs/design.md, "Measuring").
 //!
 //! For each model and test sequence: mean and max vertex error over the reference frames (at
 //! most [`ACCURACY_FRAMES`]) as a fraction of the rest bounding-box diagonal, the ratio of

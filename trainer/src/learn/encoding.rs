@@ -1,5 +1,5 @@
 //! Encoding of full-space states relative to their boundary conditions (Li et al. 2025,
-//! Sec. 3.2; DESIGN.md decision 3), so that networks never have to learn the rigid motion
+//! Sec. 3.2; docs/design.md, decision 3), so that networks never have to learn the rigid motion
 //! of the handles.
 //!
 //! Handle (prescribed) vertices are left out of the encoded vector `q`; decoding puts them

@@ -1,6 +1,6 @@
 //! Networks of the latent space (paper Sec. 3.2-3.3): a residual MLP, the autoencoder built from
 //! two of them, and the latent integrator. They live in candle, in f32, on the CPU
-//! (DESIGN.md, decision 2), and export to plain dense layers for codegen (decision 4).
+//! (docs/design.md, decision 2), and export to plain dense layers for codegen (decision 4).
 //!
 //! # Residual MLP layout
 //!

@@ -3,7 +3,7 @@
 //!
 //! Reconstruction errors of a few tenths of a percent of the diagonal are small as positions
 //! but not as strains: on a stiff sheet they can multiply the membrane energy of a decoded
-//! state several times over (README, "Latent models", the `one_step` diagnostic), and the
+//! state several times over (docs/notes/2026-11-24-edge-stretch-autoencoder.md, the `one_step` diagnostic), and the
 //! physics loss of the integrator then favours states that relieve a stretch the real sheet
 //! never had. This term measures, per edge `(i, j)` with rest length `L`,
 //! `s = (|x̂_i - x̂_j|^2 - |x_i - x_j|^2) / (2 L)`, the first-order change of the edge's

@@ -265,7 +265,7 @@ pub struct Batch<'a> {
 #[derive(Debug)]
 pub struct BatchLoss {
     /// Scalar tensor whose gradient w.r.t. the parameters is the training gradient (for the
-    /// physics loss this is the surrogate `sum(x * stopgrad(dE/dx))`, DESIGN.md decision 2).
+    /// physics loss this is the surrogate `sum(x * stopgrad(dE/dx))`, docs/design.md, decision 2).
     pub objective: Tensor,
     /// The loss value reported and recorded (the objective's value unless it is a surrogate).
     pub value: f64,
