@@ -83,7 +83,7 @@ pub enum SimError {
         /// The sequence's name.
         sequence: String,
         /// Why the step failed.
-        source: crate::solver::StepError,
+        source: StepError,
     },
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
@@ -92,5 +92,32 @@ pub enum SimError {
         path: PathBuf,
         /// The operating system's error.
         source: std::io::Error,
+    },
+}
+
+/// Why a step could not be taken.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum StepError {
+    /// A boundary-condition target was NaN or infinite.
+    #[error("boundary condition target for vertex {vertex} is not finite ({value})")]
+    NonFiniteBoundary {
+        /// The prescribed vertex.
+        vertex: usize,
+        /// The offending coordinate.
+        value: f64,
+    },
+    /// The wrong number of boundary-condition targets was given.
+    #[error("expected {expected} boundary-condition coordinates, got {got}")]
+    BoundaryLength {
+        /// Prescribed vertices times dim.
+        expected: usize,
+        /// What was passed.
+        got: usize,
+    },
+    /// The state became NaN or infinite (e.g. a singular system).
+    #[error("the solver produced a non-finite state at Newton iteration {iteration}")]
+    Diverged {
+        /// Iteration at which it happened.
+        iteration: usize,
     },
 }

@@ -8,6 +8,7 @@
 //! reused across iterations and steps.
 
 use crate::energy::{self, inertia::Inertia, StencilEnergy, MAX_DOF};
+pub use crate::error::StepError;
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
@@ -76,33 +77,6 @@ pub struct StepReport {
     pub objective: f64,
     /// Wall-clock seconds of the solve.
     pub seconds: f64,
-}
-
-/// Why a step could not be taken.
-#[derive(Debug, thiserror::Error, PartialEq)]
-pub enum StepError {
-    /// A boundary-condition target was NaN or infinite.
-    #[error("boundary condition target for vertex {vertex} is not finite ({value})")]
-    NonFiniteBoundary {
-        /// The prescribed vertex.
-        vertex: usize,
-        /// The offending coordinate.
-        value: f64,
-    },
-    /// The wrong number of boundary-condition targets was given.
-    #[error("expected {expected} boundary-condition coordinates, got {got}")]
-    BoundaryLength {
-        /// Prescribed vertices times dim.
-        expected: usize,
-        /// What was passed.
-        got: usize,
-    },
-    /// The state became NaN or infinite (e.g. a singular system).
-    #[error("the solver produced a non-finite state at Newton iteration {iteration}")]
-    Diverged {
-        /// Iteration at which it happened.
-        iteration: usize,
-    },
 }
 
 /// A full-space simulator of one body.
