@@ -198,7 +198,8 @@ pub fn build_rs_with(artifact: impl AsRef<Path>, out_name: &str, options: &Optio
 }
 
 /// Writes the module for a validated model; `artifact_params` is the length of the artifact's
-/// own (`f32`) parameter pool, the capacity loading it from bytes needs.
+/// own (`f32`) parameter pool, the capacity loading it from bytes needs. The pools' statics and
+/// the `MODEL` literal are written from the runtime's field list, [`Model::fields`].
 fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
     let mut s = String::new();
     let sizes: [(&str, &str, usize); 15] = [

@@ -7,7 +7,7 @@
 //!
 //! A file from another program, a newer or older format, a truncated or padded copy and a
 //! flipped bit are refused before the payload is parsed. Reading works on `&[u8]` without
-//! allocating and never panics; [`wrap`] (feature `std`) writes, [`write_header`] writes the
+//! allocating and never panics; `wrap` (feature `std`) writes, [`write_header`] writes the
 //! header into a caller's buffer without allocating.
 //!
 //! A file may hold several envelopes back to back ("sections"): [`split`] opens the first and
