@@ -100,7 +100,7 @@ pub struct LayerData {
 impl Payload {
     /// The payload's postcard encoding (what goes in the first section).
     pub fn encode(&self) -> Result<Vec<u8>, postcard::Error> {
-        postcard::to_allocvec(self)
+        postcard::to_extend(self, Vec::new())
     }
 
     /// Decodes a payload's postcard encoding (the first section's contents).
