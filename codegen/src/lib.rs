@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 
 pub mod quantize;
 
-use mochi_runtime::{Layer, LoadError, Model, ModelError, OwnedModel, ValidModel, WeightFormat};
+use mochi_runtime::{FieldValue, Handle, Layer, LoadError, Model, ModelError, OwnedModel, ValidModel, WeightFormat};
 
 pub use quantize::{format_name, parse_format, Quantized};
 
@@ -55,8 +55,8 @@ impl Options {
     }
 }
 
-/// Version of the artifact format this code generator reads.
-pub const ARTIFACT_VERSION: u32 = mochi_runtime::ARTIFACT_VERSION;
+/// Version of the artifact format this code generator reads (the runtime's).
+pub use mochi_runtime::ARTIFACT_VERSION;
 
 /// Why code could not be generated.
 #[derive(Debug)]
@@ -198,7 +198,8 @@ pub fn build_rs_with(artifact: impl AsRef<Path>, out_name: &str, options: &Optio
 }
 
 /// Writes the module for a validated model; `artifact_params` is the length of the artifact's
-/// own (`f32`) parameter pool, the capacity loading it from bytes needs.
+/// own (`f32`) parameter pool, the capacity loading it from bytes needs. The pools' statics and
+/// the `MODEL` literal are written from the runtime's field list, [`Model::fields`].
 fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
     let mut s = String::new();
     let sizes: [(&str, &str, usize); 15] = [
@@ -283,50 +284,19 @@ fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
         s,
         "pub type Loaded = mochi_runtime::LoadedModel<ARTIFACT_PARAMS_LEN, FLOATS_LEN, INDICES_LEN>;"
     );
-    array(
-        &mut s,
-        "PARAMS",
-        "f32; PARAMS_LEN",
-        m.params.iter().map(|v| format!("{v:?}")),
-    );
-    array(
-        &mut s,
-        "HALVES",
-        "u16; HALVES_LEN",
-        m.halves.iter().map(|v| format!("{v:#06x}")),
-    );
-    array(&mut s, "BYTES", "i8; BYTES_LEN", m.bytes.iter().map(|v| v.to_string()));
-    array(
-        &mut s,
-        "FLOATS",
-        "f32; FLOATS_LEN",
-        m.floats.iter().map(|v| format!("{v:?}")),
-    );
-    array(
-        &mut s,
-        "INDICES",
-        "u32; INDICES_LEN",
-        m.indices.iter().map(|v| v.to_string()),
-    );
-    layers(&mut s, "DECODER", m.decoder);
-    layers(&mut s, "INTEGRATOR", m.integrator);
-    let _ = writeln!(
-        s,
-        "\nstatic HANDLE_LIST: [mochi_runtime::Handle; {}] = [",
-        m.handles.len()
-    );
-    for h in m.handles {
-        let _ = writeln!(
-            s,
-            "    mochi_runtime::Handle {{\n        vertices: {},\n        reference: {},\n        pivot: [{:?}, {:?}, {:?}],\n    }},",
-            span(h.vertices),
-            span(h.reference),
-            h.pivot[0],
-            h.pivot[1],
-            h.pivot[2]
-        );
+    let fields = m.fields();
+    for (field, value) in fields {
+        let ident = static_name(field);
+        match value {
+            FieldValue::F32s(v) => array(&mut s, &ident, "f32", v.iter().map(|v| format!("{v:?}"))),
+            FieldValue::U16s(v) => array(&mut s, &ident, "u16", v.iter().map(|v| format!("{v:#06x}"))),
+            FieldValue::I8s(v) => array(&mut s, &ident, "i8", v.iter().map(|v| v.to_string())),
+            FieldValue::U32s(v) => array(&mut s, &ident, "u32", v.iter().map(|v| v.to_string())),
+            FieldValue::Layers(v) => layers(&mut s, &ident, v),
+            FieldValue::Handles(v) => handles(&mut s, &ident, v),
+            FieldValue::U32(_) | FieldValue::F32(_) | FieldValue::Bool(_) | FieldValue::Span(_) => {}
+        }
     }
-    let _ = writeln!(s, "];");
     let _ = writeln!(
         s,
         "\n/// The model (validate once with `mochi_runtime::ValidModel::new(MODEL)`)."
@@ -335,39 +305,31 @@ fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
         s,
         "pub static MODEL: mochi_runtime::Model<'static> = mochi_runtime::Model {{"
     );
-    for (field, value) in [
-        ("dim", m.dim.to_string()),
-        ("num_vertices", m.num_vertices.to_string()),
-        ("latent", m.latent.to_string()),
-        ("bc_len", m.bc_len.to_string()),
-        ("dt", format!("{:?}", m.dt)),
-        ("diagonal", format!("{:?}", m.diagonal)),
-        ("rotates", m.rotates.to_string()),
-        ("params", "&PARAMS".into()),
-        ("halves", "&HALVES".into()),
-        ("bytes", "&BYTES".into()),
-        ("floats", "&FLOATS".into()),
-        ("indices", "&INDICES".into()),
-        ("decoder", "&DECODER".into()),
-        ("integrator", "&INTEGRATOR".into()),
-        ("handles", "&HANDLE_LIST".into()),
-        ("rest", span(m.rest)),
-        ("handle_vertices", span(m.handle_vertices)),
-        ("free_vertices", span(m.free_vertices)),
-        ("origin_of", span(m.origin_of)),
-        ("root_slots", span(m.root_slots)),
-        ("chains", span(m.chains)),
-        ("chain_floats", span(m.chain_floats)),
-        ("surface_vertices", span(m.surface_vertices)),
-        ("surface_source", span(m.surface_source)),
-        ("initial_latent", span(m.initial_latent)),
-        ("latent_min", span(m.latent_min)),
-        ("latent_max", span(m.latent_max)),
-    ] {
+    for (field, value) in fields {
+        let value = match value {
+            FieldValue::U32(v) => v.to_string(),
+            FieldValue::F32(v) => format!("{v:?}"),
+            FieldValue::Bool(v) => v.to_string(),
+            FieldValue::Span(v) => span(v),
+            FieldValue::F32s(_)
+            | FieldValue::U16s(_)
+            | FieldValue::I8s(_)
+            | FieldValue::U32s(_)
+            | FieldValue::Layers(_)
+            | FieldValue::Handles(_) => format!("&{}", static_name(field)),
+        };
         let _ = writeln!(s, "    {field}: {value},");
     }
     let _ = writeln!(s, "}};");
     s
+}
+
+/// The `static` that holds the pool `field` of [`Model`] (`HANDLES` is the handle count).
+fn static_name(field: &str) -> String {
+    match field {
+        "handles" => "HANDLE_LIST".into(),
+        other => other.to_uppercase(),
+    }
 }
 
 fn span(sp: mochi_runtime::Span) -> String {
@@ -390,9 +352,25 @@ fn layers(s: &mut String, ident: &str, layers: &[Layer]) {
     let _ = writeln!(s, "];");
 }
 
-/// A `#[rustfmt::skip]` static array of type `[ty]`, values wrapped at 100 columns.
+fn handles(s: &mut String, ident: &str, handles: &[Handle]) {
+    let _ = writeln!(s, "\nstatic {ident}: [mochi_runtime::Handle; {}] = [", handles.len());
+    for h in handles {
+        let _ = writeln!(
+            s,
+            "    mochi_runtime::Handle {{\n        vertices: {},\n        reference: {},\n        pivot: [{:?}, {:?}, {:?}],\n    }},",
+            span(h.vertices),
+            span(h.reference),
+            h.pivot[0],
+            h.pivot[1],
+            h.pivot[2]
+        );
+    }
+    let _ = writeln!(s, "];");
+}
+
+/// A `#[rustfmt::skip]` static array `[ty; IDENT_LEN]`, values wrapped at 100 columns.
 fn array(s: &mut String, ident: &str, ty: &str, values: impl Iterator<Item = String>) {
-    let _ = writeln!(s, "\n#[rustfmt::skip]\nstatic {ident}: [{ty}] = [");
+    let _ = writeln!(s, "\n#[rustfmt::skip]\nstatic {ident}: [{ty}; {ident}_LEN] = [");
     let mut line = String::from("   ");
     for v in values {
         if line.len() + v.len() + 2 > 100 {

@@ -1,11 +1,13 @@
-//! Loading a trainer artifact (`SCENE.mochi`) from bytes into fixed-capacity storage, as an
-//! alternative to generated constants.
+//! Loading a model artifact (`SCENE.mochi`) from bytes into fixed-capacity storage, as an
+//! alternative to generated constants (docs/design.md, decision 4).
 //!
-//! The file is the trainer's envelope (magic `MOCHIMDL`, format version, payload length,
-//! CRC-32) around a postcard payload. Postcard writes a struct as its fields in order, so the
-//! payload is read field by field with serde from one deserializer: the arrays the runtime needs
-//! stream into pools, the rest (encoder, PCA, drawing lists, training summary) is read, checked
-//! and dropped. Nothing is allocated; a pool that is too small is an error, not a panic.
+//! An artifact is a sequence of sections, each in the envelope of [`crate::envelope`]. The
+//! first (magic [`MAGIC`], version [`FORMAT_VERSION`]) holds the deployable payload: the
+//! postcard encoding of `payload::Payload` (feature `std`), exactly the fields read here, in
+//! the same order. Further sections (the trainer's training-only data) are checked for length
+//! and CRC-32 and otherwise skipped. Postcard writes a struct as its fields in order, so the
+//! payload is read field by field with serde from one deserializer, the arrays streaming into
+//! pools. Nothing is allocated; a pool that is too small is an error, not a panic.
 
 use core::fmt;
 use core::marker::PhantomData;
@@ -13,33 +15,26 @@ use core::marker::PhantomData;
 use serde::de::{DeserializeSeed, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer};
 
+use crate::envelope::{self, EnvelopeError};
 use crate::instance::ValidModel;
 use crate::model::{Handle, Layer, Model, ModelError, Problem, Span, HANDLE_SOURCE, MAX_HANDLES, MAX_LAYERS};
 
-/// First bytes of every artifact.
+/// First bytes of every artifact (the magic of its first section).
 pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
-/// Artifact format version this runtime reads.
+/// Artifact format version this runtime reads and the trainer writes.
 ///
-/// Version 2 added the bend-encoded rod strands (`encoding.chains`, after
-/// `encoding.root_slots`); version 1 files are refused with [`LoadError::Version`].
-pub const FORMAT_VERSION: u32 = 2;
-/// Bytes before the payload: magic, version (u32 LE), length (u64 LE), CRC-32 (u32 LE).
-pub const HEADER_LEN: usize = 24;
+/// Version 2 added the bend-encoded rod strands (`encoding.chains`); version 3 moved what only
+/// the trainer reads (scene, encoder, PCA, drawing lists, training summary) out of the first
+/// section into a section of its own. Other versions are refused with
+/// [`EnvelopeError::Version`].
+pub const FORMAT_VERSION: u32 = 3;
 
 /// Why an artifact was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LoadError {
-    /// Not a mochi model artifact.
-    BadMagic,
-    /// Written by a format version this runtime does not read.
-    Version {
-        /// Version in the file.
-        found: u32,
-    },
-    /// Shorter or longer than its header says.
-    Truncated,
-    /// The payload's CRC-32 does not match.
-    Corrupt,
+    /// The envelope of a section was refused: not an artifact, another format version,
+    /// truncated, padded or corrupted.
+    Envelope(EnvelopeError),
     /// This field could not be read.
     Malformed {
         /// Field being read.
@@ -56,18 +51,19 @@ pub enum LoadError {
     Invalid(ModelError),
 }
 
+impl From<EnvelopeError> for LoadError {
+    fn from(e: EnvelopeError) -> Self {
+        LoadError::Envelope(e)
+    }
+}
+
 impl fmt::Display for LoadError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            LoadError::BadMagic => write!(f, "not a mochi model artifact (bad magic bytes)"),
-            LoadError::Version { found } => {
-                write!(
-                    f,
-                    "artifact format version {found}, this runtime reads {FORMAT_VERSION}"
-                )
+            LoadError::Envelope(EnvelopeError::BadMagic) => {
+                write!(f, "not a mochi model artifact (bad magic bytes)")
             }
-            LoadError::Truncated => write!(f, "artifact is truncated or padded"),
-            LoadError::Corrupt => write!(f, "artifact is corrupted (CRC-32 mismatch)"),
+            LoadError::Envelope(e) => write!(f, "artifact is {e}"),
             LoadError::Malformed { field } => write!(f, "artifact field `{field}` is unreadable"),
             LoadError::Capacity { field } => write!(f, "storage too small for artifact field `{field}`"),
             LoadError::TrailingBytes => write!(f, "artifact has bytes after its last field"),
@@ -79,30 +75,12 @@ impl fmt::Display for LoadError {
 #[cfg(feature = "std")]
 impl std::error::Error for LoadError {}
 
-/// The payload of an artifact after checking magic, version, length and CRC.
+/// The deployable payload of an artifact (its first section), after checking every section's
+/// envelope.
 pub fn payload(bytes: &[u8]) -> Result<&[u8], LoadError> {
-    if bytes.get(..MAGIC.len()) != Some(&MAGIC[..]) {
-        return Err(LoadError::BadMagic);
-    }
-    let header = bytes.get(..HEADER_LEN).ok_or(LoadError::Truncated)?;
-    let word = |from: usize, to: usize| {
-        header[from..to]
-            .iter()
-            .rev()
-            .fold(0u64, |acc, &b| (acc << 8) | b as u64)
-    };
-    let version = word(8, 12) as u32;
-    if version != FORMAT_VERSION {
-        return Err(LoadError::Version { found: version });
-    }
-    let body = &bytes[HEADER_LEN..];
-    if body.len() as u64 != word(12, 20) {
-        return Err(LoadError::Truncated);
-    }
-    if crc32fast::hash(body) as u64 != word(20, 24) {
-        return Err(LoadError::Corrupt);
-    }
-    Ok(body)
+    let (payload, rest) = envelope::split(bytes, MAGIC, FORMAT_VERSION)?;
+    envelope::check_sections(rest)?;
+    Ok(payload)
 }
 
 /// A growable-up-to-capacity list the loader fills: `heapless::Vec` on targets, `Vec` with
@@ -142,34 +120,10 @@ impl<T> Pool<T> for std::vec::Vec<T> {
     }
 }
 
-/// Scalars and spans of a loaded model (the pools hold the arrays).
-#[derive(Clone, Copy, Debug, Default)]
-struct Header {
-    dim: u32,
-    num_vertices: u32,
-    latent: u32,
-    bc_len: u32,
-    dt: f32,
-    diagonal: f32,
-    rotates: bool,
-    rest: Span,
-    handle_vertices: Span,
-    free_vertices: Span,
-    origin_of: Span,
-    root_slots: Span,
-    chains: Span,
-    chain_floats: Span,
-    surface_vertices: Span,
-    surface_source: Span,
-    initial_latent: Span,
-    latent_min: Span,
-    latent_max: Span,
-}
-
 /// A model loaded from artifact bytes into pools `P` (weights), `F` (other reals), `I`
 /// (indices), `L` (layers) and `G` (handles). Use [`LoadedModel`] on targets and
 /// `OwnedModel` (feature `std`) on the desktop.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Storage<P, F, I, L, G> {
     params: P,
     floats: F,
@@ -177,8 +131,24 @@ pub struct Storage<P, F, I, L, G> {
     decoder: L,
     integrator: L,
     handles: G,
-    header: Header,
+    /// Sizes, scalars and spans read (its pools stay empty: they are the fields above).
+    header: Model<'static>,
     loaded: bool,
+}
+
+impl<P: Default, F: Default, I: Default, L: Default, G: Default> Default for Storage<P, F, I, L, G> {
+    fn default() -> Self {
+        Storage {
+            params: P::default(),
+            floats: F::default(),
+            indices: I::default(),
+            decoder: L::default(),
+            integrator: L::default(),
+            handles: G::default(),
+            header: Model::EMPTY,
+            loaded: false,
+        }
+    }
 }
 
 /// Fixed-capacity storage: `P` weights and biases, `F` other reals, `I` indices.
@@ -205,33 +175,11 @@ impl<const P: usize, const F: usize, const I: usize> LoadedModel<P, F, I> {
             decoder: heapless::Vec::new(),
             integrator: heapless::Vec::new(),
             handles: heapless::Vec::new(),
-            header: Header {
-                dim: 0,
-                num_vertices: 0,
-                latent: 0,
-                bc_len: 0,
-                dt: 0.0,
-                diagonal: 0.0,
-                rotates: false,
-                rest: EMPTY,
-                handle_vertices: EMPTY,
-                free_vertices: EMPTY,
-                origin_of: EMPTY,
-                root_slots: EMPTY,
-                chains: EMPTY,
-                chain_floats: EMPTY,
-                surface_vertices: EMPTY,
-                surface_source: EMPTY,
-                initial_latent: EMPTY,
-                latent_min: EMPTY,
-                latent_max: EMPTY,
-            },
+            header: Model::EMPTY,
             loaded: false,
         }
     }
 }
-
-const EMPTY: Span = Span { start: 0, len: 0 };
 
 impl<P, F, I, L, G> Storage<P, F, I, L, G>
 where
@@ -243,35 +191,14 @@ where
 {
     /// The model as a description over the pools (valid only after a successful load).
     fn describe(&self) -> Model<'_> {
-        let h = &self.header;
         Model {
-            dim: h.dim,
-            num_vertices: h.num_vertices,
-            latent: h.latent,
-            bc_len: h.bc_len,
-            dt: h.dt,
-            diagonal: h.diagonal,
-            rotates: h.rotates,
             params: self.params.as_slice(),
-            halves: &[],
-            bytes: &[],
             floats: self.floats.as_slice(),
             indices: self.indices.as_slice(),
             decoder: self.decoder.as_slice(),
             integrator: self.integrator.as_slice(),
             handles: self.handles.as_slice(),
-            rest: h.rest,
-            handle_vertices: h.handle_vertices,
-            free_vertices: h.free_vertices,
-            origin_of: h.origin_of,
-            root_slots: h.root_slots,
-            chains: h.chains,
-            chain_floats: h.chain_floats,
-            surface_vertices: h.surface_vertices,
-            surface_source: h.surface_source,
-            initial_latent: h.initial_latent,
-            latent_min: h.latent_min,
-            latent_max: h.latent_max,
+            ..self.header
         }
     }
 
@@ -292,38 +219,32 @@ where
         self.floats.clear();
         self.indices.clear();
         self.handles.clear();
-        self.header = Header::default();
+        self.header = Model::EMPTY;
         self.read(payload(bytes)?)?;
         self.describe().validate().map_err(LoadError::Invalid)?;
         self.loaded = true;
         Ok(ValidModel::validated(self.describe()))
     }
 
-    /// Reads every field of the payload in the order of the trainer's `Artifact`.
+    /// Reads every field of the payload in the order of `payload::Payload`.
     fn read(&mut self, payload: &[u8]) -> Result<(), LoadError> {
         let mut r = Reader {
             de: postcard::Deserializer::from_bytes(payload),
         };
-        r.value::<&str>("scene")?;
-        r.value::<&str>("scene_path")?;
-        r.value::<&str>("scene_toml")?;
-        r.value::<u32>("method")?;
         let h = &mut self.header;
         h.dt = r.value::<f64>("dt")? as f32;
         h.dim = r.value("dim")?;
         h.num_vertices = r.value("num_vertices")?;
         h.rest = r.seq("rest", &mut self.floats)?;
         h.diagonal = r.value::<f64>("diagonal")? as f32;
-        h.rotates = r.value("encoding.rotates")?;
-        h.handle_vertices = r.seq("encoding.handle_vertices", &mut self.indices)?;
-        r.skip_reals("encoding.reference")?;
-        h.free_vertices = r.seq("encoding.free_vertices", &mut self.indices)?;
-        h.origin_of = r.seq("encoding.origin_of", &mut self.indices)?;
-        h.root_slots = r.seq("encoding.root_slots", &mut self.indices)?;
+        h.rotates = r.value("rotates")?;
+        h.handle_vertices = r.seq("handle_vertices", &mut self.indices)?;
+        h.free_vertices = r.seq("free_vertices", &mut self.indices)?;
+        h.origin_of = r.seq("origin_of", &mut self.indices)?;
+        h.root_slots = r.seq("root_slots", &mut self.indices)?;
         (h.chains, h.chain_floats) = r.chains(&mut self.indices, &mut self.floats)?;
         let handles = r.len("handles")?;
         for _ in 0..handles {
-            r.value::<&str>("handles.name")?;
             let vertices = r.seq("handles.vertices", &mut self.indices)?;
             let reference = r.seq("handles.reference", &mut self.floats)?;
             let pivot = r.value::<[f32; 3]>("handles.pivot")?;
@@ -338,21 +259,12 @@ where
         }
         h.bc_len = r.value("bc_len")?;
         h.surface_vertices = r.seq("surface_vertices", &mut self.indices)?;
-        r.value::<Discarded<[u32; 3]>>("surface_triangles")?;
-        r.value::<Discarded<Discarded<u32>>>("polylines")?;
         h.latent = r.value("latent")?;
         h.initial_latent = r.seq("initial_latent", &mut self.floats)?;
         h.latent_min = r.seq("latent_min", &mut self.floats)?;
         h.latent_max = r.seq("latent_max", &mut self.floats)?;
-        r.skip_reals("pca_mean")?;
-        r.skip_reals("pca_basis")?;
-        r.network::<Discard, heapless::Vec<Layer, 0>>("encoder", None)?;
-        r.network("decoder", Some((&mut self.params, &mut self.decoder)))?;
-        r.network("integrator", Some((&mut self.params, &mut self.integrator)))?;
-        r.value::<f64>("summary.tolerance")?;
-        r.value::<Discarded<(u32, f64, Option<f64>)>>("summary.trials")?;
-        r.value::<Discarded<(&str, f64)>>("summary.stage_seconds")?;
-        r.value::<(f64, u64, f64, f64)>("summary")?;
+        r.network("decoder", &mut self.params, &mut self.decoder)?;
+        r.network("integrator", &mut self.params, &mut self.integrator)?;
         match r.de.finalize() {
             Ok([]) => {}
             _ => return Err(LoadError::TrailingBytes),
@@ -433,35 +345,33 @@ impl<'de> Reader<'de> {
         }
     }
 
-    /// The bend-encoded strands (`encoding.chains`), appended to `indices` and `floats` as
+    /// The bend-encoded strands (`chains`), appended to `indices` and `floats` as
     /// the tables of [`Model::chains`] and [`Model::chain_floats`]; their spans.
     fn chains<I: Pool<u32>, F: Pool<f32>>(
         &mut self,
         indices: &mut I,
         floats: &mut F,
     ) -> Result<(Span, Span), LoadError> {
-        const FIELD: &str = "encoding.chains";
+        const FIELD: &str = "chains";
         let start = (indices.as_slice().len(), floats.as_slice().len());
         let full = LoadError::Capacity { field: FIELD };
         for _ in 0..self.len(FIELD)? {
-            let parent = self.value::<[u32; 2]>("encoding.chains.parent")?;
-            let normal = self.value::<[f32; 3]>("encoding.chains.rest_normal")?;
-            let n = self.len("encoding.chains.slots")?;
-            let count = u32::try_from(n).map_err(|_| LoadError::Malformed {
-                field: "encoding.chains.slots",
-            })?;
+            let parent = self.value::<[u32; 2]>("chains.parent")?;
+            let normal = self.value::<[f32; 3]>("chains.rest_normal")?;
+            let n = self.len("chains.slots")?;
+            let count = u32::try_from(n).map_err(|_| LoadError::Malformed { field: "chains.slots" })?;
             if !(indices.push(parent[0]) && indices.push(parent[1]) && indices.push(count)) {
                 return Err(full);
             }
             for _ in 0..n {
-                if !indices.push(self.value("encoding.chains.slots")?) {
+                if !indices.push(self.value("chains.slots")?) {
                     return Err(full);
                 }
             }
             if !normal.iter().all(|&v| floats.push(v)) {
                 return Err(full);
             }
-            let lengths = self.len("encoding.chains.lengths")?;
+            let lengths = self.len("chains.lengths")?;
             if lengths != n {
                 return Err(LoadError::Invalid(ModelError {
                     field: "chains.lengths",
@@ -472,7 +382,7 @@ impl<'de> Reader<'de> {
                 }));
             }
             for _ in 0..n {
-                if !floats.push(self.value("encoding.chains.lengths")?) {
+                if !floats.push(self.value("chains.lengths")?) {
                     return Err(full);
                 }
             }
@@ -483,26 +393,13 @@ impl<'de> Reader<'de> {
         ))
     }
 
-    /// A sequence of reals that is read, checked to be finite, and dropped.
-    fn skip_reals(&mut self, field: &'static str) -> Result<usize, LoadError> {
-        let mut discard = Discard::default();
-        self.seq::<f32, _>(field, &mut discard)?;
-        if discard.finite {
-            Ok(discard.count)
-        } else {
-            Err(LoadError::Invalid(ModelError {
-                field,
-                problem: Problem::NotFinite,
-            }))
-        }
-    }
-
-    /// A network (list of dense layers): weights and biases appended to `store`'s pools, or
-    /// checked and dropped when `store` is `None`.
+    /// A network (list of dense layers): weights and biases appended to `params`, layers to
+    /// `list`.
     fn network<P: Pool<f32>, L: Pool<Layer>>(
         &mut self,
         field: &'static str,
-        mut store: Option<(&mut P, &mut L)>,
+        params: &mut P,
+        list: &mut L,
     ) -> Result<(), LoadError> {
         let layers = self.len(field)?;
         if layers > MAX_LAYERS {
@@ -511,27 +408,20 @@ impl<'de> Reader<'de> {
         for _ in 0..layers {
             let rows: u64 = self.value(field)?;
             let cols: u64 = self.value(field)?;
-            let (w, b) = match store.as_mut() {
-                Some((params, _)) => {
-                    let w = self.seq::<f32, _>(field, *params)?;
-                    (w, self.seq::<f32, _>(field, *params)?)
-                }
-                None => (span(0, self.skip_reals(field)?), span(0, self.skip_reals(field)?)),
-            };
+            let w = self.seq::<f32, _>(field, params)?;
+            let b = self.seq::<f32, _>(field, params)?;
             if rows.checked_mul(cols) != Some(w.len as u64) || rows != b.len as u64 {
                 return Err(LoadError::Malformed { field });
             }
-            if let Some((_, list)) = store.as_mut() {
-                let layer = Layer {
-                    rows: rows as u32,
-                    cols: cols as u32,
-                    weights: w.start,
-                    bias: b.start,
-                    ..Layer::default()
-                };
-                if !list.push(layer) {
-                    return Err(LoadError::Capacity { field });
-                }
+            let layer = Layer {
+                rows: rows as u32,
+                cols: cols as u32,
+                weights: w.start,
+                bias: b.start,
+                ..Layer::default()
+            };
+            if !list.push(layer) {
+                return Err(LoadError::Capacity { field });
             }
         }
         Ok(())
@@ -542,30 +432,6 @@ impl<'de> Reader<'de> {
 /// sequence lengths the same way.
 fn postcard_varint<'de>(de: &mut postcard::Deserializer<'de, postcard::de_flavors::Slice<'de>>) -> Option<u64> {
     u64::deserialize(de).ok()
-}
-
-/// A pool that keeps only a count and whether everything was finite.
-struct Discard {
-    count: usize,
-    finite: bool,
-}
-impl Default for Discard {
-    fn default() -> Self {
-        Discard { count: 0, finite: true }
-    }
-}
-impl Pool<f32> for Discard {
-    fn clear(&mut self) {
-        *self = Discard::default();
-    }
-    fn push(&mut self, v: f32) -> bool {
-        self.count += 1;
-        self.finite &= v.is_finite();
-        true
-    }
-    fn as_slice(&self) -> &[f32] {
-        &[]
-    }
 }
 
 /// Seed that appends a sequence's elements to a pool.
@@ -595,25 +461,5 @@ impl<'de, T: Deserialize<'de>, Q: Pool<T>> Visitor<'de> for Append<'_, T, Q> {
             }
         }
         Ok(())
-    }
-}
-
-/// A sequence of `T` that is read and dropped.
-struct Discarded<T>(PhantomData<T>);
-
-impl<'de, T: Deserialize<'de>> Deserialize<'de> for Discarded<T> {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct Skip<T>(PhantomData<T>);
-        impl<'de, T: Deserialize<'de>> Visitor<'de> for Skip<T> {
-            type Value = Discarded<T>;
-            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str("a sequence")
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Discarded<T>, A::Error> {
-                while seq.next_element::<T>()?.is_some() {}
-                Ok(Discarded(PhantomData))
-            }
-        }
-        deserializer.deserialize_seq(Skip(PhantomData))
     }
 }

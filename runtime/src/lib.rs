@@ -23,14 +23,20 @@ extern crate std;
 pub mod artifact;
 #[cfg(feature = "capi")]
 pub mod capi;
+pub mod envelope;
+mod fields;
 pub mod frame;
 pub mod instance;
 pub mod model;
 pub mod network;
+#[cfg(feature = "std")]
+pub mod payload;
 
 #[cfg(feature = "std")]
 pub use artifact::OwnedModel;
-pub use artifact::{LoadError, LoadedModel, Storage};
+pub use artifact::{LoadError, LoadedModel, Storage, FORMAT_VERSION as ARTIFACT_VERSION};
+pub use envelope::EnvelopeError;
+pub use fields::FieldValue;
 pub use frame::{ChainWalk, HandleMotion, HandlePose};
 pub use instance::{
     AnyInstance, DecodeError, Instance, SizeError, StepError, Stepped, ValidModel, MAX_HIDDEN, MAX_LATENT, MAX_SIGNAL,
@@ -40,6 +46,3 @@ pub use model::{
     Chain, Chains, Handle, Layer, Model, ModelError, Problem, Span, WeightFormat, Weights, HANDLE_SOURCE,
     SIGNAL_PER_HANDLE,
 };
-
-/// Version of the artifact format this runtime understands.
-pub const ARTIFACT_VERSION: u32 = artifact::FORMAT_VERSION;

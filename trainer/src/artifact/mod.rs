@@ -1,7 +1,8 @@
 //! Model artifacts (`SCENE.mochi`): everything the runtime needs to step and decode a trained
-//! model, as data (DESIGN.md, decision 4). The payload is postcard in the envelope of
-//! [`crate::artifact::framing`] (magic `MOCHIMDL`, format version, length, CRC-32), so corrupt, truncated
-//! or foreign files are refused before parsing, and every shape is validated after it.
+//! model, as data, and what the trainer keeps beside it (docs/design.md, decision 4). The file
+//! ([`file`]) is written through the runtime's envelope (magic, format version, length,
+//! CRC-32) and payload schema, so corrupt, truncated or foreign files are refused before
+//! parsing, and every shape is validated after it.
 //!
 //! Networks are stored as flat lists of dense layers in the order of
 //! [`ExportedMlp::layers`]: `[input, inner_0, outer_0, ..., output]`, with
@@ -9,20 +10,18 @@
 //! folded into the first and last layers. The integrator predicts the increment
 //! `z_t - z_{t-1}` from `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`.
 
-pub mod framing;
-
-use std::path::Path;
+pub mod file;
 
 use serde::{Deserialize, Serialize};
 
 use crate::learn::encoding::{Encoding, Origins};
-use crate::learn::network::{DenseLayer, ExportedIntegrator, ExportedMlp};
-use mochi_sim::error::InputError;
+use crate::learn::network::{DenseLayer, ExportedIntegrator, ExportedMlp, NetworkError};
 
-/// First bytes of every artifact.
-pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
-/// Version of the artifact format written by this build (2: `encoding.chains` added).
-pub const FORMAT_VERSION: u32 = 2;
+pub use file::{ArtifactError, TrainingSection, TRAINING_MAGIC};
+pub use mochi_runtime::artifact::{FORMAT_VERSION, MAGIC};
+/// One rod strand of the bend encoding (see [`crate::learn::encoding::Chain`]): the runtime's
+/// record, stored as is.
+pub use mochi_runtime::payload::ChainData;
 
 /// How an artifact's integrator was trained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -62,19 +61,6 @@ pub struct EncodingData {
     /// Empty: encoded vertices are positions. Otherwise the rod strands, encoded by their
     /// bends ([`crate::learn::encoding::Encoding::with_strand_bends`]), two numbers per vertex.
     pub chains: Vec<ChainData>,
-}
-
-/// One rod strand of the bend encoding (see [`crate::learn::encoding::Chain`]).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ChainData {
-    /// Handle slots of the strand's two prescribed vertices (parent edge: first to second).
-    pub parent: [u32; 2],
-    /// Unit vector perpendicular to the parent edge at rest.
-    pub rest_normal: [f32; 3],
-    /// Encoded-vertex indices of the strand's free vertices, root to tip.
-    pub slots: Vec<u32>,
-    /// Rest length of the edge ending at each of them.
-    pub lengths: Vec<f32>,
 }
 
 impl EncodingData {
@@ -216,19 +202,19 @@ impl Artifact {
     }
 
     /// The encoder as a runnable network.
-    pub fn encoder(&self) -> Result<ExportedMlp, String> {
-        ExportedMlp::from_layers(self.encoder.clone()).map_err(|e| e.to_string())
+    pub fn encoder(&self) -> Result<ExportedMlp, NetworkError> {
+        ExportedMlp::from_layers(self.encoder.clone())
     }
 
     /// The decoder as a runnable network.
-    pub fn decoder(&self) -> Result<ExportedMlp, String> {
-        ExportedMlp::from_layers(self.decoder.clone()).map_err(|e| e.to_string())
+    pub fn decoder(&self) -> Result<ExportedMlp, NetworkError> {
+        ExportedMlp::from_layers(self.decoder.clone())
     }
 
     /// The integrator as a runnable network.
-    pub fn integrator(&self) -> Result<ExportedIntegrator, String> {
-        let mlp = ExportedMlp::from_layers(self.integrator.clone()).map_err(|e| e.to_string())?;
-        ExportedIntegrator::new(self.latent as usize, mlp).map_err(|e| e.to_string())
+    pub fn integrator(&self) -> Result<ExportedIntegrator, NetworkError> {
+        let mlp = ExportedMlp::from_layers(self.integrator.clone())?;
+        ExportedIntegrator::new(self.latent as usize, mlp)
     }
 
     /// Checks every size and index, and that all numbers are finite; returns the offending
@@ -355,40 +341,5 @@ impl Artifact {
             return err("weights", "hold a non-finite value".into());
         }
         Ok(())
-    }
-
-    /// The artifact as bytes (envelope + postcard payload).
-    pub fn to_bytes(&self) -> Result<Vec<u8>, String> {
-        let payload = postcard::to_allocvec(self).map_err(|e| format!("encoding artifact: {e}"))?;
-        Ok(framing::wrap(MAGIC, FORMAT_VERSION, &payload))
-    }
-
-    /// Parses and validates an artifact; `source` names it in errors.
-    pub fn from_bytes(bytes: &[u8], source: &Path) -> Result<Artifact, InputError> {
-        let payload =
-            framing::unwrap(bytes, MAGIC, FORMAT_VERSION, "model artifact").map_err(|m| InputError::file(source, m))?;
-        let artifact: Artifact = postcard::from_bytes(payload)
-            .map_err(|e| InputError::file(source, format!("model artifact payload is unreadable: {e}")))?;
-        artifact
-            .validate()
-            .map_err(|(field, msg)| InputError::field(source, field, msg))?;
-        // What the runtime will read must pass the runtime's own checks too.
-        mochi_runtime::OwnedModel::default()
-            .load(bytes)
-            .map_err(|e| InputError::file(source, format!("refused by the runtime: {e}")))?;
-        Ok(artifact)
-    }
-
-    /// Writes the artifact atomically.
-    pub fn write(&self, path: &Path) -> anyhow::Result<()> {
-        let bytes = self.to_bytes().map_err(anyhow::Error::msg)?;
-        crate::learn::train::write_atomically(path, &bytes)
-            .map_err(|e| anyhow::anyhow!("writing artifact {}: {e}", path.display()))
-    }
-
-    /// Reads and validates an artifact file.
-    pub fn read(path: &Path) -> Result<Artifact, InputError> {
-        let bytes = std::fs::read(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
-        Artifact::from_bytes(&bytes, path)
     }
 }

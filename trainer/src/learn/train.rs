@@ -35,7 +35,6 @@ use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, TensorView};
 use safetensors::SafeTensors;
 
-use crate::artifact::framing;
 use crate::learn::network::{rows_to_tensor, Autoencoder};
 use crate::learn::stretch::EdgeStretch;
 use mochi_sim::error::{InputError, Location};
@@ -462,8 +461,10 @@ fn progress_bar(config: &TrainConfig, start_epoch: usize) -> ProgressBar {
 // Checkpoints
 // ---------------------------------------------------------------------------------------------
 
-const MAGIC: &[u8; 8] = b"MOCHICKP";
-const FORMAT_VERSION: u32 = 1;
+/// Magic of a checkpoint's envelope (`mochi_runtime::envelope`).
+const CHECKPOINT_MAGIC: &[u8; 8] = b"MOCHICKP";
+/// Checkpoint format version.
+const CHECKPOINT_VERSION: u32 = 1;
 
 /// What a checkpoint must agree on to be resumed by a run: everything that shapes the
 /// trajectory except the total epoch count.
@@ -516,7 +517,7 @@ fn save_checkpoint(path: &Path, run: &RunIdentity, optimizer: &AdamW, losses: &[
     let payload = safetensors::serialize(views, Some(metadata))
         .map_err(|e| TrainError::Invalid(format!("building checkpoint: {e}")))?;
 
-    let file = framing::wrap(MAGIC, FORMAT_VERSION, &payload);
+    let file = mochi_runtime::envelope::wrap(CHECKPOINT_MAGIC, CHECKPOINT_VERSION, &payload);
     write_atomically(path, &file).map_err(|source| TrainError::Write {
         path: path.to_path_buf(),
         source,
@@ -544,7 +545,13 @@ pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()>
 fn load_checkpoint(path: &Path, run: &RunIdentity, max_epochs: usize, optimizer: &mut AdamW) -> TrainResult<Vec<f64>> {
     let whole = |message: String| InputError::file(path, message);
     let bytes = fs::read(path).map_err(|e| whole(format!("cannot read checkpoint: {e}")))?;
-    let payload = framing::unwrap(&bytes, MAGIC, FORMAT_VERSION, "checkpoint").map_err(whole)?;
+    let payload = match mochi_runtime::envelope::open(&bytes, CHECKPOINT_MAGIC, CHECKPOINT_VERSION) {
+        Ok(payload) => payload,
+        Err(mochi_runtime::EnvelopeError::BadMagic) => {
+            return Err(whole("not a mochi checkpoint (bad magic bytes)".into()).into())
+        }
+        Err(e) => return Err(whole(format!("checkpoint {e}")).into()),
+    };
     let tensors =
         SafeTensors::deserialize(payload).map_err(|e| whole(format!("checkpoint payload is unreadable: {e}")))?;
     let (_, header) =

@@ -1,0 +1,202 @@
+//! The deployable payload of an artifact as owned data (feature `std`): the schema the loader
+//! in [`crate::artifact`] reads, field for field and in the same order, and the writer of the
+//! artifact's first section (docs/design.md, decision 4).
+//!
+//! An artifact is the envelope ([`crate::envelope`]) with [`MAGIC`] and [`FORMAT_VERSION`]
+//! around the postcard encoding of a [`Payload`], optionally followed by further sections (the
+//! trainer's training-only data), which the runtime checks but does not read.
+
+use std::vec::Vec;
+
+use serde::{Deserialize, Serialize};
+
+use crate::artifact::{FORMAT_VERSION, MAGIC};
+use crate::envelope;
+
+/// Everything the runtime reads from an artifact, in the order it reads it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Payload {
+    /// Time step in seconds.
+    pub dt: f64,
+    /// Coordinates per vertex (2 or 3).
+    pub dim: u32,
+    /// Vertices of the full mesh.
+    pub num_vertices: u32,
+    /// Rest positions, `dim` per vertex.
+    pub rest: Vec<f32>,
+    /// Rest bounding-box diagonal.
+    pub diagonal: f64,
+    /// Whether states are encoded relative to the handles' best-fit rotation.
+    pub rotates: bool,
+    /// Prescribed vertices, in handle-target order.
+    pub handle_vertices: Vec<u32>,
+    /// Encoded (free) vertices, ascending.
+    pub free_vertices: Vec<u32>,
+    /// Per encoded vertex, the index of its origin.
+    pub origin_of: Vec<u32>,
+    /// Empty: one origin, the centroid of the handle targets. Otherwise, per rod strand, the
+    /// slot of its root among the handle vertices.
+    pub root_slots: Vec<u32>,
+    /// Empty: encoded vertices are positions. Otherwise the rod strands, encoded by their
+    /// bends (see [`crate::Chain`]).
+    pub chains: Vec<ChainData>,
+    /// Handles, in boundary-condition signal order.
+    pub handles: Vec<HandleData>,
+    /// Boundary-condition signal numbers per frame (12 per handle).
+    pub bc_len: u32,
+    /// Vertices that are drawn, ascending.
+    pub surface_vertices: Vec<u32>,
+    /// Latent size.
+    pub latent: u32,
+    /// Latent of the initial state.
+    pub initial_latent: Vec<f32>,
+    /// Per latent coordinate, the smallest value in the training data.
+    pub latent_min: Vec<f32>,
+    /// Per latent coordinate, the largest value in the training data.
+    pub latent_max: Vec<f32>,
+    /// Decoder: latent -> encoded state.
+    pub decoder: Vec<LayerData>,
+    /// Integrator: `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` -> latent increment.
+    pub integrator: Vec<LayerData>,
+}
+
+/// One rod strand of the bend encoding (see [`crate::Chain`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ChainData {
+    /// Handle slots of the strand's two prescribed vertices (parent edge: first to second).
+    pub parent: [u32; 2],
+    /// Unit vector perpendicular to the parent edge at rest.
+    pub rest_normal: [f32; 3],
+    /// Encoded-vertex indices of the strand's free vertices, root to tip.
+    pub slots: Vec<u32>,
+    /// Rest length of the edge ending at each of them.
+    pub lengths: Vec<f32>,
+}
+
+/// A handle: prescribed vertices moved rigidly about a pivot.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HandleData {
+    /// Prescribed vertices.
+    pub vertices: Vec<u32>,
+    /// Their identity-pose positions, 3 per vertex.
+    pub reference: Vec<f32>,
+    /// Rotation pivot at the identity pose.
+    pub pivot: [f32; 3],
+}
+
+/// One dense layer `y = W x + b` (see [`crate::Layer`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LayerData {
+    /// Outputs.
+    pub rows: u64,
+    /// Inputs.
+    pub cols: u64,
+    /// `W`, row-major.
+    pub weights: Vec<f32>,
+    /// `b`.
+    pub bias: Vec<f32>,
+}
+
+impl Payload {
+    /// The payload's postcard encoding (what goes in the first section).
+    pub fn encode(&self) -> Result<Vec<u8>, postcard::Error> {
+        postcard::to_extend(self, Vec::new())
+    }
+
+    /// Decodes a payload's postcard encoding (the first section's contents).
+    pub fn decode(bytes: &[u8]) -> Result<Payload, postcard::Error> {
+        postcard::from_bytes(bytes)
+    }
+
+    /// The artifact's first section: the payload in the envelope with [`MAGIC`] and
+    /// [`FORMAT_VERSION`]. Further sections may be appended with [`envelope::wrap`].
+    pub fn to_section(&self) -> Result<Vec<u8>, postcard::Error> {
+        Ok(envelope::wrap(MAGIC, FORMAT_VERSION, &self.encode()?))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::artifact::LoadError;
+    use crate::envelope::EnvelopeError;
+    use crate::OwnedModel;
+    use std::vec;
+
+    /// A tiny valid model: a 2D triangle, one handle on vertices 0 and 1, vertex 2 free.
+    fn payload() -> Payload {
+        let layer = |rows: u64, cols: u64| LayerData {
+            rows,
+            cols,
+            weights: (0..rows * cols).map(|i| 0.01 * i as f32).collect(),
+            bias: (0..rows).map(|i| -0.1 * i as f32).collect(),
+        };
+        Payload {
+            dt: 0.01,
+            dim: 2,
+            num_vertices: 3,
+            rest: vec![0.0, 0.0, 1.0, 0.0, 0.0, 1.0],
+            diagonal: 2f64.sqrt(),
+            rotates: false,
+            handle_vertices: vec![0, 1],
+            free_vertices: vec![2],
+            origin_of: vec![0],
+            root_slots: vec![],
+            chains: vec![],
+            handles: vec![HandleData {
+                vertices: vec![0, 1],
+                reference: vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0],
+                pivot: [0.5, 0.0, 0.0],
+            }],
+            bc_len: 12,
+            surface_vertices: vec![0, 1, 2],
+            latent: 1,
+            initial_latent: vec![0.0],
+            latent_min: vec![-1.0],
+            latent_max: vec![1.0],
+            decoder: vec![layer(4, 1), layer(2, 4)],
+            integrator: vec![layer(4, 38), layer(1, 4)],
+        }
+    }
+
+    #[test]
+    fn what_is_written_is_what_the_loader_reads() {
+        let p = payload();
+        let bytes = p.to_section().unwrap();
+        let mut storage = OwnedModel::default();
+        let valid = storage.load(&bytes).unwrap();
+        let m = valid.model();
+        assert_eq!((m.dim, m.num_vertices, m.latent, m.bc_len), (2, 3, 1, 12));
+        assert_eq!((m.dt, m.diagonal), (p.dt as f32, p.diagonal as f32));
+        assert_eq!(m.rest(), &p.rest[..]);
+        assert_eq!(m.handle_vertices(), &p.handle_vertices[..]);
+        assert_eq!(m.free_vertices(), &p.free_vertices[..]);
+        assert_eq!(m.surface_vertices(), &p.surface_vertices[..]);
+        assert_eq!(m.decoder.len(), 2);
+        assert_eq!(m.integrator.len(), 2);
+        let first = m.decoder[0];
+        assert_eq!((first.rows, first.cols), (4, 1));
+        assert_eq!(&m.params[first.weights as usize..][..4], &p.decoder[0].weights[..]);
+        assert_eq!(Payload::decode(crate::artifact::payload(&bytes).unwrap()).unwrap(), p);
+    }
+
+    #[test]
+    fn sections_after_the_payload_are_checked_not_read() {
+        let mut bytes = payload().to_section().unwrap();
+        let first = bytes.len();
+        bytes.extend(envelope::wrap(b"OTHERSEC", 7, b"training-only data"));
+        assert!(OwnedModel::default().load(&bytes).is_ok());
+        assert!(OwnedModel::default().load(&bytes[..first]).is_ok());
+        let mut flipped = bytes.clone();
+        *flipped.last_mut().unwrap() ^= 1;
+        assert_eq!(
+            OwnedModel::default().load(&flipped).err(),
+            Some(LoadError::Envelope(EnvelopeError::Corrupt))
+        );
+        bytes.push(0);
+        assert!(matches!(
+            OwnedModel::default().load(&bytes),
+            Err(LoadError::Envelope(EnvelopeError::Truncated { len: 1 }))
+        ));
+    }
+}

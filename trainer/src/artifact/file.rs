@@ -1,0 +1,366 @@
+//! The artifact file (docs/design.md, decision 4), written and read through the runtime's
+//! envelope and payload schema:
+//!
+//! ```text
+//! section 1: envelope(MOCHIMDL, FORMAT_VERSION, postcard(mochi_runtime::payload::Payload))
+//! section 2: envelope(MOCHITRN, FORMAT_VERSION, postcard(TrainingSection))
+//! ```
+//!
+//! The first section is exactly what the runtime reads (and all a device needs); the second
+//! holds what only the trainer reads. Files of format 2 (one section, the whole [`Artifact`]
+//! in postcard) are still read.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::{Artifact, EncodingData, HandleData, Method, TrainingSummary};
+use crate::learn::network::{DenseLayer, NetworkError};
+use mochi_runtime::artifact::{FORMAT_VERSION, MAGIC};
+use mochi_runtime::envelope::{self, EnvelopeError};
+use mochi_runtime::payload::{HandleData as RuntimeHandle, LayerData, Payload};
+use mochi_runtime::LoadError;
+use mochi_sim::error::InputError;
+
+/// Magic of the training section (the second section of an artifact).
+pub const TRAINING_MAGIC: &[u8; 8] = b"MOCHITRN";
+/// The last format with the whole artifact in one section, still read.
+const SINGLE_SECTION_VERSION: u32 = 2;
+
+/// Why an artifact could not be written or read.
+#[derive(Debug, thiserror::Error)]
+pub enum ArtifactError {
+    /// The model section's envelope was refused.
+    #[error("model artifact {0}")]
+    Envelope(EnvelopeError),
+    /// The training section's envelope was refused.
+    #[error("model artifact's training section is missing or {0}")]
+    TrainingEnvelope(EnvelopeError),
+    /// A section could not be encoded.
+    #[error("encoding the artifact's {section}: {source}")]
+    Encode {
+        /// Which section.
+        section: &'static str,
+        /// Why.
+        source: postcard::Error,
+    },
+    /// A section's payload could not be decoded.
+    #[error("model artifact's {section} is unreadable: {source}")]
+    Decode {
+        /// Which section.
+        section: &'static str,
+        /// Why.
+        source: postcard::Error,
+    },
+    /// A field is inconsistent.
+    #[error("field `{field}`: {message}")]
+    Invalid {
+        /// The field.
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// What the runtime reads was refused by the runtime.
+    #[error("refused by the runtime: {0}")]
+    Runtime(#[from] LoadError),
+    /// A network could not be rebuilt from its layers.
+    #[error(transparent)]
+    Network(#[from] NetworkError),
+    /// The file could not be written.
+    #[error("writing artifact {}: {source}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+impl ArtifactError {
+    /// The error as a problem of the input file `source`.
+    pub fn in_file(self, source: &Path) -> InputError {
+        match self {
+            ArtifactError::Invalid { field, message } => InputError::field(source, field, message),
+            other => InputError::file(source, other.to_string()),
+        }
+    }
+}
+
+/// What only the trainer reads: the second section of an artifact.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrainingSection {
+    /// Scene name.
+    pub scene: String,
+    /// The scene file the model was trained from.
+    pub scene_path: String,
+    /// Scene TOML text.
+    pub scene_toml: String,
+    /// How the integrator was trained.
+    pub method: Method,
+    /// Identity-pose targets of the handle vertices (`encoding.reference`).
+    pub reference: Vec<f32>,
+    /// Handle names, in signal order.
+    pub handle_names: Vec<String>,
+    /// Triangles to draw.
+    pub surface_triangles: Vec<[u32; 3]>,
+    /// Polylines to draw.
+    pub polylines: Vec<Vec<u32>>,
+    /// PCA mean of the encoded training frames.
+    pub pca_mean: Vec<f32>,
+    /// PCA components, row-major.
+    pub pca_basis: Vec<f32>,
+    /// Encoder: encoded state -> latent.
+    pub encoder: Vec<DenseLayer>,
+    /// How the model was made.
+    pub summary: TrainingSummary,
+}
+
+fn layer_data(l: &DenseLayer) -> LayerData {
+    LayerData {
+        rows: l.rows as u64,
+        cols: l.cols as u64,
+        weights: l.weights.clone(),
+        bias: l.bias.clone(),
+    }
+}
+
+fn dense_layer(l: LayerData) -> Result<DenseLayer, ArtifactError> {
+    let size = |v: u64| {
+        usize::try_from(v).map_err(|_| ArtifactError::Invalid {
+            field: "layers".into(),
+            message: format!("size {v} does not fit this machine"),
+        })
+    };
+    Ok(DenseLayer {
+        rows: size(l.rows)?,
+        cols: size(l.cols)?,
+        weights: l.weights,
+        bias: l.bias,
+    })
+}
+
+impl Artifact {
+    /// The artifact as its two sections' contents.
+    pub fn sections(&self) -> (Payload, TrainingSection) {
+        let e = &self.encoding;
+        let payload = Payload {
+            dt: self.dt,
+            dim: self.dim,
+            num_vertices: self.num_vertices,
+            rest: self.rest.clone(),
+            diagonal: self.diagonal,
+            rotates: e.rotates,
+            handle_vertices: e.handle_vertices.clone(),
+            free_vertices: e.free_vertices.clone(),
+            origin_of: e.origin_of.clone(),
+            root_slots: e.root_slots.clone(),
+            chains: e.chains.clone(),
+            handles: self
+                .handles
+                .iter()
+                .map(|h| RuntimeHandle {
+                    vertices: h.vertices.clone(),
+                    reference: h.reference.clone(),
+                    pivot: h.pivot,
+                })
+                .collect(),
+            bc_len: self.bc_len,
+            surface_vertices: self.surface_vertices.clone(),
+            latent: self.latent,
+            initial_latent: self.initial_latent.clone(),
+            latent_min: self.latent_min.clone(),
+            latent_max: self.latent_max.clone(),
+            decoder: self.decoder.iter().map(layer_data).collect(),
+            integrator: self.integrator.iter().map(layer_data).collect(),
+        };
+        let training = TrainingSection {
+            scene: self.scene.clone(),
+            scene_path: self.scene_path.clone(),
+            scene_toml: self.scene_toml.clone(),
+            method: self.method,
+            reference: e.reference.clone(),
+            handle_names: self.handles.iter().map(|h| h.name.clone()).collect(),
+            surface_triangles: self.surface_triangles.clone(),
+            polylines: self.polylines.clone(),
+            pca_mean: self.pca_mean.clone(),
+            pca_basis: self.pca_basis.clone(),
+            encoder: self.encoder.clone(),
+            summary: self.summary.clone(),
+        };
+        (payload, training)
+    }
+
+    /// The artifact of two sections' contents.
+    pub fn from_sections(p: Payload, t: TrainingSection) -> Result<Artifact, ArtifactError> {
+        if t.handle_names.len() != p.handles.len() {
+            return Err(ArtifactError::Invalid {
+                field: "handle_names".into(),
+                message: format!("{} names for {} handles", t.handle_names.len(), p.handles.len()),
+            });
+        }
+        let layers = |v: Vec<LayerData>| v.into_iter().map(dense_layer).collect::<Result<Vec<_>, _>>();
+        Ok(Artifact {
+            scene: t.scene,
+            scene_path: t.scene_path,
+            scene_toml: t.scene_toml,
+            method: t.method,
+            dt: p.dt,
+            dim: p.dim,
+            num_vertices: p.num_vertices,
+            rest: p.rest,
+            diagonal: p.diagonal,
+            encoding: EncodingData {
+                rotates: p.rotates,
+                handle_vertices: p.handle_vertices,
+                reference: t.reference,
+                free_vertices: p.free_vertices,
+                origin_of: p.origin_of,
+                root_slots: p.root_slots,
+                chains: p.chains,
+            },
+            handles: p
+                .handles
+                .into_iter()
+                .zip(t.handle_names)
+                .map(|(h, name)| HandleData {
+                    name,
+                    vertices: h.vertices,
+                    reference: h.reference,
+                    pivot: h.pivot,
+                })
+                .collect(),
+            bc_len: p.bc_len,
+            surface_vertices: p.surface_vertices,
+            surface_triangles: t.surface_triangles,
+            polylines: t.polylines,
+            latent: p.latent,
+            initial_latent: p.initial_latent,
+            latent_min: p.latent_min,
+            latent_max: p.latent_max,
+            pca_mean: t.pca_mean,
+            pca_basis: t.pca_basis,
+            encoder: t.encoder,
+            decoder: layers(p.decoder)?,
+            integrator: layers(p.integrator)?,
+            summary: t.summary,
+        })
+    }
+
+    /// The artifact as bytes: the model section, then the training section.
+    pub fn to_bytes(&self) -> Result<Vec<u8>, ArtifactError> {
+        let (payload, training) = self.sections();
+        let mut bytes = payload.to_section().map_err(|source| ArtifactError::Encode {
+            section: "model section",
+            source,
+        })?;
+        let training = postcard::to_allocvec(&training).map_err(|source| ArtifactError::Encode {
+            section: "training section",
+            source,
+        })?;
+        bytes.extend(envelope::wrap(TRAINING_MAGIC, FORMAT_VERSION, &training));
+        Ok(bytes)
+    }
+
+    /// Parses and validates an artifact (format [`FORMAT_VERSION`] or 2), and checks that the
+    /// runtime accepts what it reads of it.
+    pub fn parse(bytes: &[u8]) -> Result<Artifact, ArtifactError> {
+        let decode = |section| move |source| ArtifactError::Decode { section, source };
+        let header = envelope::Header::parse(bytes);
+        let artifact = if bytes.starts_with(MAGIC) && header.map(|h| h.version) == Ok(SINGLE_SECTION_VERSION) {
+            let payload = envelope::open(bytes, MAGIC, SINGLE_SECTION_VERSION).map_err(ArtifactError::Envelope)?;
+            postcard::from_bytes(payload).map_err(decode("payload"))?
+        } else {
+            let (model, rest) = envelope::split(bytes, MAGIC, FORMAT_VERSION).map_err(ArtifactError::Envelope)?;
+            let training =
+                envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).map_err(ArtifactError::TrainingEnvelope)?;
+            Artifact::from_sections(
+                Payload::decode(model).map_err(decode("model section"))?,
+                postcard::from_bytes(training).map_err(decode("training section"))?,
+            )?
+        };
+        artifact
+            .validate()
+            .map_err(|(field, message)| ArtifactError::Invalid { field, message })?;
+        // What the runtime will read must pass the runtime's own checks too.
+        let mut runtime = mochi_runtime::OwnedModel::default();
+        if header.map(|h| h.version) == Ok(FORMAT_VERSION) {
+            runtime.load(bytes)?;
+        } else {
+            runtime.load(&artifact.to_bytes()?)?;
+        }
+        Ok(artifact)
+    }
+
+    /// Parses and validates an artifact; `source` names it in errors.
+    pub fn from_bytes(bytes: &[u8], source: &Path) -> Result<Artifact, InputError> {
+        Artifact::parse(bytes).map_err(|e| e.in_file(source))
+    }
+
+    /// Writes the artifact atomically.
+    pub fn write(&self, path: &Path) -> Result<(), ArtifactError> {
+        let bytes = self.to_bytes()?;
+        crate::learn::train::write_atomically(path, &bytes).map_err(|source| ArtifactError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Reads and validates an artifact file.
+    pub fn read(path: &Path) -> Result<Artifact, InputError> {
+        let bytes = std::fs::read(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
+        Artifact::from_bytes(&bytes, path)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tiny() -> (Vec<u8>, Artifact) {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/artifacts/tiny.mochi");
+        let bytes = std::fs::read(&path).unwrap();
+        let artifact = Artifact::parse(&bytes).unwrap();
+        (bytes, artifact)
+    }
+
+    #[test]
+    fn artifact_bytes_round_trip_and_the_first_section_is_the_runtime_payload() {
+        let (bytes, artifact) = tiny();
+        assert_eq!(artifact.to_bytes().unwrap(), bytes);
+        let (payload, training) = artifact.sections();
+        let first = mochi_runtime::artifact::payload(&bytes).unwrap();
+        assert_eq!(Payload::decode(first).unwrap(), payload);
+        assert_eq!(Artifact::from_sections(payload, training).unwrap(), artifact);
+    }
+
+    #[test]
+    fn artifact_of_format_2_is_still_read() {
+        let (_, artifact) = tiny();
+        let old = envelope::wrap(MAGIC, 2, &postcard::to_allocvec(&artifact).unwrap());
+        assert_eq!(Artifact::parse(&old).unwrap(), artifact);
+        let err = mochi_runtime::OwnedModel::default().load(&old).unwrap_err();
+        assert_eq!(
+            err,
+            LoadError::Envelope(EnvelopeError::Version {
+                found: 2,
+                expected: FORMAT_VERSION
+            })
+        );
+    }
+
+    #[test]
+    fn artifact_without_its_training_section_is_refused_by_the_trainer_only() {
+        let (bytes, _) = tiny();
+        let (model, _) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
+        let first = &bytes[..envelope::HEADER_LEN + model.len()];
+        assert!(mochi_runtime::OwnedModel::default().load(first).is_ok());
+        let err = Artifact::parse(first).unwrap_err().to_string();
+        assert!(err.contains("training section"), "{err}");
+        let mut damaged = bytes.clone();
+        *damaged.last_mut().unwrap() ^= 1;
+        assert!(matches!(
+            Artifact::parse(&damaged),
+            Err(ArtifactError::TrainingEnvelope(EnvelopeError::Corrupt))
+        ));
+    }
+}
