@@ -6,7 +6,7 @@ use mochi_sim::{BuiltScene, Scene, SceneDocument};
 use std::path::Path;
 
 mod support;
-use support::{build, static_tip_deflection};
+use support::{build, rest_targets, static_tip_deflection};
 
 /// A scene shipped with the trainer (its `[latent]` table, the trainer's, set aside).
 fn shipped(name: &str) -> Scene {
@@ -164,12 +164,7 @@ fn released_beam(integrator: &str) -> BuiltScene {
 }
 
 fn vibrate(problem: &mut BuiltScene, frames: usize) -> Vec<f64> {
-    let dim = problem.mesh.dim;
-    let targets: Vec<f64> = problem
-        .handles
-        .iter()
-        .flat_map(|h| h.reference.iter().flat_map(|p| p[..dim].to_vec()))
-        .collect();
+    let targets = rest_targets(problem);
     let mut energies = vec![problem.simulator.total_energy()];
     for _ in 0..frames {
         problem.simulator.step(&targets).expect("step");

@@ -18,15 +18,21 @@ pub fn build(toml: &str) -> BuiltScene {
         .expect("scene builds")
 }
 
+/// The handles' vertices at their rest placement, as the simulator's boundary targets.
+pub fn rest_targets(problem: &BuiltScene) -> Vec<f64> {
+    let dim = problem.mesh.dim;
+    problem
+        .handles
+        .iter()
+        .flat_map(|h| h.reference.iter().flat_map(|p| p[..dim].to_vec()))
+        .collect()
+}
+
 /// Static tip deflection (mean displacement along `axis` of the vertices at the free end,
 /// x = x_max) under the scene's loads with the handles at rest.
 pub fn static_tip_deflection(problem: &mut BuiltScene, axis: usize) -> f64 {
     let dim = problem.mesh.dim;
-    let targets: Vec<f64> = problem
-        .handles
-        .iter()
-        .flat_map(|h| h.reference.iter().flat_map(|p| p[..dim].to_vec()))
-        .collect();
+    let targets = rest_targets(problem);
     let report = problem.simulator.solve_static(&targets).expect("static solve");
     assert!(
         report.converged,
