@@ -667,7 +667,7 @@ fn triangle_signed_area(p: &[Vector3<f64>]) -> f64 {
 }
 
 /// Boundary faces of a tet mesh, oriented with outward normals for positively oriented tets.
-pub fn boundary_faces(tets: &[[usize; 4]]) -> Vec<[usize; 3]> {
+pub(crate) fn boundary_faces(tets: &[[usize; 4]]) -> Vec<[usize; 3]> {
     use std::collections::HashMap;
     // Faces opposite each vertex, oriented outward for a tet with positive volume.
     const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];

@@ -20,7 +20,7 @@ impl TetElastic {
 }
 
 /// Signed volume of the tet `p`, positive when `(p1 - p0) . ((p2 - p0) x (p3 - p0)) > 0`.
-pub fn signed_volume(p: [[f64; 3]; 4]) -> f64 {
+pub(crate) fn signed_volume(p: [[f64; 3]; 4]) -> f64 {
     super::simplex::signed_measure(&p)
 }
 

@@ -21,7 +21,7 @@ impl Tri2dElastic {
 }
 
 /// Signed area of the triangle `p`, positive when its vertices are counter-clockwise.
-pub fn signed_area(p: [[f64; 2]; 3]) -> f64 {
+pub(crate) fn signed_area(p: [[f64; 2]; 3]) -> f64 {
     super::simplex::signed_measure(&p)
 }
 

@@ -18,7 +18,7 @@ const CLOTH: &str = "<procedural cloth>";
 const RODS: &str = "<procedural rods>";
 /// The most vertices a procedural mesh may have (a typo in a count should be an error, not an
 /// attempt to allocate all memory).
-pub const MAX_VERTICES: usize = 1 << 26;
+pub(crate) const MAX_VERTICES: usize = 1 << 26;
 
 /// A conforming tet mesh of the box `lo..hi` with `cells` cubes (cuboids) per axis, each split
 /// into 6 tets around its main diagonal (Kuhn / Freudenthal), so neighbouring cells' faces
