@@ -247,6 +247,7 @@ fn simulate(
     }
     let scene = Recipe::load(name)?.scene;
     let mut problem = scene.build()?;
+    print_warnings(&problem.warnings);
     let seq = problem.sequence(&SpeedPlan::constant(level), frames, seed.unwrap_or(scene.dataset.seed));
     let bar = FramesBar::new(&format!("simulate {}", scene.name), true);
     bar.start(frames as u64);
@@ -291,9 +292,17 @@ fn simulate(
     Ok(())
 }
 
+/// Prints each of the scene's warnings on one line of stderr.
+fn print_warnings(warnings: &[String]) {
+    for warning in warnings {
+        eprintln!("warning: {warning}");
+    }
+}
+
 fn make_dataset(name: &str, out: Option<PathBuf>) -> Result<()> {
     let scene = Recipe::load(name)?.scene;
     let mut problem = scene.build()?;
+    print_warnings(&problem.warnings);
     let dir = out.unwrap_or_else(|| default_out(&scene, "dataset"));
     let report = dataset::generate(&mut problem, &dir, None, true, &FramesBar::new("dataset", true))?;
     let plans = dataset::plan(&scene.dataset);
@@ -319,6 +328,7 @@ fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, latent_size: Opti
     if latent_size == Some(0) {
         bail!("--latent must be at least 1");
     }
+    print_warnings(&scene.region_warnings(&scene.build_mesh()?));
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
     let options = latent::TrainOptions {
         out_dir: out_dir.clone(),

@@ -12,30 +12,7 @@ fn mochi(args: &[&str]) -> std::process::Output {
         .expect("mochi runs")
 }
 
-const TINY: &str = r#"
-name = "tiny"
-gravity = [0.0, -9.81, 0.0]
-[mesh]
-type = "box"
-min = [0.0, 0.0, 0.0]
-max = [0.4, 0.1, 0.1]
-cells = [4, 1, 1]
-[material]
-youngs = 1e5
-poisson = 0.3
-density = 500.0
-[[handles]]
-name = "clamp"
-select = { side = { axis = 0, end = "min" } }
-[handles.motion]
-directions = [[0.0, 1.0, 0.0]]
-speed = [0.1, 0.5]
-segment_frames = [2, 3]
-[dataset]
-train = 2
-test = 3
-frames = 4
-"#;
+const TINY: &str = include_str!("../sim/tests/fixtures/tiny.toml");
 
 #[test]
 fn simulate_writes_trajectory_obj_and_preview() {
@@ -159,4 +136,36 @@ fn bench_runtime_reports_the_ratio_and_agreement() {
     // Fewer bytes per weight.
     let kib = |cells: &[&str]| -> f64 { cells[9].split_whitespace().next().unwrap().parse().unwrap() };
     assert!(kib(&rows[1]) < 0.5 * kib(&rows[0]), "{rows:?}");
+}
+
+#[test]
+fn unused_mesh_attributes_are_a_warning_on_stderr() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("sim/tests/data/two-material-bar.node");
+    let text = TINY.replace(
+        "type = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.4, 0.1, 0.1]\ncells = [4, 1, 1]",
+        &format!("type = \"file\"\npath = \"{}\"", mesh.display()),
+    );
+    assert_ne!(text, TINY);
+    let scene = dir.path().join("bar.toml");
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.path().join("run.npz");
+    let o = mochi(&[
+        "simulate",
+        scene.to_str().unwrap(),
+        "--frames",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let warning = err
+        .lines()
+        .find(|l| l.starts_with("warning: "))
+        .expect("a warning line");
+    assert!(
+        warning.contains("two-material-bar.node") && warning.contains("attributes 1, 2"),
+        "{err}"
+    );
 }

@@ -8,39 +8,7 @@ use mochi_trainer::learn::recipe::Recipe;
 use std::path::Path;
 
 /// A 8x2x2-cell cantilever whose clamp translates and rotates, with small networks.
-const TINY: &str = r#"
-name = "tiny"
-gravity = [0.0, -9.81, 0.0]
-[mesh]
-type = "box"
-min = [0.0, -0.05, -0.05]
-max = [0.6, 0.05, 0.05]
-cells = [8, 2, 2]
-[material]
-youngs = 2e5
-poisson = 0.3
-density = 500.0
-[[handles]]
-name = "clamp"
-select = { side = { axis = 0, end = "min" } }
-[handles.motion]
-directions = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
-rotation_axes = [[1.0, 0.0, 0.0]]
-rotation_share = 0.3
-speed = [0.1, 0.5]
-angular_speed = [0.3, 1.0]
-segment_frames = [5, 10]
-[dataset]
-train = 3
-test = 2
-frames = 40
-test_frames = 60
-[latent]
-tolerance = 1e-3
-sizes = [2, 4, 8]
-autoencoder = { hidden = 32, blocks = 1, epochs = 30, batch = 16, learning_rate = 1e-3, final_learning_rate = 1e-4 }
-integrator = { hidden = 32, blocks = 1, epochs = 30, batch = 16, learning_rate = 1e-3, final_learning_rate = 1e-4 }
-"#;
+const TINY: &str = include_str!("../sim/tests/fixtures/tiny-train.toml");
 
 fn tiny_scene(dir: &Path) -> Recipe {
     let path = dir.join("tiny.toml");

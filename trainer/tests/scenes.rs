@@ -54,21 +54,7 @@ fn parse_err(text: &str) -> String {
     msg
 }
 
-const GOOD: &str = r#"
-name = "ok"
-[mesh]
-type = "box"
-min = [0.0, 0.0, 0.0]
-max = [1.0, 0.2, 0.2]
-cells = [4, 1, 1]
-[material]
-youngs = 1e5
-poisson = 0.3
-density = 1000.0
-[[handles]]
-name = "clamp"
-select = { side = { axis = 0, end = "min" } }
-"#;
+const GOOD: &str = include_str!("../sim/tests/fixtures/good.toml");
 
 #[test]
 fn good_scene_parses() {

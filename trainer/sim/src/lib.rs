@@ -19,6 +19,14 @@ pub mod scene;
 pub mod solver;
 pub mod trajectory;
 
+pub use bc::Handle;
+pub use dataset::{SpeedPlan, Split};
+pub use energy::StencilEnergy;
 pub use error::{InputError, Location, SimError};
+pub use material::{ElementMaterial, MaterialLaw};
+pub use mesh::io::MeshKind;
+pub use mesh::{Elements, Mesh};
 pub use progress::{Progress, Silent};
 pub use scene::{BuiltScene, Scene, SceneDocument};
+pub use solver::{Simulator, SimulatorConfig, TimeScheme};
+pub use trajectory::Trajectory;

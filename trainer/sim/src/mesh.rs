@@ -33,6 +33,11 @@ pub struct Mesh {
     pub rest: Vec<f64>,
     /// Elements.
     pub elements: Elements,
+    /// Region attribute of each element as the mesh file gives it (the first attribute of a
+    /// TetGen / Triangle `.ele` element, the reference of a MEDIT element); `None` for meshes
+    /// without them (procedural meshes, `.obj` files, `.ele` files without attributes). Scenes
+    /// select materials by it (`[[material.regions]] attribute = ...`).
+    pub attributes: Option<Vec<i64>>,
 }
 
 impl Mesh {
@@ -176,6 +181,7 @@ impl Mesh {
             dim: self.dim,
             rest,
             elements,
+            attributes: self.attributes.clone(),
         }
     }
 
@@ -244,6 +250,16 @@ impl Mesh {
                 "the mesh has no {}",
                 self.element_noun_plural()
             )));
+        }
+        if let Some(attributes) = &self.attributes {
+            if attributes.len() != elements.len() {
+                return Err(MeshDefect::whole(format!(
+                    "{} element attributes for {} {}",
+                    attributes.len(),
+                    elements.len(),
+                    self.element_noun_plural()
+                )));
+            }
         }
         for (v, p) in self.rest.chunks_exact(self.dim).enumerate() {
             if !p.iter().all(|c| c.is_finite()) {
@@ -651,7 +667,7 @@ fn triangle_signed_area(p: &[Vector3<f64>]) -> f64 {
 }
 
 /// Boundary faces of a tet mesh, oriented with outward normals for positively oriented tets.
-pub fn boundary_faces(tets: &[[usize; 4]]) -> Vec<[usize; 3]> {
+pub(crate) fn boundary_faces(tets: &[[usize; 4]]) -> Vec<[usize; 3]> {
     use std::collections::HashMap;
     // Faces opposite each vertex, oriented outward for a tet with positive volume.
     const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
@@ -680,6 +696,7 @@ mod tests {
             dim: 3,
             rest: vec![0., 0., 0., 1., 0., 0., 0., 1., 0., 0., 0., 1.],
             elements: Elements::Tets(vec![[0, 1, 2, 3]]),
+            attributes: None,
         }
     }
 
@@ -697,6 +714,7 @@ mod tests {
             dim: 3,
             rest: vec![0.0; 15],
             elements: Elements::Rods(vec![vec![0, 1, 2], vec![4, 3]]),
+            attributes: None,
         };
         assert_eq!(rods.edges(), vec![[0, 1], [1, 2], [3, 4]]);
     }
@@ -714,6 +732,7 @@ mod tests {
             dim: 2,
             rest: vec![0.0, 0.0, 8.0, 0.0, 8.0, 1.0],
             elements: Elements::Triangles(vec![[0, 1, 2]]),
+            attributes: None,
         };
         assert_eq!(bar.normalized().rest, vec![-0.5, -0.0625, 0.5, -0.0625, 0.5, 0.0625]);
     }

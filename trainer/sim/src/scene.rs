@@ -17,6 +17,8 @@ use crate::solver::{NewtonSettings, Simulator, SimulatorConfig, TimeScheme};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+mod regions;
+
 /// A scene as written in its TOML file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -155,7 +157,8 @@ pub struct MaterialSpec {
     /// Rod radius (m); required for rods.
     #[serde(default)]
     pub radius: Option<f64>,
-    /// Regions overriding parameters for elements whose centroid lies in a box.
+    /// Regions overriding parameters for the elements they select (by centroid in a box or
+    /// by mesh file attribute), applied in order.
     #[serde(default)]
     pub regions: Vec<RegionSpec>,
 }
@@ -164,9 +167,13 @@ pub struct MaterialSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RegionSpec {
-    /// Box the element centroids must lie in.
-    #[serde(rename = "box")]
-    pub bounds: BoxSpec,
+    /// Box the element centroids must lie in (exactly one of `box` and `attribute`).
+    #[serde(rename = "box", default, skip_serializing_if = "Option::is_none")]
+    pub bounds: Option<BoxSpec>,
+    /// Element attribute from the mesh file (a TetGen / Triangle `.ele` region attribute or a
+    /// MEDIT element reference) of the elements it takes (exactly one of `box` and `attribute`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attribute: Option<i64>,
     /// Young's modulus override.
     #[serde(default)]
     pub youngs: Option<f64>,
@@ -401,6 +408,7 @@ impl Scene {
         let m = &self.material;
         check_material(m.youngs, m.poisson, m.density)
             .map_err(|(f, msg)| self.field_error(format!("material.{f}"), msg))?;
+        regions::check_selectors(m).map_err(|(f, msg)| self.field_error(f, msg))?;
         for (k, r) in m.regions.iter().enumerate() {
             let e = ElementMaterial {
                 youngs: r.youngs.unwrap_or(m.youngs),
@@ -479,11 +487,13 @@ impl Scene {
             settings: self.newton,
             length_scale: mesh.rest_diagonal(),
         });
+        let warnings = self.region_warnings(&mesh);
         Ok(BuiltScene {
             scene: self.clone(),
             mesh,
             handles,
             simulator,
+            warnings,
         })
     }
 
@@ -491,7 +501,7 @@ impl Scene {
     /// for its element kind, gravity, loads and obstacle collision. The solver and the
     /// training losses both build their energies here, so there is one definition.
     pub fn build_energies(&self, mesh: &Mesh) -> Result<Energies, InputError> {
-        let materials = self.element_materials(mesh);
+        let materials = self.element_materials(mesh)?;
         let densities: Vec<f64> = materials.iter().map(|m| m.density).collect();
         let thickness = self.material.thickness.unwrap_or(1.0);
         let radius = self.material.radius.unwrap_or(1.0);
@@ -529,51 +539,6 @@ impl Scene {
             )));
         }
         Ok(Energies { masses, potentials })
-    }
-
-    /// Per-element materials (per strand for rods): the base material with region
-    /// overrides applied by element centroid.
-    fn element_materials(&self, mesh: &Mesh) -> Vec<ElementMaterial> {
-        let m = &self.material;
-        let base = ElementMaterial {
-            youngs: m.youngs,
-            poisson: m.poisson,
-            density: m.density,
-        };
-        if m.regions.is_empty() {
-            return vec![base];
-        }
-        let point = |v: usize| {
-            let mut p = [0.0; 3];
-            p[..mesh.dim].copy_from_slice(&mesh.rest[v * mesh.dim..(v + 1) * mesh.dim]);
-            p
-        };
-        let centroid = |verts: &[usize]| {
-            let mut c = [0.0; 3];
-            for &v in verts {
-                let p = point(v);
-                (0..3).for_each(|i| c[i] += p[i] / verts.len() as f64);
-            }
-            c
-        };
-        let groups: Vec<Vec<usize>> = match &mesh.elements {
-            Elements::Tets(t) => t.iter().map(|e| e.to_vec()).collect(),
-            Elements::Triangles(t) | Elements::Shell(t) => t.iter().map(|e| e.to_vec()).collect(),
-            Elements::Rods(s) => s.clone(),
-        };
-        groups
-            .iter()
-            .map(|verts| {
-                let c = centroid(verts);
-                let mut e = base;
-                for r in m.regions.iter().filter(|r| r.bounds.contains(c)) {
-                    e.youngs = r.youngs.unwrap_or(e.youngs);
-                    e.poisson = r.poisson.unwrap_or(e.poisson);
-                    e.density = r.density.unwrap_or(e.density);
-                }
-                e
-            })
-            .collect()
     }
 
     /// Resolves a selection to sorted vertex indices; an empty selection is an error.
@@ -777,6 +742,9 @@ pub struct BuiltScene {
     pub handles: Vec<Handle>,
     /// The full-space simulator.
     pub simulator: Simulator,
+    /// Problems worth telling the user that do not stop the scene (see
+    /// [`Scene::region_warnings`]); the simulator prints nothing itself.
+    pub warnings: Vec<String>,
 }
 
 /// Reads a text file, naming it in the error.

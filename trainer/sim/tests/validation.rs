@@ -5,6 +5,9 @@ use mochi_sim::solver::StepError;
 use mochi_sim::{BuiltScene, Scene, SceneDocument};
 use std::path::Path;
 
+mod support;
+use support::{build, rest_targets, static_tip_deflection};
+
 /// A scene shipped with the trainer (its `[latent]` table, the trainer's, set aside).
 fn shipped(name: &str) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../scenes/{name}.toml"));
@@ -12,40 +15,6 @@ fn shipped(name: &str) -> Scene {
     let mut document = SceneDocument::parse(&text, &path).unwrap();
     document.take_section::<toml::Table>("latent").unwrap();
     document.into_scene().unwrap()
-}
-
-fn build(toml: &str) -> BuiltScene {
-    Scene::parse(toml, Path::new("<test scene>"))
-        .expect("valid scene")
-        .build()
-        .expect("scene builds")
-}
-
-/// Static tip deflection (mean displacement along `axis` of the vertices at the free end,
-/// x = x_max) under the scene's loads with the handles at rest.
-fn static_tip_deflection(problem: &mut BuiltScene, axis: usize) -> f64 {
-    let dim = problem.mesh.dim;
-    let targets: Vec<f64> = problem
-        .handles
-        .iter()
-        .flat_map(|h| h.reference.iter().flat_map(|p| p[..dim].to_vec()))
-        .collect();
-    let report = problem.simulator.solve_static(&targets).expect("static solve");
-    assert!(
-        report.converged,
-        "static solve did not converge: {:?}",
-        report.step_norms
-    );
-    let (_, hi) = problem.mesh.bounding_box(&problem.mesh.rest);
-    let n = problem.mesh.num_vertices();
-    let x = problem.simulator.positions();
-    let tip: Vec<usize> = (0..n)
-        .filter(|&v| (problem.mesh.rest[v * dim] - hi[0]).abs() < 1e-9)
-        .collect();
-    tip.iter()
-        .map(|&v| x[v * dim + axis] - problem.mesh.rest[v * dim + axis])
-        .sum::<f64>()
-        / tip.len() as f64
 }
 
 fn relative_errors(deflections: &[f64], exact: f64) -> Vec<f64> {
@@ -177,23 +146,7 @@ select = {{ box = {{ min = [-1.0, -1.0, -1.0], max = [{}, 1.0, 1.0] }} }}
     assert_converges(&relative_errors(&deflections, exact), 0.15, "cloth strip");
 }
 
-const BEAM: &str = r#"
-name = "vibrating-beam"
-[mesh]
-type = "box"
-min = [0.0, -0.05, -0.05]
-max = [1.0, 0.05, 0.05]
-cells = [16, 2, 2]
-[material]
-youngs = 1e6
-poisson = 0.3
-density = 1000.0
-[newton]
-tolerance = 1e-7
-[[handles]]
-name = "clamp"
-select = { side = { axis = 0, end = "min" } }
-"#;
+const BEAM: &str = include_str!("fixtures/vibrating-beam.toml");
 
 /// Bends the beam with a tip load, then releases it: returns the problem in the bent
 /// static state with the load removed.
@@ -211,12 +164,7 @@ fn released_beam(integrator: &str) -> BuiltScene {
 }
 
 fn vibrate(problem: &mut BuiltScene, frames: usize) -> Vec<f64> {
-    let dim = problem.mesh.dim;
-    let targets: Vec<f64> = problem
-        .handles
-        .iter()
-        .flat_map(|h| h.reference.iter().flat_map(|p| p[..dim].to_vec()))
-        .collect();
+    let targets = rest_targets(problem);
     let mut energies = vec![problem.simulator.total_energy()];
     for _ in 0..frames {
         problem.simulator.step(&targets).expect("step");
@@ -368,28 +316,7 @@ fn stiffer_region_reduces_deflection_and_a_neutral_region_changes_nothing() {
 
 #[test]
 fn falling_block_comes_to_rest_on_a_plane_obstacle() {
-    let mut p = build(
-        r#"
-name = "drop"
-gravity = [0.0, -9.81, 0.0]
-[mesh]
-type = "box"
-min = [-0.1, 0.05, -0.1]
-max = [0.1, 0.15, 0.1]
-cells = [2, 1, 2]
-[material]
-youngs = 1e5
-poisson = 0.3
-density = 500.0
-[collision]
-stiffness = 1e6
-margin = 0.005
-[[obstacles]]
-type = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 1.0, 0.0]
-"#,
-    );
+    let mut p = build(include_str!("fixtures/falling-block.toml"));
     let dim = 3;
     let mut min_y = f64::INFINITY;
     for _ in 0..45 {

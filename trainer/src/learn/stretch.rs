@@ -223,6 +223,7 @@ mod tests {
             dim: 3,
             rest: vec![0.0, 0.0, 0.0, 0.0, -0.1, 0.0, 0.0, -0.2, 0.0],
             elements: mochi_sim::mesh::Elements::Rods(vec![vec![0, 1, 2]]),
+            attributes: None,
         };
         // Strands encoded by bends are held by their first two vertices.
         let encoding = Encoding::from_parts(&mesh, &[pin(&mesh, &[0, 1])], false)

@@ -563,6 +563,7 @@ mod tests {
             dim: 3,
             rest,
             elements: Elements::Tets(tets),
+            attributes: None,
         };
         orient_positive(&mut mesh);
         mesh
@@ -591,6 +592,7 @@ mod tests {
             dim: 3,
             rest,
             elements: Elements::Tets(vec![[4, 1, 2, 3], [0, 4, 2, 3], [0, 1, 4, 3], [0, 1, 2, 4]]),
+            attributes: None,
         };
         orient_positive(&mut mesh);
         mesh
@@ -615,6 +617,7 @@ mod tests {
             dim: 3,
             rest,
             elements: Elements::Shell(tris),
+            attributes: None,
         }
     }
 
@@ -645,6 +648,7 @@ mod tests {
             dim: 3,
             rest,
             elements: Elements::Rods(strands),
+            attributes: None,
         }
     }
 
@@ -668,6 +672,7 @@ mod tests {
             dim: 2,
             rest,
             elements: Elements::Triangles(tris),
+            attributes: None,
         }
     }
 
@@ -882,6 +887,7 @@ mod tests {
             dim: 3,
             rest,
             elements: Elements::Shell(vec![[4, 5, 6], [4, 6, 7], [0, 2, 1], [0, 3, 2]]),
+            attributes: None,
         };
         let opts = RenderOptions {
             width: 200,
@@ -921,6 +927,7 @@ mod tests {
             dim: 3,
             rest: mesh.rest.clone(),
             elements: Elements::Shell(vec![[0, 1, 99]]),
+            attributes: None,
         };
         assert!(render_png(&path, &broken, &[&broken.rest], &opts).is_err());
         assert!(write_obj(&path, &broken, &broken.rest).is_err());
@@ -928,6 +935,7 @@ mod tests {
             dim: 2,
             rest: vec![0.0; 6],
             elements: Elements::Shell(vec![[0, 1, 2]]),
+            attributes: None,
         };
         assert!(render_png(&path, &flat_cloth, &[&flat_cloth.rest], &opts).is_err());
         assert!(write_obj(&path, &flat_cloth, &flat_cloth.rest).is_err());

@@ -85,7 +85,7 @@ impl StencilEnergy for Inertia {
 /// Tets use `density * volume / 4`, 2D triangles `density * area / 3` (unit thickness),
 /// cloth `density * thickness * area / 3`, rods `density * pi r^2 * length / 2`.
 /// `densities` holds one value, or one per element (per strand for rods).
-pub fn lumped_masses(mesh: &Mesh, densities: &[f64], thickness: f64, radius: f64) -> Vec<f64> {
+pub(crate) fn lumped_masses(mesh: &Mesh, densities: &[f64], thickness: f64, radius: f64) -> Vec<f64> {
     let n = mesh.num_vertices();
     let x = &mesh.rest;
     let density = |e: usize| densities[if densities.len() == 1 { 0 } else { e }];

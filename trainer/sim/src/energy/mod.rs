@@ -16,12 +16,13 @@ pub mod inertia;
 pub mod rod;
 pub mod shell;
 mod simplex;
+pub use simplex::SimplexElastic;
 pub mod tet;
 pub mod tri2d;
 
 #[cfg(test)]
 mod fd;
-pub mod psd;
+pub(crate) mod psd;
 
 use rayon::prelude::*;
 
@@ -108,7 +109,7 @@ pub trait StencilEnergy: Send + Sync {
 }
 
 /// Gathers the local positions of stencil `s` from the global vector `x`.
-pub fn gather(energy: &dyn StencilEnergy, s: usize, x: &[f64], local: &mut [f64; MAX_DOF]) -> usize {
+pub(crate) fn gather(energy: &dyn StencilEnergy, s: usize, x: &[f64], local: &mut [f64; MAX_DOF]) -> usize {
     let dim = energy.dim();
     let verts = energy.stencil(s);
     for (a, &v) in verts.iter().enumerate() {
@@ -132,7 +133,7 @@ pub fn value(energy: &dyn StencilEnergy, x: &[f64]) -> f64 {
 }
 
 /// Adds `weight * grad energy(x)` into `grad` and returns `weight * energy(x)`.
-pub fn add_gradient(energy: &dyn StencilEnergy, weight: f64, x: &[f64], grad: &mut [f64]) -> f64 {
+pub(crate) fn add_gradient(energy: &dyn StencilEnergy, weight: f64, x: &[f64], grad: &mut [f64]) -> f64 {
     let dim = energy.dim();
     let (val, g) = (0..energy.len())
         .into_par_iter()
@@ -186,7 +187,7 @@ pub fn add_gradient_sequential(energy: &dyn StencilEnergy, weight: f64, x: &[f64
 /// parallel and hands them, in stencil order, to `sink(stencil, value, local)`.
 ///
 /// The solver's sparse assembly and Hessian-vector products are built on this.
-pub fn for_each_hessian(
+pub(crate) fn for_each_hessian(
     energy: &dyn StencilEnergy,
     x: &[f64],
     project: bool,

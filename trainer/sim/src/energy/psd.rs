@@ -27,6 +27,7 @@ pub fn project_psd(h: &mut [f64], n: usize) {
 }
 
 /// Smallest eigenvalue of the symmetric row-major `n x n` matrix `h` (for tests).
+#[cfg(test)]
 pub fn min_eigenvalue(h: &[f64], n: usize) -> f64 {
     let m = DMatrix::from_fn(n, n, |i, j| 0.5 * (h[i * n + j] + h[j * n + i]));
     m.symmetric_eigen().eigenvalues.min()

@@ -1,8 +1,8 @@
 //! Hyperelastic simplex elements written once for both dimensions: the constitutive
 //! models as functions of the deformation gradient `F`, and the linear map from a
-//! simplex's vertex positions to `F`. [`super::tet::TetElastic`] (D = 3) and
-//! [`super::tri2d::Tri2dElastic`] (D = 2, plane strain) are thin wrappers around
-//! [`SimplexElastic`].
+//! simplex's vertex positions to `F`, and the element energy [`SimplexElastic`] itself:
+//! [`super::tet::TetElastic`] (D = 3) and [`super::tri2d::Tri2dElastic`] (D = 2, plane
+//! strain) are its two instances.
 //!
 //! Conventions: `F` is `D x D`; the energy density's Hessian `d2Psi/dF2` is taken over
 //! `vec(F)` in column-major order (entry `(i, j)` of `F` at index `i + D * j`, which is
@@ -31,7 +31,7 @@ use nalgebra::{
     Const, DefaultAllocator, DimDiff, DimMin, DimSub, Matrix2, Matrix3, SMatrix, SVector, SymmetricEigen, SVD, U1,
 };
 
-use super::{Local, Want};
+use super::{Local, StencilEnergy, Want};
 use crate::error::InputError;
 use crate::material::{ElementMaterial, MaterialLaw};
 
@@ -44,12 +44,28 @@ pub const DEGENERATE_RATIO: f64 = 1e-8;
 /// handful per eigenvalue; the cap only stops non-finite input from looping).
 const MAX_ITERATIONS: usize = 1000;
 
-/// What the wrappers call their elements and their measure, for error messages.
-pub struct Names {
-    /// The element, e.g. `tet`.
-    pub element: &'static str,
-    /// Its rest measure, e.g. `volume`.
-    pub measure: &'static str,
+/// What a simplex of dimension `D` and its measure are called in error messages.
+struct Names {
+    /// The element: `tet` or `triangle`.
+    element: &'static str,
+    /// Its rest measure: `volume` or `area`.
+    measure: &'static str,
+}
+
+impl Names {
+    /// The names of `D`-simplices.
+    const fn of<const D: usize>() -> Names {
+        match D {
+            3 => Names {
+                element: "tet",
+                measure: "volume",
+            },
+            _ => Names {
+                element: "triangle",
+                measure: "area",
+            },
+        }
+    }
 }
 
 /// Per-element constants of a simplex.
@@ -64,7 +80,9 @@ struct ElementConstants<const D: usize> {
 }
 
 /// Hyperelastic energy of a mesh of `D`-simplices in `D` dimensions:
-/// `sum_e measure_e * Psi(F_e)`, one stencil (`D + 1` vertices) per element.
+/// `sum_e measure_e * Psi(F_e)`, one stencil (`D + 1` vertices, `(D + 1) D` local dofs)
+/// per element; `N = D * D`. Used as [`super::tet::TetElastic`] and
+/// [`super::tri2d::Tri2dElastic`].
 pub struct SimplexElastic<const D: usize, const N: usize> {
     model: MaterialLaw,
     /// Vertex indices, `D + 1` per element.
@@ -79,17 +97,19 @@ where
     SMatrix<f64, D, D>: DeformationGradient<D, N>,
 {
     /// Builds the energy of `elements` (each `V = D + 1` vertex indices) over the flat
-    /// rest positions `rest`. `materials` holds one material for all elements or one per
-    /// element. Errors name `source` and the offending field or element.
+    /// rest positions `rest` (`D` per vertex), with one material for all elements or one
+    /// per element (plane-strain Lamé parameters in 2D). Rejects bad materials,
+    /// out-of-range vertex indices and degenerate or inverted (in 2D: clockwise) rest
+    /// elements, naming `source` and the field or element.
     pub fn new<const V: usize>(
         model: MaterialLaw,
         rest: &[f64],
         elements: &[[usize; V]],
         materials: &[ElementMaterial],
         source: &std::path::Path,
-        names: Names,
     ) -> Result<Self, InputError> {
         const { assert!(V == D + 1 && N == D * D) };
+        let names = Names::of::<D>();
         check_materials(materials, elements.len(), names.element, source)?;
         let num_vertices = rest.len() / D;
         if num_vertices * D != rest.len() {
@@ -141,18 +161,8 @@ where
         &self.measures
     }
 
-    /// Number of elements.
-    pub fn len(&self) -> usize {
-        self.elements.len()
-    }
-
-    /// Vertex indices of element `s`.
-    pub fn stencil(&self, s: usize) -> &[usize] {
-        &self.indices[s * (D + 1)..(s + 1) * (D + 1)]
-    }
-
-    /// [`super::StencilEnergy::eval`] of element `s` at local positions `x`.
-    pub fn eval(&self, s: usize, x: &[f64], want: Want, out: &mut Local) -> f64 {
+    /// The energy of element `s` at local positions `x` (see [`StencilEnergy::eval`]).
+    fn eval_element(&self, s: usize, x: &[f64], want: Want, out: &mut Local) -> f64 {
         debug_assert_eq!(x.len(), (D + 1) * D);
         let c = &self.elements[s];
         let measure = self.measures[s];
@@ -226,6 +236,31 @@ where
                 }
             }
         }
+    }
+}
+
+impl<const D: usize, const N: usize> StencilEnergy for SimplexElastic<D, N>
+where
+    SMatrix<f64, D, D>: DeformationGradient<D, N>,
+{
+    fn name(&self) -> &'static str {
+        "elastic"
+    }
+
+    fn dim(&self) -> usize {
+        D
+    }
+
+    fn len(&self) -> usize {
+        self.elements.len()
+    }
+
+    fn stencil(&self, s: usize) -> &[usize] {
+        &self.indices[s * (D + 1)..(s + 1) * (D + 1)]
+    }
+
+    fn eval(&self, s: usize, x: &[f64], want: Want, out: &mut Local) -> f64 {
+        self.eval_element(s, x, want, out)
     }
 }
 
@@ -833,6 +868,9 @@ pub mod checks {
         }
     }
 }
+
+#[cfg(test)]
+pub(super) mod element_tests;
 
 #[cfg(test)]
 mod tests {

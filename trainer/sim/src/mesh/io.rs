@@ -208,7 +208,8 @@ struct MeditSections<'a> {
 /// `Tetrahedra` (4 indices and a reference), `Triangles` (3 and a reference), optional `Edges`
 /// and any other sections (skipped), `End`. Keywords are case-insensitive, records may span
 /// lines, `#` starts a comment, indices are 1-based. `Auto` reads tets in 3D and triangles in
-/// 2D; 3D triangles are read only as `Cloth`.
+/// 2D; 3D triangles are read only as `Cloth`. The references of the elements read (an
+/// integer each) become the mesh's attributes.
 fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputError> {
     let tokens: Vec<(usize, &str)> = content_lines(text)
         .flat_map(|(line, words)| words.into_iter().map(move |w| (line, w)))
@@ -289,12 +290,15 @@ fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputErr
     }
     let mut indices = Vec::with_capacity(section.records.len());
     let mut element_lines = Vec::with_capacity(section.records.len());
+    let mut references = Vec::with_capacity(section.records.len());
     for record in &section.records {
         let mut element = [0usize; 4];
         for (slot, (_, token)) in element.iter_mut().zip(&record.numbers[..per_element]) {
             let index = parse_integer(file, record.line, token, "vertex index")?;
             *slot = vertex_index(file, record.line, index, 1, num_vertices)?;
         }
+        let (line, reference) = record.numbers[per_element];
+        references.push(parse_integer(file, line, reference, "element reference")?);
         indices.push(element);
         element_lines.push(record.line);
     }
@@ -304,7 +308,12 @@ fn parse_medit(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputErr
         _ => Elements::Shell(indices.iter().map(|e| [e[0], e[1], e[2]]).collect()),
     };
     Sourced {
-        mesh: Mesh { dim, rest, elements },
+        mesh: Mesh {
+            dim,
+            rest,
+            elements,
+            attributes: Some(references),
+        },
         vertex_file: file,
         vertex_lines,
         element_file: file,
@@ -502,7 +511,9 @@ fn medit_section<'a>(
 /// `<index> <coordinates> [attributes] [marker]` per vertex) and its `.ele` file
 /// (`<elements> <vertices per element> [<attributes>]`, then `<index> <vertex indices>
 /// [attributes]`): tets in 3D (TetGen), triangles in 2D (Triangle). Vertices are numbered
-/// consecutively from the first index in the `.node` file; attributes and markers are ignored.
+/// consecutively from the first index in the `.node` file. The first element attribute (a
+/// region attribute, which must be an integer) becomes the mesh's attributes; further element
+/// attributes and the vertex attributes and markers are checked to be numbers and ignored.
 fn parse_node_ele(
     node_text: &str,
     node_file: &Path,
@@ -538,14 +549,23 @@ fn parse_node_ele(
         ));
     }
     let num_vertices = vertex_lines.len();
-    let (indices, element_lines) = parse_ele(ele_text, ele_file, dim + 1, first, num_vertices)?;
+    let EleFile {
+        elements: indices,
+        lines: element_lines,
+        attributes,
+    } = parse_ele(ele_text, ele_file, dim + 1, first, num_vertices)?;
     let elements = if dim == 3 {
         Elements::Tets(indices)
     } else {
         Elements::Triangles(indices.iter().map(|e| [e[0], e[1], e[2]]).collect())
     };
     Sourced {
-        mesh: Mesh { dim, rest, elements },
+        mesh: Mesh {
+            dim,
+            rest,
+            elements,
+            attributes,
+        },
         vertex_file: node_file,
         vertex_lines,
         element_file: ele_file,
@@ -690,15 +710,24 @@ fn parse_node(text: &str, file: &Path) -> Result<NodeFile, InputError> {
     })
 }
 
-/// Parses an `.ele` file of `per_element`-vertex elements (3 or 4) into 0-based elements
-/// (triangles fill the first 3 slots) and the line of each.
+/// The contents of an `.ele` file.
+struct EleFile {
+    /// 0-based vertex indices; triangles fill the first 3 slots.
+    elements: Vec<[usize; 4]>,
+    /// The line of each element.
+    lines: Vec<usize>,
+    /// The first attribute of each element, when the header declares attributes.
+    attributes: Option<Vec<i64>>,
+}
+
+/// Parses an `.ele` file of `per_element`-vertex elements (3 or 4).
 fn parse_ele(
     text: &str,
     file: &Path,
     per_element: usize,
     first: i64,
     num_vertices: usize,
-) -> Result<(Vec<[usize; 4]>, Vec<usize>), InputError> {
+) -> Result<EleFile, InputError> {
     let mut lines = content_lines(text);
     let Some((header_line, header)) = lines.next() else {
         return Err(InputError::file(file, "empty .ele file: no header"));
@@ -741,6 +770,7 @@ fn parse_ele(
     let width = (1 + nodes).saturating_add(attributes);
     let mut elements = Vec::new();
     let mut element_lines = Vec::new();
+    let mut region_attributes = Vec::new();
     for (line, tokens) in lines {
         if elements.len() == count {
             return Err(InputError::line(
@@ -771,6 +801,9 @@ fn parse_ele(
                 .parse::<f64>()
                 .map_err(|_| InputError::line(file, line, format!("`{token}` is not a number (attribute)")))?;
         }
+        if let Some(token) = tokens.get(1 + nodes) {
+            region_attributes.push(region_attribute(file, line, token)?);
+        }
         elements.push(element);
         element_lines.push(line);
     }
@@ -784,7 +817,29 @@ fn parse_ele(
             ),
         ));
     }
-    Ok((elements, element_lines))
+    Ok(EleFile {
+        elements,
+        lines: element_lines,
+        attributes: (attributes > 0).then_some(region_attributes),
+    })
+}
+
+/// An element's region attribute: an integer, possibly written as a float (`2`, `2.0`, `2e0`).
+fn region_attribute(file: &Path, line: usize, token: &str) -> Result<i64, InputError> {
+    if let Ok(value) = token.parse::<i64>() {
+        return Ok(value);
+    }
+    let value: f64 = token.parse().unwrap_or(f64::NAN);
+    // Integers of magnitude below 2^53 are exact in f64, so the cast below is exact.
+    if value.fract() == 0.0 && value.abs() < 9.007_199_254_740_992e15 {
+        Ok(value as i64)
+    } else {
+        Err(InputError::line(
+            file,
+            line,
+            format!("region attribute `{token}` is not an integer (scenes select regions by integer attributes)"),
+        ))
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -962,7 +1017,12 @@ fn parse_obj(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh, InputError
         Elements::Rods(rods)
     };
     Sourced {
-        mesh: Mesh { dim: 3, rest, elements },
+        mesh: Mesh {
+            dim: 3,
+            rest,
+            elements,
+            attributes: None,
+        },
         vertex_file: file,
         vertex_lines,
         element_file: file,
@@ -1473,6 +1533,41 @@ mod tests {
         let clockwise = "2 3 1\n0 0 2 1 5\n1 0 3 2 5\n";
         let flipped = load_node_ele(SQUARE_NODE, clockwise, MeshKind::Planar).unwrap();
         assert!(triangle_areas(&flipped).iter().all(|&a| a > 0.0));
+    }
+
+    #[test]
+    fn ele_region_attributes_are_kept() {
+        let mesh = load_node_ele(SQUARE_NODE, SQUARE_ELE, MeshKind::Auto).unwrap();
+        assert_eq!(mesh.attributes, Some(vec![5, 5]));
+        // The first of several attributes, integers written as floats, none without any.
+        let two = "2 3 2\n0 0 1 2 -3.0 0.25\n1 0 2 3 4e0 7\n";
+        let mesh = load_node_ele(SQUARE_NODE, two, MeshKind::Auto).unwrap();
+        assert_eq!(mesh.attributes, Some(vec![-3, 4]));
+        let none = "2 3\n0 0 1 2\n1 0 2 3\n";
+        assert_eq!(
+            load_node_ele(SQUARE_NODE, none, MeshKind::Auto).unwrap().attributes,
+            None
+        );
+        let fraction = "2 3 1\n0 0 1 2 5\n1 0 2 3 0.5\n";
+        assert_line_error(
+            load_node_ele(SQUARE_NODE, fraction, MeshKind::Auto),
+            "sq.ele",
+            3,
+            "region attribute `0.5` is not an integer",
+        );
+    }
+
+    #[test]
+    fn medit_element_references_are_kept() {
+        let tets = ["1 2 3 4 7", "2 3 4 5 -2"];
+        let mesh = load_text("ok.mesh", &two_tets(&VERTICES, &tets), MeshKind::Auto).unwrap();
+        assert_eq!(mesh.attributes, Some(vec![7, -2]));
+        let fraction = ["1 2 3 4 7", "2 3 4 5 1.5"];
+        let result = load_text("bad.mesh", &two_tets(&VERTICES, &fraction), MeshKind::Auto);
+        assert!(result
+            .unwrap_err()
+            .to_string()
+            .contains("`1.5` is not an integer (element reference)"));
     }
 
     #[test]

@@ -18,7 +18,7 @@ const CLOTH: &str = "<procedural cloth>";
 const RODS: &str = "<procedural rods>";
 /// The most vertices a procedural mesh may have (a typo in a count should be an error, not an
 /// attempt to allocate all memory).
-pub const MAX_VERTICES: usize = 1 << 26;
+pub(crate) const MAX_VERTICES: usize = 1 << 26;
 
 /// A conforming tet mesh of the box `lo..hi` with `cells` cubes (cuboids) per axis, each split
 /// into 6 tets around its main diagonal (Kuhn / Freudenthal), so neighbouring cells' faces
@@ -107,6 +107,7 @@ pub fn box_tets(lo: [f64; 3], hi: [f64; 3], cells: [usize; 3]) -> Result<Mesh, I
         dim: 3,
         rest,
         elements: Elements::Tets(tets),
+        attributes: None,
     };
     mesh.validate(Path::new(BOX))?;
     Ok(mesh)
@@ -176,6 +177,7 @@ pub fn cloth_grid(
         dim: 3,
         rest,
         elements: Elements::Shell(triangles),
+        attributes: None,
     };
     mesh.validate(Path::new(CLOTH))?;
     Ok(mesh)
@@ -269,6 +271,7 @@ pub fn rod_group(
         dim: 3,
         rest,
         elements: Elements::Rods(rods),
+        attributes: None,
     };
     mesh.validate(Path::new(RODS))?;
     Ok(mesh)
