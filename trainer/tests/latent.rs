@@ -1,10 +1,7 @@
 //! `mochi train` and `mochi eval` end to end on a tiny scene: losses fall, artifacts
 //! round-trip bit for bit, damaged artifacts are refused, an interrupted run resumes.
 
-use mochi_trainer::artifact::{Artifact, Method};
-use mochi_trainer::eval::{self, EvalOptions};
-use mochi_trainer::learn::latent::{self, TrainOptions};
-use mochi_trainer::learn::recipe::Recipe;
+use mochi_trainer::{artifact_paths, evaluate, train_scene, Artifact, EvalOptions, Method, Quiet, Recipe, TrainOptions};
 use std::path::Path;
 
 /// A 8x2x2-cell cantilever whose clamp translates and rotates, with small networks.
@@ -54,7 +51,6 @@ fn eval_options(dir: &Path, out: &str) -> EvalOptions {
         out_dir: dir.join(out),
         stability_frames: 300,
         accuracy_frames: 60,
-        progress: false,
     }
 }
 
@@ -62,7 +58,6 @@ fn options(dir: &Path, resume: bool) -> TrainOptions {
     TrainOptions {
         out_dir: dir.join("out"),
         resume,
-        progress: false,
         latent: None,
     }
 }
@@ -71,7 +66,7 @@ fn options(dir: &Path, resume: bool) -> TrainOptions {
 fn tiny_scene_trains_end_to_end_and_losses_fall() {
     let dir = tempfile::tempdir().unwrap();
     let recipe = tiny_scene(dir.path());
-    let outcome = latent::train_scene(&recipe, &options(dir.path(), false)).unwrap();
+    let outcome = train_scene(&recipe, &options(dir.path(), false), &Quiet).unwrap();
 
     let falls = |name: &str, losses: &[f64]| {
         let (first, last) = (losses[0], *losses.last().unwrap());
@@ -102,9 +97,9 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     );
 
     // Evaluation runs on the artifacts and measures a stable rollout of the tiny scene.
-    let (model_path, _) = latent::artifact_paths(&dir.path().join("out"), "tiny");
+    let (model_path, _) = artifact_paths(&dir.path().join("out"), "tiny");
     let (reports, reference_seconds) =
-        eval::evaluate(std::slice::from_ref(&model_path), &eval_options(dir.path(), "eval")).unwrap();
+        evaluate(std::slice::from_ref(&model_path), &eval_options(dir.path(), "eval"), &Quiet).unwrap();
     assert!(reference_seconds > 0.0);
     assert_eq!(reports.len(), 2, "the supervised sibling is evaluated too");
     for r in &reports {
@@ -151,9 +146,10 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     // test-01) is refused by name, not measured against the planned motion.
     let data = dir.path().join("out/dataset");
     std::fs::copy(data.join("test-00.npz"), data.join("test-01.npz")).unwrap();
-    let err = eval::evaluate(
+    let err = evaluate(
         std::slice::from_ref(&model_path),
         &eval_options(dir.path(), "eval-swapped"),
+        &Quiet,
     )
     .unwrap_err()
     .to_string();
@@ -169,8 +165,8 @@ fn artifact_round_trips_bit_exactly_and_damage_is_refused() {
     let recipe = tiny_scene(dir.path());
     let mut opts = options(dir.path(), false);
     opts.latent = Some(2);
-    latent::train_scene(&recipe, &opts).unwrap();
-    let (path, _) = latent::artifact_paths(&opts.out_dir, "tiny");
+    train_scene(&recipe, &opts, &Quiet).unwrap();
+    let (path, _) = artifact_paths(&opts.out_dir, "tiny");
     let bytes = std::fs::read(&path).unwrap();
     let artifact = Artifact::read(&path).unwrap();
     assert_eq!(artifact.to_bytes().unwrap(), bytes, "re-encoding changes the bytes");
@@ -212,13 +208,13 @@ fn interrupted_training_resumes_from_its_checkpoints() {
     let recipe = tiny_scene(dir.path());
     let mut opts = options(dir.path(), false);
     opts.latent = Some(2);
-    let first = latent::train_scene(&recipe, &opts).unwrap();
+    let first = train_scene(&recipe, &opts, &Quiet).unwrap();
     // "Interrupt" after the last checkpoint, before the artifacts were written.
-    let (model, baseline) = latent::artifact_paths(&opts.out_dir, "tiny");
+    let (model, baseline) = artifact_paths(&opts.out_dir, "tiny");
     std::fs::remove_file(&model).unwrap();
     std::fs::remove_file(&baseline).unwrap();
     opts.resume = true;
-    let resumed = latent::train_scene(&recipe, &opts).unwrap();
+    let resumed = train_scene(&recipe, &opts, &Quiet).unwrap();
     // Nothing is retrained: every loss history comes back from the checkpoints as it was.
     assert_eq!(resumed.autoencoder_losses, first.autoencoder_losses);
     assert_eq!(resumed.losses, first.losses);

@@ -10,7 +10,7 @@ use mochi_sim::trajectory::Trajectory;
 use mochi_sim::BuiltScene;
 use mochi_trainer::eval::OFF_REFERENCE;
 use mochi_trainer::learn::encoding::{Encoding, Frame};
-use mochi_trainer::learn::latent::encode_sequences;
+use mochi_trainer::learn::sequences::encode_sequences;
 use mochi_trainer::learn::loss::PhysicsLoss;
 use mochi_trainer::learn::pca::Pca;
 use mochi_trainer::learn::recipe::{Recipe, PAPER_BC_WEIGHT};

@@ -10,11 +10,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
 use candle_core::{Device, Tensor};
 use mochi_codegen::{format_name, Options, Quantized};
 use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, WeightFormat};
 
+use crate::error::{bail, Context, TrainerResult as Result};
 use crate::artifact::Artifact;
 use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
@@ -95,7 +95,7 @@ pub fn bench(paths: &[PathBuf], frames: usize, storages: &[WeightFormat]) -> Res
 }
 
 fn bench_one(path: &Path, frames: usize, storages: &[WeightFormat]) -> Result<Vec<RuntimeTiming>> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let bytes = crate::error::fs::read(path)?;
     let artifact = Artifact::from_bytes(&bytes, path)?;
     let mut storage = OwnedModel::default();
     let model = storage

@@ -5,10 +5,10 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use mochi_codegen::{format_name, Options, Quantized};
 use mochi_runtime::{AnyInstance, OwnedModel, ValidModel, WeightFormat};
 
+use crate::error::{Context, TrainerResult as Result};
 use crate::eval::rollout::motions;
 use crate::eval::rollout::OFF_REFERENCE;
 use crate::report::chart::{self, LabelledPoint};
