@@ -22,11 +22,11 @@ use mochi_sim::mesh::Elements;
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::eval::{rebuild_problem, LoadedModel};
 use mochi_trainer::learn::encoding::decode_world;
-use mochi_trainer::learn::pack;
-use mochi_trainer::learn::sequences::encode_sequences;
 use mochi_trainer::learn::loss::PhysicsLoss;
 use mochi_trainer::learn::network::forward_exported;
+use mochi_trainer::learn::pack;
 use mochi_trainer::learn::recipe::PAPER_BC_WEIGHT;
+use mochi_trainer::learn::sequences::encode_sequences;
 
 fn main() -> anyhow::Result<()> {
     mochi_trainer::configure_threads();

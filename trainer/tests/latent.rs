@@ -1,7 +1,9 @@
 //! `mochi train` and `mochi eval` end to end on a tiny scene: losses fall, artifacts
 //! round-trip bit for bit, damaged artifacts are refused, an interrupted run resumes.
 
-use mochi_trainer::{artifact_paths, evaluate, train_scene, Artifact, EvalOptions, Method, Quiet, Recipe, TrainOptions};
+use mochi_trainer::{
+    artifact_paths, evaluate, train_scene, Artifact, EvalOptions, Method, Quiet, Recipe, TrainOptions,
+};
 use std::path::Path;
 
 /// A 8x2x2-cell cantilever whose clamp translates and rotates, with small networks.
@@ -98,8 +100,12 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
 
     // Evaluation runs on the artifacts and measures a stable rollout of the tiny scene.
     let (model_path, _) = artifact_paths(&dir.path().join("out"), "tiny");
-    let (reports, reference_seconds) =
-        evaluate(std::slice::from_ref(&model_path), &eval_options(dir.path(), "eval"), &Quiet).unwrap();
+    let (reports, reference_seconds) = evaluate(
+        std::slice::from_ref(&model_path),
+        &eval_options(dir.path(), "eval"),
+        &Quiet,
+    )
+    .unwrap();
     assert!(reference_seconds > 0.0);
     assert_eq!(reports.len(), 2, "the supervised sibling is evaluated too");
     for r in &reports {

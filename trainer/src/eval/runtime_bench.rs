@@ -14,8 +14,8 @@ use candle_core::{Device, Tensor};
 use mochi_codegen::{format_name, Options, Quantized};
 use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, WeightFormat};
 
-use crate::error::{bail, Context, TrainerResult as Result};
 use crate::artifact::Artifact;
+use crate::error::{bail, Context, TrainerResult as Result};
 use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
 use crate::learn::network::ResMlp;

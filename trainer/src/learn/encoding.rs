@@ -768,12 +768,7 @@ pub fn pack_signals(z_prev: &[f32], z_prev2: &[f32], signals: [&[f64]; 3]) -> Ve
 }
 
 /// The world-space state of an encoded vector `q` (f32, as decoded) in `frame`.
-pub fn decode_world(
-    encoding: &Encoding,
-    q: &[f32],
-    frame: &Frame,
-    targets: &[f64],
-) -> Result<Vec<f64>, EncodingError> {
+pub fn decode_world(encoding: &Encoding, q: &[f32], frame: &Frame, targets: &[f64]) -> Result<Vec<f64>, EncodingError> {
     let q64: Vec<f64> = q.iter().map(|&v| v as f64).collect();
     let mut out = vec![0.0; encoding.state_len()];
     encoding.decode_into(&q64, frame, targets, &mut out)?;

@@ -291,13 +291,13 @@ pub(crate) fn candle_err(e: impl std::fmt::Display) -> candle_core::Error {
 #[cfg(test)]
 pub(crate) mod fixtures {
     use super::*;
+    use crate::learn::network::AutoencoderSpec;
     use crate::learn::network::IntegratorSpec;
     use crate::learn::pca::Pca;
     use crate::learn::recipe::{Recipe, RodEncoding};
     use crate::learn::sequences::encode_sequences;
     use mochi_sim::dataset::SpeedPlan;
     use mochi_sim::scene::MeshSpec;
-    use crate::learn::network::AutoencoderSpec;
 
     /// A 6-cell beam, one short trajectory, its encoding and a PCA-initialised autoencoder.
     pub(crate) struct TinyBeam {

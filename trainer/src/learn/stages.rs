@@ -24,8 +24,8 @@ use crate::error::{TrainerError, TrainerResult};
 use crate::learn::build::build_artifact;
 use crate::learn::encoding::Encoding;
 use crate::learn::integrator::PhysicsObjective;
-use crate::learn::network::{rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, IntegratorSpec};
 use crate::learn::network::LatentIntegrator;
+use crate::learn::network::{rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, IntegratorSpec};
 use crate::learn::pca::{self, Pca};
 use crate::learn::recipe::{LatentSpec, NetworkSpec, Recipe};
 use crate::learn::samples::{Augmentation, IntegratorData};
@@ -76,7 +76,11 @@ pub(crate) struct TrainingFrames {
 
 /// Stage 1: simulates the training split into `work.dataset` unless it is there; returns
 /// how many sequences it simulated.
-pub(crate) fn generate_dataset(problem: &mut BuiltScene, work: &Workspace, report: &dyn Reporter) -> TrainerResult<usize> {
+pub(crate) fn generate_dataset(
+    problem: &mut BuiltScene,
+    work: &Workspace,
+    report: &dyn Reporter,
+) -> TrainerResult<usize> {
     let made = dataset::generate(
         problem,
         &work.dataset,
@@ -240,7 +244,12 @@ pub(crate) fn select_autoencoder(
         } else {
             String::new()
         };
-        let config = train_config(&format!("autoencoder-k{k}{stretched}"), &spec.autoencoder, spec.seed, work);
+        let config = train_config(
+            &format!("autoencoder-k{k}{stretched}"),
+            &spec.autoencoder,
+            spec.seed,
+            work,
+        );
         let rms = |ae: &Autoencoder| -> TrainerResult<f64> {
             if encoding.strand_bends() {
                 let refs: Vec<&[f32]> = frames.f32s.iter().map(Vec::as_slice).collect();

@@ -325,14 +325,7 @@ where
         for (batch, indices) in order.chunks(config.batch_size).enumerate() {
             let rows: Vec<&[f32]> = indices.iter().map(|&i| data[i].as_slice()).collect();
             let inputs = rows_to_tensor(&rows, dim).map_err(|e| TrainError::Invalid(e.to_string()))?;
-            let step = loss(
-                &Batch {
-                    inputs,
-                    indices,
-                    epoch,
-                },
-                &mut rng,
-            )?;
+            let step = loss(&Batch { inputs, indices, epoch }, &mut rng)?;
             if !step.value.is_finite() {
                 return Err(TrainError::NonFinite {
                     value: step.value,
@@ -738,7 +731,11 @@ mod tests {
         // (epoch, batch within the epoch) of the latest call.
         let mut at = (usize::MAX, 0);
         let crash = train(&ae.parameters(), &data, &crashing, false, |b, r| {
-            at = if at.0 == b.epoch { (b.epoch, at.1 + 1) } else { (b.epoch, 0) };
+            at = if at.0 == b.epoch {
+                (b.epoch, at.1 + 1)
+            } else {
+                (b.epoch, 0)
+            };
             if at == (4, 2) {
                 return Err(candle_core::Error::Msg("interrupted".into()));
             }
