@@ -89,7 +89,7 @@ impl TrainerError {
     }
 
     /// A value that does not fit, described by `message`.
-    pub fn invalid(message: impl Into<String>) -> Self {
+    pub(crate) fn invalid(message: impl Into<String>) -> Self {
         TrainerError::Invalid(message.into())
     }
 }

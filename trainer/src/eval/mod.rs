@@ -32,7 +32,7 @@ use crate::report::progress::Reporter;
 
 pub mod rollout;
 pub mod runtime_bench;
-pub mod storage;
+pub(crate) mod storage;
 
 pub use rollout::{
     rebuild_problem, roll, rollout, stable_rollout, Divergence, LoadedModel, RolloutMetrics, ACCURACY_FRAMES,
@@ -54,7 +54,7 @@ pub struct ModelReport {
 
 impl ModelReport {
     /// Mean of a metric over the sequences.
-    pub fn mean_of(&self, f: impl Fn(&RolloutMetrics) -> f64) -> f64 {
+    pub(crate) fn mean_of(&self, f: impl Fn(&RolloutMetrics) -> f64) -> f64 {
         self.sequences.iter().map(|(_, m)| f(m)).sum::<f64>() / self.sequences.len().max(1) as f64
     }
 }

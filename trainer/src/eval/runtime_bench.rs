@@ -23,7 +23,7 @@ use mochi_sim::dataset::{self, Split};
 use mochi_sim::measure::vertex_errors;
 
 /// Widest hidden layer the benchmark's instances can run.
-pub const MAX_HIDDEN: usize = 512;
+pub(crate) const MAX_HIDDEN: usize = 512;
 
 /// What one artifact measured.
 #[derive(Clone, Debug)]
@@ -60,11 +60,11 @@ pub struct RuntimeTiming {
 
 impl RuntimeTiming {
     /// Candle's time over the runtime's (step + full decode).
-    pub fn speedup(&self) -> f64 {
+    pub(crate) fn speedup(&self) -> f64 {
         self.candle / self.full
     }
     /// Achieved GFLOP/s of step + full decode (2 FLOPs per multiply-add).
-    pub fn gflops(&self) -> f64 {
+    pub(crate) fn gflops(&self) -> f64 {
         2.0 * self.multiply_adds as f64 / self.full / 1e9
     }
 }
