@@ -1,6 +1,6 @@
 //! The trainer library's errors: one enum, [`TrainerError`], that wraps the typed errors of
 //! the simulator and of every trainer module, names the file of a failed read or write, and
-//! adds what the library was doing when a call failed ([`Context`]).
+//! adds what the library was doing when a call failed (`Context`).
 
 use std::path::{Path, PathBuf};
 

@@ -28,6 +28,7 @@ pub use eval::{evaluate, EvalOptions, ModelReport};
 pub use learn::pipeline::{train_scene, TrainOptions, TrainOutcome};
 pub use learn::recipe::{shipped_scene_names, Recipe};
 pub use learn::stages::artifact_paths;
+pub use learn::train::TrainError;
 pub use mochi_sim::{InputError, Location};
 pub use report::progress::{FramesBar, Quiet, Reporter};
 

@@ -2,9 +2,10 @@
 //! relative to their boundary conditions, PCA, candle networks, the physics loss on the
 //! simulator's own energies, the training loop, and `mochi train`'s recipe and stages.
 //!
-//! `mochi train` is [`pipeline::train_scene`]: the stages of [`stages`] in order, on the
-//! encoded training split ([`sequences`]) and the integrator's samples ([`samples`]), with
-//! the self-supervised objective of [`integrator`] and the baseline's of [`supervised`].
+//! `mochi train` is [`pipeline::train_scene`]: the stages of `stages.rs` in order, on the
+//! encoded training split ([`sequences`]) and the integrator's samples (`samples.rs`), with
+//! the self-supervised objective of `integrator.rs` and the baseline's of `supervised.rs`;
+//! `build.rs` assembles the artifact.
 
 pub(crate) mod build;
 pub mod encoding;

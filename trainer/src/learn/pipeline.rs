@@ -1,5 +1,5 @@
 //! `mochi train`: from a scene's training trajectories to a latent model (Li et al. 2025,
-//! Sec. 3.2-3.3), as named stages run in order ([`crate::learn::stages`]): dataset (train
+//! Sec. 3.2-3.3), as named stages run in order (`learn/stages.rs`): dataset (train
 //! split), PCA, an autoencoder per candidate size (size selection), the self-supervised
 //! integrator, the supervised baseline, and the artifacts. Each stage's seconds go into the
 //! artifacts' training summary.
@@ -40,7 +40,7 @@ pub struct TrainOutcome {
 
 /// Runs the whole of `mochi train` for `recipe`: dataset (train split, if missing),
 /// latent-size selection, autoencoder, both integrators; writes both artifacts into
-/// `options.out_dir` (see [`stages::artifact_paths`]). Stages, measured errors and progress
+/// `options.out_dir` (see [`crate::artifact_paths`]). Stages, measured errors and progress
 /// go to `report`.
 pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporter) -> TrainerResult<TrainOutcome> {
     let problem = &mut recipe.build()?;

@@ -24,8 +24,9 @@ use crate::error::{TrainerError, TrainerResult};
 use crate::learn::build::build_artifact;
 use crate::learn::encoding::Encoding;
 use crate::learn::integrator::PhysicsObjective;
-use crate::learn::network::LatentIntegrator;
-use crate::learn::network::{rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, IntegratorSpec};
+use crate::learn::network::{
+    rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, IntegratorSpec, LatentIntegrator,
+};
 use crate::learn::pca::{self, Pca};
 use crate::learn::recipe::{LatentSpec, NetworkSpec, Recipe};
 use crate::learn::samples::{Augmentation, IntegratorData};
