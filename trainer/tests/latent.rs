@@ -2,7 +2,7 @@
 //! round-trip bit for bit, damaged artifacts are refused, an interrupted run resumes.
 
 use mochi_trainer::{
-    artifact_paths, evaluate, train_scene, Artifact, EvalOptions, Method, Quiet, Recipe, TrainOptions,
+    artifact_paths, evaluate, train_scene, Artifact, EvalOptions, Method, Quiet, Recipe, Reporter, TrainOptions,
 };
 use std::path::Path;
 
@@ -64,11 +64,40 @@ fn options(dir: &Path, resume: bool) -> TrainOptions {
     }
 }
 
+/// Keeps the stages a call reports, in order.
+#[derive(Default)]
+struct Stages(std::sync::Mutex<Vec<String>>);
+
+impl Reporter for Stages {
+    fn stage(&self, name: &str) {
+        self.0.lock().unwrap().push(name.to_string());
+    }
+}
+
 #[test]
 fn tiny_scene_trains_end_to_end_and_losses_fall() {
     let dir = tempfile::tempdir().unwrap();
     let recipe = tiny_scene(dir.path());
-    let outcome = train_scene(&recipe, &options(dir.path(), false), &Quiet).unwrap();
+    let stages = Stages::default();
+    let outcome = train_scene(&recipe, &options(dir.path(), false), &stages).unwrap();
+
+    // The stages run in order, and each one's seconds are in the summary.
+    let reported = stages.0.into_inner().unwrap();
+    let trained: Vec<String> = outcome
+        .model
+        .summary
+        .stage_seconds
+        .iter()
+        .map(|(s, _)| s.clone())
+        .collect();
+    assert_eq!(reported.last().map(String::as_str), Some("artifacts"));
+    assert_eq!(&reported[..reported.len() - 1], trained.as_slice());
+    assert_eq!(&trained[..2], ["dataset (train split)", "pca"]);
+    assert!(trained[2].starts_with("autoencoder k="), "{trained:?}");
+    assert_eq!(
+        &trained[trained.len() - 2..],
+        ["integrator (self-supervised)", "integrator (supervised)"]
+    );
 
     let falls = |name: &str, losses: &[f64]| {
         let (first, last) = (losses[0], *losses.last().unwrap());
