@@ -65,13 +65,14 @@ pub enum TrainerError {
     /// Formatting text failed.
     #[error(transparent)]
     Format(#[from] std::fmt::Error),
-    /// A call failed while the library was doing `context`.
-    #[error("{context}: {source}")]
+    /// A call failed while the library was doing `context` (the message includes the
+    /// error's own, so it is not repeated as a source).
+    #[error("{context}: {error}")]
     Context {
         /// What the library was doing.
         context: String,
         /// Why it failed.
-        source: Box<TrainerError>,
+        error: Box<TrainerError>,
     },
     /// Writing an artifact failed: the artifact module reports its errors untyped (a bridge
     /// until it has its own error type).
@@ -119,7 +120,7 @@ impl<T, E: Into<TrainerError>> Context<T> for Result<T, E> {
     fn with_context(self, context: impl FnOnce() -> String) -> TrainerResult<T> {
         self.map_err(|e| TrainerError::Context {
             context: context(),
-            source: Box::new(e.into()),
+            error: Box::new(e.into()),
         })
     }
 }
