@@ -22,10 +22,11 @@ use mochi_sim::mesh::Elements;
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::eval::{rebuild_problem, LoadedModel};
 use mochi_trainer::learn::encoding::decode_world;
-use mochi_trainer::learn::latent::{encode_sequences, pack};
 use mochi_trainer::learn::loss::PhysicsLoss;
 use mochi_trainer::learn::network::forward_exported;
+use mochi_trainer::learn::pack;
 use mochi_trainer::learn::recipe::PAPER_BC_WEIGHT;
+use mochi_trainer::learn::sequences::encode_sequences;
 
 fn main() -> anyhow::Result<()> {
     mochi_trainer::configure_threads();
@@ -63,7 +64,7 @@ fn main() -> anyhow::Result<()> {
             .collect::<Result<Vec<_>, _>>()?;
         let world = |z: &[f32], t: usize| -> anyhow::Result<Vec<f64>> {
             let q = forward_exported(&model.decoder, z)?;
-            decode_world(&encoding, &q, &seq.frames[t], &seq.targets[t])
+            Ok(decode_world(&encoding, &q, &seq.frames[t], &seq.targets[t])?)
         };
         let last = seq.encoded.len() - 1;
         for t in [2, 5, 20, 60, 100, 140].into_iter().filter(|&t| t <= last) {

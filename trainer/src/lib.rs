@@ -6,14 +6,31 @@
 //! training loop and `mochi train`'s recipe) → [`artifact`] (the `.mochi` file) → [`eval`]
 //! (rollouts, `mochi eval`, weight storage, the runtime benchmark) → [`cli`] (`mochi demo`);
 //! [`report`] draws charts and previews for any of them.
+//!
+//! The library prints nothing: long calls report stages, messages and progress to a
+//! [`Reporter`] the caller chooses ([`Quiet`] in tests), and fail with a [`TrainerError`].
+//!
+//! The API most programs need is re-exported here: a scene's [`Recipe`], [`train_scene`]
+//! with its [`TrainOptions`] and [`TrainOutcome`], [`evaluate`] with its [`EvalOptions`],
+//! the [`Artifact`] a training run writes, and the demo ([`run_demo`]).
 
 pub mod artifact;
 pub mod cli;
+pub mod error;
 pub mod eval;
 pub mod learn;
 pub mod report;
 
+pub use artifact::{Artifact, Method};
+pub use cli::demo::{run as run_demo, DemoOptions, DemoReport};
+pub use error::{TrainerError, TrainerResult};
+pub use eval::{evaluate, EvalOptions, ModelReport};
+pub use learn::pipeline::{train_scene, TrainOptions, TrainOutcome};
+pub use learn::recipe::{shipped_scene_names, Recipe};
+pub use learn::stages::artifact_paths;
+pub use learn::train::TrainError;
 pub use mochi_sim::{InputError, Location};
+pub use report::progress::{FramesBar, Quiet, Reporter};
 
 /// Environment variable candle (and rayon) read for their thread count.
 pub const THREADS_VAR: &str = "RAYON_NUM_THREADS";

@@ -5,10 +5,8 @@ use clap::{Parser, Subcommand};
 use mochi_sim::dataset::{self, SpeedPlan, Split};
 use mochi_sim::{Progress, Scene};
 use mochi_trainer::eval;
-use mochi_trainer::learn::latent;
-use mochi_trainer::learn::recipe::{shipped_scene_names, Recipe};
-use mochi_trainer::report::progress::FramesBar;
 use mochi_trainer::report::render;
+use mochi_trainer::{artifact_paths, shipped_scene_names, FramesBar, Recipe, Reporter};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -155,6 +153,21 @@ enum Bench {
 /// `--weights` values.
 fn parse_weights(name: &str) -> std::result::Result<mochi_runtime::WeightFormat, String> {
     mochi_codegen::parse_format(name).ok_or_else(|| format!("`{name}` is not one of f32, f16, int8"))
+}
+
+/// Reports on the terminal: stages and messages as lines on stdout, progress as bars.
+struct Terminal;
+
+impl Reporter for Terminal {
+    fn stage(&self, name: &str) {
+        println!("== {name}");
+    }
+    fn message(&self, text: &str) {
+        println!("{text}");
+    }
+    fn bars(&self) -> bool {
+        true
+    }
 }
 
 fn main() {
@@ -330,14 +343,13 @@ fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, latent_size: Opti
     }
     print_warnings(&scene.region_warnings(&scene.build_mesh()?));
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
-    let options = latent::TrainOptions {
+    let options = mochi_trainer::TrainOptions {
         out_dir: out_dir.clone(),
         resume,
-        progress: true,
         latent: latent_size,
     };
     let start = Instant::now();
-    let outcome = latent::train_scene(&recipe, &options)?;
+    let outcome = mochi_trainer::train_scene(&recipe, &options, &Terminal)?;
     let summary = &outcome.model.summary;
     println!("\n{}: latent size {}", scene.name, outcome.model.latent);
     for t in &summary.trials {
@@ -352,7 +364,7 @@ fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, latent_size: Opti
     for (stage, seconds) in &summary.stage_seconds {
         println!("  {stage:32} {seconds:8.1} s");
     }
-    let (model, baseline) = latent::artifact_paths(&out_dir, &scene.name);
+    let (model, baseline) = artifact_paths(&out_dir, &scene.name);
     println!(
         "  total {:.1} s -> {} and {}",
         start.elapsed().as_secs_f64(),
@@ -367,13 +379,12 @@ fn eval_models(artifacts: &[PathBuf], out: Option<PathBuf>, frames: usize, accur
         bail!("--frames and --accuracy-frames must be at least 1");
     }
     let out_dir = out.unwrap_or_else(|| artifacts[0].parent().unwrap_or(Path::new(".")).join("eval"));
-    let options = eval::EvalOptions {
+    let options = mochi_trainer::EvalOptions {
         out_dir: out_dir.clone(),
         stability_frames: frames,
         accuracy_frames,
-        progress: true,
     };
-    eval::evaluate(artifacts, &options)?;
+    mochi_trainer::evaluate(artifacts, &options, &Terminal)?;
     let report = std::fs::read_to_string(out_dir.join("report.md"))?;
     println!("\n{report}\ncharts and report -> {}", out_dir.display());
     Ok(())
@@ -442,13 +453,13 @@ fn demo(name: &str, out: Option<PathBuf>, frames: usize, retrain: bool) -> Resul
     let scene = Recipe::load(name)?.scene;
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
     let start = Instant::now();
-    let options = mochi_trainer::cli::demo::DemoOptions {
+    let options = mochi_trainer::DemoOptions {
         scene: name.to_string(),
         out_dir: out_dir.clone(),
         frames,
         retrain,
     };
-    let report = mochi_trainer::cli::demo::run(&options)?;
+    let report = mochi_trainer::run_demo(&options, &Terminal)?;
     println!("\n{}", std::fs::read_to_string(out_dir.join("report.md"))?);
     println!(
         "{}: mean error {:.3}% of the diagonal, {:.1} µs/frame in the runtime vs {:.1} ms/frame full space; total {:.0} s -> {}",

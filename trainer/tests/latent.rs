@@ -1,10 +1,9 @@
 //! `mochi train` and `mochi eval` end to end on a tiny scene: losses fall, artifacts
 //! round-trip bit for bit, damaged artifacts are refused, an interrupted run resumes.
 
-use mochi_trainer::artifact::{Artifact, Method};
-use mochi_trainer::eval::{self, EvalOptions};
-use mochi_trainer::learn::latent::{self, TrainOptions};
-use mochi_trainer::learn::recipe::Recipe;
+use mochi_trainer::{
+    artifact_paths, evaluate, train_scene, Artifact, EvalOptions, Method, Quiet, Recipe, Reporter, TrainOptions,
+};
 use std::path::Path;
 
 /// A 8x2x2-cell cantilever whose clamp translates and rotates, with small networks.
@@ -22,7 +21,6 @@ fn eval_options(dir: &Path, out: &str) -> EvalOptions {
         out_dir: dir.join(out),
         stability_frames: 300,
         accuracy_frames: 60,
-        progress: false,
     }
 }
 
@@ -30,8 +28,17 @@ fn options(dir: &Path, resume: bool) -> TrainOptions {
     TrainOptions {
         out_dir: dir.join("out"),
         resume,
-        progress: false,
         latent: None,
+    }
+}
+
+/// Keeps the stages a call reports, in order.
+#[derive(Default)]
+struct Stages(std::sync::Mutex<Vec<String>>);
+
+impl Reporter for Stages {
+    fn stage(&self, name: &str) {
+        self.0.lock().unwrap().push(name.to_string());
     }
 }
 
@@ -39,7 +46,26 @@ fn options(dir: &Path, resume: bool) -> TrainOptions {
 fn tiny_scene_trains_end_to_end_and_losses_fall() {
     let dir = tempfile::tempdir().unwrap();
     let recipe = tiny_scene(dir.path());
-    let outcome = latent::train_scene(&recipe, &options(dir.path(), false)).unwrap();
+    let stages = Stages::default();
+    let outcome = train_scene(&recipe, &options(dir.path(), false), &stages).unwrap();
+
+    // The stages run in order, and each one's seconds are in the summary.
+    let reported = stages.0.into_inner().unwrap();
+    let trained: Vec<String> = outcome
+        .model
+        .summary
+        .stage_seconds
+        .iter()
+        .map(|(s, _)| s.clone())
+        .collect();
+    assert_eq!(reported.last().map(String::as_str), Some("artifacts"));
+    assert_eq!(&reported[..reported.len() - 1], trained.as_slice());
+    assert_eq!(&trained[..2], ["dataset (train split)", "pca"]);
+    assert!(trained[2].starts_with("autoencoder k="), "{trained:?}");
+    assert_eq!(
+        &trained[trained.len() - 2..],
+        ["integrator (self-supervised)", "integrator (supervised)"]
+    );
 
     let falls = |name: &str, losses: &[f64]| {
         let (first, last) = (losses[0], *losses.last().unwrap());
@@ -70,9 +96,13 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     );
 
     // Evaluation runs on the artifacts and measures a stable rollout of the tiny scene.
-    let (model_path, _) = latent::artifact_paths(&dir.path().join("out"), "tiny");
-    let (reports, reference_seconds) =
-        eval::evaluate(std::slice::from_ref(&model_path), &eval_options(dir.path(), "eval")).unwrap();
+    let (model_path, _) = artifact_paths(&dir.path().join("out"), "tiny");
+    let (reports, reference_seconds) = evaluate(
+        std::slice::from_ref(&model_path),
+        &eval_options(dir.path(), "eval"),
+        &Quiet,
+    )
+    .unwrap();
     assert!(reference_seconds > 0.0);
     assert_eq!(reports.len(), 2, "the supervised sibling is evaluated too");
     for r in &reports {
@@ -119,9 +149,10 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     // test-01) is refused by name, not measured against the planned motion.
     let data = dir.path().join("out/dataset");
     std::fs::copy(data.join("test-00.npz"), data.join("test-01.npz")).unwrap();
-    let err = eval::evaluate(
+    let err = evaluate(
         std::slice::from_ref(&model_path),
         &eval_options(dir.path(), "eval-swapped"),
+        &Quiet,
     )
     .unwrap_err()
     .to_string();
@@ -137,8 +168,8 @@ fn artifact_round_trips_bit_exactly_and_damage_is_refused() {
     let recipe = tiny_scene(dir.path());
     let mut opts = options(dir.path(), false);
     opts.latent = Some(2);
-    latent::train_scene(&recipe, &opts).unwrap();
-    let (path, _) = latent::artifact_paths(&opts.out_dir, "tiny");
+    train_scene(&recipe, &opts, &Quiet).unwrap();
+    let (path, _) = artifact_paths(&opts.out_dir, "tiny");
     let bytes = std::fs::read(&path).unwrap();
     let artifact = Artifact::read(&path).unwrap();
     assert_eq!(artifact.to_bytes().unwrap(), bytes, "re-encoding changes the bytes");
@@ -180,13 +211,13 @@ fn interrupted_training_resumes_from_its_checkpoints() {
     let recipe = tiny_scene(dir.path());
     let mut opts = options(dir.path(), false);
     opts.latent = Some(2);
-    let first = latent::train_scene(&recipe, &opts).unwrap();
+    let first = train_scene(&recipe, &opts, &Quiet).unwrap();
     // "Interrupt" after the last checkpoint, before the artifacts were written.
-    let (model, baseline) = latent::artifact_paths(&opts.out_dir, "tiny");
+    let (model, baseline) = artifact_paths(&opts.out_dir, "tiny");
     std::fs::remove_file(&model).unwrap();
     std::fs::remove_file(&baseline).unwrap();
     opts.resume = true;
-    let resumed = latent::train_scene(&recipe, &opts).unwrap();
+    let resumed = train_scene(&recipe, &opts, &Quiet).unwrap();
     // Nothing is retrained: every loss history comes back from the checkpoints as it was.
     assert_eq!(resumed.autoencoder_losses, first.autoencoder_losses);
     assert_eq!(resumed.losses, first.losses);

@@ -9,16 +9,16 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
-
 use crate::artifact::Artifact;
+use crate::error::{bail, fs, Context, TrainerError, TrainerResult as Result};
 use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
 use crate::learn::encoding::Encoding;
-use crate::learn::latent::{self, TrainOptions};
+use crate::learn::pipeline::{train_scene, TrainOptions};
 use crate::learn::recipe::Recipe;
+use crate::learn::stages::artifact_paths;
 use crate::report::chart::{self, Series};
-use crate::report::progress::FramesBar;
+use crate::report::progress::Reporter;
 use crate::report::render::{self, RenderOptions};
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::measure::vertex_errors;
@@ -89,34 +89,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 "#;
 
-/// Runs the demo.
-pub fn run(options: &DemoOptions) -> Result<DemoReport> {
+/// Runs the demo; what it does, step by step, goes to `report`.
+pub fn run(options: &DemoOptions, report: &dyn Reporter) -> Result<DemoReport> {
     let mut stages = Vec::new();
     let recipe = Recipe::load(&options.scene)?;
     let scene = &recipe.scene;
     let mut problem = scene.build()?;
     let out = &options.out_dir;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    fs::create_dir_all(out)?;
 
     // 1. Dataset and training (reused when the artifact there was trained on this scene as it
     //    is now).
-    let (artifact_path, _) = latent::artifact_paths(out, &scene.name);
+    let (artifact_path, _) = artifact_paths(out, &scene.name);
     let clock = Instant::now();
     let scene_toml = recipe.to_toml()?;
     let artifact = match Artifact::read(&artifact_path) {
         Ok(artifact) if !options.retrain && artifact.scene_toml == scene_toml => {
-            println!("== reusing {} (pass --retrain to train again)", artifact_path.display());
+            report.stage(&format!(
+                "reusing {} (pass --retrain to train again)",
+                artifact_path.display()
+            ));
             artifact
         }
         _ => {
-            println!("== training {} (dataset, autoencoder, integrators)", scene.name);
+            report.stage(&format!("training {} (dataset, autoencoder, integrators)", scene.name));
             let train = TrainOptions {
                 out_dir: out.clone(),
                 resume: true,
-                progress: true,
                 latent: None,
             };
-            latent::train_scene(&recipe, &train)?;
+            train_scene(&recipe, &train, report)?;
             Artifact::read(&artifact_path)?
         }
     };
@@ -125,7 +127,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
     // 2. Codegen into a stand-alone crate that uses the runtime as a user's crate would.
     let clock = Instant::now();
     let krate = out.join("runtime-demo");
-    std::fs::create_dir_all(krate.join("src"))?;
+    fs::create_dir_all(&krate.join("src"))?;
     mochi_codegen::generate_file(&artifact_path, &krate.join("src").join("model.rs"))?;
     write_crate(&krate)?;
     stages.push(("codegen".to_string(), clock.elapsed().as_secs_f64()));
@@ -143,13 +145,13 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
         .flat_map(|m| m.signal())
         .flat_map(|v| v.to_le_bytes())
         .collect();
-    std::fs::write(krate.join("script.bin"), &script)?;
-    println!(
-        "== full-space reference: {frames} frames of {} ({})",
+    fs::write(&krate.join("script.bin"), &script)?;
+    report.stage(&format!(
+        "full-space reference: {frames} frames of {} ({})",
         plan.name, plan.description
-    );
+    ));
     let clock = Instant::now();
-    let bar = FramesBar::new(&format!("full space {}", scene.name), true);
+    let bar = report.frames(&format!("full space {}", scene.name));
     bar.start(frames as u64);
     let reference = problem.run(&bc, &bar)?;
     bar.finish();
@@ -157,7 +159,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
     stages.push(("full-space reference".to_string(), clock.elapsed().as_secs_f64()));
 
     // 4. Compile and run the generated program.
-    println!("== compiling the generated model against mochi-runtime and running it");
+    report.stage("compiling the generated model against mochi-runtime and running it");
     let clock = Instant::now();
     let positions_path = krate.join("positions.bin");
     let output = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
@@ -169,6 +171,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
         .arg(krate.join("script.bin"))
         .arg(&positions_path)
         .output()
+        .map_err(|e| TrainerError::io(&krate.join("Cargo.toml"), e))
         .context("running cargo to build the generated program")?;
     if !output.status.success() {
         bail!(
@@ -180,12 +183,12 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
     let nanos: f64 = String::from_utf8_lossy(&output.stdout)
         .trim()
         .parse()
-        .context("reading the generated program's timing")?;
+        .map_err(|e| TrainerError::invalid(format!("reading the generated program's timing: {e}")))?;
     stages.push((
         "compile + run generated program".to_string(),
         clock.elapsed().as_secs_f64(),
     ));
-    let bytes = std::fs::read(&positions_path)?;
+    let bytes = fs::read(&positions_path)?;
     let values: Vec<f32> = bytes
         .chunks_exact(4)
         .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
@@ -283,8 +286,8 @@ pub fn run(options: &DemoOptions) -> Result<DemoReport> {
         runtime_seconds: nanos * 1e-9,
         full_space_seconds,
     };
-    std::fs::write(
-        out.join("report.md"),
+    fs::write(
+        &out.join("report.md"),
         markdown(&scene.name, &artifact, &plan.description, frames, &report),
     )?;
     Ok(report)
@@ -299,12 +302,12 @@ fn write_crate(krate: &Path) -> Result<()> {
          [dependencies]\nmochi-runtime = {{ path = {:?}, features = [\"std\"] }}\n\n[workspace]\n",
         runtime.display().to_string()
     );
-    std::fs::write(krate.join("Cargo.toml"), manifest)?;
-    std::fs::write(krate.join("src").join("main.rs"), DEMO_MAIN)?;
+    fs::write(&krate.join("Cargo.toml"), manifest)?;
+    fs::write(&krate.join("src").join("main.rs"), DEMO_MAIN)?;
     // The workspace's lock file pins the runtime's dependencies to the versions already built.
     let lock = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("Cargo.lock");
     if lock.exists() && !krate.join("Cargo.lock").exists() {
-        std::fs::copy(&lock, krate.join("Cargo.lock"))?;
+        std::fs::copy(&lock, krate.join("Cargo.lock")).map_err(|e| TrainerError::io(&lock, e))?;
     }
     Ok(())
 }

@@ -19,21 +19,20 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::Context;
-
 use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::{self, SequencePlan, Split};
 use mochi_sim::trajectory::Trajectory;
 use mochi_sim::{BuiltScene, InputError};
 
 use crate::artifact::{Artifact, Method};
+use crate::error::{fs, TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 use crate::report::chart::{self, LabelledPoint, Series};
-use crate::report::progress::FramesBar;
+use crate::report::progress::Reporter;
 
 pub mod rollout;
 pub mod runtime_bench;
-pub mod storage;
+pub(crate) mod storage;
 
 pub use rollout::{
     rebuild_problem, roll, rollout, stable_rollout, Divergence, LoadedModel, RolloutMetrics, ACCURACY_FRAMES,
@@ -55,7 +54,7 @@ pub struct ModelReport {
 
 impl ModelReport {
     /// Mean of a metric over the sequences.
-    pub fn mean_of(&self, f: impl Fn(&RolloutMetrics) -> f64) -> f64 {
+    pub(crate) fn mean_of(&self, f: impl Fn(&RolloutMetrics) -> f64) -> f64 {
         self.sequences.iter().map(|(_, m)| f(m)).sum::<f64>() / self.sequences.len().max(1) as f64
     }
 }
@@ -70,7 +69,7 @@ fn check_follows_plan(
     bc: &BcSequence,
     reference: &Trajectory,
     path: &Path,
-) -> anyhow::Result<()> {
+) -> TrainerResult<()> {
     let dim = problem.mesh.dim;
     let tolerance = 1e-9 * problem.mesh.rest_diagonal();
     let frames = (reference.num_frames() - 1).min(bc.frames());
@@ -106,28 +105,31 @@ pub struct EvalOptions {
     pub stability_frames: usize,
     /// Frames of accuracy measurement.
     pub accuracy_frames: usize,
-    /// Progress output.
-    pub progress: bool,
 }
 
 /// The whole evaluation: every artifact (and its supervised sibling when present) on the
-/// test split of its scene; writes `report.md` and the charts into `options.out_dir`.
-pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec<ModelReport>, f64)> {
+/// test split of its scene; writes `report.md` and the charts into `options.out_dir`. Each
+/// model's result on each sequence goes to `report` as it is measured.
+pub fn evaluate(
+    paths: &[PathBuf],
+    options: &EvalOptions,
+    report: &dyn Reporter,
+) -> TrainerResult<(Vec<ModelReport>, f64)> {
     let mut all = Vec::new();
     for path in expand_with_baselines(paths) {
         all.push((path.clone(), LoadedModel::new(Artifact::read(&path)?)?));
     }
     let first = &all
         .first()
-        .ok_or_else(|| anyhow::anyhow!("no artifact given"))?
+        .ok_or_else(|| TrainerError::invalid("no artifact given"))?
         .1
         .artifact;
     if let Some((p, _)) = all.iter().find(|(_, m)| m.artifact.scene_toml != first.scene_toml) {
-        anyhow::bail!(
+        return Err(TrainerError::invalid(format!(
             "{} is for a different scene than {}; evaluate one scene at a time",
             p.display(),
             paths[0].display()
-        );
+        )));
     }
     let (mut problem, encoding) = rebuild_problem(first)?;
     let data_dir = paths[0].parent().unwrap_or(Path::new(".")).join("dataset");
@@ -136,7 +138,7 @@ pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec
         &data_dir,
         Some(Split::Test),
         false,
-        &FramesBar::new("dataset", options.progress),
+        &report.frames("dataset"),
     )?;
     let tests = dataset::load(&problem, &data_dir, Split::Test)?;
     // The rollouts' boundary conditions come from the scene's plan, each sequence's errors
@@ -175,18 +177,16 @@ pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec
                 reference,
                 options.accuracy_frames,
             )?;
-            if options.progress {
-                println!(
-                    "{} {} on {}: mean error {:.3}%, max {:.2}%, KE ratio {:.3}, stable {}",
-                    model.artifact.scene,
-                    model.artifact.method.label(),
-                    plan.name,
-                    100.0 * metrics.mean_error,
-                    100.0 * metrics.max_error,
-                    metrics.kinetic_energy_ratio,
-                    stability(&metrics)
-                );
-            }
+            report.message(&format!(
+                "{} {} on {}: mean error {:.3}%, max {:.2}%, KE ratio {:.3}, stable {}",
+                model.artifact.scene,
+                model.artifact.method.label(),
+                plan.name,
+                100.0 * metrics.mean_error,
+                100.0 * metrics.max_error,
+                metrics.kinetic_energy_ratio,
+                stability(&metrics)
+            ));
             sequences.push((plan.clone(), metrics));
         }
         reports.push(ModelReport {
@@ -196,16 +196,16 @@ pub fn evaluate(paths: &[PathBuf], options: &EvalOptions) -> anyhow::Result<(Vec
             sequences,
         });
     }
-    std::fs::create_dir_all(&options.out_dir)?;
+    fs::create_dir_all(&options.out_dir)?;
     write_charts(&options.out_dir, &first.scene, &reports, reference_seconds)?;
     let mut text = report_markdown(&first.scene, &reports, reference_seconds, options);
     // What each weight storage costs, for the first artifact (the runtime's own rollout).
     let first_path = &all[0].0;
-    let bytes = std::fs::read(first_path).with_context(|| format!("reading {}", first_path.display()))?;
+    let bytes = fs::read(first_path)?;
     let storage = storage::evaluate(&bytes, first_path, &problem, &tests, options.accuracy_frames)?;
     storage::write_chart(&options.out_dir, &first.scene, &storage)?;
     text += &storage::markdown(&storage, options.accuracy_frames);
-    std::fs::write(options.out_dir.join("report.md"), &text)?;
+    fs::write(&options.out_dir.join("report.md"), &text)?;
     Ok((reports, reference_seconds))
 }
 
@@ -232,7 +232,7 @@ fn label(r: &ModelReport) -> String {
     format!("{} k={}", r.method.label(), r.latent)
 }
 
-fn write_charts(dir: &Path, scene: &str, reports: &[ModelReport], reference_seconds: f64) -> anyhow::Result<()> {
+fn write_charts(dir: &Path, scene: &str, reports: &[ModelReport], reference_seconds: f64) -> TrainerResult<()> {
     let count = reports.first().map_or(0, |r| r.sequences.len());
     for s in 0..count {
         let plan = &reports[0].sequences[s].0;

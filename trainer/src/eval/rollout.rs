@@ -11,6 +11,7 @@ use mochi_sim::trajectory::Trajectory;
 use mochi_sim::BuiltScene;
 
 use crate::artifact::Artifact;
+use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::{decode_world, pack_signals, Encoding};
 use crate::learn::network::{forward_exported, ExportedIntegrator, ExportedMlp};
 use crate::learn::recipe::Recipe;
@@ -32,9 +33,9 @@ pub struct LoadedModel {
 
 impl LoadedModel {
     /// Builds the runnable networks of `artifact`.
-    pub fn new(artifact: Artifact) -> anyhow::Result<Self> {
-        let decoder = artifact.decoder().map_err(anyhow::Error::msg)?;
-        let integrator = artifact.integrator().map_err(anyhow::Error::msg)?;
+    pub fn new(artifact: Artifact) -> TrainerResult<Self> {
+        let decoder = artifact.decoder().map_err(TrainerError::Invalid)?;
+        let integrator = artifact.integrator().map_err(TrainerError::Invalid)?;
         Ok(LoadedModel {
             artifact,
             decoder,
@@ -44,15 +45,15 @@ impl LoadedModel {
 }
 
 /// Rebuilds the scene an artifact was trained on and checks that its encoding is the same.
-pub fn rebuild_problem(artifact: &Artifact) -> anyhow::Result<(BuiltScene, Encoding)> {
+pub fn rebuild_problem(artifact: &Artifact) -> TrainerResult<(BuiltScene, Encoding)> {
     let recipe = Recipe::parse(&artifact.scene_toml, Path::new(&artifact.scene_path))?;
     let problem = recipe.build()?;
     let encoding = Encoding::new(&problem, recipe.latent.rods)?;
     if crate::artifact::EncodingData::new(&encoding) != artifact.encoding {
-        anyhow::bail!(
+        return Err(TrainerError::invalid(format!(
             "the artifact's boundary-condition encoding does not match scene `{}` as rebuilt from it",
             artifact.scene
-        );
+        )));
     }
     Ok((problem, encoding))
 }
@@ -133,7 +134,7 @@ pub fn roll(
     bc: &BcSequence,
     frames: usize,
     mut visit: impl FnMut(usize, &[f32], &[f32], &[f64]) -> bool,
-) -> anyhow::Result<(f64, f64)> {
+) -> TrainerResult<(f64, f64)> {
     let a = &model.artifact;
     let dim = problem.mesh.dim;
     let mut z_prev = a.initial_latent.clone();
@@ -204,7 +205,7 @@ pub fn stable_rollout(
     encoding: &Encoding,
     bc: &BcSequence,
     frames: usize,
-) -> anyhow::Result<Vec<Vec<f64>>> {
+) -> TrainerResult<Vec<Vec<f64>>> {
     let limits = BlowUpLimits::new(model, encoding);
     let mut states = Vec::new();
     roll(model, problem, encoding, bc, frames, |_, z, q, x| {
@@ -227,7 +228,7 @@ pub fn rollout(
     frames: usize,
     reference: &Trajectory,
     accuracy_frames: usize,
-) -> anyhow::Result<RolloutMetrics> {
+) -> TrainerResult<RolloutMetrics> {
     let a = &model.artifact;
     let dim = problem.mesh.dim;
     let masses = problem.simulator.masses();

@@ -10,12 +10,12 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
 use candle_core::{Device, Tensor};
 use mochi_codegen::{format_name, Options, Quantized};
 use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, WeightFormat};
 
 use crate::artifact::Artifact;
+use crate::error::{bail, Context, TrainerResult as Result};
 use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
 use crate::learn::network::ResMlp;
@@ -23,7 +23,7 @@ use mochi_sim::dataset::{self, Split};
 use mochi_sim::measure::vertex_errors;
 
 /// Widest hidden layer the benchmark's instances can run.
-pub const MAX_HIDDEN: usize = 512;
+pub(crate) const MAX_HIDDEN: usize = 512;
 
 /// What one artifact measured.
 #[derive(Clone, Debug)]
@@ -60,11 +60,11 @@ pub struct RuntimeTiming {
 
 impl RuntimeTiming {
     /// Candle's time over the runtime's (step + full decode).
-    pub fn speedup(&self) -> f64 {
+    pub(crate) fn speedup(&self) -> f64 {
         self.candle / self.full
     }
     /// Achieved GFLOP/s of step + full decode (2 FLOPs per multiply-add).
-    pub fn gflops(&self) -> f64 {
+    pub(crate) fn gflops(&self) -> f64 {
         2.0 * self.multiply_adds as f64 / self.full / 1e9
     }
 }
@@ -95,7 +95,7 @@ pub fn bench(paths: &[PathBuf], frames: usize, storages: &[WeightFormat]) -> Res
 }
 
 fn bench_one(path: &Path, frames: usize, storages: &[WeightFormat]) -> Result<Vec<RuntimeTiming>> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let bytes = crate::error::fs::read(path)?;
     let artifact = Artifact::from_bytes(&bytes, path)?;
     let mut storage = OwnedModel::default();
     let model = storage

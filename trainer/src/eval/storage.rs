@@ -5,10 +5,10 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use mochi_codegen::{format_name, Options, Quantized};
 use mochi_runtime::{AnyInstance, OwnedModel, ValidModel, WeightFormat};
 
+use crate::error::{Context, TrainerResult as Result};
 use crate::eval::rollout::motions;
 use crate::eval::rollout::OFF_REFERENCE;
 use crate::report::chart::{self, LabelledPoint};
@@ -32,7 +32,7 @@ pub fn storages() -> [Options; 4] {
 }
 
 /// How a storage is called in reports.
-pub fn storage_name(options: &Options) -> String {
+pub(crate) fn storage_name(options: &Options) -> String {
     if options == &Options::weights(options.decoder) {
         format_name(options.decoder).into()
     } else {
@@ -46,7 +46,7 @@ pub fn storage_name(options: &Options) -> String {
 
 /// One format's results over the test sequences.
 #[derive(Clone, Debug, PartialEq)]
-pub struct StorageReport {
+pub(crate) struct StorageReport {
     /// The weight storage.
     pub storage: Options,
     /// Bytes of weights, biases and scales.
@@ -153,7 +153,7 @@ fn roll(
 }
 
 /// Writes `storage.png`: mean error against model size, one point per format.
-pub fn write_chart(dir: &Path, scene: &str, reports: &[StorageReport]) -> Result<()> {
+pub(crate) fn write_chart(dir: &Path, scene: &str, reports: &[StorageReport]) -> Result<()> {
     let points: Vec<LabelledPoint> = reports
         .iter()
         .map(|r| LabelledPoint {

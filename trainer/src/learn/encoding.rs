@@ -88,7 +88,7 @@ fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), En
 
 /// Where the origins `o_v` of the encoded vertices come from.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Origins {
+pub(crate) enum Origins {
     /// One origin for every vertex: the centroid of the current handle targets (the
     /// origin is 0 when there are no handles).
     HandleCentroid,
@@ -174,7 +174,7 @@ impl Encoding {
     /// The encoding of `mesh` with prescribed `handles`; `rotates` says whether to remove
     /// the handles' rotation (it needs handle vertices that are not collinear in 3D, or
     /// not all one point in 2D).
-    pub fn from_parts(mesh: &Mesh, handles: &[Handle], rotates: bool) -> Result<Encoding, EncodingError> {
+    pub(crate) fn from_parts(mesh: &Mesh, handles: &[Handle], rotates: bool) -> Result<Encoding, EncodingError> {
         let dim = mesh.dim;
         let num_vertices = mesh.num_vertices();
         let mut slot_of = vec![None; num_vertices];
@@ -236,7 +236,7 @@ impl Encoding {
     /// rational arithmetic only, every edge at its rest length, exact for any rod that is
     /// not stretched. The root's axes are the parent edge's direction and the rest normal
     /// turned by the handles' rotation.
-    pub fn with_strand_bends(mut self, mesh: &Mesh) -> Result<Encoding, EncodingError> {
+    pub(crate) fn with_strand_bends(mut self, mesh: &Mesh) -> Result<Encoding, EncodingError> {
         let bad = |message: String| EncodingError::BadHandle {
             handle: "rod roots".into(),
             message,
@@ -312,7 +312,7 @@ impl Encoding {
     }
 
     /// Numbers per encoded vertex: `dim` for positions, 2 for bends.
-    pub fn values_per_vertex(&self) -> usize {
+    pub(crate) fn values_per_vertex(&self) -> usize {
         if self.strand_bends() {
             2
         } else {
@@ -333,7 +333,7 @@ impl Encoding {
         self.free_vertices.len() * self.values_per_vertex()
     }
     /// Length of the handle targets (`dim` per prescribed vertex).
-    pub fn targets_len(&self) -> usize {
+    pub(crate) fn targets_len(&self) -> usize {
         self.handle_vertices.len() * self.dim
     }
     /// The identity-pose handle targets (`dim` per prescribed vertex), the reference of the
@@ -358,7 +358,7 @@ impl Encoding {
         &self.origin_of
     }
     /// Where the origins come from.
-    pub fn origins(&self) -> &Origins {
+    pub(crate) fn origins(&self) -> &Origins {
         &self.origins
     }
 
@@ -426,7 +426,7 @@ impl Encoding {
     }
 
     /// Encodes the full state `x` in `frame`: `q_v = R^T (x_v - o_v)` for every encoded vertex.
-    pub fn encode(&self, x: &[f64], frame: &Frame) -> Result<Vec<f64>, EncodingError> {
+    pub(crate) fn encode(&self, x: &[f64], frame: &Frame) -> Result<Vec<f64>, EncodingError> {
         check_len("state", self.state_len(), x.len())?;
         self.check_frame(frame)?;
         if self.strand_bends() {
@@ -584,7 +584,7 @@ impl Encoding {
 /// Whether any handle can rotate: it has a script with a non-zero angular velocity, or a
 /// sampled motion that can pick a rotating segment (rotation axes, and either no
 /// translation directions or a positive `rotation_share`).
-pub fn handles_rotate(handles: &[HandleSpec]) -> bool {
+pub(crate) fn handles_rotate(handles: &[HandleSpec]) -> bool {
     handles.iter().any(|h| {
         let scripted = h.script.iter().any(|s| s.angular_velocity.iter().any(|w| *w != 0.0));
         let sampled = h
@@ -602,7 +602,7 @@ pub fn handles_rotate(handles: &[HandleSpec]) -> bool {
 /// The SVD is faer's: nalgebra 0.35's SVD returned singular vectors off by 4e-3 for the
 /// nearly repeated singular values of a symmetric handle (the 4 x 4 grid of rod roots),
 /// where faer's is accurate to round-off.
-pub fn best_fit_rotation(reference: &[f64], current: &[f64], dim: usize) -> Result<Matrix3<f64>, EncodingError> {
+pub(crate) fn best_fit_rotation(reference: &[f64], current: &[f64], dim: usize) -> Result<Matrix3<f64>, EncodingError> {
     if !(dim == 2 || dim == 3) {
         return Err(EncodingError::Length {
             what: "coordinates per point (2 or 3)",
@@ -759,7 +759,7 @@ fn centroid(points: &[f64], dim: usize) -> Vector3<f64> {
 }
 
 /// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` from the three signals.
-pub fn pack_signals(z_prev: &[f32], z_prev2: &[f32], signals: [&[f64]; 3]) -> Vec<f32> {
+pub(crate) fn pack_signals(z_prev: &[f32], z_prev2: &[f32], signals: [&[f64]; 3]) -> Vec<f32> {
     let mut row: Vec<f32> = z_prev.iter().chain(z_prev2).copied().collect();
     for p in signals {
         row.extend(p.iter().map(|&v| v as f32));
@@ -768,7 +768,7 @@ pub fn pack_signals(z_prev: &[f32], z_prev2: &[f32], signals: [&[f64]; 3]) -> Ve
 }
 
 /// The world-space state of an encoded vector `q` (f32, as decoded) in `frame`.
-pub fn decode_world(encoding: &Encoding, q: &[f32], frame: &Frame, targets: &[f64]) -> anyhow::Result<Vec<f64>> {
+pub fn decode_world(encoding: &Encoding, q: &[f32], frame: &Frame, targets: &[f64]) -> Result<Vec<f64>, EncodingError> {
     let q64: Vec<f64> = q.iter().map(|&v| v as f64).collect();
     let mut out = vec![0.0; encoding.state_len()];
     encoding.decode_into(&q64, frame, targets, &mut out)?;

@@ -70,7 +70,7 @@ impl PhysicsLoss {
 
     /// The data-balancing divisor of Eq. 6: the norm of the mean vertex velocity between
     /// the two previous states, floored at `min_speed` so resting states keep a finite weight.
-    pub fn balance(&self, prev: &[f64], prev2: &[f64], min_speed: f64) -> f64 {
+    pub(crate) fn balance(&self, prev: &[f64], prev2: &[f64], min_speed: f64) -> f64 {
         let n = prev.len() / self.dim;
         let mut mean = [0.0; 3];
         for v in 0..n {

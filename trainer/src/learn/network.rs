@@ -53,7 +53,7 @@ fn invalid<T>(message: impl Into<String>) -> ModelResult<T> {
 }
 
 /// `v * sigmoid(v)`, written as candle writes its `silu` (`v / (1 + exp(-v))`).
-pub fn swish<T: Real>(v: T) -> T {
+pub(crate) fn swish<T: Real>(v: T) -> T {
     v / (T::from_f32(1.0) + (-v).exp())
 }
 
@@ -158,7 +158,7 @@ pub struct ExportedMlp {
 impl ExportedMlp {
     /// Builds from the flat layer list `[input, inner_0, outer_0, ..., inner_{B-1},
     /// outer_{B-1}, output]` (the order of [`ExportedMlp::layers`]), checking every shape.
-    pub fn from_layers(layers: Vec<DenseLayer>) -> ModelResult<Self> {
+    pub(crate) fn from_layers(layers: Vec<DenseLayer>) -> ModelResult<Self> {
         if layers.len() < 2 || !layers.len().is_multiple_of(2) {
             return invalid(format!("a residual MLP has 2 + 2*blocks layers, got {}", layers.len()));
         }
@@ -346,8 +346,7 @@ struct Block {
 
 /// A trainable residual MLP (layout and initialisation in the module documentation).
 #[derive(Debug, Clone)]
-pub struct ResMlp {
-    spec: MlpSpec,
+pub(crate) struct ResMlp {
     input: Dense,
     blocks: Vec<Block>,
     output: Dense,
@@ -378,16 +377,11 @@ impl ResMlp {
             })
             .collect::<ModelResult<Vec<_>>>()?;
         let output = output(rng)?;
-        Ok(ResMlp {
-            spec,
-            input,
-            blocks,
-            output,
-        })
+        Ok(ResMlp { input, blocks, output })
     }
 
     /// The candle network with the weights of a frozen one (for comparisons with the runtime).
-    pub fn from_exported(mlp: &ExportedMlp) -> ModelResult<Self> {
+    pub(crate) fn from_exported(mlp: &ExportedMlp) -> ModelResult<Self> {
         let dense = |l: &DenseLayer| Dense::from_values(l.rows, l.cols, l.weights.clone(), l.bias.clone());
         let blocks = mlp
             .blocks()
@@ -400,16 +394,10 @@ impl ResMlp {
             })
             .collect::<ModelResult<Vec<_>>>()?;
         Ok(ResMlp {
-            spec: mlp.spec(),
             input: dense(mlp.input())?,
             blocks,
             output: dense(mlp.output())?,
         })
-    }
-
-    /// The sizes of this network.
-    pub fn spec(&self) -> MlpSpec {
-        self.spec
     }
 
     /// Runs the network on a batch `x: (batch, input)`, giving `(batch, output)`.
@@ -425,7 +413,7 @@ impl ResMlp {
     /// Runs the network with its weights held constant: backpropagation reaches `x` (and what
     /// produced it) without computing weight gradients. Used to push the physics gradient
     /// through the trained decoder into the integrator.
-    pub fn forward_frozen(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+    pub(crate) fn forward_frozen(&self, x: &Tensor) -> candle_core::Result<Tensor> {
         let mut h = self.input.forward_frozen(x)?;
         for block in &self.blocks {
             let r = block.outer.forward_frozen(&block.inner.forward_frozen(&h)?.silu()?)?;
@@ -436,7 +424,7 @@ impl ResMlp {
 
     /// The trainable variables, named `{prefix}.input.weight`, `{prefix}.block{j}.inner.bias`,
     /// `{prefix}.output.weight`, ..., in evaluation order.
-    pub fn parameters(&self, prefix: &str) -> Vec<(String, Var)> {
+    pub(crate) fn parameters(&self, prefix: &str) -> Vec<(String, Var)> {
         let mut out = Vec::with_capacity(4 + 4 * self.blocks.len());
         self.input.parameters(&format!("{prefix}.input"), &mut out);
         for (j, block) in self.blocks.iter().enumerate() {
@@ -466,7 +454,7 @@ impl ResMlp {
 /// Sizes of a symmetric autoencoder: the encoder is a [`ResMlp`] `input -> latent`, the
 /// decoder one `latent -> input`, both with the same `hidden` width and `blocks`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub struct AutoencoderSpec {
+pub(crate) struct AutoencoderSpec {
     /// Length of an encoded state (the full-space vector).
     pub input: usize,
     /// Latent size `k`.
@@ -501,7 +489,7 @@ impl AutoencoderSpec {
 
 /// An autoencoder: encoder `E: R^input -> R^k` and decoder `D: R^k -> R^input`.
 #[derive(Debug, Clone)]
-pub struct Autoencoder {
+pub(crate) struct Autoencoder {
     spec: AutoencoderSpec,
     encoder: ResMlp,
     decoder: ResMlp,
@@ -509,7 +497,7 @@ pub struct Autoencoder {
 
 /// A frozen autoencoder.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ExportedAutoencoder {
+pub(crate) struct ExportedAutoencoder {
     /// The encoder, `input -> latent`.
     pub encoder: ExportedMlp,
     /// The decoder, `latent -> input`.
@@ -518,6 +506,7 @@ pub struct ExportedAutoencoder {
 
 impl Autoencoder {
     /// A randomly initialised autoencoder (encoder drawn first, then decoder, from `seed`).
+    #[cfg(test)]
     pub fn new(spec: AutoencoderSpec, seed: u64) -> ModelResult<Self> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let encoder = ResMlp::new(spec.encoder(), &mut rng)?;
@@ -539,7 +528,7 @@ impl Autoencoder {
     /// output layer has columns `B^T`, `-B^T`, zeros, and bias `mean`. So `D(E(x))` is the PCA
     /// reconstruction up to f32 round-off, while the random units give training room to bend
     /// the subspace; their output weights start at zero and receive gradient at once.
-    pub fn new_pca_init(
+    pub(crate) fn new_pca_init(
         spec: AutoencoderSpec,
         pca_mean: &[f64],
         pca_basis: &[Vec<f64>],
@@ -627,18 +616,13 @@ impl Autoencoder {
         self.spec
     }
 
-    /// The encoder network.
-    pub fn encoder(&self) -> &ResMlp {
-        &self.encoder
-    }
-
     /// The decoder network.
     pub fn decoder(&self) -> &ResMlp {
         &self.decoder
     }
 
     /// Latents of a batch of states: `(batch, input) -> (batch, latent)`.
-    pub fn encode(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+    pub(crate) fn encode(&self, x: &Tensor) -> candle_core::Result<Tensor> {
         self.encoder.forward(x)
     }
 
@@ -654,17 +638,18 @@ impl Autoencoder {
 
     /// The reconstruction loss of Eq. 2 on a batch, as the mean over the batch and the
     /// coordinates of `(D(E(x)) - x)^2` (Eq. 2's sum divided by `batch * input`).
-    pub fn reconstruction_loss(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+    #[cfg(test)]
+    pub(crate) fn reconstruction_loss(&self, x: &Tensor) -> candle_core::Result<Tensor> {
         Autoencoder::reconstruction_loss_of(&self.reconstruct(x)?, x)
     }
 
     /// [`Autoencoder::reconstruction_loss`] of states `x` already reconstructed as `decoded`.
-    pub fn reconstruction_loss_of(decoded: &Tensor, x: &Tensor) -> candle_core::Result<Tensor> {
+    pub(crate) fn reconstruction_loss_of(decoded: &Tensor, x: &Tensor) -> candle_core::Result<Tensor> {
         (decoded - x)?.sqr()?.mean_all()
     }
 
     /// The trainable variables (`encoder.*`, then `decoder.*`).
-    pub fn parameters(&self) -> Vec<(String, Var)> {
+    pub(crate) fn parameters(&self) -> Vec<(String, Var)> {
         let mut out = self.encoder.parameters("encoder");
         out.extend(self.decoder.parameters("decoder"));
         out
@@ -685,7 +670,7 @@ impl Autoencoder {
 
 /// Sizes of the latent integrator `z_t = I(z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2})`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub struct IntegratorSpec {
+pub(crate) struct IntegratorSpec {
     /// Latent size `k`.
     pub latent: usize,
     /// Size of one boundary-condition vector `p_t` (may be 0).
@@ -714,7 +699,7 @@ impl IntegratorSpec {
 
 /// Per-feature affine normalisation `(v - mean) / std`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Normalisation {
+pub(crate) struct Normalisation {
     /// Feature means.
     pub mean: Vec<f32>,
     /// Feature standard deviations (all positive).
@@ -724,7 +709,7 @@ pub struct Normalisation {
 impl Normalisation {
     /// Standard deviations at or below this are replaced by 1 (constant features are then only
     /// centred, not blown up).
-    pub const MIN_STD: f32 = 1e-8;
+    pub(crate) const MIN_STD: f32 = 1e-8;
 
     /// Mean and standard deviation of each column of `rows` (all rows the same length).
     pub fn fit(rows: &[Vec<f32>]) -> ModelResult<Self> {
@@ -770,7 +755,8 @@ impl Normalisation {
     }
 
     /// The identity normalisation of `dim` features.
-    pub fn identity(dim: usize) -> Self {
+    #[cfg(test)]
+    pub(crate) fn identity(dim: usize) -> Self {
         Normalisation {
             mean: vec![0.0; dim],
             std: vec![1.0; dim],
@@ -799,7 +785,7 @@ impl Normalisation {
 /// error then becomes a small absolute error per step. The normalisations are constants (not
 /// trained); on export they are folded into the first and last dense layers.
 #[derive(Debug, Clone)]
-pub struct LatentIntegrator {
+pub(crate) struct LatentIntegrator {
     spec: IntegratorSpec,
     mlp: ResMlp,
     input_norm: Normalisation,
@@ -835,7 +821,7 @@ impl ExportedIntegrator {
     }
 
     /// The network (normalisation folded in).
-    pub fn mlp(&self) -> &ExportedMlp {
+    pub(crate) fn mlp(&self) -> &ExportedMlp {
         &self.mlp
     }
 
@@ -883,13 +869,9 @@ impl LatentIntegrator {
         })
     }
 
-    /// The sizes of this integrator.
-    pub fn spec(&self) -> IntegratorSpec {
-        self.spec
-    }
-
     /// Packs `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` (each `(batch, ·)`) into `q`.
-    pub fn pack(
+    #[cfg(test)]
+    pub(crate) fn pack(
         z_prev: &Tensor,
         z_prev2: &Tensor,
         p_t: &Tensor,
@@ -911,7 +893,7 @@ impl LatentIntegrator {
     }
 
     /// The trainable variables (`integrator.*`).
-    pub fn parameters(&self) -> Vec<(String, Var)> {
+    pub(crate) fn parameters(&self) -> Vec<(String, Var)> {
         self.mlp.parameters("integrator")
     }
 
@@ -945,7 +927,7 @@ impl LatentIntegrator {
 }
 
 /// A `(rows.len(), dim)` f32 tensor from equal-length rows (`dim` when `rows` is empty).
-pub fn rows_to_tensor(rows: &[&[f32]], dim: usize) -> ModelResult<Tensor> {
+pub(crate) fn rows_to_tensor(rows: &[&[f32]], dim: usize) -> ModelResult<Tensor> {
     let mut flat = Vec::with_capacity(rows.len() * dim);
     for (i, row) in rows.iter().enumerate() {
         if row.len() != dim {
@@ -957,7 +939,7 @@ pub fn rows_to_tensor(rows: &[&[f32]], dim: usize) -> ModelResult<Tensor> {
 }
 
 /// The rows of a `(batch, n)` f32 tensor.
-pub fn tensor_to_rows(t: &Tensor) -> candle_core::Result<Vec<Vec<f32>>> {
+pub(crate) fn tensor_to_rows(t: &Tensor) -> candle_core::Result<Vec<Vec<f32>>> {
     t.to_dtype(DType::F32)?.to_vec2::<f32>()
 }
 

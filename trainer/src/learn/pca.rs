@@ -114,7 +114,7 @@ impl Pca {
     }
 
     /// Length of a frame.
-    pub fn dims(&self) -> usize {
+    pub(crate) fn dims(&self) -> usize {
         self.mean.len()
     }
 
@@ -189,7 +189,7 @@ impl Pca {
 
 /// A PCA sized by a tolerance, with the error of every size.
 #[derive(Clone, Debug, PartialEq)]
-pub struct SizedPca {
+pub(crate) struct SizedPca {
     /// The PCA with the chosen number of components.
     pub pca: Pca,
     /// `errors[k]`: relative RMS vertex error on the fitted frames with `k` components,
@@ -204,7 +204,7 @@ pub struct SizedPca {
 /// The error with `k` components is read off the singular values (Eckart-Young: the
 /// squared residual is the sum of the squares of those after the `k`-th), so every size
 /// costs nothing beyond the one SVD.
-pub fn smallest_k_for(
+pub(crate) fn smallest_k_for(
     tolerance: f64,
     frames: &[Vec<f64>],
     dim: usize,

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 pub const PAPER_BC_WEIGHT: f64 = 1e5;
 
 /// Directory of the scenes shipped with mochi.
-pub fn shipped_scenes_dir() -> PathBuf {
+pub(crate) fn shipped_scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
 }
 
@@ -43,7 +43,7 @@ pub struct Recipe {
 
 impl Recipe {
     /// Finds a scene by name among the shipped scenes, or by path.
-    pub fn resolve(name_or_path: &str) -> Result<PathBuf, InputError> {
+    pub(crate) fn resolve(name_or_path: &str) -> Result<PathBuf, InputError> {
         let as_path = Path::new(name_or_path);
         if as_path.is_file() {
             return Ok(as_path.to_path_buf());

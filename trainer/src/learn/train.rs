@@ -28,7 +28,6 @@ use std::path::{Path, PathBuf};
 
 use candle_core::backprop::GradStore;
 use candle_core::{Device, Tensor, Var};
-use indicatif::{ProgressBar, ProgressStyle};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -37,6 +36,7 @@ use safetensors::SafeTensors;
 
 use crate::learn::network::{rows_to_tensor, Autoencoder};
 use crate::learn::stretch::EdgeStretch;
+use crate::report::progress::EpochsBar;
 use mochi_sim::error::{InputError, Location};
 
 /// Errors of a training run.
@@ -151,11 +151,6 @@ impl AdamW {
         self.config.lr = lr;
     }
 
-    /// Steps taken so far.
-    pub fn steps_taken(&self) -> u64 {
-        self.step
-    }
-
     /// One update from the gradients of a backward pass (variables without a gradient are left
     /// alone, their moments too):
     /// `m = b1 m + (1-b1) g`, `v = b2 v + (1-b2) g^2`,
@@ -256,8 +251,6 @@ pub struct Batch<'a> {
     pub indices: &'a [usize],
     /// 0-based epoch.
     pub epoch: usize,
-    /// 0-based batch within the epoch.
-    pub batch: usize,
 }
 
 /// What the loss closure returns for one batch.
@@ -321,7 +314,7 @@ where
     }
     let start_epoch = losses.len();
 
-    let bar = progress_bar(config, start_epoch);
+    let bar = EpochsBar::new(&config.name, config.epochs, start_epoch, config.progress);
     for epoch in start_epoch..config.epochs {
         optimizer.set_lr(config.lr_at(epoch));
         let mut order: Vec<usize> = (0..data.len()).collect();
@@ -331,15 +324,7 @@ where
         for (batch, indices) in order.chunks(config.batch_size).enumerate() {
             let rows: Vec<&[f32]> = indices.iter().map(|&i| data[i].as_slice()).collect();
             let inputs = rows_to_tensor(&rows, dim).map_err(|e| TrainError::Invalid(e.to_string()))?;
-            let step = loss(
-                &Batch {
-                    inputs,
-                    indices,
-                    epoch,
-                    batch,
-                },
-                &mut rng,
-            )?;
+            let step = loss(&Batch { inputs, indices, epoch }, &mut rng)?;
             if !step.value.is_finite() {
                 return Err(TrainError::NonFinite {
                     value: step.value,
@@ -351,8 +336,7 @@ where
             total += step.value * indices.len() as f64;
         }
         losses.push(total / data.len() as f64);
-        bar.set_message(format!("{:.4e}", total / data.len() as f64));
-        bar.inc(1);
+        bar.epoch(total / data.len() as f64);
         if let (Some(path), Some(c)) = (config.checkpoint_path(), &config.checkpoint) {
             let done = epoch + 1;
             if done.is_multiple_of(c.every) || done == config.epochs {
@@ -442,19 +426,6 @@ fn epoch_rng(seed: u64, stream: u64) -> ChaCha8Rng {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(stream);
     rng
-}
-
-fn progress_bar(config: &TrainConfig, start_epoch: usize) -> ProgressBar {
-    if !config.progress {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(config.epochs as u64).with_position(start_epoch as u64);
-    let style = ProgressStyle::with_template("{prefix} epoch {pos}/{len} [{bar:30}] loss {msg} ({elapsed}, eta {eta})")
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        .progress_chars("=> ");
-    bar.set_style(style);
-    bar.set_prefix(config.name.clone());
-    bar
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -764,8 +735,15 @@ mod tests {
         // Interrupted mid-epoch 5: the epoch-4 checkpoint is resumed in a fresh process state.
         let crashing = with_checkpoints(config("full", 6, 8, 1e-2), &dir.path().join("c"), 2);
         let ae = Autoencoder::new(TINY, 11).unwrap();
+        // (epoch, batch within the epoch) of the latest call.
+        let mut at = (usize::MAX, 0);
         let crash = train(&ae.parameters(), &data, &crashing, false, |b, r| {
-            if b.epoch == 4 && b.batch == 2 {
+            at = if at.0 == b.epoch {
+                (b.epoch, at.1 + 1)
+            } else {
+                (b.epoch, 0)
+            };
+            if at == (4, 2) {
                 return Err(candle_core::Error::Msg("interrupted".into()));
             }
             noisy_loss(&ae, b, r)

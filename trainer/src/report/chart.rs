@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::OnceLock;
 
-use anyhow::{anyhow, Context};
+use crate::error::{Context, TrainerError, TrainerResult};
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
 
@@ -46,7 +46,7 @@ pub fn line_chart(
     y_label: &str,
     series: &[Series],
     log_y: bool,
-) -> anyhow::Result<()> {
+) -> TrainerResult<()> {
     let kept: Vec<Series> = series
         .iter()
         .map(|s| Series {
@@ -79,7 +79,7 @@ pub fn scatter_chart(
     points: &[LabelledPoint],
     log_x: bool,
     log_y: bool,
-) -> anyhow::Result<()> {
+) -> TrainerResult<()> {
     let kept: Vec<LabelledPoint> = points
         .iter()
         .filter(|p| drawable(p.x, log_x) && drawable(p.y, log_y))
@@ -96,7 +96,7 @@ pub fn scatter_chart(
 }
 
 /// Registers the built-in font as plotters' `sans-serif` family (once per process).
-pub(crate) fn register_font() -> anyhow::Result<()> {
+pub(crate) fn register_font() -> TrainerResult<()> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     const DEJAVU_SANS: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
     let ok = *REGISTERED
@@ -104,7 +104,7 @@ pub(crate) fn register_font() -> anyhow::Result<()> {
     if ok {
         Ok(())
     } else {
-        Err(anyhow!("the built-in font could not be loaded"))
+        Err(TrainerError::Drawing("the built-in font could not be loaded".into()))
     }
 }
 
@@ -180,7 +180,7 @@ fn render(
     log_x: bool,
     log_y: bool,
     body: &Body,
-) -> anyhow::Result<()> {
+) -> TrainerResult<()> {
     register_font()?;
     let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for (x, y) in points {
@@ -203,7 +203,7 @@ fn render(
     }
 }
 
-fn draw<X, Y>(path: &Path, labels: &Labels, x: X, y: Y, body: &Body) -> anyhow::Result<()>
+fn draw<X, Y>(path: &Path, labels: &Labels, x: X, y: Y, body: &Body) -> TrainerResult<()>
 where
     X: AsRangedCoord<Value = f64>,
     Y: AsRangedCoord<Value = f64>,

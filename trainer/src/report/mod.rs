@@ -1,5 +1,5 @@
 //! What people look at: line and scatter charts, mesh previews and OBJ files.
 
-pub mod chart;
+pub(crate) mod chart;
 pub mod progress;
 pub mod render;

@@ -11,7 +11,7 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, bail, Context};
+use crate::error::{bail, Context, TrainerError, TrainerResult};
 use plotters::prelude::*;
 
 use crate::report::chart::register_font;
@@ -31,7 +31,7 @@ struct ObjTopology {
 }
 
 impl ObjTopology {
-    fn new(mesh: &Mesh) -> anyhow::Result<Self> {
+    fn new(mesh: &Mesh) -> TrainerResult<Self> {
         check_mesh(mesh)?;
         if let Elements::Rods(rods) = &mesh.elements {
             return Ok(ObjTopology {
@@ -57,7 +57,7 @@ impl ObjTopology {
         })
     }
 
-    fn write(&self, path: &Path, dim: usize, x: &[f64]) -> anyhow::Result<()> {
+    fn write(&self, path: &Path, dim: usize, x: &[f64]) -> TrainerResult<()> {
         let mut text = String::with_capacity(40 * (self.vertices.len() + self.faces.len()));
         text.push_str("# mochi frame\n");
         for &v in &self.vertices {
@@ -76,15 +76,17 @@ impl ObjTopology {
             }
             text.push('\n');
         }
-        let mut file = BufWriter::new(File::create(path)?);
-        file.write_all(text.as_bytes())?;
-        file.flush()?;
-        Ok(())
+        let write = || -> std::io::Result<()> {
+            let mut file = BufWriter::new(File::create(path)?);
+            file.write_all(text.as_bytes())?;
+            file.flush()
+        };
+        write().map_err(|e| TrainerError::io(path, e))
     }
 }
 
 /// Writes positions `x` (flat, `mesh.dim` per vertex) of `mesh` as a Wavefront OBJ file.
-pub fn write_obj(path: &Path, mesh: &Mesh, x: &[f64]) -> anyhow::Result<()> {
+pub fn write_obj(path: &Path, mesh: &Mesh, x: &[f64]) -> TrainerResult<()> {
     let topology = ObjTopology::new(mesh)?;
     check_frame(mesh, x).with_context(|| format!("writing {}", path.display()))?;
     topology
@@ -100,12 +102,12 @@ pub fn write_obj_sequence(
     mesh: &Mesh,
     frames: &[Vec<f64>],
     every: usize,
-) -> anyhow::Result<Vec<PathBuf>> {
+) -> TrainerResult<Vec<PathBuf>> {
     if every == 0 {
         bail!("write_obj_sequence: `every` must be at least 1");
     }
     let topology = ObjTopology::new(mesh)?;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::error::fs::create_dir_all(dir)?;
     let mut written = Vec::new();
     for (f, x) in frames.iter().enumerate().step_by(every) {
         let path = dir.join(format!("{stem}_{f:05}.obj"));
@@ -120,7 +122,7 @@ pub fn write_obj_sequence(
 
 /// Checks the mesh's dimension against its kind and that every element index refers to a
 /// vertex of the mesh.
-fn check_mesh(mesh: &Mesh) -> anyhow::Result<()> {
+fn check_mesh(mesh: &Mesh) -> TrainerResult<()> {
     let dim = match mesh.elements {
         Elements::Triangles(_) => 2,
         _ => 3,
@@ -133,7 +135,7 @@ fn check_mesh(mesh: &Mesh) -> anyhow::Result<()> {
         );
     }
     let n = mesh.num_vertices();
-    let bad = |e: usize| anyhow!("element {e} refers to a vertex beyond the {n} of the mesh");
+    let bad = |e: usize| TrainerError::Invalid(format!("element {e} refers to a vertex beyond the {n} of the mesh"));
     match &mesh.elements {
         Elements::Tets(t) => t.iter().position(|e| e.iter().any(|&v| v >= n)),
         Elements::Triangles(t) | Elements::Shell(t) => t.iter().position(|e| e.iter().any(|&v| v >= n)),
@@ -143,7 +145,7 @@ fn check_mesh(mesh: &Mesh) -> anyhow::Result<()> {
 }
 
 /// Checks that `x` has one finite point per vertex of a mesh that passed [`check_mesh`].
-fn check_frame(mesh: &Mesh, x: &[f64]) -> anyhow::Result<()> {
+fn check_frame(mesh: &Mesh, x: &[f64]) -> TrainerResult<()> {
     if x.len() != mesh.rest.len() {
         bail!(
             "{} coordinates for a mesh of {} vertices in {}D",
@@ -319,11 +321,11 @@ impl Framing {
 
 /// Writes a PNG preview of one or more frames (flat positions, `mesh.dim` per vertex) side
 /// by side, one panel each, framed alike so that motion shows.
-pub fn render_png(path: &Path, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOptions) -> anyhow::Result<()> {
+pub fn render_png(path: &Path, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOptions) -> TrainerResult<()> {
     draw_preview(path, mesh, frames, opts).with_context(|| format!("rendering {}", path.display()))
 }
 
-fn draw_preview(path: &Path, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOptions) -> anyhow::Result<()> {
+fn draw_preview(path: &Path, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOptions) -> TrainerResult<()> {
     if frames.is_empty() {
         bail!("no frames to draw");
     }
@@ -429,7 +431,7 @@ fn draw_shaded(
     framing: &Framing,
     x: &[f64],
     triangles: &[[usize; 3]],
-) -> anyhow::Result<()> {
+) -> TrainerResult<()> {
     // Key light from the upper left, in front: not from the eye, so that slopes facing the
     // viewer still differ in shade; a box shows three distinct shades.
     let light = normalize(add3(
@@ -483,7 +485,7 @@ fn draw_flat(
     framing: &Framing,
     x: &[f64],
     triangles: &[[usize; 3]],
-) -> anyhow::Result<()> {
+) -> TrainerResult<()> {
     let pixel = |v: usize| {
         let (s, t, _) = camera.project(point(x, 2, v));
         framing.to_pixel(s, t)
@@ -507,7 +509,7 @@ fn draw_rods(
     dim: usize,
     x: &[f64],
     rods: &[Vec<usize>],
-) -> anyhow::Result<()> {
+) -> TrainerResult<()> {
     let mut order: Vec<(f64, usize)> = rods
         .iter()
         .enumerate()
