@@ -74,10 +74,9 @@ pub enum TrainerError {
         /// Why it failed.
         error: Box<TrainerError>,
     },
-    /// Writing an artifact failed: the artifact module reports its errors untyped (a bridge
-    /// until it has its own error type).
+    /// An artifact could not be written, read or assembled.
     #[error(transparent)]
-    Artifact(#[from] anyhow::Error),
+    Artifact(#[from] crate::artifact::ArtifactError),
 }
 
 impl TrainerError {

@@ -2,10 +2,11 @@
 //! simulates, writes them as artifacts for the runtime, and evaluates every method against
 //! the full-space reference.
 //!
-//! Data flows one way, folder by folder: [`learn`] (encoding, PCA, networks, losses, the
-//! training loop and `mochi train`'s recipe) → [`artifact`] (the `.mochi` file) → [`eval`]
-//! (rollouts, `mochi eval`, weight storage, the runtime benchmark) → [`cli`] (`mochi demo`);
-//! [`report`] draws charts and previews for any of them.
+//! Data flows one way, folder by folder: [`learn`] (the `[latent]` recipe, encoding, PCA,
+//! networks, losses, the training loop) → [`artifact`] (the `.mochi` file, written through
+//! the runtime's contract) → [`pipeline`] (`mochi train`'s named stages, from dataset to
+//! artifacts) → [`eval`] (rollouts, `mochi eval`, weight storage, the runtime benchmark) →
+//! [`cli`] (`mochi demo`); [`report`] draws charts, previews and progress for any of them.
 //!
 //! The library prints nothing: long calls report stages, messages and progress to a
 //! [`Reporter`] the caller chooses ([`Quiet`] in tests), and fail with a [`TrainerError`].
@@ -19,17 +20,18 @@ pub mod cli;
 pub mod error;
 pub mod eval;
 pub mod learn;
+pub mod pipeline;
 pub mod report;
 
 pub use artifact::{Artifact, Method};
 pub use cli::demo::{run as run_demo, DemoOptions, DemoReport};
 pub use error::{TrainerError, TrainerResult};
 pub use eval::{evaluate, EvalOptions, ModelReport};
-pub use learn::pipeline::{train_scene, TrainOptions, TrainOutcome};
 pub use learn::recipe::{shipped_scene_names, Recipe};
-pub use learn::stages::artifact_paths;
 pub use learn::train::TrainError;
 pub use mochi_sim::{InputError, Location};
+pub use pipeline::stages::artifact_paths;
+pub use pipeline::{train_scene, TrainOptions, TrainOutcome};
 pub use report::progress::{FramesBar, Quiet, Reporter};
 
 /// Environment variable candle (and rayon) read for their thread count.

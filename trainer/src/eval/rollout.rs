@@ -34,8 +34,8 @@ pub struct LoadedModel {
 impl LoadedModel {
     /// Builds the runnable networks of `artifact`.
     pub fn new(artifact: Artifact) -> TrainerResult<Self> {
-        let decoder = artifact.decoder().map_err(TrainerError::Invalid)?;
-        let integrator = artifact.integrator().map_err(TrainerError::Invalid)?;
+        let decoder = artifact.decoder()?;
+        let integrator = artifact.integrator()?;
         Ok(LoadedModel {
             artifact,
             decoder,

@@ -1,7 +1,8 @@
 //! The artifact of a trained model: everything the runtime and codegen need, assembled from
 //! the scene, the encoding, the networks and the training summary.
 
-use crate::artifact::{Artifact, EncodingData, HandleData, Method, TrainingSummary};
+use crate::artifact::{Artifact, ArtifactError, EncodingData, HandleData, Method, TrainingSummary};
+use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::network::{Autoencoder, LatentIntegrator};
 use crate::learn::pca::Pca;
@@ -22,7 +23,7 @@ pub fn build_artifact(
     pca: &Pca,
     method: Method,
     summary: TrainingSummary,
-) -> anyhow::Result<Artifact> {
+) -> TrainerResult<Artifact> {
     let exported = ae.export()?;
     let k = data.latent;
     let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
@@ -78,8 +79,9 @@ pub fn build_artifact(
         integrator: integrator.export()?.mlp().layers().into_iter().cloned().collect(),
         summary,
     };
-    artifact
-        .validate()
-        .map_err(|(field, msg)| anyhow::anyhow!("built an invalid artifact: {field}: {msg}"))?;
+    artifact.validate().map_err(|(field, message)| ArtifactError::Invalid {
+        field,
+        message: format!("built an invalid artifact: {message}"),
+    })?;
     Ok(artifact)
 }

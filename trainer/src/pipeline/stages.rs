@@ -21,7 +21,6 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::artifact::{Artifact, Method, SizeTrial, TrainingSummary};
 use crate::error::{TrainerError, TrainerResult};
-use crate::learn::build::build_artifact;
 use crate::learn::encoding::Encoding;
 use crate::learn::integrator::PhysicsObjective;
 use crate::learn::network::{
@@ -34,6 +33,7 @@ use crate::learn::sequences::{decoded_rms_error, encode_sequences, EncodedSequen
 use crate::learn::stretch::EdgeStretch;
 use crate::learn::supervised::SupervisedObjective;
 use crate::learn::train::{self, AdamWConfig, Batch, BatchLoss, CheckpointConfig, TrainConfig};
+use crate::pipeline::assemble::build_artifact;
 use crate::report::progress::Reporter;
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::trajectory::Trajectory;

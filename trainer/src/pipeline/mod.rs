@@ -1,8 +1,11 @@
 //! `mochi train`: from a scene's training trajectories to a latent model (Li et al. 2025,
-//! Sec. 3.2-3.3), as named stages run in order (`learn/stages.rs`): dataset (train
+//! Sec. 3.2-3.3), as named stages run in order ([`stages`]): dataset (train
 //! split), PCA, an autoencoder per candidate size (size selection), the self-supervised
 //! integrator, the supervised baseline, and the artifacts. Each stage's seconds go into the
 //! artifacts' training summary.
+
+pub(crate) mod assemble;
+pub(crate) mod stages;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -11,8 +14,8 @@ use crate::artifact::{Artifact, Method};
 use crate::error::TrainerResult;
 use crate::learn::recipe::Recipe;
 use crate::learn::samples::IntegratorData;
-use crate::learn::stages::{self, StageTimes, Trained, Workspace};
 use crate::report::progress::Reporter;
+use stages::{StageTimes, Trained, Workspace};
 
 /// Where `mochi train` works.
 #[derive(Clone, Debug)]
