@@ -36,6 +36,9 @@ pub enum TrainerError {
     /// The PCA failed.
     #[error(transparent)]
     Pca(#[from] PcaError),
+    /// The integrator's samples could not be made.
+    #[error(transparent)]
+    Samples(#[from] crate::learn::samples::SamplesError),
     /// A training run failed.
     #[error(transparent)]
     Train(#[from] TrainError),

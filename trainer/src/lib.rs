@@ -6,7 +6,8 @@
 //! networks, losses, the training loop) → [`artifact`] (the `.mochi` file, written through
 //! the runtime's contract) → [`pipeline`] (`mochi train`'s named stages, from dataset to
 //! artifacts) → [`eval`] (rollouts, `mochi eval`, weight storage, the runtime benchmark) →
-//! [`cli`] (`mochi demo`); [`report`] draws charts, previews and progress for any of them.
+//! [`cli`] (`mochi demo`); [`report`] draws charts and previews and [`progress`] reports long
+//! work, for any of them.
 //!
 //! The library prints nothing: long calls report stages, messages and progress to a
 //! [`Reporter`] the caller chooses ([`Quiet`] in tests), and fail with a [`TrainerError`].
@@ -21,6 +22,7 @@ pub mod error;
 pub mod eval;
 pub mod learn;
 pub mod pipeline;
+pub mod progress;
 pub mod report;
 
 pub use artifact::{Artifact, Method};
@@ -32,7 +34,7 @@ pub use learn::train::TrainError;
 pub use mochi_sim::{InputError, Location};
 pub use pipeline::stages::artifact_paths;
 pub use pipeline::{train_scene, TrainOptions, TrainOutcome};
-pub use report::progress::{FramesBar, Quiet, Reporter};
+pub use progress::{FramesBar, Quiet, Reporter};
 
 /// Environment variable candle (and rayon) read for their thread count.
 pub const THREADS_VAR: &str = "RAYON_NUM_THREADS";

@@ -14,7 +14,7 @@ use mochi_trainer::learn::loss::PhysicsLoss;
 use mochi_trainer::learn::pca::Pca;
 use mochi_trainer::learn::recipe::{Recipe, PAPER_BC_WEIGHT};
 use mochi_trainer::learn::sequences::encode_sequences;
-use mochi_trainer::report::progress::FramesBar;
+use mochi_trainer::progress::FramesBar;
 use nalgebra::{DMatrix, DVector};
 use std::path::{Path, PathBuf};
 

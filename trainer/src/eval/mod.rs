@@ -27,8 +27,8 @@ use mochi_sim::{BuiltScene, InputError};
 use crate::artifact::{Artifact, Method};
 use crate::error::{fs, TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
+use crate::progress::Reporter;
 use crate::report::chart::{self, LabelledPoint, Series};
-use crate::report::progress::Reporter;
 
 pub mod rollout;
 pub mod runtime_bench;

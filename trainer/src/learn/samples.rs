@@ -6,7 +6,6 @@ use candle_core::Tensor;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::{decode_world, pack_signals, Encoding, Frame};
 use crate::learn::network::{rows_to_tensor, tensor_to_rows, Autoencoder, LatentIntegrator, Normalisation};
 use crate::learn::sequences::EncodedSequence;
@@ -55,6 +54,30 @@ pub struct IntegratorData<'a> {
     pub(crate) encoding: &'a Encoding,
 }
 
+/// Why the integrator's samples could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum SamplesError {
+    /// candle failed encoding or decoding the frames.
+    #[error(transparent)]
+    Candle(#[from] candle_core::Error),
+    /// The network refused the frames.
+    #[error(transparent)]
+    Network(#[from] crate::learn::network::NetworkError),
+    /// A decoded frame could not be placed in the world.
+    #[error(transparent)]
+    Encoding(#[from] crate::learn::encoding::EncodingError),
+    /// A sequence's boundary-condition signal does not fit the scene's handles.
+    #[error("training sequence {sequence} has {got} boundary-condition numbers per frame, the scene has {expected}")]
+    SignalLength {
+        /// The sequence's index.
+        sequence: usize,
+        /// Numbers per frame in the sequence.
+        got: usize,
+        /// Numbers per frame the scene's handles give.
+        expected: usize,
+    },
+}
+
 impl<'a> IntegratorData<'a> {
     /// Encodes every frame with `ae` and packs one sample per predicted frame.
     pub fn new(
@@ -62,7 +85,7 @@ impl<'a> IntegratorData<'a> {
         encoding: &'a Encoding,
         ae: &Autoencoder,
         sequences: &'a [EncodedSequence],
-    ) -> TrainerResult<Self> {
+    ) -> Result<Self, SamplesError> {
         let k = ae.spec().latent;
         let bc_len = SIGNAL_PER_HANDLE * problem.handles.len();
         let mut latents = Vec::new();
@@ -96,10 +119,11 @@ impl<'a> IntegratorData<'a> {
         let mut increments = Vec::new();
         for (s, seq) in sequences.iter().enumerate() {
             if seq.trajectory.bc_signal.first().map_or(0, Vec::len) != bc_len {
-                return Err(TrainerError::invalid(format!(
-                    "training sequence {s} has {} boundary-condition numbers per frame, the scene has {bc_len}",
-                    seq.trajectory.bc_signal.first().map_or(0, Vec::len)
-                )));
+                return Err(SamplesError::SignalLength {
+                    sequence: s,
+                    got: seq.trajectory.bc_signal.first().map_or(0, Vec::len),
+                    expected: bc_len,
+                });
             }
             for t in 1..seq.encoded.len() {
                 let sample = SampleRef { sequence: s, frame: t };

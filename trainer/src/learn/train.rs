@@ -36,7 +36,7 @@ use safetensors::SafeTensors;
 
 use crate::learn::network::{rows_to_tensor, Autoencoder};
 use crate::learn::stretch::EdgeStretch;
-use crate::report::progress::EpochsBar;
+use crate::progress::EpochsBar;
 use mochi_sim::error::{InputError, Location};
 
 /// Errors of a training run.

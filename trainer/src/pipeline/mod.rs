@@ -14,7 +14,7 @@ use crate::artifact::{Artifact, Method};
 use crate::error::TrainerResult;
 use crate::learn::recipe::Recipe;
 use crate::learn::samples::IntegratorData;
-use crate::report::progress::Reporter;
+use crate::progress::Reporter;
 use stages::{StageTimes, Trained, Workspace};
 
 /// Where `mochi train` works.

@@ -34,7 +34,7 @@ use crate::learn::stretch::EdgeStretch;
 use crate::learn::supervised::SupervisedObjective;
 use crate::learn::train::{self, AdamWConfig, Batch, BatchLoss, CheckpointConfig, TrainConfig};
 use crate::pipeline::assemble::build_artifact;
-use crate::report::progress::Reporter;
+use crate::progress::Reporter;
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::trajectory::Trajectory;
 use mochi_sim::BuiltScene;

@@ -1,5 +1,4 @@
 //! What people look at: line and scatter charts, mesh previews and OBJ files.
 
 pub(crate) mod chart;
-pub mod progress;
 pub mod render;
