@@ -1,0 +1,226 @@
+//! The trainable residual MLP in candle (layout and initialisation in the documentation of
+//! [`super`]).
+
+use candle_core::{Device, Tensor, Var};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+
+use super::error::ModelResult;
+use super::exported::{DenseLayer, ExportedMlp};
+use super::layout::MlpSpec;
+
+/// A trainable dense layer `y = x W^T + b` on row-major batches `x: (batch, cols)`.
+#[derive(Debug, Clone)]
+pub(super) struct Dense {
+    weight: Var,
+    bias: Var,
+}
+
+impl Dense {
+    pub(super) fn from_values(rows: usize, cols: usize, weights: Vec<f32>, bias: Vec<f32>) -> ModelResult<Self> {
+        Ok(Dense {
+            weight: Var::from_vec(weights, (rows, cols), &Device::Cpu)?,
+            bias: Var::from_vec(bias, rows, &Device::Cpu)?,
+        })
+    }
+
+    /// PyTorch's default law: weights and biases uniform in `±1/sqrt(cols)`.
+    fn random(rows: usize, cols: usize, rng: &mut ChaCha8Rng) -> ModelResult<Self> {
+        let (weights, bias) = random_values(rows, cols, rng);
+        Self::from_values(rows, cols, weights, bias)
+    }
+
+    fn zeros(rows: usize, cols: usize) -> ModelResult<Self> {
+        Self::from_values(rows, cols, vec![0.0; rows * cols], vec![0.0; rows])
+    }
+
+    fn forward(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        x.matmul(&self.weight.as_tensor().t()?)?
+            .broadcast_add(self.bias.as_tensor())
+    }
+
+    /// As [`Dense::forward`], with the weights treated as constants: gradients still flow to
+    /// `x` but none are computed for the weights.
+    fn forward_frozen(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        x.matmul(&self.weight.as_tensor().detach().t()?)?
+            .broadcast_add(&self.bias.as_tensor().detach())
+    }
+
+    fn export(&self) -> ModelResult<DenseLayer> {
+        let (rows, cols) = self.weight.as_tensor().dims2()?;
+        Ok(DenseLayer {
+            rows,
+            cols,
+            weights: self.weight.as_tensor().flatten_all()?.to_vec1::<f32>()?,
+            bias: self.bias.as_tensor().to_vec1::<f32>()?,
+        })
+    }
+
+    fn parameters(&self, prefix: &str, out: &mut Vec<(String, Var)>) {
+        out.push((format!("{prefix}.weight"), self.weight.clone()));
+        out.push((format!("{prefix}.bias"), self.bias.clone()));
+    }
+}
+
+pub(super) fn random_values(rows: usize, cols: usize, rng: &mut ChaCha8Rng) -> (Vec<f32>, Vec<f32>) {
+    let bound = 1.0 / (cols as f32).sqrt();
+    let weights = (0..rows * cols).map(|_| rng.random_range(-bound..bound)).collect();
+    let bias = (0..rows).map(|_| rng.random_range(-bound..bound)).collect();
+    (weights, bias)
+}
+
+#[derive(Debug, Clone)]
+struct Block {
+    inner: Dense,
+    outer: Dense,
+}
+
+/// A trainable residual MLP (layout and initialisation in the module documentation).
+#[derive(Debug, Clone)]
+pub(crate) struct ResMlp {
+    input: Dense,
+    blocks: Vec<Block>,
+    output: Dense,
+}
+
+impl ResMlp {
+    /// A randomly initialised network (identity blocks), drawn from `rng`.
+    pub fn new(spec: MlpSpec, rng: &mut ChaCha8Rng) -> ModelResult<Self> {
+        spec.check()?;
+        let input = Dense::random(spec.hidden, spec.input, rng)?;
+        Self::with_ends(spec, input, rng, |rng| Dense::random(spec.output, spec.hidden, rng))
+    }
+
+    /// Builds a network from given input and output layers, with fresh identity blocks drawn
+    /// from `rng` between them (`output` gets the same generator after the blocks).
+    pub(super) fn with_ends(
+        spec: MlpSpec,
+        input: Dense,
+        rng: &mut ChaCha8Rng,
+        output: impl FnOnce(&mut ChaCha8Rng) -> ModelResult<Dense>,
+    ) -> ModelResult<Self> {
+        let blocks = (0..spec.blocks)
+            .map(|_| {
+                Ok(Block {
+                    inner: Dense::random(spec.hidden, spec.hidden, rng)?,
+                    outer: Dense::zeros(spec.hidden, spec.hidden)?,
+                })
+            })
+            .collect::<ModelResult<Vec<_>>>()?;
+        let output = output(rng)?;
+        Ok(ResMlp { input, blocks, output })
+    }
+
+    /// The candle network with the weights of a frozen one (for comparisons with the runtime).
+    pub(crate) fn from_exported(mlp: &ExportedMlp) -> ModelResult<Self> {
+        let dense = |l: &DenseLayer| Dense::from_values(l.rows, l.cols, l.weights.clone(), l.bias.clone());
+        let blocks = mlp
+            .blocks()
+            .iter()
+            .map(|b| {
+                Ok(Block {
+                    inner: dense(&b.inner)?,
+                    outer: dense(&b.outer)?,
+                })
+            })
+            .collect::<ModelResult<Vec<_>>>()?;
+        Ok(ResMlp {
+            input: dense(mlp.input())?,
+            blocks,
+            output: dense(mlp.output())?,
+        })
+    }
+
+    /// Runs the network on a batch `x: (batch, input)`, giving `(batch, output)`.
+    pub fn forward(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        let mut h = self.input.forward(x)?;
+        for block in &self.blocks {
+            let r = block.outer.forward(&block.inner.forward(&h)?.silu()?)?;
+            h = (h + r)?;
+        }
+        self.output.forward(&h.silu()?)
+    }
+
+    /// Runs the network with its weights held constant: backpropagation reaches `x` (and what
+    /// produced it) without computing weight gradients. Used to push the physics gradient
+    /// through the trained decoder into the integrator.
+    pub(crate) fn forward_frozen(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        let mut h = self.input.forward_frozen(x)?;
+        for block in &self.blocks {
+            let r = block.outer.forward_frozen(&block.inner.forward_frozen(&h)?.silu()?)?;
+            h = (h + r)?;
+        }
+        self.output.forward_frozen(&h.silu()?)
+    }
+
+    /// The trainable variables, named `{prefix}.input.weight`, `{prefix}.block{j}.inner.bias`,
+    /// `{prefix}.output.weight`, ..., in evaluation order.
+    pub(crate) fn parameters(&self, prefix: &str) -> Vec<(String, Var)> {
+        let mut out = Vec::with_capacity(4 + 4 * self.blocks.len());
+        self.input.parameters(&format!("{prefix}.input"), &mut out);
+        for (j, block) in self.blocks.iter().enumerate() {
+            block.inner.parameters(&format!("{prefix}.block{j}.inner"), &mut out);
+            block.outer.parameters(&format!("{prefix}.block{j}.outer"), &mut out);
+        }
+        self.output.parameters(&format!("{prefix}.output"), &mut out);
+        out
+    }
+
+    /// Freezes the current weights.
+    pub fn export(&self) -> ModelResult<ExportedMlp> {
+        let mut layers = vec![self.input.export()?];
+        for block in &self.blocks {
+            layers.push(block.inner.export()?);
+            layers.push(block.outer.export()?);
+        }
+        layers.push(self.output.export()?);
+        ExportedMlp::from_layers(layers)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::SeedableRng;
+
+    use super::*;
+    use crate::learn::network::exported::forward_exported;
+    use crate::learn::network::tensor::tensor_to_rows;
+    use crate::learn::network::test_support::*;
+
+    #[test]
+    fn exported_mlp_matches_candle_forward() {
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let spec = MlpSpec {
+            input: 30,
+            output: 5,
+            hidden: 24,
+            blocks: 3,
+        };
+        let mlp = ResMlp::new(spec, &mut rng).unwrap();
+        randomise(&mlp.parameters("m"), 0.4, &mut rng);
+        let x = random_rows(16, 30, 2.0, &mut rng);
+        let candle = tensor_to_rows(&mlp.forward(&as_tensor(&x)).unwrap()).unwrap();
+        let exported = mlp.export().unwrap();
+        assert_eq!(exported.spec(), spec);
+        assert_eq!(exported.layers().len(), 2 + 2 * spec.blocks);
+        let plain: Vec<Vec<f32>> = x.iter().map(|x| forward_exported(&exported, x).unwrap()).collect();
+        let diff = max_relative_difference(&plain, &candle);
+        assert!(diff < 1e-5, "exported forward differs from candle by {diff}");
+        // The outputs are not trivially small, so the comparison means something.
+        assert!(candle.iter().flatten().any(|v| v.abs() > 0.1));
+        // In f64 (the diagnostics' decoder) the same network gives the same outputs.
+        let wide: Vec<Vec<f32>> = x
+            .iter()
+            .map(|x| {
+                let x: Vec<f64> = x.iter().map(|&v| v as f64).collect();
+                forward_exported(&exported, &x)
+                    .unwrap()
+                    .iter()
+                    .map(|&v| v as f32)
+                    .collect()
+            })
+            .collect();
+        let diff = max_relative_difference(&wide, &plain);
+        assert!(diff < 1e-5, "f64 forward differs from f32 by {diff}");
+    }
+}
