@@ -1,6 +1,6 @@
 //! Errors of the inputs of an [`Encoding`](super::Encoding).
 
-/// Something wrong with the inputs of an [`Encoding`].
+/// Something wrong with the inputs of an [`Encoding`](super::Encoding).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum EncodingError {
     /// A vector has the wrong length.

@@ -32,7 +32,7 @@ pub(crate) enum Origins {
 pub struct Frame {
     /// `R`; the identity when the handles do not rotate (upper-left 2x2 used in 2D).
     pub rotation: Matrix3<f64>,
-    /// The origins, indexed by [`Encoding::origin_of`] (z = 0 in 2D).
+    /// The origins, indexed by [`Encoding::origin_of`](super::Encoding::origin_of) (z = 0 in 2D).
     pub origins: Vec<Vector3<f64>>,
     /// Per strand, where its chain starts (empty unless strands are encoded by bends).
     pub chains: Vec<ChainStart>,

@@ -5,7 +5,7 @@ use nalgebra::Vector3;
 
 use mochi_sim::mesh::{Elements, Mesh};
 
-/// One rod strand in the stretch-free encoding ([`Encoding::with_strand_bends`]).
+/// One rod strand in the stretch-free encoding ([`Encoding::with_strand_bends`](super::Encoding::with_strand_bends)).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Chain {
     /// Handle slots of the strand's two prescribed vertices; the edge from the first to the

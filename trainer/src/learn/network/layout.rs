@@ -32,7 +32,7 @@ pub(crate) fn swish<T: Real>(v: T) -> T {
     v / (T::from_f32(1.0) + (-v).exp())
 }
 
-/// The number types the plain-Rust forward pass ([`forward_exported`]) runs in: `f32`, the
+/// The number types the plain-Rust forward pass ([`forward_exported`](super::forward_exported)) runs in: `f32`, the
 /// reference for the runtime's kernels, and `f64`, for diagnostics that differentiate a
 /// frozen decoder by finite differences.
 pub trait Real:
