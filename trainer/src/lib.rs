@@ -21,6 +21,7 @@ pub mod cli;
 pub mod error;
 pub mod eval;
 pub mod learn;
+pub mod methods;
 pub mod pipeline;
 pub mod progress;
 pub mod report;

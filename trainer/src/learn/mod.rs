@@ -5,6 +5,7 @@
 //! (`integrator.rs`), the baseline's (`supervised.rs`) and the training loop (`train.rs`).
 //! `mochi train` runs them as stages in [`crate::pipeline`].
 
+pub mod datafree;
 pub mod encoding;
 pub(crate) mod integrator;
 pub mod loss;

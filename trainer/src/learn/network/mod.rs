@@ -37,9 +37,11 @@
 //! `tensor`: rows to and from candle tensors.
 
 mod autoencoder;
+pub mod derivatives;
 pub mod error;
 mod exported;
 mod integrator;
+pub(crate) mod jet;
 mod layout;
 mod mlp;
 mod tensor;
