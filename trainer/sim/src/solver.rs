@@ -25,6 +25,10 @@ pub enum TimeScheme {
     ImplicitEuler,
     /// Second-order backward differentiation formula (first step uses implicit Euler).
     Bdf2,
+    /// No inertia: every step is the static equilibrium with the handles at that frame's
+    /// targets, starting from the last one (velocities are the differences of consecutive
+    /// equilibria over `dt`).
+    QuasiStatic,
 }
 
 /// Newton solver settings.
@@ -247,6 +251,9 @@ impl Simulator {
     /// (`dim` numbers per vertex of [`Simulator::fixed_vertices`]).
     pub fn step(&mut self, targets: &[f64]) -> Result<StepReport, StepError> {
         self.check_targets(targets)?;
+        if self.integrator == TimeScheme::QuasiStatic {
+            return self.step_quasi_static(targets);
+        }
         let start = Instant::now();
         let h = self.dt;
         let bdf2 = self.integrator == TimeScheme::Bdf2 && self.steps > 0;
@@ -288,6 +295,24 @@ impl Simulator {
         self.reset(&x);
         report.seconds = start.elapsed().as_secs_f64();
         Ok(report)
+    }
+
+    fn step_quasi_static(&mut self, targets: &[f64]) -> Result<StepReport, StepError> {
+        let start = Instant::now();
+        let mut x = self.x.clone();
+        self.place_fixed(&mut x, targets);
+        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale)?;
+        let v_new: Vec<f64> = x.iter().zip(&self.x).map(|(a, b)| (a - b) / self.dt).collect();
+        self.x_prev = std::mem::replace(&mut self.x, x);
+        self.v_prev = std::mem::replace(&mut self.v, v_new);
+        self.steps += 1;
+        report.seconds = start.elapsed().as_secs_f64();
+        Ok(report)
+    }
+
+    /// The time integration scheme.
+    pub fn scheme(&self) -> TimeScheme {
+        self.integrator
     }
 
     fn check_targets(&self, targets: &[f64]) -> Result<(), StepError> {

@@ -224,6 +224,27 @@ fn beam_velocity(x: &[f64], x_prev: &[f64], dt: f64) -> Vec<f64> {
 }
 
 #[test]
+fn a_quasi_static_step_is_the_static_equilibrium_of_its_targets() {
+    // Released from the bent state, a quasi-static step lands on the unloaded equilibrium
+    // (the rest shape, as gravity is off) at once, where implicit Euler starts to swing;
+    // the velocity is the difference of the two equilibria over dt.
+    let mut quasi = released_beam("quasi-static");
+    let bent = quasi.simulator.positions().to_vec();
+    let rest = quasi.mesh.rest.clone();
+    assert!(max_distance(&bent, &rest) > 1e-3, "the beam starts bent");
+    vibrate(&mut quasi, 1);
+    let x = quasi.simulator.positions().to_vec();
+    assert!(max_distance(&x, &rest) < 1e-6, "{:e} from rest", max_distance(&x, &rest));
+    let v = beam_velocity(&x, &bent, quasi.simulator.dt());
+    assert!(max_distance(quasi.simulator.velocities(), &v) < 1e-12);
+    vibrate(&mut quasi, 1);
+    assert!(max_distance(quasi.simulator.positions(), &rest) < 1e-6, "and stays there");
+    let mut euler = released_beam("implicit-euler");
+    vibrate(&mut euler, 1);
+    assert!(max_distance(euler.simulator.positions(), &rest) > 1e-4);
+}
+
+#[test]
 fn bdf2_dissipates_less_than_implicit_euler() {
     let ie = vibrate(&mut released_beam("implicit-euler"), 30);
     let bdf2 = vibrate(&mut released_beam("bdf2"), 30);

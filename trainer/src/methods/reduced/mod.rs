@@ -2,8 +2,17 @@
 //! `E(z) = 1/(2 dt^2) |f(z) - xhat|_M^2 + P(f(z))` over the latent `z`, `f` a subspace map
 //! (a decoder in the scene's boundary-condition frame) and `P` the scene's own energies.
 //!
-//! Files: `optimize` (the objective contract and the exits every solver reports), `lbfgs`
-//! (L-BFGS with line search), `newton` (Newton on the PSD-projected reduced Hessian).
+//! Files, in the order data flows: `subspace` (the decoder in the boundary-condition frame,
+//! with its exact Jacobian), `objective` (Eq. 2 on the scene's energies), `optimize` (the
+//! contract every optimiser solves and the exits it reports), `lbfgs` (L-BFGS with line
+//! search), `newton` (Newton on the PSD-projected reduced Hessian), `stepper` (one solve per
+//! frame over a boundary-condition script).
 pub mod lbfgs;
 pub mod newton;
+pub mod objective;
 pub mod optimize;
+pub mod stepper;
+pub mod subspace;
+
+#[cfg(test)]
+mod tests;

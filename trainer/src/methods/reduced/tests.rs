@@ -1,0 +1,174 @@
+//! The reduced objective's derivatives against finite differences of its value, and the
+//! stepper's solves, on the tiny beam with its PCA-initialised decoder (a nonlinear map: the
+//! residual blocks and Swish sit between the PCA layers).
+
+use mochi_sim::energy::StencilEnergy;
+
+use super::objective::{InertiaTerm, ObjectiveBuffers, ReducedObjective};
+use super::optimize::{Exit, Objective, SolveSettings};
+use super::stepper::{ReducedSolver, ReducedStepper, StepperSettings};
+use super::subspace::DecoderSubspace;
+use crate::learn::network::test_support::randomise;
+use crate::learn::samples::fixtures::{tiny_beam, TinyBeam};
+
+/// The beam's decoder with its residual block made visibly nonlinear, the handles at frame
+/// `frame`'s targets, and the latent of that frame.
+fn subspace_at(beam: &mut TinyBeam, frame: usize) -> (DecoderSubspace, Vec<f64>) {
+    let params = beam.ae.parameters();
+    let block: Vec<_> = params.into_iter().filter(|(n, _)| n.starts_with("decoder.block")).collect();
+    let mut rng = rand_chacha::ChaCha8Rng::from_seed_u64(3);
+    randomise(&block, 0.3, &mut rng);
+    let exported = beam.ae.export().unwrap();
+    let targets = beam.sequences[0].targets[frame].clone();
+    let subspace = DecoderSubspace::new(&exported.decoder, &beam.encoding, &targets).unwrap();
+    let q: Vec<f32> = beam.sequences[0].encoded[frame].iter().map(|&v| v as f32).collect();
+    let z = crate::learn::network::forward_exported(&exported.encoder, &q).unwrap();
+    (subspace, z.iter().map(|&v| v as f64).collect())
+}
+
+trait SeedU64 {
+    fn from_seed_u64(seed: u64) -> Self;
+}
+impl SeedU64 for rand_chacha::ChaCha8Rng {
+    fn from_seed_u64(seed: u64) -> Self {
+        rand::SeedableRng::seed_from_u64(seed)
+    }
+}
+
+fn potentials(beam: &TinyBeam) -> Vec<&dyn StencilEnergy> {
+    beam.problem.simulator.potentials().iter().map(|p| p.as_ref()).collect()
+}
+
+/// The relative difference of two vectors, against the larger norm.
+fn relative(a: &[f64], b: &[f64]) -> f64 {
+    let diff: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt();
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    diff / norm(a).max(norm(b)).max(1e-300)
+}
+
+#[test]
+fn reduced_gradient_and_hessian_match_finite_differences() {
+    let mut beam = tiny_beam();
+    let (mut subspace, z0) = subspace_at(&mut beam, 6);
+    let z: Vec<f64> = z0.iter().enumerate().map(|(i, v)| v + 0.05 * (i as f64 + 1.0)).collect();
+    let r = z.len();
+    let masses = beam.problem.simulator.masses().to_vec();
+    let mut inertia = InertiaTerm::new(3, masses, beam.problem.scene.dt);
+    // A prediction off the subspace, so the inertia term pulls.
+    let prediction: Vec<f64> = beam.sequences[0].trajectory.positions[7].iter().map(|v| v + 1e-3).collect();
+    inertia.set_prediction(&prediction);
+    let pots = potentials(&beam);
+    let mut buffers = ObjectiveBuffers::new(subspace.state_len(), r);
+    let mut objective = ReducedObjective::new(&mut subspace, &pots, Some(&inertia), 1e-3, &mut buffers);
+
+    let mut grad = vec![0.0; r];
+    let mut hess = vec![0.0; r * r];
+    let value = objective.exact_hessian(&z, &mut grad, &mut hess).unwrap();
+    assert!((value - objective.value(&z)).abs() <= 1e-12 * value.abs());
+    let eps = 1e-5;
+    let mut fd_grad = vec![0.0; r];
+    let mut fd_hess = vec![0.0; r * r];
+    for a in 0..r {
+        let mut zp = z.clone();
+        let mut zm = z.clone();
+        zp[a] += eps;
+        zm[a] -= eps;
+        fd_grad[a] = (objective.value(&zp) - objective.value(&zm)) / (2.0 * eps);
+        let (mut gp, mut gm) = (vec![0.0; r], vec![0.0; r]);
+        objective.gradient(&zp, &mut gp);
+        objective.gradient(&zm, &mut gm);
+        for b in 0..r {
+            fd_hess[b * r + a] = (gp[b] - gm[b]) / (2.0 * eps);
+        }
+    }
+    let mut g2 = vec![0.0; r];
+    objective.gradient(&z, &mut g2);
+    assert!(relative(&grad, &g2) < 1e-12, "exact_hessian and gradient agree on the gradient");
+    assert!(relative(&grad, &fd_grad) < 1e-6, "gradient {grad:?} vs {fd_grad:?}");
+    assert!(relative(&hess, &fd_hess) < 1e-5, "Hessian {hess:?} vs {fd_hess:?}");
+    for a in 0..r {
+        for b in 0..r {
+            assert!((hess[a * r + b] - hess[b * r + a]).abs() <= 1e-9 * hess[a * r + a].abs().max(1.0));
+        }
+    }
+
+    // Newton's Hessian is the PSD-projected Gauss-Newton part: symmetric, PSD, and not the
+    // exact Hessian (the decoder's curvature term is left out).
+    let mut psd = vec![0.0; r * r];
+    objective.hessian(&z, &mut g2, &mut psd);
+    let m = nalgebra::DMatrix::from_row_slice(r, r, &psd);
+    let eig = m.clone().symmetric_eigen().eigenvalues;
+    let top = eig.iter().copied().fold(0.0, f64::max);
+    assert!(eig.iter().all(|&l| l >= -1e-10 * top), "PSD: {eig:?}");
+    assert!(relative(&psd, &hess) > 1e-8);
+}
+
+fn stepper(beam: &mut TinyBeam, solver: ReducedSolver, quasi_static: bool) -> (ReducedStepper, Vec<f64>) {
+    let (subspace, z0) = subspace_at(beam, 0);
+    let settings = StepperSettings {
+        solver,
+        solve: SolveSettings {
+            tolerance: 1e-8,
+            ..SolveSettings::default()
+        },
+        quasi_static,
+        record_history: true,
+    };
+    let masses = beam.problem.simulator.masses().to_vec();
+    let diagonal = beam.problem.mesh.rest_diagonal();
+    let dt = beam.problem.scene.dt;
+    let stepper = ReducedStepper::new(subspace, beam.encoding.clone(), masses, diagonal, dt, settings).unwrap();
+    (stepper, z0)
+}
+
+#[test]
+fn lbfgs_and_newton_steps_converge_to_the_same_state() {
+    let mut beam = tiny_beam();
+    let mut ends = Vec::new();
+    for solver in [ReducedSolver::Lbfgs, ReducedSolver::Newton] {
+        let (mut stepper, z0) = stepper(&mut beam, solver, false);
+        let targets = |t: usize| beam.sequences[0].targets[t].clone();
+        stepper.reset(&z0, &targets(0)).unwrap();
+        let pots = potentials(&beam);
+        for t in 1..=4 {
+            let report = stepper.step(&pots, &targets(t)).unwrap();
+            assert_eq!(report.exit, Exit::Converged, "{} step {t}: {report:?}", solver.name());
+            assert!(report.gradient_norm <= 1e-8);
+            assert_eq!(report.history.len(), report.iterations + 1);
+            assert!(report.history.windows(2).all(|w| w[1] <= w[0] + 1e-12 * w[0].abs()), "{report:?}");
+        }
+        ends.push(stepper.positions().to_vec());
+    }
+    let diagonal = beam.problem.mesh.rest_diagonal();
+    let diff = ends[0].iter().zip(&ends[1]).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(diff < 1e-5 * diagonal, "L-BFGS and Newton differ by {diff}");
+}
+
+#[test]
+fn a_static_settle_lowers_the_potential_to_a_stationary_point() {
+    let mut beam = tiny_beam();
+    let (mut stepper, z0) = stepper(&mut beam, ReducedSolver::Newton, true);
+    let targets = beam.sequences[0].targets[0].clone();
+    // Start from a latent off the equilibrium.
+    let start: Vec<f64> = z0.iter().map(|v| v + 0.2).collect();
+    stepper.reset(&start, &targets).unwrap();
+    let pots = potentials(&beam);
+    let energy = |x: &[f64]| pots.iter().map(|p| mochi_sim::energy::value(*p, x)).sum::<f64>();
+    let before = energy(stepper.positions());
+    let report = stepper.settle(&pots, &targets).unwrap();
+    assert_eq!(report.exit, Exit::Converged, "{report:?}");
+    assert!(energy(stepper.positions()) < before);
+}
+
+#[test]
+fn wrong_sizes_are_refused() {
+    let mut beam = tiny_beam();
+    let (mut stepper, z0) = stepper(&mut beam, ReducedSolver::Lbfgs, false);
+    let targets = beam.sequences[0].targets[0].clone();
+    assert!(stepper.reset(&z0[..1], &targets).is_err());
+    assert!(stepper.reset(&z0, &targets[1..]).is_err());
+    let exported = beam.ae.export().unwrap();
+    // The encoder maps states to latents: as a subspace map its sizes do not fit.
+    let err = DecoderSubspace::new(&exported.encoder, &beam.encoding, &targets).err().unwrap();
+    assert!(err.to_string().contains("decoder gives"), "{err}");
+}
