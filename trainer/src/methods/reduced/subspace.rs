@@ -142,16 +142,43 @@ impl DecoderSubspace {
     /// `sum_i g_i d^2 x_i / dz^2` (`r x r`, row-major) at `z` for a world-space vector `g`
     /// (`state_len` values): the second-order term of the exact reduced Hessian.
     pub fn contracted_hessian(&mut self, z: &[f64], g: &[f64], out: &mut [f64]) -> TrainerResult<()> {
+        let mut w = std::mem::take(&mut self.w);
+        let pulled = self.pull_back(g, &mut w);
+        let result = pulled.and_then(|()| Ok(self.mlp.contracted_hessian(z, &w, out, &mut self.workspace)?));
+        self.w = w;
+        result
+    }
+
+    /// `d^2/dt^2 f(z + t v)` at `t = 0` (`state_len` values; zero for prescribed vertices).
+    pub fn second_directional(&mut self, z: &[f64], v: &[f64], out: &mut [f64]) -> TrainerResult<()> {
+        self.check_len("state", self.state_len, out.len())?;
+        self.mlp.second_directional(z, v, &mut self.w, &mut self.workspace)?;
+        let d = self.dim;
+        for &h in &self.handle_vertices {
+            out[h * d..(h + 1) * d].fill(0.0);
+        }
+        for (k, &(vertex, _)) in self.free.iter().enumerate() {
+            let mut local = Vector3::zeros();
+            local.as_mut_slice()[..d].copy_from_slice(&self.w[k * d..(k + 1) * d]);
+            let world = self.rotation * local;
+            out[vertex * d..(vertex + 1) * d].copy_from_slice(&world.as_slice()[..d]);
+        }
+        Ok(())
+    }
+
+    /// Pulls a world-space vector `g` back to the encoded layout: `R^T g_v` for each encoded
+    /// vertex `v`, in encoding order (`out` has the decoder's output length).
+    pub fn pull_back(&self, g: &[f64], out: &mut [f64]) -> TrainerResult<()> {
         self.check_len("world vector", self.state_len, g.len())?;
+        self.check_len("encoded vector", self.free.len() * self.dim, out.len())?;
         let d = self.dim;
         let rt = self.rotation.transpose();
         for (k, &(v, _)) in self.free.iter().enumerate() {
             let mut gv = Vector3::zeros();
             gv.as_mut_slice()[..d].copy_from_slice(&g[v * d..(v + 1) * d]);
             let pulled = rt * gv;
-            self.w[k * d..(k + 1) * d].copy_from_slice(&pulled.as_slice()[..d]);
+            out[k * d..(k + 1) * d].copy_from_slice(&pulled.as_slice()[..d]);
         }
-        self.mlp.contracted_hessian(z, &self.w, out, &mut self.workspace)?;
         Ok(())
     }
 

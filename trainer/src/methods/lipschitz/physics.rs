@@ -1,0 +1,158 @@
+//! The potential's derivatives at one decoded state that the Lipschitz loss's gradient needs,
+//! from the scene's stencil kernels (one definition of each energy):
+//!
+//! - the gradient `g = dP/dx`;
+//! - Hessian-vector products `H u` with the exact (unprojected) stencil Hessians, kept from
+//!   one evaluation;
+//! - the third derivative contracted twice, `D^3 P[u, u, .]`, as the central difference
+//!   `(H(x + h u) - H(x - h u)) u / (2 h)` of those same Hessians (exact up to `O(h^2)`; the
+//!   kernels stop at second derivatives).
+//!
+//! The potentials are usually cubature approximations (few stencils), so every stencil
+//! Hessian is kept.
+
+use mochi_sim::energy::{Local, StencilEnergy, Want, MAX_DOF};
+
+/// One stencil's Hessian at the state.
+struct StencilHessian {
+    term: usize,
+    stencil: usize,
+    hess: Vec<f64>,
+}
+
+/// The potential's gradient and stencil Hessians at one state.
+pub(crate) struct PotentialAt<'a> {
+    potentials: &'a [&'a dyn StencilEnergy],
+    dim: usize,
+    x: Vec<f64>,
+    /// `dP/dx` (world layout).
+    pub grad: Vec<f64>,
+    /// `P(x)`.
+    pub value: f64,
+    hessians: Vec<StencilHessian>,
+}
+
+impl<'a> PotentialAt<'a> {
+    /// Evaluates `potentials` at `x` (`dim` per vertex).
+    pub(crate) fn new(potentials: &'a [&'a dyn StencilEnergy], dim: usize, x: &[f64]) -> Self {
+        let mut at = PotentialAt {
+            potentials,
+            dim,
+            x: x.to_vec(),
+            grad: vec![0.0; x.len()],
+            value: 0.0,
+            hessians: Vec::new(),
+        };
+        let mut local = Local::default();
+        let mut xl = [0.0; MAX_DOF];
+        for (term, energy) in potentials.iter().enumerate() {
+            for stencil in 0..energy.len() {
+                let n = gather(*energy, stencil, dim, x, &mut xl);
+                at.value += energy.eval(stencil, &xl[..n], Want::Hessian { project: false }, &mut local);
+                for (a, &v) in energy.stencil(stencil).iter().enumerate() {
+                    for i in 0..dim {
+                        at.grad[v * dim + i] += local.grad[a * dim + i];
+                    }
+                }
+                at.hessians.push(StencilHessian {
+                    term,
+                    stencil,
+                    hess: local.hess[..n * n].to_vec(),
+                });
+            }
+        }
+        at
+    }
+
+    /// `out = H u` (world layout).
+    pub(crate) fn hessian_times(&self, u: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        for h in &self.hessians {
+            let verts = self.potentials[h.term].stencil(h.stencil);
+            add_local_product(verts, self.dim, &h.hess, u, 1.0, out);
+        }
+    }
+
+    /// `out = D^3 P[u, u, .]` by the central difference of the stencil Hessians along `u`
+    /// with step `h` (module documentation).
+    pub(crate) fn third_times(&self, u: &[f64], h: f64, out: &mut [f64]) {
+        out.fill(0.0);
+        let dim = self.dim;
+        let mut local = Local::default();
+        let mut xl = [0.0; MAX_DOF];
+        for sh in &self.hessians {
+            let energy = self.potentials[sh.term];
+            let verts = energy.stencil(sh.stencil);
+            for (sign, weight) in [(1.0, 0.5 / h), (-1.0, -0.5 / h)] {
+                let n = gather(energy, sh.stencil, dim, &self.x, &mut xl);
+                for (a, &v) in verts.iter().enumerate() {
+                    for i in 0..dim {
+                        xl[a * dim + i] += sign * h * u[v * dim + i];
+                    }
+                }
+                energy.eval(sh.stencil, &xl[..n], Want::Hessian { project: false }, &mut local);
+                add_local_product(verts, dim, &local.hess[..n * n], u, weight, out);
+            }
+        }
+    }
+}
+
+/// Gathers stencil `s`'s positions from `x` into `local`; returns the local length.
+fn gather(energy: &dyn StencilEnergy, s: usize, dim: usize, x: &[f64], local: &mut [f64; MAX_DOF]) -> usize {
+    let verts = energy.stencil(s);
+    for (a, &v) in verts.iter().enumerate() {
+        local[a * dim..(a + 1) * dim].copy_from_slice(&x[v * dim..(v + 1) * dim]);
+    }
+    verts.len() * dim
+}
+
+/// `out[verts] += weight * hess * u[verts]` for one stencil's local Hessian.
+fn add_local_product(verts: &[usize], dim: usize, hess: &[f64], u: &[f64], weight: f64, out: &mut [f64]) {
+    let n = verts.len() * dim;
+    let global = |k: usize| verts[k / dim] * dim + k % dim;
+    for i in 0..n {
+        let row = &hess[i * n..(i + 1) * n];
+        let sum: f64 = row.iter().enumerate().map(|(k, h)| h * u[global(k)]).sum();
+        out[global(i)] += weight * sum;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::learn::samples::fixtures::tiny_beam;
+
+    #[test]
+    fn products_match_finite_differences_of_the_gradient() {
+        let beam = tiny_beam();
+        let pots: Vec<&dyn StencilEnergy> = beam.problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+        let x = beam.sequences[0].trajectory.positions[8].clone();
+        let n = x.len();
+        let u: Vec<f64> = (0..n).map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.5).collect();
+        let at = PotentialAt::new(&pots, 3, &x);
+        let shifted = |t: f64| {
+            let xs: Vec<f64> = x.iter().zip(&u).map(|(a, b)| a + t * b).collect();
+            PotentialAt::new(&pots, 3, &xs)
+        };
+        let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        // H u against the difference of gradients.
+        let eps = 1e-6;
+        let (p, m) = (shifted(eps), shifted(-eps));
+        let fd: Vec<f64> = p.grad.iter().zip(&m.grad).map(|(a, b)| (a - b) / (2.0 * eps)).collect();
+        let mut hu = vec![0.0; n];
+        at.hessian_times(&u, &mut hu);
+        let err: Vec<f64> = hu.iter().zip(&fd).map(|(a, b)| a - b).collect();
+        assert!(norm(&err) < 1e-5 * norm(&hu), "H u: {} vs {}", norm(&err), norm(&hu));
+        // D^3[u, u] against the second difference of the gradient along u (gradients only).
+        let eps = 1e-3;
+        let (p, m) = (shifted(eps), shifted(-eps));
+        let fd: Vec<f64> = (0..n)
+            .map(|k| (p.grad[k] - 2.0 * at.grad[k] + m.grad[k]) / (eps * eps))
+            .collect();
+        let mut third = vec![0.0; n];
+        at.third_times(&u, 1e-5, &mut third);
+        let err: Vec<f64> = third.iter().zip(&fd).map(|(a, b)| a - b).collect();
+        assert!(norm(&third) > 0.0);
+        assert!(norm(&err) < 1e-3 * norm(&third), "D3: {} vs {}", norm(&err), norm(&third));
+    }
+}

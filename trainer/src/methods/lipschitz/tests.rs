@@ -1,0 +1,67 @@
+//! The Lipschitz loss's gradient against a finite difference of the loss in one weight.
+
+use mochi_sim::energy::StencilEnergy;
+use rand::SeedableRng;
+
+use super::loss::{lipschitz_estimate, lipschitz_loss, LatentSample, LipschitzTerm};
+use crate::learn::network::test_support::randomise;
+use crate::learn::network::{forward_exported, DenseLayer, ExportedMlp};
+use crate::learn::samples::fixtures::tiny_beam;
+
+/// `mlp` with weight `index` of layer `layer` (evaluation order) moved by `delta`.
+fn nudged(mlp: &ExportedMlp, layer: usize, index: usize, delta: f32) -> ExportedMlp {
+    let mut layers: Vec<DenseLayer> = mlp.layers().into_iter().cloned().collect();
+    layers[layer].weights[index] += delta;
+    ExportedMlp::from_layers(layers).unwrap()
+}
+
+#[test]
+fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
+    let beam = tiny_beam();
+    let params = beam.ae.parameters();
+    let decoder_params: Vec<_> = params.iter().filter(|(n, _)| n.starts_with("decoder.block")).cloned().collect();
+    randomise(&decoder_params, 0.3, &mut rand_chacha::ChaCha8Rng::seed_from_u64(5));
+    let exported = beam.ae.export().unwrap();
+    let seq = &beam.sequences[0];
+    let samples: Vec<LatentSample> = [2, 5, 8, 11]
+        .iter()
+        .enumerate()
+        .map(|(k, &t)| {
+            let q: Vec<f32> = seq.encoded[t].iter().map(|&v| v as f32).collect();
+            let z = forward_exported(&exported.encoder, &q).unwrap();
+            LatentSample {
+                z: z.iter().enumerate().map(|(i, &v)| v as f64 + 0.1 * ((i + k) % 3) as f64).collect(),
+                targets: seq.targets[t].clone(),
+            }
+        })
+        .collect();
+    let potentials: Vec<&dyn StencilEnergy> = beam.problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+    let term = LipschitzTerm {
+        encoding: &beam.encoding,
+        potentials: &potentials,
+        scale: 1e-3,
+        diagonal: beam.problem.mesh.rest_diagonal(),
+    };
+    let batch = term.batch(beam.ae.decoder(), None, &exported.decoder, &samples).unwrap();
+    let hessians = term.hessians(&exported.decoder, &samples).unwrap();
+    assert_eq!(batch.loss, lipschitz_loss(&hessians, &samples));
+    assert!(batch.loss > 0.0);
+    let grads = batch.surrogate.backward().unwrap();
+    // One weight of the first block's inner layer and one of the output layer.
+    for (name, layer, index) in [("decoder.block0.inner.weight", 1, 7), ("decoder.output.weight", 3, 40)] {
+        let var = &params.iter().find(|(n, _)| n == name).unwrap().1;
+        let analytic = grads.get(var.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap()[index] as f64;
+        let delta = 1e-3f32;
+        let loss_at = |d: f32| {
+            let mlp = nudged(&exported.decoder, layer, index, d);
+            lipschitz_loss(&term.hessians(&mlp, &samples).unwrap(), &samples)
+        };
+        let fd = (loss_at(delta) - loss_at(-delta)) / (2.0 * delta as f64);
+        assert!(
+            (analytic - fd).abs() <= 2e-2 * fd.abs().max(1e-3 * batch.loss),
+            "{name}[{index}]: surrogate gradient {analytic} vs finite difference {fd}"
+        );
+    }
+    // Eq. 7 bounds every pair's quotient, so it is at least the root of the mean of squares.
+    assert!(lipschitz_estimate(&hessians, &samples) >= batch.loss.sqrt());
+}
