@@ -3,9 +3,11 @@
 //! and the estimate of `Lip[d^2 P / dz^2]` reported for every subspace (Eq. 7).
 //!
 //! Files: `physics` (the potential's gradient, Hessian products and third derivative at a
-//! decoded state, from the stencil kernels), `loss` (Eq. 9, its surrogate for candle, Eq. 7).
+//! decoded state, from the stencil kernels), `loss` (Eq. 9, its surrogate for candle, Eq. 7),
+//! `train` (Eq. 10 for a supervised subspace, on the trainer's training loop).
 pub mod loss;
 pub(crate) mod physics;
+pub mod train;
 
 #[cfg(test)]
 mod tests;
