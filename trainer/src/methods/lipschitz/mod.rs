@@ -4,7 +4,10 @@
 //!
 //! Files: `physics` (the potential's gradient, Hessian products and third derivative at a
 //! decoded state, from the stencil kernels), `loss` (Eq. 9, its surrogate for candle, Eq. 7),
-//! `train` (Eq. 10 for a supervised subspace, on the trainer's training loop).
+//! `cubature` (the element subset and weights that stand in for the elastic energy, fitted
+//! on the vanilla subspace), `train` (Eq. 10 for a supervised subspace, on the trainer's
+//! training loop).
+pub mod cubature;
 pub mod loss;
 pub(crate) mod physics;
 pub mod train;

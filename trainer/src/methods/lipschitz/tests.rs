@@ -1,8 +1,10 @@
-//! The Lipschitz loss's gradient against a finite difference of the loss in one weight.
+//! The Lipschitz loss's gradient against a finite difference of the loss in one weight; the
+//! cubature of a decoder's subspace against the full energy on held-out samples.
 
 use mochi_sim::energy::StencilEnergy;
 use rand::SeedableRng;
 
+use super::cubature::fit_subspace_cubature;
 use super::loss::{lipschitz_estimate, lipschitz_loss, LatentSample, LipschitzTerm};
 use crate::learn::network::test_support::randomise;
 use crate::learn::network::{forward_exported, DenseLayer, ExportedMlp};
@@ -64,4 +66,62 @@ fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
     }
     // Eq. 7 bounds every pair's quotient, so it is at least the root of the mean of squares.
     assert!(lipschitz_estimate(&hessians, &samples) >= batch.loss.sqrt());
+}
+
+#[test]
+fn the_cubature_reproduces_energy_and_reduced_force_on_held_out_samples() {
+    use crate::methods::reduced::objective::{ObjectiveBuffers, ReducedObjective};
+    use crate::methods::reduced::optimize::Objective;
+    use crate::methods::reduced::subspace::DecoderSubspace;
+    use mochi_sim::cubature::{CubatureEnergy, CubatureSettings};
+
+    let beam = tiny_beam();
+    let params = beam.ae.parameters();
+    let decoder_params: Vec<_> = params.iter().filter(|(n, _)| n.starts_with("decoder.block")).cloned().collect();
+    randomise(&decoder_params, 0.3, &mut rand_chacha::ChaCha8Rng::seed_from_u64(5));
+    let exported = beam.ae.export().unwrap();
+    let seq = &beam.sequences[0];
+    let sample = |t: usize, shift: f64| {
+        let q: Vec<f32> = seq.encoded[t].iter().map(|&v| v as f32).collect();
+        let z = forward_exported(&exported.encoder, &q).unwrap();
+        LatentSample {
+            z: z.iter().enumerate().map(|(i, &v)| v as f64 + shift * (i as f64 - 1.0)).collect(),
+            targets: seq.targets[t].clone(),
+        }
+    };
+    let training: Vec<LatentSample> = (0..12).flat_map(|t| [sample(t, 0.0), sample(t, 0.05)]).collect();
+    let held_out: Vec<LatentSample> = (0..12).map(|t| sample(t, 0.025)).collect();
+    let elastic = beam.problem.simulator.potentials()[0].as_ref();
+    let settings = CubatureSettings {
+        max_elements: 24,
+        tolerance: 1e-4,
+        ..CubatureSettings::default()
+    };
+    let (cubature, fit) = fit_subspace_cubature(&exported.decoder, &beam.encoding, elastic, &training, &settings).unwrap();
+    assert!(cubature.elements.len() < elastic.len(), "{} of {}", cubature.elements.len(), elastic.len());
+    assert!(fit.relative_residual < 1e-2, "{fit:?}");
+    let approx = CubatureEnergy::new(elastic, cubature).unwrap();
+    let full: [&dyn StencilEnergy; 1] = [elastic];
+    let cub: [&dyn StencilEnergy; 1] = [&approx];
+    let mut subspace = DecoderSubspace::new(&exported.decoder, &beam.encoding, &held_out[0].targets).unwrap();
+    let r = subspace.latent_len();
+    let mut buffers = ObjectiveBuffers::new(subspace.state_len(), r);
+    let (mut worst_energy, mut worst_force) = (0.0f64, 0.0f64);
+    for s in &held_out {
+        subspace.set_frame(&beam.encoding.frame(&s.targets).unwrap(), &s.targets);
+        let mut evaluate = |potentials: &[&dyn StencilEnergy]| {
+            let mut objective = ReducedObjective::new(&mut subspace, potentials, None, 1.0, &mut buffers);
+            let mut grad = vec![0.0; r];
+            let value = objective.gradient(&s.z, &mut grad);
+            (value, grad)
+        };
+        let (e_full, g_full) = evaluate(&full);
+        let (e_cub, g_cub) = evaluate(&cub);
+        let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        let diff: Vec<f64> = g_full.iter().zip(&g_cub).map(|(a, b)| a - b).collect();
+        worst_energy = worst_energy.max((e_full - e_cub).abs() / e_full.abs());
+        worst_force = worst_force.max(norm(&diff) / norm(&g_full));
+    }
+    assert!(worst_energy < 2e-2, "energy off by {worst_energy:e}");
+    assert!(worst_force < 5e-2, "reduced force off by {worst_force:e}");
 }

@@ -1,0 +1,97 @@
+//! Cubature of a decoder's subspace (Lyu et al. 2024, Sec. 4.3): the training matrix of
+//! [`mochi_sim::cubature`] built from decoded latent samples of the vanilla subspace, and the
+//! fitted rule.
+//!
+//! Per sample `z_i` the rows are the element's energy `P_e(f(z_i))` and its reduced force
+//! `J_i^T grad P_e(f(z_i))` (`r` values), each sample's rows divided by the norm of their sum
+//! over all elements, so every sample counts alike.
+
+use mochi_sim::cubature::{fit_cubature, ColumnMatrix, Cubature, CubatureFit, CubatureSettings};
+use mochi_sim::energy::{Local, StencilEnergy, Want, MAX_DOF};
+
+use super::loss::LatentSample;
+use crate::error::{TrainerError, TrainerResult};
+use crate::learn::encoding::Encoding;
+use crate::learn::network::ExportedMlp;
+use crate::methods::reduced::subspace::DecoderSubspace;
+
+/// The decoded states and Jacobians of `samples` in `decoder`'s subspace.
+fn decode_samples(
+    decoder: &ExportedMlp,
+    encoding: &Encoding,
+    samples: &[LatentSample],
+) -> TrainerResult<(Vec<Vec<f64>>, Vec<Vec<f64>>, usize)> {
+    let first = samples
+        .first()
+        .ok_or_else(|| TrainerError::invalid("a cubature needs at least one latent sample"))?;
+    let mut subspace = DecoderSubspace::new(decoder, encoding, &first.targets)?;
+    let (n, r) = (subspace.state_len(), subspace.latent_len());
+    let mut states = Vec::with_capacity(samples.len());
+    let mut jacobians = Vec::with_capacity(samples.len());
+    for s in samples {
+        subspace.set_frame(&encoding.frame(&s.targets)?, &s.targets);
+        let (mut x, mut j) = (vec![0.0; n], vec![0.0; n * r]);
+        subspace.positions_and_jacobian(&s.z, &mut x, &mut j)?;
+        states.push(x);
+        jacobians.push(j);
+    }
+    Ok((states, jacobians, r))
+}
+
+/// The training matrix of `energy` on `samples` decoded by `decoder` (module documentation).
+pub fn cubature_matrix(
+    decoder: &ExportedMlp,
+    encoding: &Encoding,
+    energy: &dyn StencilEnergy,
+    samples: &[LatentSample],
+) -> TrainerResult<ColumnMatrix> {
+    let (states, jacobians, r) = decode_samples(decoder, encoding, samples)?;
+    let dim = encoding.dim();
+    let per_sample = r + 1;
+    let rows = samples.len() * per_sample;
+    let mut local = Local::default();
+    let mut xl = [0.0; MAX_DOF];
+    let mut a = ColumnMatrix::from_columns(rows, energy.len(), |e, column| {
+        let verts = energy.stencil(e);
+        let nl = verts.len() * dim;
+        for (i, (x, jac)) in states.iter().zip(&jacobians).enumerate() {
+            for (k, &v) in verts.iter().enumerate() {
+                xl[k * dim..(k + 1) * dim].copy_from_slice(&x[v * dim..(v + 1) * dim]);
+            }
+            let out = &mut column[i * per_sample..(i + 1) * per_sample];
+            out[0] = energy.eval(e, &xl[..nl], Want::Gradient, &mut local);
+            for (k, &v) in verts.iter().enumerate() {
+                for c in 0..dim {
+                    let g = local.grad[k * dim + c];
+                    let row = &jac[(v * dim + c) * r..(v * dim + c + 1) * r];
+                    out[1..].iter_mut().zip(row).for_each(|(o, j)| *o += g * j);
+                }
+            }
+        }
+    });
+    let sums = a.row_sums();
+    let norms: Vec<f64> = sums
+        .chunks_exact(per_sample)
+        .map(|s| s.iter().map(|v| v * v).sum::<f64>().sqrt())
+        .collect();
+    for e in 0..a.cols() {
+        for (rows, &norm) in a.column_mut(e).chunks_exact_mut(per_sample).zip(&norms) {
+            if norm > 0.0 {
+                rows.iter_mut().for_each(|v| *v /= norm);
+            }
+        }
+    }
+    Ok(a)
+}
+
+/// Fits a cubature of `energy` to `decoder`'s subspace on `samples`.
+pub fn fit_subspace_cubature(
+    decoder: &ExportedMlp,
+    encoding: &Encoding,
+    energy: &dyn StencilEnergy,
+    samples: &[LatentSample],
+    settings: &CubatureSettings,
+) -> TrainerResult<(Cubature, CubatureFit)> {
+    let a = cubature_matrix(decoder, encoding, energy, samples)?;
+    fit_cubature(&a, settings).map_err(|e| TrainerError::invalid(format!("cubature of `{}`: {e}", energy.name())))
+}
