@@ -11,6 +11,7 @@
 //! `z_t - z_{t-1}` from `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`.
 
 pub mod file;
+pub mod reduced;
 
 use serde::{Deserialize, Serialize};
 

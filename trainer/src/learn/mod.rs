@@ -12,6 +12,7 @@ pub mod loss;
 pub mod network;
 pub mod pca;
 pub mod recipe;
+pub mod reduced_spec;
 pub(crate) mod samples;
 pub mod sequences;
 pub(crate) mod stretch;

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use mochi_sim::scene::{read_text, BuiltScene, SceneDocument};
 use mochi_sim::{InputError, Scene};
 use serde::{Deserialize, Serialize};
+use super::reduced_spec::ReducedSpec;
 
 /// The penalty weight on boundary conditions in the physics loss (Eq. 4 of Li et al.).
 pub const PAPER_BC_WEIGHT: f64 = 1e5;
@@ -39,6 +40,9 @@ pub struct Recipe {
     pub scene: Scene,
     /// Latent space and integrator training (`[latent]`).
     pub latent: LatentSpec,
+    /// The reduced-order solver's subspaces (`[reduced]`); `None` when the scene does not
+    /// use the reduced method.
+    pub reduced: Option<ReducedSpec>,
 }
 
 impl Recipe {
@@ -73,11 +77,16 @@ impl Recipe {
     pub fn parse(text: &str, path: &Path) -> Result<Recipe, InputError> {
         let mut document = SceneDocument::parse(text, path)?;
         let latent: LatentSpec = document.take_section("latent")?;
+        let reduced: Option<ReducedSpec> = document.take_section("reduced")?;
         let scene = document.into_scene()?;
         latent
             .validate()
             .map_err(|(f, msg)| InputError::field(path, format!("latent.{f}"), msg))?;
-        Ok(Recipe { scene, latent })
+        if let Some(spec) = &reduced {
+            spec.validate()
+                .map_err(|(f, msg)| InputError::field(path, format!("reduced.{f}"), msg))?;
+        }
+        Ok(Recipe { scene, latent, reduced })
     }
 
     /// The recipe as TOML text that [`Recipe::parse`] reads back (stored in artifacts).
@@ -87,10 +96,13 @@ impl Recipe {
             #[serde(flatten)]
             scene: &'a Scene,
             latent: &'a LatentSpec,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            reduced: &'a Option<ReducedSpec>,
         }
         toml::to_string(&Whole {
             scene: &self.scene,
             latent: &self.latent,
+            reduced: &self.reduced,
         })
     }
 

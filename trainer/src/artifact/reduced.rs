@@ -1,0 +1,179 @@
+//! The reduced-method file `<scene>.reduced` (beside the model artifacts): the vanilla and the
+//! Lipschitz-optimised subspace of one scene, the cubature they were optimised with, and what
+//! their training measured. Only the trainer reads it (the reduced solver runs on the
+//! desktop), through the runtime's envelope:
+//!
+//! ```text
+//! envelope(MOCHIRED, REDUCED_VERSION, postcard(ReducedArtifact))
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{TrainerError, TrainerResult};
+use crate::learn::network::{DenseLayer, ExportedMlp};
+use mochi_runtime::envelope;
+use mochi_sim::error::InputError;
+
+/// Magic of a reduced-method file.
+pub const REDUCED_MAGIC: &[u8; 8] = b"MOCHIRED";
+/// Its format version.
+pub const REDUCED_VERSION: u32 = 1;
+
+/// One cubature rule of an energy term: the term's name, its selected stencils and weights.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CubatureData {
+    /// The energy term (`StencilEnergy::name`).
+    pub term: String,
+    /// Selected stencils.
+    pub elements: Vec<usize>,
+    /// Their weights.
+    pub weights: Vec<f64>,
+    /// Relative residual of the fit on its training samples.
+    pub residual: f64,
+}
+
+/// One subspace of the reduced method.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SubspaceData {
+    /// The decoder's layers (input, blocks' inner and outer, output).
+    pub decoder: Vec<DenseLayer>,
+    /// The latent of the scene's start (the encoder's image of the start state, or the
+    /// reduced static solve from zero for a data-free subspace).
+    pub initial_latent: Vec<f64>,
+    /// Wall-clock seconds of its training.
+    pub training_seconds: f64,
+    /// `Lip[d^2 P / dz^2]` by Eq. 7 on the held-out samples.
+    pub lipschitz_estimate: f64,
+    /// Loss of each epoch (or iteration) of its training.
+    pub losses: Vec<f64>,
+}
+
+impl SubspaceData {
+    /// The runnable decoder.
+    pub fn decoder(&self) -> TrainerResult<ExportedMlp> {
+        Ok(ExportedMlp::from_layers(self.decoder.clone())?)
+    }
+}
+
+/// The reduced method of one scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReducedArtifact {
+    /// Scene name.
+    pub scene: String,
+    /// The scene file the subspaces were trained on, whole (its `[reduced]` table included).
+    pub scene_toml: String,
+    /// Where that file was read from (relative mesh paths resolve against it).
+    pub scene_path: String,
+    /// `"supervised"` or `"data-free"`.
+    pub source: String,
+    /// Subspace trained on the construction loss alone.
+    pub vanilla: SubspaceData,
+    /// The same subspace after the Lipschitz optimisation (Eq. 10).
+    pub lipschitz: SubspaceData,
+    /// The cubature of each elastic term used by the Lipschitz loss.
+    pub cubature: Vec<CubatureData>,
+    /// The absolute weight of the Lipschitz term.
+    pub lambda: f64,
+}
+
+/// The reduced-method file of `scene` in `out_dir`.
+pub fn reduced_path(out_dir: &Path, scene: &str) -> PathBuf {
+    out_dir.join(format!("{scene}.reduced"))
+}
+
+impl ReducedArtifact {
+    /// Writes the file (atomically: a crash leaves the old file or the new one).
+    pub fn save(&self, path: &Path) -> TrainerResult<()> {
+        let payload = postcard::to_allocvec(self)
+            .map_err(|e| TrainerError::invalid(format!("encoding {}: {e}", path.display())))?;
+        let bytes = envelope::wrap(REDUCED_MAGIC, REDUCED_VERSION, &payload);
+        crate::learn::train::write_atomically(path, &bytes).map_err(|source| TrainerError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Reads a file written by [`ReducedArtifact::save`].
+    pub fn load(path: &Path) -> TrainerResult<Self> {
+        let bytes = std::fs::read(path).map_err(|source| TrainerError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let payload = envelope::open(&bytes, REDUCED_MAGIC, REDUCED_VERSION)
+            .map_err(|e| InputError::file(path, format!("reduced-method file {e}")))?;
+        let artifact: ReducedArtifact = postcard::from_bytes(payload)
+            .map_err(|e| InputError::file(path, format!("reduced-method file is unreadable: {e}")))?;
+        for (name, s) in [("vanilla", &artifact.vanilla), ("lipschitz", &artifact.lipschitz)] {
+            let decoder = s.decoder().map_err(|e| InputError::file(path, format!("{name} decoder: {e}")))?;
+            if decoder.spec().input != s.initial_latent.len() {
+                return Err(InputError::file(
+                    path,
+                    format!(
+                        "{name} subspace: initial latent of {} values for a decoder taking {}",
+                        s.initial_latent.len(),
+                        decoder.spec().input
+                    ),
+                )
+                .into());
+            }
+        }
+        Ok(artifact)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn subspace(seed: f32) -> SubspaceData {
+        let layer = |rows: usize, cols: usize| DenseLayer {
+            rows,
+            cols,
+            weights: (0..rows * cols).map(|k| seed + k as f32).collect(),
+            bias: vec![seed; rows],
+        };
+        SubspaceData {
+            decoder: vec![layer(3, 2), layer(6, 3)],
+            initial_latent: vec![0.5, -0.5],
+            training_seconds: 1.5,
+            lipschitz_estimate: 2.5,
+            losses: vec![3.0, 2.0],
+        }
+    }
+
+    #[test]
+    fn round_trip_and_damage_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = reduced_path(dir.path(), "bar");
+        let artifact = ReducedArtifact {
+            scene: "bar".into(),
+            scene_toml: "name = \"bar\"".into(),
+            scene_path: "bar.toml".into(),
+            source: "supervised".into(),
+            vanilla: subspace(0.0),
+            lipschitz: subspace(1.0),
+            cubature: vec![CubatureData {
+                term: "elastic".into(),
+                elements: vec![1, 4],
+                weights: vec![2.0, 3.0],
+                residual: 1e-3,
+            }],
+            lambda: 0.25,
+        };
+        artifact.save(&path).unwrap();
+        assert_eq!(ReducedArtifact::load(&path).unwrap(), artifact);
+        let mut bytes = std::fs::read(&path).unwrap();
+        let last = bytes.len() - 1;
+        bytes[last] ^= 1;
+        std::fs::write(&path, &bytes).unwrap();
+        let err = ReducedArtifact::load(&path).unwrap_err().to_string();
+        assert!(err.contains(&path.display().to_string()), "{err}");
+        let mut wrong = artifact.clone();
+        wrong.lipschitz.initial_latent.push(0.0);
+        wrong.save(&path).unwrap();
+        let err = ReducedArtifact::load(&path).unwrap_err().to_string();
+        assert!(err.contains("lipschitz subspace"), "{err}");
+    }
+}

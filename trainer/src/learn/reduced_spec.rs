@@ -1,0 +1,121 @@
+//! How `mochi train` builds the subspaces of the reduced-order solver (scene table
+//! `[reduced]`; Lyu et al. 2024): which subspace, how it is Lipschitz-optimised, and how the
+//! solver steps in it. A scene without the table does not use the reduced method.
+
+use serde::{Deserialize, Serialize};
+
+/// Where the vanilla subspace comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum SubspaceSource {
+    /// The autoencoder `mochi train` fits to the dataset (Eq. 3, Fulton et al. 2019).
+    #[default]
+    Supervised,
+    /// Trained on the scene's potential alone, without data (Eq. 4, Sharp et al. 2023).
+    DataFree,
+}
+
+/// The optimiser of each reduced step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum SolverChoice {
+    /// L-BFGS with line search (the paper's choice).
+    #[default]
+    Lbfgs,
+    /// Newton on the PSD-projected reduced Hessian.
+    Newton,
+}
+
+/// The `[reduced]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ReducedSpec {
+    /// Where the vanilla subspace comes from (default `"supervised"`).
+    pub subspace: SubspaceSource,
+    /// Latent size of a data-free subspace (default 8, the paper's); a supervised one uses
+    /// the autoencoder's.
+    pub latent: usize,
+    /// Data-free training iterations of the vanilla subspace (default 4000).
+    pub data_free_iterations: usize,
+    /// Weight of the Lipschitz term relative to the construction loss at the vanilla start
+    /// (default 1; see `methods::lipschitz::train`).
+    pub lipschitz: f64,
+    /// Epochs (supervised) or iterations (data-free) of the Lipschitz optimisation (default
+    /// 200).
+    pub lipschitz_epochs: usize,
+    /// Latent samples of the Lipschitz loss per step (default 8).
+    pub samples: usize,
+    /// Largest cubature of the elastic energy used for the Lipschitz loss (default 300, the
+    /// paper's `S`).
+    pub cubature: usize,
+    /// The step optimiser (default `"lbfgs"`).
+    pub solver: SolverChoice,
+    /// Gradient tolerance of each step, on the scaled objective (default 1e-5, the paper's).
+    pub tolerance: f64,
+    /// Iteration cap of each step (default 1024, the paper's).
+    pub max_iterations: usize,
+}
+
+impl Default for ReducedSpec {
+    fn default() -> Self {
+        ReducedSpec {
+            subspace: SubspaceSource::Supervised,
+            latent: 8,
+            data_free_iterations: 4000,
+            lipschitz: 1.0,
+            lipschitz_epochs: 200,
+            samples: 8,
+            cubature: 300,
+            solver: SolverChoice::Lbfgs,
+            tolerance: 1e-5,
+            max_iterations: 1024,
+        }
+    }
+}
+
+impl ReducedSpec {
+    /// Checks the values; returns the offending field's name and a message.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let positive = [
+            ("latent", self.latent),
+            ("data_free_iterations", self.data_free_iterations),
+            ("cubature", self.cubature),
+            ("max_iterations", self.max_iterations),
+        ];
+        for (field, value) in positive {
+            if value == 0 {
+                return Err((field, "must be at least 1".into()));
+            }
+        }
+        if self.samples < 2 {
+            return Err(("samples", format!("needs at least 2 samples, got {}", self.samples)));
+        }
+        if !(self.lipschitz.is_finite() && self.lipschitz >= 0.0) {
+            return Err(("lipschitz", format!("must be finite and non-negative, got {}", self.lipschitz)));
+        }
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return Err(("tolerance", format!("must be positive, got {}", self.tolerance)));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_values_name_their_field() {
+        assert!(ReducedSpec::default().validate().is_ok());
+        let cases = [
+            (ReducedSpec { latent: 0, ..Default::default() }, "latent"),
+            (ReducedSpec { samples: 1, ..Default::default() }, "samples"),
+            (ReducedSpec { lipschitz: -1.0, ..Default::default() }, "lipschitz"),
+            (ReducedSpec { tolerance: 0.0, ..Default::default() }, "tolerance"),
+            (ReducedSpec { cubature: 0, ..Default::default() }, "cubature"),
+        ];
+        for (spec, field) in cases {
+            assert_eq!(spec.validate().unwrap_err().0, field);
+        }
+    }
+}
