@@ -2,8 +2,9 @@
 //! `E(z) = 1/(2 dt^2) |f(z) - xhat|_M^2 + P(f(z))` over the latent `z`, `f` a subspace map
 //! (a decoder in the scene's boundary-condition frame) and `P` the scene's own energies.
 //!
-//! Files: `optimize` (the objective contract and the exits every solver reports), `lbfgs`
-//! (L-BFGS with line search), `newton` (Newton on the PSD-projected reduced Hessian).
+//! Files: `optimize` (the objective contract, the exits every solver reports and the shared
+//! line search), `lbfgs` (L-BFGS with a weak-Wolfe line search), `newton` (Newton on the
+//! PSD-projected reduced Hessian, Armijo backtracking).
 pub mod lbfgs;
 pub mod newton;
 pub mod optimize;
