@@ -1,1 +1,436 @@
-//! (being written)
+//! Limited-memory BFGS (Nocedal & Wright, Alg. 7.4): the two-loop recursion over the last
+//! `memory` pairs `s = z_{k+1} - z_k`, `y = g_{k+1} - g_k`, with the initial inverse Hessian
+//! `gamma I`, `gamma = s^T y / y^T y` of the newest pair (1 while none is stored), and the
+//! shared line search of [`super::optimize`] in its weak-Wolfe form: Armijo sufficient
+//! decrease (c1 = 1e-4, halving from step 1, non-finite values rejected) plus the curvature
+//! condition (c2 = 0.9). Armijo alone lets steps along a curved valley (Rosenbrock's) give
+//! `s^T y <= 0` again and again, freezing the memory on a stale model; the curvature
+//! condition makes every accepted pair usable.
+//!
+//! Each line-search trial evaluates the gradient as well as E, so an accepted step (almost
+//! always the first trial) costs one objective call. A pair is stored only when
+//! `s^T y > eps |s| |y|` holds, which keeps the implied inverse Hessian positive definite;
+//! otherwise the step is taken and the pair dropped.
+//!
+//! Exits ([`Exit`]): `Converged` once `|g|_inf <= tolerance` (checked on entry too, so a
+//! solve started at a minimiser takes zero iterations). When the quasi-Newton direction is
+//! not a descent direction (`g . d` not finite and negative) or its line search fails, the
+//! memory is reset and the step retried along steepest descent `-g`. `Saddle` is reported
+//! when E or the gradient is not finite at the iterate, when even `-g` gives no finite
+//! negative slope, when the steepest-descent line search shrinks the step until
+//! `z + step * d == z`, or when `obj.dim() != z.len()` (then nothing is evaluated and the
+//! objective is NaN). `LineSearchCap` when the steepest-descent line search needs more than
+//! `max_line_search` halvings; `IterationCap` after `max_iterations` accepted steps.
+
+use super::optimize::{
+    dot, inf_norm, is_descent, line_search, report, Exit, Objective, Search, SolveReport, SolveSettings,
+};
+
+/// Every buffer an L-BFGS solve uses, so that a solve on a sized workspace allocates nothing
+/// (apart from the history, when it is recorded).
+#[derive(Debug, Clone)]
+pub struct LbfgsWorkspace {
+    r: usize,
+    memory: usize,
+    /// `memory` steps s, r values each, as a ring.
+    s: Vec<f64>,
+    /// `memory` gradient changes y, r values each, as a ring.
+    y: Vec<f64>,
+    /// `1 / s^T y` of each stored pair.
+    rho: Vec<f64>,
+    /// The first loop's coefficients.
+    alpha: Vec<f64>,
+    /// Stored pairs (at most `memory`).
+    len: usize,
+    /// The ring slot the next pair goes to.
+    head: usize,
+    /// Scaling of the initial inverse Hessian.
+    gamma: f64,
+    g: Vec<f64>,
+    g_new: Vec<f64>,
+    d: Vec<f64>,
+    trial: Vec<f64>,
+}
+
+impl LbfgsWorkspace {
+    /// A workspace for `r` unknowns keeping `memory` pairs.
+    pub fn new(r: usize, memory: usize) -> Self {
+        LbfgsWorkspace {
+            r,
+            memory,
+            s: vec![0.0; r * memory],
+            y: vec![0.0; r * memory],
+            rho: vec![0.0; memory],
+            alpha: vec![0.0; memory],
+            len: 0,
+            head: 0,
+            gamma: 1.0,
+            g: vec![0.0; r],
+            g_new: vec![0.0; r],
+            d: vec![0.0; r],
+            trial: vec![0.0; r],
+        }
+    }
+
+    /// Sizes the buffers for `r` unknowns and `memory` pairs (allocating only when these
+    /// changed) and forgets every pair.
+    fn fit(&mut self, r: usize, memory: usize) {
+        if self.r != r || self.memory != memory {
+            *self = LbfgsWorkspace::new(r, memory);
+        }
+        self.reset();
+    }
+
+    /// Forgets every pair: the next direction is steepest descent.
+    fn reset(&mut self) {
+        self.len = 0;
+        self.head = 0;
+        self.gamma = 1.0;
+    }
+
+    /// `d = -g`.
+    fn steepest(&mut self) -> f64 {
+        for (d, g) in self.d.iter_mut().zip(&self.g) {
+            *d = -g;
+        }
+        dot(&self.g, &self.d)
+    }
+
+    /// `d = -H g` by the two-loop recursion; returns the slope `g . d`.
+    fn direction(&mut self) -> f64 {
+        let (r, m) = (self.r, self.memory);
+        self.d.copy_from_slice(&self.g);
+        for k in 0..self.len {
+            let i = (self.head + m - 1 - k) % m;
+            let a = self.rho[i] * dot(&self.s[i * r..(i + 1) * r], &self.d);
+            self.alpha[i] = a;
+            for (q, y) in self.d.iter_mut().zip(&self.y[i * r..(i + 1) * r]) {
+                *q -= a * y;
+            }
+        }
+        for q in self.d.iter_mut() {
+            *q *= self.gamma;
+        }
+        for k in (0..self.len).rev() {
+            let i = (self.head + m - 1 - k) % m;
+            let beta = self.rho[i] * dot(&self.y[i * r..(i + 1) * r], &self.d);
+            let c = self.alpha[i] - beta;
+            for (q, s) in self.d.iter_mut().zip(&self.s[i * r..(i + 1) * r]) {
+                *q += c * s;
+            }
+        }
+        for q in self.d.iter_mut() {
+            *q = -*q;
+        }
+        dot(&self.g, &self.d)
+    }
+
+    /// Stores the pair from `z` to `trial` (gradients `g` to `g_new`) when it satisfies the
+    /// curvature condition.
+    fn push(&mut self, z: &[f64]) {
+        if self.memory == 0 {
+            return;
+        }
+        let (mut sy, mut ss, mut yy) = (0.0, 0.0, 0.0);
+        for i in 0..self.r {
+            let (s, y) = (self.trial[i] - z[i], self.g_new[i] - self.g[i]);
+            sy += s * y;
+            ss += s * s;
+            yy += y * y;
+        }
+        let curved = sy > f64::EPSILON * (ss * yy).sqrt();
+        if !(curved && sy.is_finite() && yy.is_finite() && yy > 0.0) {
+            return;
+        }
+        let (r, slot) = (self.r, self.head);
+        for i in 0..r {
+            self.s[slot * r + i] = self.trial[i] - z[i];
+            self.y[slot * r + i] = self.g_new[i] - self.g[i];
+        }
+        self.rho[slot] = 1.0 / sy;
+        self.gamma = sy / yy;
+        self.head = (slot + 1) % self.memory;
+        self.len = (self.len + 1).min(self.memory);
+    }
+}
+
+/// Minimises `obj` from `z` by L-BFGS, leaving the final iterate in `z`. The exits are listed
+/// in the module documentation; `record_history` fills [`SolveReport::history`].
+pub fn lbfgs(
+    obj: &mut dyn Objective,
+    z: &mut [f64],
+    settings: &SolveSettings,
+    workspace: &mut LbfgsWorkspace,
+    record_history: bool,
+) -> SolveReport {
+    let ws = workspace;
+    ws.fit(z.len(), settings.memory);
+    if obj.dim() != z.len() {
+        return report(Exit::Saddle, 0, 0, f64::NAN, &[f64::NAN], Vec::new());
+    }
+    let mut f = obj.gradient(z, &mut ws.g);
+    let mut evaluations = 1;
+    let mut iterations = 0;
+    let mut history = Vec::new();
+    if record_history {
+        history.push(f);
+    }
+    loop {
+        let gnorm = inf_norm(&ws.g);
+        let exit = if gnorm <= settings.tolerance {
+            Some(Exit::Converged)
+        } else if !f.is_finite() || !gnorm.is_finite() {
+            Some(Exit::Saddle)
+        } else if iterations >= settings.max_iterations {
+            Some(Exit::IterationCap)
+        } else {
+            None
+        };
+        if let Some(exit) = exit {
+            return report(exit, iterations, evaluations, f, &ws.g, history);
+        }
+
+        let mut slope = ws.direction();
+        let mut steepest = ws.len == 0;
+        if !is_descent(slope) && !steepest {
+            ws.reset();
+            slope = ws.steepest();
+            steepest = true;
+        }
+        let value = loop {
+            if !is_descent(slope) {
+                return report(Exit::Saddle, iterations, evaluations, f, &ws.g, history);
+            }
+            let (outcome, calls) = line_search(z, &ws.d, f, slope, settings.max_line_search, &mut ws.trial, |t| {
+                let value = obj.gradient(t, &mut ws.g_new);
+                (value, Some(dot(&ws.g_new, &ws.d)))
+            });
+            evaluations += calls;
+            let exit = match outcome {
+                Search::Accepted(value) => break value,
+                _ if !steepest => {
+                    ws.reset();
+                    slope = ws.steepest();
+                    steepest = true;
+                    continue;
+                }
+                Search::Stalled => Exit::Saddle,
+                Search::Capped => Exit::LineSearchCap,
+            };
+            return report(exit, iterations, evaluations, f, &ws.g, history);
+        };
+
+        ws.push(z);
+        z.copy_from_slice(&ws.trial);
+        std::mem::swap(&mut ws.g, &mut ws.g_new);
+        f = value;
+        iterations += 1;
+        if record_history {
+            history.push(f);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::optimize::problems::{ill_conditioned, quadratic, rosenbrock, slope, uphill, walled, Problem};
+    use super::*;
+
+    fn solve(obj: &mut dyn Objective, z: &mut [f64], settings: &SolveSettings) -> SolveReport {
+        let mut ws = LbfgsWorkspace::new(z.len(), settings.memory);
+        lbfgs(obj, z, settings, &mut ws, true)
+    }
+
+    fn assert_near(z: &[f64], expected: &[f64], tol: f64) {
+        for (a, b) in z.iter().zip(expected) {
+            assert!((a - b).abs() <= tol, "{z:?} vs {expected:?}");
+        }
+    }
+
+    #[test]
+    fn reaches_the_minimiser_of_a_convex_quadratic() {
+        let mut obj = quadratic(&[1.0, 3.0, 0.5], &[2.0, -1.0, 0.5], None);
+        let mut z = [0.0; 3];
+        let report = solve(&mut obj, &mut z, &SolveSettings::default());
+        assert_eq!(report.exit, Exit::Converged, "{report:?}");
+        assert!(report.gradient_norm <= 1e-5);
+        assert_near(&z, &[2.0, -1.0, 0.5], 1e-4);
+    }
+
+    #[test]
+    fn reaches_the_minimiser_of_rosenbrock() {
+        let mut z = [-1.2, 1.0];
+        let report = solve(&mut rosenbrock(), &mut z, &SolveSettings::default());
+        assert_eq!(report.exit, Exit::Converged, "{report:?}");
+        assert!(report.iterations < 100, "{report:?}");
+        assert_near(&z, &[1.0, 1.0], 1e-4);
+        assert!(report.history.windows(2).all(|w| w[1] <= w[0]));
+    }
+
+    #[test]
+    fn longer_memory_helps_on_an_ill_conditioned_quadratic() {
+        let run = |memory| {
+            let (mut obj, minimiser) = ill_conditioned();
+            let mut z = [0.0; 8];
+            let settings = SolveSettings {
+                memory,
+                ..SolveSettings::default()
+            };
+            let report = solve(&mut obj, &mut z, &settings);
+            assert_eq!(report.exit, Exit::Converged, "memory {memory}: {report:?}");
+            assert_near(&z, &minimiser, 1.01e-5);
+            report.iterations
+        };
+        let (long, short) = (run(8), run(1));
+        assert!(long < short, "memory 8: {long} iterations, memory 1: {short}");
+    }
+
+    #[test]
+    fn stops_at_the_iteration_cap() {
+        let mut z = [-1.2, 1.0];
+        let settings = SolveSettings {
+            max_iterations: 3,
+            ..SolveSettings::default()
+        };
+        let report = solve(&mut rosenbrock(), &mut z, &settings);
+        assert_eq!(report.exit, Exit::IterationCap);
+        assert_eq!(report.iterations, 3);
+        assert_eq!(report.history.len(), 4);
+        assert_eq!(report.objective, report.history[3]);
+    }
+
+    #[test]
+    fn converges_without_iterating_at_the_minimiser() {
+        let mut z = [1.0, 1.0];
+        let report = solve(&mut rosenbrock(), &mut z, &SolveSettings::default());
+        assert_eq!(report.exit, Exit::Converged);
+        assert_eq!((report.iterations, report.evaluations), (0, 1));
+        assert_eq!(report.history, vec![0.0]);
+        assert_eq!(z, [1.0, 1.0]);
+    }
+
+    #[test]
+    fn history_is_recorded_only_when_asked() {
+        let mut ws = LbfgsWorkspace::new(2, 8);
+        let settings = SolveSettings::default();
+        let mut z = [-1.2, 1.0];
+        let recorded = lbfgs(&mut rosenbrock(), &mut z, &settings, &mut ws, true);
+        assert_eq!(recorded.history.len(), recorded.iterations + 1);
+        assert_eq!(recorded.history[0], rosenbrock().value(&[-1.2, 1.0]));
+        let mut z = [-1.2, 1.0];
+        let plain = lbfgs(&mut rosenbrock(), &mut z, &settings, &mut ws, false);
+        assert!(plain.history.is_empty());
+        assert_eq!(plain.iterations, recorded.iterations);
+        assert_eq!(plain.evaluations, recorded.evaluations);
+    }
+
+    #[test]
+    fn backtracks_from_non_finite_values() {
+        let mut obj = walled(10.0, 10.0);
+        let mut z = [0.0, 0.0];
+        let report = solve(&mut obj, &mut z, &SolveSettings::default());
+        assert!(
+            obj.values.iter().any(|v| v.is_nan()),
+            "the first step should leave the domain"
+        );
+        assert_eq!(report.exit, Exit::Converged, "{report:?}");
+        assert!(report.history.iter().all(|f| f.is_finite()));
+        assert_near(&z, &[0.6, -0.8], 1e-5);
+    }
+
+    #[test]
+    fn an_uphill_gradient_is_a_saddle_or_a_line_search_cap() {
+        // Steepest descent along the reported gradient raises E: with 128 halvings the step
+        // vanishes next to z first (Saddle), with 10 the halvings run out first.
+        let mut z = [1.0, 1.0];
+        let report = solve(&mut uphill(), &mut z, &SolveSettings::default());
+        assert_eq!(report.exit, Exit::Saddle);
+        assert_eq!((report.iterations, z), (0, [1.0, 1.0]));
+        let settings = SolveSettings {
+            max_line_search: 10,
+            ..SolveSettings::default()
+        };
+        let report = solve(&mut uphill(), &mut z, &settings);
+        assert_eq!((report.exit, report.evaluations), (Exit::LineSearchCap, 12));
+        assert_eq!(z, [1.0, 1.0]);
+    }
+
+    #[test]
+    fn unbounded_objectives_end_without_converging() {
+        let mut z = [0.0, 0.0];
+        // -sum z: the curvature condition never holds, so the first line search doubles the
+        // step 128 times and takes it; from there a unit step no longer moves z.
+        let report = solve(&mut slope(), &mut z, &SolveSettings::default());
+        assert_eq!((report.exit, report.iterations), (Exit::Saddle, 1));
+        assert_eq!(z, [2f64.powi(128); 2]);
+        let settings = SolveSettings {
+            max_iterations: 5,
+            max_line_search: 3,
+            ..SolveSettings::default()
+        };
+        let report = solve(&mut slope(), &mut [0.0, 0.0], &settings);
+        assert_eq!((report.exit, report.iterations), (Exit::IterationCap, 5));
+
+        // -|z|^2: each step triples z until the slope overflows.
+        let mut concave = Problem::new(
+            2,
+            |z| -(z[0] * z[0] + z[1] * z[1]),
+            |z, g| g.copy_from_slice(&[-2.0 * z[0], -2.0 * z[1]]),
+            |_, h| h.fill(0.0),
+        );
+        let mut z = [1.0, 0.5];
+        let report = solve(&mut concave, &mut z, &SolveSettings::default());
+        assert_eq!(report.exit, Exit::Saddle, "{report:?}");
+        assert!(report.objective.is_finite());
+    }
+
+    #[test]
+    fn nan_input_and_mismatched_objectives_do_not_converge() {
+        let mut z = [f64::NAN, 0.0];
+        let report = solve(&mut rosenbrock(), &mut z, &SolveSettings::default());
+        assert_eq!(report.exit, Exit::Saddle);
+        assert!(report.gradient_norm.is_nan());
+        let mut z = [0.0; 3];
+        let report = solve(&mut rosenbrock(), &mut z, &SolveSettings::default());
+        assert_eq!((report.exit, report.evaluations), (Exit::Saddle, 0));
+    }
+
+    #[test]
+    fn the_two_loop_recursion_satisfies_the_newest_secant_equation() {
+        // After pairs (s_i, y_i), H y_newest = s_newest, so the direction for g = y_newest is
+        // -s_newest; with memory 2 the oldest of three pairs is dropped from the ring.
+        let mut ws = LbfgsWorkspace::new(3, 2);
+        let pairs = [
+            ([1.0, 0.0, 0.5], [2.0, 0.1, 0.4]),
+            ([0.0, 1.0, -1.0], [0.3, 3.0, -2.0]),
+            ([0.5, -0.5, 1.0], [1.0, -2.0, 4.0]),
+        ];
+        for (s, y) in pairs {
+            ws.trial.copy_from_slice(&s);
+            ws.g.fill(0.0);
+            ws.g_new.copy_from_slice(&y);
+            ws.push(&[0.0; 3]);
+        }
+        assert_eq!((ws.len, ws.head), (2, 1));
+        let (s, y) = pairs[2];
+        ws.g.copy_from_slice(&y);
+        let slope = ws.direction();
+        assert_near(&ws.d, &[-s[0], -s[1], -s[2]], 1e-12);
+        assert!((slope + dot(&s, &y)).abs() < 1e-12);
+        assert_eq!(ws.gamma, dot(&s, &y) / dot(&y, &y));
+    }
+
+    #[test]
+    fn a_sized_workspace_is_reused_and_resized() {
+        let mut ws = LbfgsWorkspace::new(2, 8);
+        let settings = SolveSettings {
+            memory: 3,
+            ..SolveSettings::default()
+        };
+        let (mut obj, _) = ill_conditioned();
+        let mut z = [0.0; 8];
+        let report = lbfgs(&mut obj, &mut z, &settings, &mut ws, false);
+        assert_eq!(report.exit, Exit::Converged);
+        assert_eq!((ws.r, ws.memory, ws.s.len()), (8, 3, 24));
+    }
+}

@@ -4,9 +4,10 @@
 //!
 //! Files, in the order data flows: `subspace` (the decoder in the boundary-condition frame,
 //! with its exact Jacobian), `objective` (Eq. 2 on the scene's energies), `optimize` (the
-//! contract every optimiser solves and the exits it reports), `lbfgs` (L-BFGS with line
-//! search), `newton` (Newton on the PSD-projected reduced Hessian), `stepper` (one solve per
-//! frame over a boundary-condition script).
+//! contract every optimiser solves, the exits it reports and the shared line search),
+//! `lbfgs` (L-BFGS with a weak-Wolfe line search), `newton` (Newton on the PSD-projected
+//! reduced Hessian, Armijo backtracking), `stepper` (one solve per frame over a
+//! boundary-condition script).
 pub mod lbfgs;
 pub mod newton;
 pub mod objective;

@@ -1,1 +1,466 @@
-//! (being written)
+//! The contract between the reduced solvers and the objective they minimise: the
+//! [`Objective`] trait, the [`SolveSettings`] every solver reads, the [`SolveReport`] and its
+//! [`Exit`] (the four exit conditions of Lyu et al. 2024), an [`ExitCounts`] tally for the
+//! per-step convergence tables, and the backtracking line search both solvers share.
+
+/// A smooth objective of a small dense vector, as the reduced solvers see it.
+pub trait Objective {
+    /// Number of unknowns r.
+    fn dim(&self) -> usize;
+    /// E(z). May return a non-finite value for z outside the domain (the line search must
+    /// then backtrack).
+    fn value(&mut self, z: &[f64]) -> f64;
+    /// E(z), writing grad E(z) into `grad` (r values).
+    fn gradient(&mut self, z: &[f64], grad: &mut [f64]) -> f64;
+    /// E(z), its gradient and a positive semi-definite approximation of its Hessian (r x r,
+    /// row-major) into `hess`.
+    fn hessian(&mut self, z: &[f64], grad: &mut [f64], hess: &mut [f64]) -> f64;
+}
+
+/// Why a solve stopped, in the order of the paper's exit conditions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Exit {
+    /// The gradient's infinity norm is at most [`SolveSettings::tolerance`].
+    Converged,
+    /// No step can lower E: even steepest descent is not a descent direction (the gradient
+    /// or E is non-finite at the iterate, or the objective does not fit the unknowns), or
+    /// its line search shrank the step until the trial point equalled the iterate.
+    Saddle,
+    /// The line search along steepest descent needed more than
+    /// [`SolveSettings::max_line_search`] halvings without finding a step of sufficient
+    /// decrease.
+    LineSearchCap,
+    /// [`SolveSettings::max_iterations`] iterations ran without convergence.
+    IterationCap,
+}
+
+impl Exit {
+    /// Every exit, in the paper's order (the order of [`ExitCounts`]).
+    pub const ALL: [Exit; 4] = [Exit::Converged, Exit::Saddle, Exit::LineSearchCap, Exit::IterationCap];
+
+    /// A short phrase for reports and tables.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Exit::Converged => "converged (gradient below tolerance)",
+            Exit::Saddle => "saddle (no descent direction)",
+            Exit::LineSearchCap => "line search cap (too many halvings)",
+            Exit::IterationCap => "iteration cap (too many iterations)",
+        }
+    }
+}
+
+/// The knobs every reduced solver reads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolveSettings {
+    /// Converged once the gradient's infinity norm is at most this. Default `1e-5`.
+    pub tolerance: f64,
+    /// The most iterations (accepted steps) a solve takes. Default `1024`.
+    pub max_iterations: usize,
+    /// The most halvings (trials after the first) one line search takes. Default `128`.
+    pub max_line_search: usize,
+    /// How many (s, y) pairs L-BFGS keeps; 0 gives steepest descent. Default `8`.
+    pub memory: usize,
+}
+
+impl Default for SolveSettings {
+    fn default() -> Self {
+        SolveSettings {
+            tolerance: 1e-5,
+            max_iterations: 1024,
+            max_line_search: 128,
+            memory: 8,
+        }
+    }
+}
+
+/// What a solve did and where it stopped.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SolveReport {
+    /// Why it stopped.
+    pub exit: Exit,
+    /// Accepted steps.
+    pub iterations: usize,
+    /// Calls to the objective (value, gradient and Hessian calls alike).
+    pub evaluations: usize,
+    /// E at the final iterate.
+    pub objective: f64,
+    /// Infinity norm of the gradient at the final iterate (NaN when any entry is NaN).
+    pub gradient_norm: f64,
+    /// E before the first step and after each accepted step (`iterations + 1` entries) when
+    /// the solve was asked to record it; empty otherwise.
+    pub history: Vec<f64>,
+}
+
+impl SolveReport {
+    /// Whether the solve ended with [`Exit::Converged`].
+    pub fn converged(&self) -> bool {
+        self.exit == Exit::Converged
+    }
+}
+
+/// How many solves ended in each [`Exit`], for per-step convergence tables.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ExitCounts {
+    counts: [usize; 4],
+}
+
+impl ExitCounts {
+    /// Counts the exit of one solve.
+    pub fn add(&mut self, report: &SolveReport) {
+        self.counts[report.exit as usize] += 1;
+    }
+
+    /// Solves that ended in `exit`.
+    pub fn count(&self, exit: Exit) -> usize {
+        self.counts[exit as usize]
+    }
+
+    /// Solves counted.
+    pub fn total(&self) -> usize {
+        self.counts.iter().sum()
+    }
+
+    /// The share of solves that ended in `exit`, in [0, 1]; 0 when nothing was counted.
+    pub fn fraction(&self, exit: Exit) -> f64 {
+        match self.total() {
+            0 => 0.0,
+            total => self.count(exit) as f64 / total as f64,
+        }
+    }
+}
+
+/// The Armijo sufficient-decrease constant c1.
+pub(crate) const ARMIJO_C1: f64 = 1e-4;
+
+/// The Wolfe curvature constant c2, checked when the line search is given slopes.
+pub(crate) const WOLFE_C2: f64 = 0.9;
+
+/// `a . b`.
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The infinity norm, NaN when any entry is NaN (`f64::max` would drop it).
+pub(crate) fn inf_norm(v: &[f64]) -> f64 {
+    v.iter().fold(0.0, |acc: f64, &x| {
+        if acc.is_nan() || x.is_nan() {
+            f64::NAN
+        } else {
+            acc.max(x.abs())
+        }
+    })
+}
+
+/// How a line search ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Search {
+    /// `trial` holds the accepted point; E there.
+    Accepted(f64),
+    /// The step shrank until `z + step * d` equalled `z`: no representable step lowers E.
+    Stalled,
+    /// More than the allowed halvings were needed.
+    Capped,
+}
+
+/// Line search along `d` from `z`, where E(z) = `f0` (finite) and the slope `g . d` is
+/// finite and negative. Each trial writes `z + step * d` into `trial` and evaluates it with
+/// `eval`, which returns E there and, optionally, the slope `grad E(trial) . d`.
+///
+/// The first trial is step 1. A trial whose value is non-finite or fails the Armijo
+/// condition `E <= f0 + c1 * step * slope` bounds the step from above. Without slopes the
+/// first trial that passes is accepted: plain backtracking, halving the step. With slopes
+/// the accepted trial must also meet the weak Wolfe curvature condition
+/// `slope(trial) >= c2 * slope`; a trial that passes Armijo but not it bounds the step from
+/// below, and the next step doubles (no upper bound yet) or bisects the bracket. Every
+/// trial after the first counts as one halving against `max_halvings`; when they run out
+/// after some step passed Armijo, the largest such step is re-evaluated and accepted.
+///
+/// Returns the outcome and the number of `eval` calls. `eval` may compute more than E (the
+/// L-BFGS solver evaluates the gradient with it, so the accepted point needs no second
+/// call).
+pub(crate) fn line_search(
+    z: &[f64],
+    d: &[f64],
+    f0: f64,
+    slope: f64,
+    max_halvings: usize,
+    trial: &mut [f64],
+    mut eval: impl FnMut(&[f64]) -> (f64, Option<f64>),
+) -> (Search, usize) {
+    let (mut lo, mut hi, mut step) = (0.0, f64::INFINITY, 1.0);
+    let mut evaluations = 0;
+    for _ in 0..=max_halvings {
+        if !place(trial, z, d, step) {
+            return (Search::Stalled, evaluations);
+        }
+        let (value, trial_slope) = eval(trial);
+        evaluations += 1;
+        if !(value.is_finite() && value <= f0 + ARMIJO_C1 * step * slope) {
+            hi = step;
+        } else if trial_slope.is_some_and(|s| s < WOLFE_C2 * slope) {
+            lo = step;
+        } else {
+            return (Search::Accepted(value), evaluations);
+        }
+        step = if hi.is_finite() { 0.5 * (lo + hi) } else { 2.0 * step };
+    }
+    if lo > 0.0 && place(trial, z, d, lo) {
+        let (value, _) = eval(trial);
+        evaluations += 1;
+        if value.is_finite() && value <= f0 + ARMIJO_C1 * lo * slope {
+            return (Search::Accepted(value), evaluations);
+        }
+    }
+    (Search::Capped, evaluations)
+}
+
+/// Writes `z + step * d` into `trial`; false when that equals `z`.
+fn place(trial: &mut [f64], z: &[f64], d: &[f64], step: f64) -> bool {
+    let mut moved = false;
+    for ((t, &zi), &di) in trial.iter_mut().zip(z).zip(d) {
+        *t = zi + step * di;
+        moved |= *t != zi;
+    }
+    moved
+}
+
+/// Whether `slope = g . d` makes `d` a usable descent direction.
+pub(crate) fn is_descent(slope: f64) -> bool {
+    slope.is_finite() && slope < 0.0
+}
+
+/// The report of a solve that stopped at `z` with objective `f` and gradient `g`.
+pub(crate) fn report(
+    exit: Exit,
+    iterations: usize,
+    evaluations: usize,
+    f: f64,
+    g: &[f64],
+    history: Vec<f64>,
+) -> SolveReport {
+    SolveReport {
+        exit,
+        iterations,
+        evaluations,
+        objective: f,
+        gradient_norm: inf_norm(g),
+        history,
+    }
+}
+
+/// Test problems both solvers are checked on.
+#[cfg(test)]
+pub(crate) mod problems {
+    use super::Objective;
+
+    type Value = Box<dyn Fn(&[f64]) -> f64>;
+    type Fill = Box<dyn Fn(&[f64], &mut [f64])>;
+
+    /// An objective made of closures (E, gradient, Hessian) that records every E it returns.
+    pub struct Problem {
+        r: usize,
+        value: Value,
+        grad: Fill,
+        hess: Fill,
+        /// Every E returned, in order.
+        pub values: Vec<f64>,
+    }
+
+    impl Problem {
+        pub fn new(
+            r: usize,
+            value: impl Fn(&[f64]) -> f64 + 'static,
+            grad: impl Fn(&[f64], &mut [f64]) + 'static,
+            hess: impl Fn(&[f64], &mut [f64]) + 'static,
+        ) -> Self {
+            let (value, grad, hess) = (Box::new(value), Box::new(grad), Box::new(hess));
+            Problem {
+                r,
+                value,
+                grad,
+                hess,
+                values: Vec::new(),
+            }
+        }
+    }
+
+    impl Objective for Problem {
+        fn dim(&self) -> usize {
+            self.r
+        }
+        fn value(&mut self, z: &[f64]) -> f64 {
+            let value = (self.value)(z);
+            self.values.push(value);
+            value
+        }
+        fn gradient(&mut self, z: &[f64], grad: &mut [f64]) -> f64 {
+            (self.grad)(z, grad);
+            self.value(z)
+        }
+        fn hessian(&mut self, z: &[f64], grad: &mut [f64], hess: &mut [f64]) -> f64 {
+            (self.hess)(z, hess);
+            self.gradient(z, grad)
+        }
+    }
+
+    /// `0.5 sum a_i (z_i - m_i)^2`; its Hessian is reported as `hessian` (row-major) when
+    /// given, `diag(a)` otherwise.
+    pub fn quadratic(a: &[f64], m: &[f64], hessian: Option<Vec<f64>>) -> Problem {
+        let r = a.len();
+        let diagonal = || {
+            (0..r * r)
+                .map(|k| if k % (r + 1) == 0 { a[k / r] } else { 0.0 })
+                .collect()
+        };
+        let h = hessian.unwrap_or_else(diagonal);
+        let (a, m) = (a.to_vec(), m.to_vec());
+        let (a2, m2) = (a.clone(), m.clone());
+        Problem::new(
+            r,
+            move |z| (0..r).map(|i| 0.5 * a[i] * (z[i] - m[i]).powi(2)).sum(),
+            move |z, g| (0..r).for_each(|i| g[i] = a2[i] * (z[i] - m2[i])),
+            move |_, out| out.copy_from_slice(&h),
+        )
+    }
+
+    /// r = 8, eigenvalues from 1 to 1e4 (condition number 1e4); with its minimiser.
+    pub fn ill_conditioned() -> (Problem, Vec<f64>) {
+        let a: Vec<f64> = (0..8).map(|i| 10f64.powf(4.0 * i as f64 / 7.0)).collect();
+        let m: Vec<f64> = (0..8).map(|i| 1.0 - 0.25 * i as f64).collect();
+        (quadratic(&a, &m, None), m)
+    }
+
+    /// `(1 - x)^2 + 100 (y - x^2)^2`, minimiser (1, 1); the Hessian is the Gauss-Newton one
+    /// `2 J^T J` of the residuals `(1 - x, 10 (y - x^2))`, positive definite everywhere.
+    pub fn rosenbrock() -> Problem {
+        Problem::new(
+            2,
+            |z| (1.0 - z[0]).powi(2) + 100.0 * (z[1] - z[0] * z[0]).powi(2),
+            |z, g| {
+                let t = z[1] - z[0] * z[0];
+                g[0] = -2.0 * (1.0 - z[0]) - 400.0 * z[0] * t;
+                g[1] = 200.0 * t;
+            },
+            |z, h| h.copy_from_slice(&[2.0 + 800.0 * z[0] * z[0], -400.0 * z[0], -400.0 * z[0], 200.0]),
+        )
+    }
+
+    /// `0.5 k |z - c|^2` with `c = (0.6, -0.8)`, NaN outside the ball of radius 1.5 about
+    /// the origin; its Hessian is reported as `hessian_k I`.
+    pub fn walled(k: f64, hessian_k: f64) -> Problem {
+        Problem::new(
+            2,
+            move |z| match z[0].hypot(z[1]) > 1.5 {
+                true => f64::NAN,
+                false => 0.5 * k * ((z[0] - 0.6).powi(2) + (z[1] + 0.8).powi(2)),
+            },
+            move |z, g| g.copy_from_slice(&[k * (z[0] - 0.6), k * (z[1] + 0.8)]),
+            move |_, h| h.copy_from_slice(&[hessian_k, 0.0, 0.0, hessian_k]),
+        )
+    }
+
+    /// E is `|z|^2` but the gradient is reported as `-2 z`: steepest descent climbs E.
+    pub fn uphill() -> Problem {
+        Problem::new(
+            2,
+            |z| z[0] * z[0] + z[1] * z[1],
+            |z, g| g.copy_from_slice(&[-2.0 * z[0], -2.0 * z[1]]),
+            |_, h| h.copy_from_slice(&[2.0, 0.0, 0.0, 2.0]),
+        )
+    }
+
+    /// `-(z_0 + z_1)`: unbounded below, zero Hessian.
+    pub fn slope() -> Problem {
+        Problem::new(2, |z| -(z[0] + z[1]), |_, g| g.fill(-1.0), |_, h| h.fill(0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report_with(exit: Exit) -> SolveReport {
+        report(exit, 0, 0, 0.0, &[], Vec::new())
+    }
+
+    #[test]
+    fn exit_counts_tally_and_fractions() {
+        let mut counts = ExitCounts::default();
+        assert_eq!(counts.fraction(Exit::Converged), 0.0);
+        for exit in [Exit::Converged, Exit::Converged, Exit::Saddle, Exit::IterationCap] {
+            counts.add(&report_with(exit));
+        }
+        assert_eq!(counts.total(), 4);
+        assert_eq!(counts.count(Exit::Converged), 2);
+        assert_eq!(counts.count(Exit::LineSearchCap), 0);
+        assert_eq!(counts.fraction(Exit::Converged), 0.5);
+        let sum: f64 = Exit::ALL.iter().map(|&e| counts.fraction(e)).sum();
+        assert_eq!(sum, 1.0);
+    }
+
+    #[test]
+    fn inf_norm_propagates_nan() {
+        assert_eq!(inf_norm(&[1.0, -3.0, 2.0]), 3.0);
+        assert!(inf_norm(&[1.0, f64::NAN, 2.0]).is_nan());
+        assert!(inf_norm(&[f64::NAN, 1.0]).is_nan());
+        assert_eq!(inf_norm(&[]), 0.0);
+    }
+
+    #[test]
+    fn line_search_rejects_non_finite_values_and_halves() {
+        // E(x) = x^2 on |x| <= 1, NaN beyond; from 0.9 along -3.6 the full step leaves the
+        // domain, the half step does not decrease E and the quarter step reaches 0.
+        let mut seen = Vec::new();
+        let mut trial = [0.0];
+        let (outcome, evaluations) = line_search(&[0.9], &[-3.6], 0.81, -6.48, 10, &mut trial, |t| {
+            seen.push(t[0]);
+            let value = if t[0].abs() > 1.0 { f64::NAN } else { t[0] * t[0] };
+            (value, None)
+        });
+        assert_eq!(evaluations, 3);
+        assert_eq!(seen, vec![0.9 - 3.6, -0.9, 0.0]);
+        assert_eq!(outcome, Search::Accepted(0.0));
+        assert_eq!(trial[0], 0.0);
+    }
+
+    #[test]
+    fn line_search_stalls_or_caps_when_nothing_decreases() {
+        let mut trial = [0.0];
+        let (outcome, evaluations) = line_search(&[1.0], &[1.0], 1.0, -1.0, 128, &mut trial, |t| (t[0], None));
+        assert_eq!(outcome, Search::Stalled);
+        assert!(evaluations <= 60, "{evaluations}");
+        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 0.0, -1.0, 5, &mut trial, |t| (t[0], None));
+        assert_eq!(outcome, Search::Capped);
+        assert_eq!(evaluations, 6);
+    }
+
+    #[test]
+    fn line_search_with_slopes_expands_until_the_curvature_condition_holds() {
+        // E(x) = (x - 100)^2 from 0 along +1: step 1 decreases E enough but the slope is
+        // still steep; doubling reaches a slope above c2 times the initial one at 16.
+        let mut seen = Vec::new();
+        let mut trial = [0.0];
+        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 1e4, -200.0, 128, &mut trial, |t| {
+            seen.push(t[0]);
+            ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
+        });
+        assert_eq!(seen, vec![1.0, 2.0, 4.0, 8.0, 16.0]);
+        assert_eq!((outcome, evaluations), (Search::Accepted(7056.0), 5));
+        // With too few trials the largest Armijo step is re-evaluated and taken.
+        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 1e4, -200.0, 2, &mut trial, |t| {
+            ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
+        });
+        assert_eq!((outcome, evaluations), (Search::Accepted(9216.0), 4));
+        assert_eq!(trial, [4.0]);
+    }
+
+    #[test]
+    fn every_exit_has_a_distinct_description() {
+        for (i, a) in Exit::ALL.iter().enumerate() {
+            assert_eq!(*a as usize, i);
+            for b in &Exit::ALL[i + 1..] {
+                assert_ne!(a.describe(), b.describe());
+            }
+        }
+    }
+}
