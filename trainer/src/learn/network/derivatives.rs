@@ -1,1 +1,446 @@
-//! (being written)
+//! A frozen residual MLP in `f64` with exact derivatives, for solvers that minimise energies of
+//! a decoder's output over its latent input.
+//!
+//! # Maths
+//!
+//! With the layout of [`super`], `σ(u) = 1 / (1 + e^-u)` and Swish `s(u) = u σ(u)`:
+//!
+//! ```text
+//! s'(u)  = σ + u σ (1 - σ)
+//! s''(u) = σ (1 - σ) (2 + u (1 - 2σ))
+//! ```
+//!
+//! **Jacobian.** Every hidden vector `a` carries its tangents `∂a/∂x` (a `hidden × input`
+//! array, one row per unit). A dense layer `a ↦ W a + b` maps tangents by `W` alone, Swish by
+//! `s'(u) ⊙`, and the residual addition adds them: `∂h = W_in`, then for each block
+//! `∂u = W_in_j ∂h`, `∂h += W_out_j (s'(u) ⊙ ∂u)`, and finally `J = W_o (s'(h) ⊙ ∂h)`. The output
+//! layer dominates (`output × hidden × input` products): row `o` of `J` accumulates
+//! `W_o[o, j] ∂g_j` over the units `j`, so `W_o` streams once, row by row, while the small
+//! tangent array stays in cache and the innermost loop runs over the inputs.
+//!
+//! **Contracted Hessian.** `Σ_i w_i ∇²y_i` is the Hessian of `φ(x) = wᵀ f(x)`. Reverse mode
+//! gives `∇φ`: the adjoint of `swish(h)` is `c = W_oᵀ w`, then `h̄ = s'(h) ⊙ c`; back through
+//! each block `ū = s'(u) ⊙ W_out_jᵀ h̄`, `h̄ += W_in_jᵀ ū`; and `∇φ = W_inᵀ h̄`. Differentiating
+//! this sweep in every input direction (forward over reverse), with the tangents `∂h`, `∂u` of
+//! the forward pass, gives `∂h̄ = s''(h) ⊙ ∂h ⊙ c`, `∂ū = s''(u) ⊙ ∂u ⊙ W_out_jᵀ h̄ + s'(u) ⊙
+//! W_out_jᵀ ∂h̄`, `∂h̄ += W_in_jᵀ ∂ū`, and the Hessian is `W_inᵀ ∂h̄`. This uses the
+//! hidden units' second derivatives and `W_oᵀ w` only, so it costs about two hidden-layer
+//! Jacobians and one product with `W_oᵀ`, never a per-output Hessian. The result is symmetric up
+//! to rounding and is returned symmetrised.
+//!
+//! **Second directional derivative.** Along the line `x + t v`, every hidden vector carries its
+//! first and second derivatives in `t`: a dense layer maps both by `W`, and Swish maps
+//! `(u, u̇, ü)` to `(s, s' u̇, s'' u̇² + s' ü)`.
+//!
+//! All calls check their sizes and run without allocating once their [`Mlp64Workspace`] has
+//! the network's sizes.
+
+use super::error::{invalid, ModelResult};
+use super::exported::{DenseLayer, ExportedMlp};
+use super::layout::swish;
+
+/// A dense layer `a ↦ W a + b` in `f64`, `W` row-major.
+#[derive(Debug, Clone, PartialEq)]
+struct Dense64 {
+    rows: usize,
+    cols: usize,
+    weights: Vec<f64>,
+    bias: Vec<f64>,
+}
+
+impl Dense64 {
+    fn new(layer: &DenseLayer) -> Self {
+        Dense64 {
+            rows: layer.rows,
+            cols: layer.cols,
+            weights: layer.weights.iter().map(|&w| w as f64).collect(),
+            bias: layer.bias.iter().map(|&b| b as f64).collect(),
+        }
+    }
+
+    fn row(&self, i: usize) -> &[f64] {
+        &self.weights[i * self.cols..(i + 1) * self.cols]
+    }
+
+    /// Calls `sink(i, W_i · x)` for every row `i`.
+    #[inline]
+    fn matvec(&self, x: &[f64], mut sink: impl FnMut(usize, f64)) {
+        for i in 0..self.rows {
+            sink(i, dot(self.row(i), x));
+        }
+    }
+
+    /// The layer with tangents: `value = W a + b` and `out = W t` for tangents `t` (`cols ×
+    /// count`, row-major; `out`: `rows × count`), or with `add` (a residual addition) `value +=
+    /// W a + b` and `out += W t`. `W` is read once, row by row: each row gives its value, then
+    /// accumulates `W_ij t_j` over `j` in blocks of up to 8 directions held in registers.
+    fn with_tangents(&self, a: &[f64], t: &[f64], value: &mut [f64], out: &mut [f64], add: bool) {
+        let count = t.len() / self.cols;
+        for (i, o) in out.chunks_exact_mut(count).enumerate() {
+            let row = self.row(i);
+            let v = self.bias[i] + dot(row, a);
+            if add {
+                value[i] += v;
+            } else {
+                value[i] = v;
+                o.fill(0.0);
+            }
+            let mut k = 0;
+            while k + 8 <= count {
+                accumulate::<8>(row, t, k, o);
+                k += 8;
+            }
+            if k + 4 <= count {
+                accumulate::<4>(row, t, k, o);
+                k += 4;
+            }
+            for k in k..count {
+                accumulate::<1>(row, t, k, o);
+            }
+        }
+    }
+
+    /// `out += Wᵀ v` for `v`: `rows × count` and `out`: `cols × count` (row-major).
+    fn add_transposed(&self, v: &[f64], out: &mut [f64]) {
+        let count = v.len() / self.rows;
+        for (row, vi) in self.weights.chunks_exact(self.cols).zip(v.chunks_exact(count)) {
+            if count == 1 {
+                out.iter_mut().zip(row).for_each(|(o, &w)| *o += w * vi[0]);
+                continue;
+            }
+            for (&w, oj) in row.iter().zip(out.chunks_exact_mut(count)) {
+                oj.iter_mut().zip(vi).for_each(|(o, &v)| *o += w * v);
+            }
+        }
+    }
+}
+
+/// `o[k..k + L] += Σ_j row_j t_j[k..k + L]` for the rows `t_j` of `t` (`row.len() × o.len()`).
+#[inline(always)]
+fn accumulate<const L: usize>(row: &[f64], t: &[f64], k: usize, o: &mut [f64]) {
+    let mut acc = [0.0; L];
+    for (&w, tj) in row.iter().zip(t.chunks_exact(o.len())) {
+        let tj = &tj[k..k + L];
+        for l in 0..L {
+            acc[l] += w * tj[l];
+        }
+    }
+    o[k..k + L].iter_mut().zip(acc).for_each(|(o, a)| *o += a);
+}
+
+/// `a · b`, in four interleaved sums so that it vectorises.
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+    let mut acc = [0.0; 4];
+    for (x, y) in ca.zip(cb) {
+        for l in 0..4 {
+            acc[l] += x[l] * y[l];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
+/// `(s(u), s'(u), s''(u))` for Swish `s`.
+#[inline]
+fn swish_parts(u: f64) -> (f64, f64, f64) {
+    let sig = 1.0 / (1.0 + (-u).exp());
+    let first = sig + u * sig * (1.0 - sig);
+    let second = sig * (1.0 - sig) * (2.0 + u * (1.0 - 2.0 * sig));
+    (swish(u), first, second)
+}
+
+fn check_len(what: &str, got: usize, expected: usize) -> ModelResult<()> {
+    if got != expected {
+        return invalid(format!("{what} has {got} values, expected {expected}"));
+    }
+    Ok(())
+}
+
+/// A frozen residual MLP (layout in [`super`]) with its weights in `f64`, evaluating its
+/// value, Jacobian, contracted Hessian and second directional derivatives exactly.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mlp64 {
+    input: Dense64,
+    blocks: Vec<(Dense64, Dense64)>,
+    output: Dense64,
+}
+
+/// Scratch space of [`Mlp64`]'s calls. Any workspace fits any network: a call first resizes it
+/// to the network's sizes, so only the first call with a new size allocates.
+#[derive(Debug, Clone, Default)]
+pub struct Mlp64Workspace {
+    h: Vec<f64>,
+    act: Vec<f64>,
+    pre: Vec<f64>,
+    dpre: Vec<f64>,
+    tan: Vec<f64>,
+    dact: Vec<f64>,
+    bar: Vec<f64>,
+    dbar: Vec<f64>,
+    abar: Vec<f64>,
+    dabar: Vec<f64>,
+    curv: Vec<f64>,
+}
+
+impl Mlp64Workspace {
+    /// A workspace sized for `mlp`.
+    pub fn new(mlp: &Mlp64) -> Self {
+        let mut ws = Self::default();
+        ws.fit(mlp);
+        ws
+    }
+
+    fn fit(&mut self, mlp: &Mlp64) {
+        let (n, r, b) = (mlp.hidden(), mlp.input_len(), mlp.blocks.len());
+        let sizes = [
+            (&mut self.h, n),
+            (&mut self.act, n),
+            (&mut self.pre, b * n),
+            (&mut self.dpre, b * r * n),
+            (&mut self.tan, r * n),
+            (&mut self.dact, r * n),
+            (&mut self.bar, n),
+            (&mut self.dbar, r * n),
+            (&mut self.abar, n),
+            (&mut self.dabar, r * n),
+            (&mut self.curv, 2 * n),
+        ];
+        for (buffer, len) in sizes {
+            buffer.resize(len, 0.0);
+        }
+    }
+}
+
+impl Mlp64 {
+    /// Converts the weights of `mlp` to `f64`.
+    pub fn new(mlp: &ExportedMlp) -> Self {
+        Mlp64 {
+            input: Dense64::new(mlp.input()),
+            blocks: mlp
+                .blocks()
+                .iter()
+                .map(|b| (Dense64::new(&b.inner), Dense64::new(&b.outer)))
+                .collect(),
+            output: Dense64::new(mlp.output()),
+        }
+    }
+
+    /// The same network with only the given output rows (in the given order), for callers that
+    /// need a few outputs of a large one.
+    pub fn rows(&self, rows: &[usize]) -> ModelResult<Mlp64> {
+        let out = &self.output;
+        if let Some(&bad) = rows.iter().find(|&&r| r >= out.rows) {
+            return invalid(format!("output row {bad} of a network with {} outputs", out.rows));
+        }
+        let output = Dense64 {
+            rows: rows.len(),
+            cols: out.cols,
+            weights: rows.iter().flat_map(|&r| out.row(r).iter().copied()).collect(),
+            bias: rows.iter().map(|&r| out.bias[r]).collect(),
+        };
+        Ok(Mlp64 {
+            input: self.input.clone(),
+            blocks: self.blocks.clone(),
+            output,
+        })
+    }
+
+    /// Number of inputs.
+    pub fn input_len(&self) -> usize {
+        self.input.cols
+    }
+
+    /// Number of outputs.
+    pub fn output_len(&self) -> usize {
+        self.output.rows
+    }
+
+    /// Width of the hidden layers.
+    pub fn hidden(&self) -> usize {
+        self.input.rows
+    }
+
+    /// `y = f(x)`.
+    pub fn value(&self, x: &[f64], y: &mut [f64], ws: &mut Mlp64Workspace) -> ModelResult<()> {
+        check_len("input", x.len(), self.input_len())?;
+        check_len("output", y.len(), self.output_len())?;
+        ws.fit(self);
+        self.hidden_pass(x, false, ws);
+        ws.act.iter_mut().zip(&ws.h).for_each(|(a, &h)| *a = swish(h));
+        self.output.matvec(&ws.act, |o, v| y[o] = self.output.bias[o] + v);
+        Ok(())
+    }
+
+    /// `y = f(x)` and the Jacobian `jac = ∂y/∂x` (`output × input`, row-major).
+    pub fn jacobian(&self, x: &[f64], y: &mut [f64], jac: &mut [f64], ws: &mut Mlp64Workspace) -> ModelResult<()> {
+        let (n, r) = (self.hidden(), self.input_len());
+        check_len("input", x.len(), r)?;
+        check_len("output", y.len(), self.output_len())?;
+        check_len("Jacobian", jac.len(), self.output_len() * r)?;
+        ws.fit(self);
+        self.hidden_pass(x, true, ws);
+        let Mlp64Workspace { h, act, tan, .. } = ws;
+        for i in 0..n {
+            let (s, first, _) = swish_parts(h[i]);
+            act[i] = s;
+            tan[i * r..(i + 1) * r].iter_mut().for_each(|t| *t *= first);
+        }
+        self.output.with_tangents(act, tan, y, jac, false);
+        Ok(())
+    }
+
+    /// `Σ_i w_i ∂²y_i/∂x∂x` (`input × input`, symmetric, row-major): the second-order term of the
+    /// Hessian of `E(f(x))` when `w = ∂E/∂y` (`w` has one value per output).
+    pub fn contracted_hessian(
+        &self,
+        x: &[f64],
+        w: &[f64],
+        out: &mut [f64],
+        ws: &mut Mlp64Workspace,
+    ) -> ModelResult<()> {
+        let (n, r) = (self.hidden(), self.input_len());
+        check_len("input", x.len(), r)?;
+        check_len("output weights", w.len(), self.output_len())?;
+        check_len("Hessian", out.len(), r * r)?;
+        ws.fit(self);
+        self.hidden_pass(x, true, ws);
+        let Mlp64Workspace {
+            h,
+            pre,
+            dpre,
+            tan,
+            bar,
+            dbar,
+            abar,
+            dabar,
+            ..
+        } = ws;
+        abar.fill(0.0);
+        self.output.add_transposed(w, abar);
+        for i in 0..n {
+            let (_, first, second) = swish_parts(h[i]);
+            bar[i] = first * abar[i];
+            (0..r).for_each(|k| dbar[i * r + k] = second * tan[i * r + k] * abar[i]);
+        }
+        for (j, (inner, outer)) in self.blocks.iter().enumerate().rev() {
+            abar.fill(0.0);
+            outer.add_transposed(bar, abar);
+            dabar.fill(0.0);
+            outer.add_transposed(dbar, dabar);
+            let (u, du) = (&pre[j * n..(j + 1) * n], &dpre[j * r * n..(j + 1) * r * n]);
+            for i in 0..n {
+                let (_, first, second) = swish_parts(u[i]);
+                for k in 0..r {
+                    dabar[i * r + k] = second * du[i * r + k] * abar[i] + first * dabar[i * r + k];
+                }
+                abar[i] *= first;
+            }
+            inner.add_transposed(abar, bar);
+            inner.add_transposed(dabar, dbar);
+        }
+        out.fill(0.0);
+        self.input.add_transposed(dbar, out);
+        for k in 0..r {
+            for l in k + 1..r {
+                let mean = 0.5 * (out[k * r + l] + out[l * r + k]);
+                out[k * r + l] = mean;
+                out[l * r + k] = mean;
+            }
+        }
+        Ok(())
+    }
+
+    /// `d²/dt² f(x + t v)` at `t = 0` (one value per output).
+    pub fn second_directional(
+        &self,
+        x: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+        ws: &mut Mlp64Workspace,
+    ) -> ModelResult<()> {
+        let n = self.hidden();
+        check_len("input", x.len(), self.input_len())?;
+        check_len("direction", v.len(), self.input_len())?;
+        check_len("output", out.len(), self.output_len())?;
+        ws.fit(self);
+        let Mlp64Workspace {
+            h,
+            act,
+            tan,
+            dact,
+            curv,
+            ..
+        } = ws;
+        let (d, du) = (&mut tan[..n], &mut dact[..n]);
+        let (dd, ddu) = curv.split_at_mut(n);
+        self.input.matvec(x, |i, s| h[i] = self.input.bias[i] + s);
+        self.input.matvec(v, |i, s| d[i] = s);
+        dd.fill(0.0);
+        for (inner, outer) in &self.blocks {
+            inner.matvec(h, |i, s| act[i] = inner.bias[i] + s);
+            inner.matvec(d, |i, s| du[i] = s);
+            inner.matvec(dd, |i, s| ddu[i] = s);
+            for i in 0..n {
+                let (s, first, second) = swish_parts(act[i]);
+                act[i] = s;
+                ddu[i] = second * du[i] * du[i] + first * ddu[i];
+                du[i] *= first;
+            }
+            outer.matvec(act, |i, s| h[i] += outer.bias[i] + s);
+            outer.matvec(du, |i, s| d[i] += s);
+            outer.matvec(ddu, |i, s| dd[i] += s);
+        }
+        for i in 0..n {
+            let (_, first, second) = swish_parts(h[i]);
+            ddu[i] = second * d[i] * d[i] + first * dd[i];
+        }
+        self.output.matvec(ddu, |o, s| out[o] = s);
+        Ok(())
+    }
+
+    /// Runs the hidden layers at `x` (sizes checked by the caller), leaving the last hidden
+    /// vector in `ws.h` and every block's pre-activation in `ws.pre`; with `tangents`, also
+    /// their tangents in every input direction (`ws.tan`, `ws.dpre`).
+    fn hidden_pass(&self, x: &[f64], tangents: bool, ws: &mut Mlp64Workspace) {
+        let (n, r) = (self.hidden(), self.input_len());
+        let Mlp64Workspace {
+            h,
+            act,
+            pre,
+            dpre,
+            tan,
+            dact,
+            ..
+        } = ws;
+        self.input.matvec(x, |i, v| h[i] = self.input.bias[i] + v);
+        if tangents {
+            tan.copy_from_slice(&self.input.weights);
+        }
+        for (j, (inner, outer)) in self.blocks.iter().enumerate() {
+            let u = &mut pre[j * n..(j + 1) * n];
+            let du = &mut dpre[j * r * n..(j + 1) * r * n];
+            if tangents {
+                inner.with_tangents(h, tan, u, du, false);
+            } else {
+                inner.matvec(h, |i, v| u[i] = inner.bias[i] + v);
+            }
+            for i in 0..n {
+                let (s, first, _) = swish_parts(u[i]);
+                act[i] = s;
+                if tangents {
+                    (0..r).for_each(|k| dact[i * r + k] = first * du[i * r + k]);
+                }
+            }
+            if tangents {
+                outer.with_tangents(act, dact, h, tan, true);
+            } else {
+                outer.matvec(act, |i, v| h[i] += outer.bias[i] + v);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

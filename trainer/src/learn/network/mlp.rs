@@ -46,6 +46,16 @@ impl Dense {
             .broadcast_add(&self.bias.as_tensor().detach())
     }
 
+    /// The weight matrix `(rows, cols)`, a tensor of the autodiff graph.
+    pub(super) fn weight(&self) -> &Tensor {
+        self.weight.as_tensor()
+    }
+
+    /// The bias `(rows)`, a tensor of the autodiff graph.
+    pub(super) fn bias(&self) -> &Tensor {
+        self.bias.as_tensor()
+    }
+
     fn export(&self) -> ModelResult<DenseLayer> {
         let (rows, cols) = self.weight.as_tensor().dims2()?;
         Ok(DenseLayer {
@@ -129,6 +139,21 @@ impl ResMlp {
             blocks,
             output: dense(mlp.output())?,
         })
+    }
+
+    /// The input layer.
+    pub(super) fn input_layer(&self) -> &Dense {
+        &self.input
+    }
+
+    /// The `(inner, outer)` layers of each residual block, in order.
+    pub(super) fn block_layers(&self) -> impl Iterator<Item = (&Dense, &Dense)> {
+        self.blocks.iter().map(|b| (&b.inner, &b.outer))
+    }
+
+    /// The output layer.
+    pub(super) fn output_layer(&self) -> &Dense {
+        &self.output
     }
 
     /// Runs the network on a batch `x: (batch, input)`, giving `(batch, output)`.

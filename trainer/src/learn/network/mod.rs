@@ -34,7 +34,8 @@
 //! `error`: what can go wrong; `layout`: the sizes of a residual MLP and its activation;
 //! `exported`: frozen networks and their plain-Rust forward pass; `mlp`: the trainable
 //! residual MLP in candle; `autoencoder` and `integrator`: the two networks built from it;
-//! `tensor`: rows to and from candle tensors.
+//! `tensor`: rows to and from candle tensors; `derivatives`: a frozen network in `f64` with exact
+//! Jacobians and second derivatives; `jet`: derivatives along directions inside candle's graph.
 
 mod autoencoder;
 pub mod derivatives;
