@@ -197,6 +197,11 @@ impl DataFreeModel {
         self.mlp.forward(z)?.broadcast_add(&self.offset_row)
     }
 
+    /// `q_rest` as a `(1, n)` tensor: the decoder's constant output.
+    pub(crate) fn offset_row(&self) -> &Tensor {
+        &self.offset_row
+    }
+
     /// The trainable variables, named `decoder.input.weight`, ... (see [`ResMlp::parameters`]).
     pub(crate) fn parameters(&self) -> Vec<(String, Var)> {
         self.mlp.parameters("decoder")
@@ -295,6 +300,11 @@ impl<'a> DataFreeObjective<'a> {
             length: sigma * problem.mesh.rest_diagonal(),
             weights: Tensor::from_vec(weights, (1, n), &Device::Cpu)?,
         })
+    }
+
+    /// The handle targets of the start (the frame the decoder's states are encoded in).
+    pub(crate) fn targets(&self) -> &[f64] {
+        &self.targets
     }
 
     /// The untrained decoder of `settings` around the rest shape.
@@ -466,14 +476,24 @@ pub fn train_data_free(
     settings: &DataFreeSettings,
     reporter: &dyn Reporter,
 ) -> TrainerResult<DataFreeOutcome> {
+    let objective = DataFreeObjective::new(problem, encoding, settings.sigma)?;
+    Ok(train_data_free_model(&objective, settings, reporter)?.1)
+}
+
+/// As [`train_data_free`] with the objective given, also returning the trainable decoder (a
+/// Lipschitz optimisation continues from it).
+pub(crate) fn train_data_free_model(
+    objective: &DataFreeObjective<'_>,
+    settings: &DataFreeSettings,
+    reporter: &dyn Reporter,
+) -> TrainerResult<(DataFreeModel, DataFreeOutcome)> {
     settings.validate()?;
     reporter.stage("data-free subspace");
-    let objective = DataFreeObjective::new(problem, encoding, settings.sigma)?;
     let model = objective.initial_model(settings)?;
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
     rng.set_stream(1);
     let start = Instant::now();
-    let losses = optimise(&objective, &model, settings, &mut rng, reporter)?;
+    let losses = optimise(objective, &model, settings, &mut rng, reporter)?;
     let seconds = start.elapsed().as_secs_f64();
     if let (Some(first), Some(last)) = (losses.first(), losses.last()) {
         reporter.message(&format!(
@@ -485,9 +505,10 @@ pub fn train_data_free(
             last.1
         ));
     }
-    Ok(DataFreeOutcome {
+    let outcome = DataFreeOutcome {
         decoder: model.export()?,
         losses,
         seconds,
-    })
+    };
+    Ok((model, outcome))
 }

@@ -171,6 +171,17 @@ impl Autoencoder {
         Ok(Autoencoder { spec, encoder, decoder })
     }
 
+    /// A trainable copy of a frozen autoencoder (its own variables: training it leaves the
+    /// network it was exported from unchanged).
+    pub(crate) fn from_exported(spec: AutoencoderSpec, frozen: &ExportedAutoencoder) -> ModelResult<Self> {
+        let encoder = ResMlp::from_exported(&frozen.encoder)?;
+        let decoder = ResMlp::from_exported(&frozen.decoder)?;
+        if frozen.encoder.spec() != spec.encoder() || frozen.decoder.spec() != spec.decoder() {
+            return invalid(format!("the frozen networks do not have the sizes {spec:?}"));
+        }
+        Ok(Autoencoder { spec, encoder, decoder })
+    }
+
     /// The sizes of this autoencoder.
     pub fn spec(&self) -> AutoencoderSpec {
         self.spec

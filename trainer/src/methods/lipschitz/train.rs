@@ -1,17 +1,26 @@
-//! Lipschitz optimisation of a supervised subspace (Eq. 10): from the vanilla autoencoder
-//! (trained on Eq. 3 alone), minimise `L_C + lambda L_LS` with the reconstruction loss `L_C`
-//! on minibatches of encoded frames and the Lipschitz loss `L_LS` (Eq. 9) on the latents of a
-//! few frames of each minibatch (the pull-back samples: frames encoded by the current
-//! encoder, held fixed within the step).
+//! Lipschitz optimisation of a subspace (Eq. 10), supervised or data-free.
+//!
+//! A supervised subspace continues from the vanilla autoencoder (trained on Eq. 3 alone) and
+//! minimises `L_C + lambda L_LS`: the reconstruction loss `L_C` on minibatches of encoded
+//! frames, the Lipschitz loss `L_LS` (Eq. 9) on the latents of a few frames of each minibatch
+//! (the pull-back samples: frames encoded by the current encoder, held fixed within the step),
+//! on the trainer's ordinary training loop (AdamW, checkpoints, resume). A data-free subspace
+//! continues from its vanilla decoder with Eq. 4 as `L_C` and Gaussian latent samples.
 //!
 //! `lambda` is given relative to the two losses at the vanilla start: `lambda = weight *
 //! L_C(0) / L_LS(0)`, so `weight = 1` makes the Lipschitz term as large as the reconstruction
-//! term there, whatever the scene's units. The run is the trainer's ordinary training loop
-//! (AdamW, checkpoints, resume).
+//! term there, whatever the scene's units.
+
+use candle_core::Tensor;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 use super::loss::{LatentSample, LipschitzTerm};
-use crate::learn::network::{forward_exported, Autoencoder};
-use crate::learn::train::{self, BatchLoss, TrainConfig, TrainError, TrainReport, TrainResult};
+use crate::error::{TrainerError, TrainerResult};
+use crate::learn::datafree::{normal_latents, DataFreeModel, DataFreeObjective, DataFreeSettings};
+use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder};
+use crate::learn::train::{self, AdamW, AdamWConfig, BatchLoss, TrainConfig, TrainError, TrainReport, TrainResult};
+use crate::progress::{EpochsBar, Reporter};
 
 /// How strongly, and on how many samples, the Lipschitz term acts.
 #[derive(Clone, Debug, PartialEq)]
@@ -114,4 +123,75 @@ pub(crate) fn optimise_supervised(
         start: (lc0, ls0),
         lambda,
     })
+}
+
+/// Lipschitz optimisation of a data-free subspace (Eq. 10 with the construction loss of
+/// Eq. 4): continues `model` in place for `iterations` Adam steps on the data-free objective
+/// plus `lambda L_LS`, the Lipschitz samples being the first `settings.samples` latents of
+/// each step's Gaussian batch (the pull-back distribution of a data-free subspace), decoded
+/// with the handles at the start. `lambda` follows the module documentation, with `L_C`
+/// the data-free loss of the first batch. Returns the total loss of every step and the
+/// absolute `lambda`.
+pub(crate) fn optimise_data_free(
+    objective: &DataFreeObjective<'_>,
+    model: &DataFreeModel,
+    data_free: &DataFreeSettings,
+    term: &LipschitzTerm<'_>,
+    settings: &LipschitzSettings,
+    iterations: usize,
+    reporter: &dyn Reporter,
+) -> TrainerResult<(Vec<f64>, f64)> {
+    if settings.samples < 2 || settings.samples > data_free.batch {
+        return Err(TrainerError::invalid(format!(
+            "the Lipschitz term needs 2 to {} samples per step (the data-free batch), got {}",
+            data_free.batch, settings.samples
+        )));
+    }
+    let config = AdamWConfig {
+        lr: data_free.learning_rate,
+        ..AdamWConfig::default()
+    };
+    let mut optimizer = AdamW::new(&model.parameters(), config)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(data_free.seed);
+    rng.set_stream(2);
+    let samples_of = |z: &Tensor| -> TrainerResult<Vec<LatentSample>> {
+        let rows = tensor_to_rows(z)?;
+        Ok(rows
+            .iter()
+            .take(settings.samples)
+            .map(|row| LatentSample {
+                z: row.iter().map(|&v| v as f64).collect(),
+                targets: objective.targets().to_vec(),
+            })
+            .collect())
+    };
+    let mut lambda = None;
+    let mut losses = Vec::with_capacity(iterations);
+    let bar = EpochsBar::new("lipschitz", iterations, 0, reporter.bars());
+    for iteration in 0..iterations {
+        let z = normal_latents(data_free.batch, data_free.latent, &mut rng)?;
+        let terms = objective.batch(model, &z)?;
+        let construction = terms.energy + data_free.lambda * terms.repulsion;
+        let exported = model.export()?;
+        let lip = term.batch(&model.mlp, Some(model.offset_row()), &exported, &samples_of(&z)?)?;
+        let lambda = *lambda.get_or_insert_with(|| {
+            if lip.loss > 0.0 {
+                settings.weight * construction.abs().max(1e-12) / lip.loss
+            } else {
+                0.0
+            }
+        });
+        let total = construction + lambda * lip.loss;
+        if !total.is_finite() {
+            return Err(TrainerError::invalid(format!(
+                "Lipschitz optimisation: the loss is not finite at iteration {iteration}"
+            )));
+        }
+        let objective_tensor = (terms.objective(data_free.lambda)? + lip.surrogate.affine(lambda, 0.0)?)?;
+        optimizer.step(&objective_tensor.backward()?)?;
+        losses.push(total);
+        bar.epoch(total);
+    }
+    bar.finish();
+    Ok((losses, lambda.unwrap_or(0.0)))
 }
