@@ -1,15 +1,18 @@
 //! `mochi train`: from a scene's training trajectories to a latent model (Li et al. 2025,
 //! Sec. 3.2-3.3), as named stages run in order ([`stages`]): dataset (train
 //! split), PCA, an autoencoder per candidate size (size selection), the self-supervised
-//! integrator, the supervised baseline, and the artifacts. Each stage's seconds go into the
-//! artifacts' training summary.
+//! integrator, the supervised baseline, and the artifacts; then, for scenes with a
+//! `[reduced]` table, the reduced method's vanilla and Lipschitz-optimised subspaces
+//! ([`reduced`]). Each stage's seconds go into the artifacts' training summary.
 
 pub(crate) mod assemble;
+pub(crate) mod reduced;
 pub(crate) mod stages;
 
 use std::path::PathBuf;
 use std::time::Instant;
 
+use crate::artifact::reduced::ReducedArtifact;
 use crate::artifact::{Artifact, Method};
 use crate::error::TrainerResult;
 use crate::learn::recipe::Recipe;
@@ -39,6 +42,8 @@ pub struct TrainOutcome {
     pub losses: (Vec<f64>, Vec<f64>),
     /// Loss per epoch of the kept autoencoder.
     pub autoencoder_losses: Vec<f64>,
+    /// The reduced method's subspaces, for scenes with a `[reduced]` table.
+    pub reduced: Option<ReducedArtifact>,
 }
 
 /// Runs the whole of `mochi train` for `recipe`: dataset (train split, if missing),
@@ -101,11 +106,27 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
     let (Some(model), Some(baseline)) = (artifacts.next(), artifacts.next()) else {
         unreachable!("two integrators make two artifacts");
     };
+    let reduced = match &recipe.reduced {
+        Some(spec) => {
+            let inputs = reduced::ReducedInputs {
+                recipe,
+                spec,
+                problem,
+                frames: &frames,
+                autoencoder: &selected,
+                times: &times,
+                work: &work,
+            };
+            Some(reduced::train_reduced(&inputs, &options.out_dir, report)?)
+        }
+        None => None,
+    };
     let mut losses = integrators.into_iter().map(|t| t.losses);
     Ok(TrainOutcome {
         model,
         baseline,
         losses: (losses.next().unwrap_or_default(), losses.next().unwrap_or_default()),
         autoencoder_losses: selected.losses,
+        reduced,
     })
 }

@@ -1,0 +1,326 @@
+//! `mochi train`'s reduced-method stage (scenes with a `[reduced]` table; Lyu et al. 2024):
+//! the vanilla subspace (the kept autoencoder's decoder, or a data-free decoder), a cubature
+//! of every elastic term fitted on it, the Lipschitz-optimised subspace (Eq. 10), and the
+//! `.reduced` file that `mochi eval` steps both in.
+
+use std::time::Instant;
+
+use mochi_sim::cubature::{CubatureEnergy, CubatureSettings};
+use mochi_sim::StencilEnergy;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use super::stages::{SelectedAutoencoder, StageTimes, TrainingFrames, Workspace};
+use crate::artifact::reduced::{reduced_path, CubatureData, ReducedArtifact, SubspaceData};
+use crate::error::{TrainerError, TrainerResult};
+use crate::learn::datafree::{normal_latents, train_data_free_model, DataFreeObjective, DataFreeSettings};
+use crate::learn::encoding::Encoding;
+use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, ExportedMlp};
+use crate::learn::recipe::Recipe;
+use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource};
+use crate::learn::train::{AdamWConfig, CheckpointConfig, TrainConfig};
+use crate::methods::lipschitz::cubature::fit_subspace_cubature;
+use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
+use crate::methods::lipschitz::train::{optimise_data_free, optimise_supervised, LipschitzSettings};
+use crate::progress::Reporter;
+use mochi_sim::BuiltScene;
+
+/// Energy terms whose cost the cubature cuts (every element and bending term); the others
+/// (gravity, loads, collision) are cheap per-vertex terms.
+const ELASTIC_TERMS: [&str; 5] = ["elastic", "membrane", "bending", "stretch", "bend"];
+
+/// Latent samples the cubature is fitted on.
+const CUBATURE_SAMPLES: usize = 64;
+
+/// What the stage starts from.
+pub(crate) struct ReducedInputs<'a> {
+    pub(crate) recipe: &'a Recipe,
+    pub(crate) spec: &'a ReducedSpec,
+    pub(crate) problem: &'a BuiltScene,
+    pub(crate) frames: &'a TrainingFrames,
+    pub(crate) autoencoder: &'a SelectedAutoencoder,
+    pub(crate) times: &'a StageTimes,
+    pub(crate) work: &'a Workspace,
+}
+
+/// The objective scale of the reduced solver (`dt^2 / (M L^2)`, see the stepper).
+pub(crate) fn objective_scale(problem: &BuiltScene) -> f64 {
+    let mass: f64 = problem.simulator.masses().iter().sum();
+    let l = problem.mesh.rest_diagonal();
+    problem.scene.dt * problem.scene.dt / (mass * l * l)
+}
+
+/// Fits a cubature of every elastic term to `decoder`'s subspace on `samples`.
+fn fit_cubatures(
+    problem: &BuiltScene,
+    encoding: &Encoding,
+    decoder: &ExportedMlp,
+    samples: &[LatentSample],
+    size: usize,
+) -> TrainerResult<Vec<CubatureData>> {
+    let settings = CubatureSettings {
+        max_elements: size,
+        ..CubatureSettings::default()
+    };
+    let mut out = Vec::new();
+    for energy in problem.simulator.potentials() {
+        if !ELASTIC_TERMS.contains(&energy.name()) {
+            continue;
+        }
+        let (cubature, fit) = fit_subspace_cubature(decoder, encoding, energy.as_ref(), samples, &settings)?;
+        out.push(CubatureData {
+            term: energy.name().to_string(),
+            elements: cubature.elements,
+            weights: cubature.weights,
+            residual: fit.relative_residual,
+        });
+    }
+    Ok(out)
+}
+
+/// The potential of the Lipschitz loss: each elastic term through its cubature.
+pub(crate) fn cubature_energies<'a>(
+    problem: &'a BuiltScene,
+    cubatures: &[CubatureData],
+) -> TrainerResult<Vec<CubatureEnergy<'a>>> {
+    cubatures
+        .iter()
+        .map(|c| {
+            let energy = problem
+                .simulator
+                .potentials()
+                .iter()
+                .find(|p| p.name() == c.term)
+                .ok_or_else(|| TrainerError::invalid(format!("the scene has no energy term `{}`", c.term)))?;
+            let rule = mochi_sim::cubature::Cubature {
+                elements: c.elements.clone(),
+                weights: c.weights.clone(),
+            };
+            CubatureEnergy::new(energy.as_ref(), rule)
+                .map_err(|e| TrainerError::invalid(format!("cubature of `{}`: {e}", c.term)))
+        })
+        .collect()
+}
+
+/// Runs the stage and writes `<scene>.reduced` into `out_dir`.
+pub(crate) fn train_reduced(
+    inputs: &ReducedInputs<'_>,
+    out_dir: &std::path::Path,
+    report: &dyn Reporter,
+) -> TrainerResult<ReducedArtifact> {
+    let artifact = match inputs.spec.subspace {
+        SubspaceSource::Supervised => supervised(inputs, report)?,
+        SubspaceSource::DataFree => data_free(inputs, report)?,
+    };
+    artifact.save(&reduced_path(out_dir, &inputs.recipe.scene.name))?;
+    report.message(&format!(
+        "reduced subspaces: Lip[d2P/dz2] vanilla {:.3e}, Lipschitz-optimised {:.3e}; training {:.0} s / {:.0} s",
+        artifact.vanilla.lipschitz_estimate,
+        artifact.lipschitz.lipschitz_estimate,
+        artifact.vanilla.training_seconds,
+        artifact.lipschitz.training_seconds
+    ));
+    Ok(artifact)
+}
+
+/// The scene's name, its recipe as TOML and the file it was read from.
+fn header(recipe: &Recipe) -> TrainerResult<(String, String, String)> {
+    Ok((
+        recipe.scene.name.clone(),
+        recipe.to_toml()?,
+        recipe.scene.source.display().to_string(),
+    ))
+}
+
+/// The latents of every `step`-th training frame under `encoder`, with their handle targets.
+fn encoded_samples(frames: &TrainingFrames, encoder: &ExportedMlp, step: usize) -> TrainerResult<Vec<LatentSample>> {
+    let targets: Vec<&Vec<f64>> = frames.sequences.iter().flat_map(|s| s.targets.iter()).collect();
+    frames
+        .f32s
+        .iter()
+        .zip(targets)
+        .step_by(step.max(1))
+        .map(|(q, t)| {
+            let z = forward_exported(encoder, q)?;
+            Ok(LatentSample {
+                z: z.iter().map(|&v| v as f64).collect(),
+                targets: t.clone(),
+            })
+        })
+        .collect()
+}
+
+fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult<ReducedArtifact> {
+    let (problem, frames, spec) = (inputs.problem, inputs.frames, inputs.spec);
+    let encoding = &frames.encoding;
+    let vanilla_ae = inputs.autoencoder.autoencoder.export()?;
+    let k = vanilla_ae.decoder.spec().input;
+    let vanilla_seconds = inputs
+        .times
+        .0
+        .iter()
+        .find(|(name, _)| name == &format!("autoencoder k={k}"))
+        .map_or(0.0, |(_, s)| *s);
+
+    report.stage("reduced: cubature");
+    let step = (frames.f32s.len() / CUBATURE_SAMPLES).max(1);
+    let samples = encoded_samples(frames, &vanilla_ae.encoder, step)?;
+    let cubatures = fit_cubatures(problem, encoding, &vanilla_ae.decoder, &samples, spec.cubature)?;
+    let energies = cubature_energies(problem, &cubatures)?;
+    let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
+    let term = LipschitzTerm {
+        encoding,
+        potentials: &potentials,
+        scale: objective_scale(problem),
+        diagonal: problem.mesh.rest_diagonal(),
+    };
+
+    report.stage("reduced: Lipschitz optimisation");
+    let clock = Instant::now();
+    let optimised = Autoencoder::from_exported(inputs.autoencoder.autoencoder.spec(), &vanilla_ae)?;
+    let net = &inputs.recipe.latent.autoencoder;
+    let targets: Vec<Vec<f64>> = frames.sequences.iter().flat_map(|s| s.targets.iter().cloned()).collect();
+    let config = TrainConfig {
+        name: "lipschitz".into(),
+        epochs: spec.lipschitz_epochs,
+        batch_size: net.batch.max(spec.samples),
+        seed: 7,
+        optimizer: AdamWConfig {
+            lr: net.final_learning_rate.max(1e-5),
+            ..AdamWConfig::default()
+        },
+        final_lr: None,
+        checkpoint: Some(CheckpointConfig {
+            dir: inputs.work.checkpoints.clone(),
+            every: 5,
+        }),
+        progress: inputs.work.bars,
+    };
+    let settings = LipschitzSettings {
+        weight: spec.lipschitz,
+        samples: spec.samples,
+    };
+    let run = optimise_supervised(&optimised, &frames.f32s, &targets, &term, &settings, &config, inputs.work.resume)?;
+    let lipschitz_seconds = clock.elapsed().as_secs_f64();
+    let ours = optimised.export()?;
+
+    // Lip on every third training frame (the evaluation measures it on the test split).
+    let vanilla_samples = encoded_samples(frames, &vanilla_ae.encoder, 3)?;
+    let our_samples = encoded_samples(frames, &ours.encoder, 3)?;
+    let lip = |decoder: &ExportedMlp, samples: &[LatentSample]| -> TrainerResult<f64> {
+        Ok(lipschitz_estimate(&term.hessians(decoder, samples)?, samples))
+    };
+    // Every sequence starts from the scene's start state: its latent starts every rollout.
+    let start = frames
+        .f32s
+        .first()
+        .ok_or_else(|| TrainerError::invalid("the training split has no frames"))?;
+    let initial = |encoder: &ExportedMlp| -> TrainerResult<Vec<f64>> {
+        Ok(forward_exported(encoder, start)?.iter().map(|&v| v as f64).collect())
+    };
+    let (scene, scene_toml, scene_path) = header(inputs.recipe)?;
+    Ok(ReducedArtifact {
+        scene,
+        scene_toml,
+        scene_path,
+        source: "supervised".into(),
+        vanilla: SubspaceData {
+            decoder: vanilla_ae.decoder.layers().into_iter().cloned().collect(),
+            initial_latent: initial(&vanilla_ae.encoder)?,
+            training_seconds: vanilla_seconds,
+            lipschitz_estimate: lip(&vanilla_ae.decoder, &vanilla_samples)?,
+            losses: inputs.autoencoder.losses.clone(),
+        },
+        lipschitz: SubspaceData {
+            decoder: ours.decoder.layers().into_iter().cloned().collect(),
+            initial_latent: initial(&ours.encoder)?,
+            training_seconds: vanilla_seconds + lipschitz_seconds,
+            lipschitz_estimate: lip(&ours.decoder, &our_samples)?,
+            losses: run.train.losses,
+        },
+        cubature: cubatures,
+        lambda: run.lambda,
+    })
+}
+
+fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult<ReducedArtifact> {
+    let (problem, spec) = (inputs.problem, inputs.spec);
+    let encoding = &inputs.frames.encoding;
+    let settings = DataFreeSettings {
+        latent: spec.latent,
+        iterations: spec.data_free_iterations,
+        ..DataFreeSettings::default()
+    };
+    let objective = DataFreeObjective::new(problem, encoding, settings.sigma)?;
+    let (model, vanilla) = train_data_free_model(&objective, &settings, report)?;
+
+    report.stage("reduced: cubature");
+    let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
+    rng.set_stream(3);
+    let gaussian = |count: usize, rng: &mut ChaCha8Rng| -> TrainerResult<Vec<LatentSample>> {
+        let z = normal_latents(count, settings.latent, rng)?;
+        Ok(tensor_to_rows(&z)?
+            .into_iter()
+            .map(|row| LatentSample {
+                z: row.iter().map(|&v| v as f64).collect(),
+                targets: objective.targets().to_vec(),
+            })
+            .collect())
+    };
+    let samples = gaussian(CUBATURE_SAMPLES, &mut rng)?;
+    let cubatures = fit_cubatures(problem, encoding, &vanilla.decoder, &samples, spec.cubature)?;
+    let energies = cubature_energies(problem, &cubatures)?;
+    let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
+    let term = LipschitzTerm {
+        encoding,
+        potentials: &potentials,
+        scale: objective_scale(problem),
+        diagonal: problem.mesh.rest_diagonal(),
+    };
+
+    report.stage("reduced: Lipschitz optimisation");
+    let clock = Instant::now();
+    let lip_settings = LipschitzSettings {
+        weight: spec.lipschitz,
+        samples: spec.samples,
+    };
+    let (losses, lambda) = optimise_data_free(
+        &objective,
+        &model,
+        &settings,
+        &term,
+        &lip_settings,
+        spec.lipschitz_epochs,
+        report,
+    )?;
+    let lipschitz_seconds = clock.elapsed().as_secs_f64();
+    let ours = model.export()?;
+    let held_out = gaussian(64, &mut rng)?;
+    let lip = |decoder: &ExportedMlp| -> TrainerResult<f64> {
+        Ok(lipschitz_estimate(&term.hessians(decoder, &held_out)?, &held_out))
+    };
+    let (scene, scene_toml, scene_path) = header(inputs.recipe)?;
+    let vanilla_losses = vanilla.losses.iter().map(|(e, r)| e + settings.lambda * r).collect();
+    Ok(ReducedArtifact {
+        scene,
+        scene_toml,
+        scene_path,
+        source: "data-free".into(),
+        vanilla: SubspaceData {
+            decoder: vanilla.decoder.layers().into_iter().cloned().collect(),
+            initial_latent: vec![0.0; spec.latent],
+            training_seconds: vanilla.seconds,
+            lipschitz_estimate: lip(&vanilla.decoder)?,
+            losses: vanilla_losses,
+        },
+        lipschitz: SubspaceData {
+            decoder: ours.layers().into_iter().cloned().collect(),
+            initial_latent: vec![0.0; spec.latent],
+            training_seconds: vanilla.seconds + lipschitz_seconds,
+            lipschitz_estimate: lip(&ours)?,
+            losses,
+        },
+        cubature: cubatures,
+        lambda,
+    })
+}
