@@ -30,6 +30,7 @@ use crate::learn::encoding::Encoding;
 use crate::progress::Reporter;
 use crate::report::chart::{self, LabelledPoint, Series};
 
+pub mod reduced;
 pub mod rollout;
 pub mod runtime_bench;
 pub(crate) mod storage;

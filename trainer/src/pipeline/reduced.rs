@@ -19,15 +19,12 @@ use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, Expor
 use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource};
 use crate::learn::train::{AdamWConfig, CheckpointConfig, TrainConfig};
-use crate::methods::lipschitz::cubature::fit_subspace_cubature;
+use crate::methods::lipschitz::cubature::{fit_subspace_cubature, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
+use crate::methods::reduced::stepper::objective_scale;
 use crate::methods::lipschitz::train::{optimise_data_free, optimise_supervised, LipschitzSettings};
 use crate::progress::Reporter;
 use mochi_sim::BuiltScene;
-
-/// Energy terms whose cost the cubature cuts (every element and bending term); the others
-/// (gravity, loads, collision) are cheap per-vertex terms.
-const ELASTIC_TERMS: [&str; 5] = ["elastic", "membrane", "bending", "stretch", "bend"];
 
 /// Latent samples the cubature is fitted on.
 const CUBATURE_SAMPLES: usize = 64;
@@ -43,11 +40,10 @@ pub(crate) struct ReducedInputs<'a> {
     pub(crate) work: &'a Workspace,
 }
 
-/// The objective scale of the reduced solver (`dt^2 / (M L^2)`, see the stepper).
-pub(crate) fn objective_scale(problem: &BuiltScene) -> f64 {
+/// The reduced solver's objective scale for `problem`'s body.
+pub(crate) fn scene_objective_scale(problem: &BuiltScene) -> f64 {
     let mass: f64 = problem.simulator.masses().iter().sum();
-    let l = problem.mesh.rest_diagonal();
-    problem.scene.dt * problem.scene.dt / (mass * l * l)
+    objective_scale(mass, problem.mesh.rest_diagonal(), problem.scene.dt)
 }
 
 /// Fits a cubature of every elastic term to `decoder`'s subspace on `samples`.
@@ -171,7 +167,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     let term = LipschitzTerm {
         encoding,
         potentials: &potentials,
-        scale: objective_scale(problem),
+        scale: scene_objective_scale(problem),
         diagonal: problem.mesh.rest_diagonal(),
     };
 
@@ -274,7 +270,7 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
     let term = LipschitzTerm {
         encoding,
         potentials: &potentials,
-        scale: objective_scale(problem),
+        scale: scene_objective_scale(problem),
         diagonal: problem.mesh.rest_diagonal(),
     };
 

@@ -15,6 +15,11 @@ use crate::learn::encoding::Encoding;
 use crate::learn::network::ExportedMlp;
 use crate::methods::reduced::subspace::DecoderSubspace;
 
+/// Energy terms whose cost a cubature cuts and whose subspace Hessian the Lipschitz loss
+/// regularises (every element and bending term); the others (gravity, loads, collision) are
+/// cheap per-vertex terms.
+pub const ELASTIC_TERMS: [&str; 5] = ["elastic", "membrane", "bending", "stretch", "bend"];
+
 /// The decoded states and Jacobians of `samples` in `decoder`'s subspace.
 fn decode_samples(
     decoder: &ExportedMlp,

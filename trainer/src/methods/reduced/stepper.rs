@@ -17,6 +17,12 @@ use super::subspace::DecoderSubspace;
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 
+/// The scale `dt^2 / (M L^2)` of the reduced objective (module documentation) for a body of
+/// total mass `mass` and rest diagonal `diagonal`.
+pub fn objective_scale(mass: f64, diagonal: f64, dt: f64) -> f64 {
+    dt * dt / (mass * diagonal * diagonal)
+}
+
 /// Which optimiser solves each step.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ReducedSolver {
@@ -102,7 +108,7 @@ impl ReducedStepper {
             inertia: InertiaTerm::new(subspace.dim(), masses, dt),
             encoding,
             dt,
-            scale: dt * dt / (total_mass * diagonal * diagonal),
+            scale: objective_scale(total_mass, diagonal, dt),
             z: vec![0.0; r],
             x: vec![0.0; n],
             v: vec![0.0; n],
@@ -164,6 +170,15 @@ impl ReducedStepper {
             *v = (x - old) / self.dt;
         }
         Ok(report)
+    }
+
+    /// As [`ReducedStepper::step`], keeping the objective after every iteration in the
+    /// report whatever the settings say.
+    pub fn step_recorded(&mut self, potentials: &[&dyn StencilEnergy], targets: &[f64]) -> TrainerResult<SolveReport> {
+        let keep = std::mem::replace(&mut self.settings.record_history, true);
+        let report = self.step(potentials, targets);
+        self.settings.record_history = keep;
+        report
     }
 
     /// The current latent.

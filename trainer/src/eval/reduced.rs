@@ -1,0 +1,227 @@
+//! The reduced-order solver on the test sequences (Lyu et al. 2024): each subspace of a
+//! scene's `.reduced` file steps every test sequence with one solve of Eq. 2 per frame, from
+//! the scene's start, against the full-space reference.
+//!
+//! Measured per subspace and sequence: mean and max vertex error (fraction of the rest
+//! diagonal) over the reference frames, seconds per step (the solve, whose last evaluation
+//! decodes the state; one thread), iterations per step and how each step ended (the paper's
+//! four exits), and frames before a step failed (a non-finite latent). `Lip[d^2 P/dz^2]`
+//! (Eq. 7) is estimated on the latents the rollouts visited (every tenth frame), with the
+//! scene's exact elastic energy, for the vanilla and the optimised subspace alike.
+
+use std::time::Instant;
+
+use mochi_sim::bc::BcSequence;
+use mochi_sim::dataset::SequencePlan;
+use mochi_sim::measure::mean_and_max_error;
+use mochi_sim::scene::Start;
+use mochi_sim::trajectory::Trajectory;
+use mochi_sim::{BuiltScene, StencilEnergy, TimeScheme};
+
+use crate::artifact::reduced::{ReducedArtifact, SubspaceData};
+use crate::error::TrainerResult;
+use crate::learn::encoding::Encoding;
+use crate::learn::recipe::Recipe;
+use crate::learn::reduced_spec::{ReducedSpec, SolverChoice};
+use crate::methods::lipschitz::cubature::ELASTIC_TERMS;
+use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
+use crate::methods::reduced::optimize::{ExitCounts, SolveSettings};
+use crate::methods::reduced::stepper::{objective_scale, ReducedSolver, ReducedStepper, StepperSettings};
+use crate::methods::reduced::subspace::DecoderSubspace;
+use crate::progress::Reporter;
+
+/// One subspace on one test sequence.
+#[derive(Clone, Debug, Default)]
+pub struct ReducedMetrics {
+    /// Mean over frames of the mean vertex error / diagonal.
+    pub mean_error: f64,
+    /// Max over frames of the max vertex error / diagonal.
+    pub max_error: f64,
+    /// Mean vertex error / diagonal of every measured frame.
+    pub error_curve: Vec<f64>,
+    /// Mean seconds per step.
+    pub step_seconds: f64,
+    /// Mean solver iterations per step.
+    pub iterations: f64,
+    /// How the steps ended.
+    pub exits: ExitCounts,
+    /// Frames stepped before a step failed (all of them when none did).
+    pub stable_frames: usize,
+    /// Objective after each iteration of the tenth step (the convergence chart).
+    pub convergence: Vec<f64>,
+}
+
+/// One subspace on every test sequence.
+#[derive(Clone, Debug)]
+pub struct ReducedReport {
+    /// "vanilla" or "Lipschitz".
+    pub name: &'static str,
+    /// Latent size.
+    pub latent: usize,
+    /// Per sequence: its plan and the metrics.
+    pub sequences: Vec<(SequencePlan, ReducedMetrics)>,
+    /// `Lip[d^2 P/dz^2]` on the visited latents.
+    pub lipschitz: f64,
+    /// Training seconds (from the file).
+    pub training_seconds: f64,
+}
+
+impl ReducedReport {
+    /// Mean of a metric over the sequences.
+    pub fn mean_of(&self, f: impl Fn(&ReducedMetrics) -> f64) -> f64 {
+        self.sequences.iter().map(|(_, m)| f(m)).sum::<f64>() / self.sequences.len().max(1) as f64
+    }
+}
+
+/// The step settings of a `[reduced]` table.
+pub fn stepper_settings(spec: &ReducedSpec, scheme: TimeScheme) -> StepperSettings {
+    StepperSettings {
+        solver: match spec.solver {
+            SolverChoice::Lbfgs => ReducedSolver::Lbfgs,
+            SolverChoice::Newton => ReducedSolver::Newton,
+        },
+        solve: SolveSettings {
+            tolerance: spec.tolerance,
+            max_iterations: spec.max_iterations,
+            ..SolveSettings::default()
+        },
+        quasi_static: scheme == TimeScheme::QuasiStatic,
+        record_history: false,
+    }
+}
+
+/// Steps both subspaces of `reduced` over the test sequences (`tests` with their boundary
+/// conditions `plans`) for `frames` frames each.
+pub fn evaluate_reduced(
+    reduced: &ReducedArtifact,
+    problem: &BuiltScene,
+    encoding: &Encoding,
+    tests: &[(SequencePlan, Trajectory)],
+    plans: &[BcSequence],
+    frames: usize,
+    report: &dyn Reporter,
+) -> TrainerResult<Vec<ReducedReport>> {
+    let recipe = Recipe::parse(&reduced.scene_toml, std::path::Path::new(&reduced.scene_path))?;
+    let spec = recipe.reduced.clone().unwrap_or_default();
+    let settings = stepper_settings(&spec, problem.scene.integrator);
+    let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+    let elastic: Vec<&dyn StencilEnergy> = potentials
+        .iter()
+        .copied()
+        .filter(|p| ELASTIC_TERMS.contains(&p.name()))
+        .collect();
+    let mut out = Vec::new();
+    for (name, data) in [("vanilla", &reduced.vanilla), ("Lipschitz", &reduced.lipschitz)] {
+        let mut sequences = Vec::new();
+        let mut visited = Vec::new();
+        for ((plan, reference), bc) in tests.iter().zip(plans) {
+            let metrics = roll(data, problem, encoding, &settings, &potentials, bc, reference, frames, &mut visited)?;
+            report.message(&format!(
+                "{} reduced ({name}) on {}: mean error {:.3}%, {:.2} ms/step, {:.1} iterations/step, {:.0}% converged",
+                problem.scene.name,
+                plan.name,
+                100.0 * metrics.mean_error,
+                1e3 * metrics.step_seconds,
+                metrics.iterations,
+                100.0 * metrics.exits.fraction(crate::methods::reduced::optimize::Exit::Converged)
+            ));
+            sequences.push((plan.clone(), metrics));
+        }
+        let decoder = data.decoder()?;
+        let term = LipschitzTerm {
+            encoding,
+            potentials: &elastic,
+            scale: objective_scale(problem.simulator.masses().iter().sum(), problem.mesh.rest_diagonal(), problem.scene.dt),
+            diagonal: problem.mesh.rest_diagonal(),
+        };
+        let lipschitz = lipschitz_estimate(&term.hessians(&decoder, &visited)?, &visited);
+        out.push(ReducedReport {
+            name,
+            latent: data.initial_latent.len(),
+            sequences,
+            lipschitz,
+            training_seconds: data.training_seconds,
+        });
+    }
+    Ok(out)
+}
+
+/// One rollout of `data`'s subspace over `bc`; pushes every tenth frame's latent into
+/// `visited`.
+#[allow(clippy::too_many_arguments)]
+fn roll(
+    data: &SubspaceData,
+    problem: &BuiltScene,
+    encoding: &Encoding,
+    settings: &StepperSettings,
+    potentials: &[&dyn StencilEnergy],
+    bc: &BcSequence,
+    reference: &Trajectory,
+    frames: usize,
+    visited: &mut Vec<LatentSample>,
+) -> TrainerResult<ReducedMetrics> {
+    let dim = problem.mesh.dim;
+    let diagonal = problem.mesh.rest_diagonal();
+    let targets0 = bc.targets(&problem.handles, 0, dim);
+    let subspace = DecoderSubspace::new(&data.decoder()?, encoding, &targets0)?;
+    let masses = problem.simulator.masses().to_vec();
+    let mut stepper = ReducedStepper::new(
+        subspace,
+        encoding.clone(),
+        masses,
+        diagonal,
+        problem.scene.dt,
+        settings.clone(),
+    )?;
+    stepper.reset(&data.initial_latent, &targets0)?;
+    if problem.scene.start == Start::Static {
+        stepper.settle(potentials, &targets0)?;
+    }
+    let frames = frames.min(bc.frames());
+    let measured = frames.min(reference.num_frames() - 1);
+    let mut m = ReducedMetrics {
+        stable_frames: frames,
+        ..Default::default()
+    };
+    let mut seconds = 0.0;
+    let mut iterations = 0usize;
+    for t in 1..=frames {
+        let targets = bc.targets(&problem.handles, t, dim);
+        let clock = Instant::now();
+        let step = if t == 10 {
+            stepper.step_recorded(potentials, &targets)
+        } else {
+            stepper.step(potentials, &targets)
+        };
+        seconds += clock.elapsed().as_secs_f64();
+        let Ok(result) = step else {
+            m.stable_frames = t - 1;
+            break;
+        };
+        iterations += result.iterations;
+        m.exits.add(&result);
+        if t == 10 {
+            m.convergence = result.history.clone();
+        }
+        if t % 10 == 0 {
+            visited.push(LatentSample {
+                z: stepper.latent().to_vec(),
+                targets: targets.clone(),
+            });
+        }
+        if t <= measured {
+            let (mean, max) = mean_and_max_error(stepper.positions(), &reference.positions[t], dim, diagonal);
+            m.error_curve.push(mean);
+            m.max_error = m.max_error.max(max);
+        }
+    }
+    let done = m.stable_frames.max(1) as f64;
+    m.step_seconds = seconds / done;
+    m.iterations = iterations as f64 / done;
+    m.mean_error = if m.error_curve.len() < measured {
+        f64::INFINITY
+    } else {
+        m.error_curve.iter().sum::<f64>() / measured.max(1) as f64
+    };
+    Ok(m)
+}
