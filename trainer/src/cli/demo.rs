@@ -92,7 +92,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// Runs the demo; what it does, step by step, goes to `report`.
 pub fn run(options: &DemoOptions, report: &dyn Reporter) -> Result<DemoReport> {
     let mut stages = Vec::new();
-    let recipe = Recipe::load(&options.scene)?;
+    // The demo follows the latent integrator to the device; `mochi train` alone also builds a
+    // scene's reduced-method subspaces.
+    let mut recipe = Recipe::load(&options.scene)?;
+    recipe.reduced = None;
     let scene = &recipe.scene;
     let mut problem = scene.build()?;
     let out = &options.out_dir;

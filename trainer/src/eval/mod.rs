@@ -197,9 +197,21 @@ pub fn evaluate(
             sequences,
         });
     }
+    // The reduced-order solver, when the scene was trained with a `[reduced]` table.
+    let reduced_file = crate::artifact::reduced::reduced_path(paths[0].parent().unwrap_or(Path::new(".")), &first.scene);
+    let reduced_reports = if reduced_file.is_file() {
+        let file = crate::artifact::reduced::ReducedArtifact::load(&reduced_file)?;
+        reduced::evaluate_reduced(&file, &problem, &encoding, &tests, &plans, options.accuracy_frames, report)?
+    } else {
+        Vec::new()
+    };
     fs::create_dir_all(&options.out_dir)?;
-    write_charts(&options.out_dir, &first.scene, &reports, reference_seconds)?;
+    write_charts(&options.out_dir, &first.scene, &reports, &reduced_reports, reference_seconds)?;
     let mut text = report_markdown(&first.scene, &reports, reference_seconds, options);
+    if !reduced_reports.is_empty() {
+        reduced::write_convergence_chart(&options.out_dir, &first.scene, &reduced_reports)?;
+        text += &reduced::markdown(&problem, &reduced_reports, reference_seconds, options.accuracy_frames);
+    }
     // What each weight storage costs, for the first artifact (the runtime's own rollout).
     let first_path = &all[0].0;
     let bytes = fs::read(first_path)?;
@@ -233,7 +245,13 @@ fn label(r: &ModelReport) -> String {
     format!("{} k={}", r.method.label(), r.latent)
 }
 
-fn write_charts(dir: &Path, scene: &str, reports: &[ModelReport], reference_seconds: f64) -> TrainerResult<()> {
+fn write_charts(
+    dir: &Path,
+    scene: &str,
+    reports: &[ModelReport],
+    reduced: &[reduced::ReducedReport],
+    reference_seconds: f64,
+) -> TrainerResult<()> {
     let count = reports.first().map_or(0, |r| r.sequences.len());
     for s in 0..count {
         let plan = &reports[0].sequences[s].0;
@@ -278,6 +296,12 @@ fn write_charts(dir: &Path, scene: &str, reports: &[ModelReport], reference_seco
             }
         })
         .collect();
+    points.extend(reduced.iter().map(|r| LabelledPoint {
+        group: format!("reduced, {}", r.name),
+        label: format!("r={}", r.latent),
+        x: 1e3 * r.mean_of(|m| m.step_seconds),
+        y: 100.0 * r.mean_of(|m| m.error_curve.iter().sum::<f64>() / m.error_curve.len().max(1) as f64),
+    }));
     points.push(LabelledPoint {
         group: "full space".into(),
         label: "reference".into(),

@@ -25,7 +25,8 @@ use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{ReducedSpec, SolverChoice};
 use crate::methods::lipschitz::cubature::ELASTIC_TERMS;
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
-use crate::methods::reduced::optimize::{ExitCounts, SolveSettings};
+use crate::methods::reduced::optimize::{Exit, ExitCounts, SolveSettings};
+use crate::report::chart::{self, Series};
 use crate::methods::reduced::stepper::{objective_scale, ReducedSolver, ReducedStepper, StepperSettings};
 use crate::methods::reduced::subspace::DecoderSubspace;
 use crate::progress::Reporter;
@@ -123,7 +124,7 @@ pub fn evaluate_reduced(
                 100.0 * metrics.mean_error,
                 1e3 * metrics.step_seconds,
                 metrics.iterations,
-                100.0 * metrics.exits.fraction(crate::methods::reduced::optimize::Exit::Converged)
+                100.0 * metrics.exits.fraction(Exit::Converged)
             ));
             sequences.push((plan.clone(), metrics));
         }
@@ -224,4 +225,94 @@ fn roll(
         m.error_curve.iter().sum::<f64>() / measured.max(1) as f64
     };
     Ok(m)
+}
+
+/// `convergence.png`: the objective above its final value against the iteration, for the
+/// tenth step of the first test sequence in each subspace (the paper's Fig. 4c).
+pub fn write_convergence_chart(dir: &std::path::Path, scene: &str, reports: &[ReducedReport]) -> TrainerResult<()> {
+    let series: Vec<Series> = reports
+        .iter()
+        .filter_map(|r| {
+            let history = &r.sequences.first()?.1.convergence;
+            let last = *history.last()?;
+            Some(Series {
+                name: format!("reduced, {}", r.name),
+                points: history
+                    .iter()
+                    .enumerate()
+                    .map(|(k, e)| (k as f64, (e - last).max(1e-16)))
+                    .collect(),
+            })
+        })
+        .collect();
+    chart::line_chart(
+        &dir.join("convergence.png"),
+        &format!("{scene}: one reduced step (frame 10 of the first test sequence)"),
+        "iteration",
+        "objective minus its final value (scaled units)",
+        &series,
+        true,
+    )
+}
+
+/// The report's reduced-solver section: a row per subspace and sequence, the exits, and the
+/// paper's Table 1 for this scene.
+pub fn markdown(problem: &BuiltScene, reports: &[ReducedReport], reference_seconds: f64, frames: usize) -> String {
+    let mut s = format!(
+        "\n## Reduced-order solver\n\nOne solve of Eq. 2 per frame in each subspace, over the first {frames} frames of \
+         each test sequence (errors against the full-space reference frames). Exits: I converged, II saddle, III \
+         line-search cap, IV iteration cap.\n\n| subspace | sequence | mean err % | max err % | ms/step | \
+         iterations/step | I / II / III / IV % | stable frames |\n|---|---|---|---|---|---|---|---|\n"
+    );
+    for r in reports {
+        for (plan, m) in &r.sequences {
+            let pct = |e| 100.0 * m.exits.fraction(e);
+            s += &format!(
+                "| {} r={} | {} | {:.3} | {:.3} | {:.3} | {:.1} | {:.0} / {:.0} / {:.0} / {:.0} | {} |\n",
+                r.name,
+                r.latent,
+                plan.name,
+                100.0 * m.mean_error,
+                100.0 * m.max_error,
+                1e3 * m.step_seconds,
+                m.iterations,
+                pct(Exit::Converged),
+                pct(Exit::Saddle),
+                pct(Exit::LineSearchCap),
+                pct(Exit::IterationCap),
+                m.stable_frames
+            );
+        }
+    }
+    let elements: usize = problem
+        .simulator
+        .potentials()
+        .iter()
+        .filter(|p| ELASTIC_TERMS.contains(&p.name()))
+        .map(|p| p.len())
+        .max()
+        .unwrap_or(0);
+    if let [vanilla, ours] = reports {
+        let step = |r: &ReducedReport| r.mean_of(|m| m.step_seconds);
+        s += &format!(
+            "\n| n | elements | r | training s (ours / vanilla) | Lip (ours / vanilla) | ms/step ours | vanilla | full |\n\
+             |---|---|---|---|---|---|---|---|\n| {} | {} | {} | {:.0} / {:.0} ({:.1}x) | {:.3e} / {:.3e} ({:.2}x) | \
+             {:.2} | {:.2} ({:.2}x) | {:.1} ({:.1}x) |\n",
+            problem.mesh.rest.len(),
+            elements,
+            ours.latent,
+            ours.training_seconds,
+            vanilla.training_seconds,
+            ours.training_seconds / vanilla.training_seconds.max(1e-9),
+            ours.lipschitz,
+            vanilla.lipschitz,
+            vanilla.lipschitz / ours.lipschitz.max(1e-300),
+            1e3 * step(ours),
+            1e3 * step(vanilla),
+            step(vanilla) / step(ours).max(1e-12),
+            1e3 * reference_seconds,
+            reference_seconds / step(ours).max(1e-12)
+        );
+    }
+    s
 }

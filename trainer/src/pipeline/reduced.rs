@@ -198,6 +198,10 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     };
     let run = optimise_supervised(&optimised, &frames.f32s, &targets, &term, &settings, &config, inputs.work.resume)?;
     let lipschitz_seconds = clock.elapsed().as_secs_f64();
+    report.message(&format!(
+        "Lipschitz optimisation: reconstruction {:.3e} and Lipschitz loss {:.3e} at the vanilla start, lambda {:.3e}",
+        run.start.0, run.start.1, run.lambda
+    ));
     let ours = optimised.export()?;
 
     // Lip on every third training frame (the evaluation measures it on the test split).

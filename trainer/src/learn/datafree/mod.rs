@@ -51,7 +51,7 @@ use mochi_sim::energy::add_gradient_sequential;
 use mochi_sim::{BuiltScene, StencilEnergy};
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 /// Settings of a data-free training run; [`Default`] gives the documented defaults.
 #[derive(Debug, Clone, Copy, PartialEq)]

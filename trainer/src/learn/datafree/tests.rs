@@ -54,7 +54,7 @@ select = { side = { axis = 0, end = "max" } }
 reference_scale = [0.8, 1.0, 1.0]
 "#;
 
-fn tiny_bar(dir: &Path) -> BuiltScene {
+pub(crate) fn tiny_bar(dir: &Path) -> BuiltScene {
     let (node, ele) = bar_mesh(12);
     std::fs::write(dir.join("bar.node"), node).unwrap();
     std::fs::write(dir.join("bar.ele"), ele).unwrap();
@@ -63,7 +63,7 @@ fn tiny_bar(dir: &Path) -> BuiltScene {
     Scene::load(&path).unwrap().build().unwrap()
 }
 
-fn small_settings() -> DataFreeSettings {
+pub(crate) fn small_settings() -> DataFreeSettings {
     DataFreeSettings {
         latent: 3,
         hidden: 32,

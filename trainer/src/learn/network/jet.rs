@@ -30,10 +30,6 @@ use super::mlp::{Dense, ResMlp};
 /// directions `v: (B, K, in)`, the value `f(x)`, the tangents `J v` and the curvatures
 /// `d²/dt² f(x + t v)` at `t = 0`.
 #[derive(Debug, Clone)]
-#[allow(
-    dead_code,
-    reason = "the entry point for losses on the network's derivatives, none of which is built yet"
-)]
 pub(crate) struct Jet {
     /// `f(x)`: `(B, out)`.
     pub value: Tensor,
@@ -53,10 +49,6 @@ struct Stream {
 
 /// The jet of `mlp` at the rows of `x: (B, in)` along the directions `v: (B, K, in)` (f32, like
 /// the weights). Every output depends differentiably on the weights of `mlp`.
-#[allow(
-    dead_code,
-    reason = "the entry point for losses on the network's derivatives, none of which is built yet"
-)]
 pub(crate) fn jet(mlp: &ResMlp, x: &Tensor, v: &Tensor) -> candle_core::Result<Jet> {
     let (batch, input) = x.dims2()?;
     let (v_batch, _, v_input) = v.dims3()?;

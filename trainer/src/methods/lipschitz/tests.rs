@@ -125,3 +125,47 @@ fn the_cubature_reproduces_energy_and_reduced_force_on_held_out_samples() {
     assert!(worst_energy < 2e-2, "energy off by {worst_energy:e}");
     assert!(worst_force < 5e-2, "reduced force off by {worst_force:e}");
 }
+
+#[test]
+fn a_tiny_data_free_lipschitz_optimisation_lowers_the_lipschitz_loss() {
+    use super::train::{optimise_data_free, LipschitzSettings};
+    use crate::learn::datafree::tests::{small_settings, tiny_bar};
+    use crate::learn::datafree::{normal_latents, train_data_free_model, DataFreeObjective};
+    use crate::learn::encoding::Encoding;
+    use crate::learn::network::tensor_to_rows;
+    use crate::learn::recipe::RodEncoding;
+    use crate::progress::Quiet;
+
+    let dir = tempfile::tempdir().unwrap();
+    let problem = tiny_bar(dir.path());
+    let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
+    let settings = small_settings();
+    let objective = DataFreeObjective::new(&problem, &encoding, settings.sigma).unwrap();
+    let (model, vanilla) = train_data_free_model(&objective, &settings, &Quiet).unwrap();
+    let elastic: Vec<&dyn StencilEnergy> = vec![problem.simulator.potentials()[0].as_ref()];
+    let mass: f64 = problem.simulator.masses().iter().sum();
+    let diagonal = problem.mesh.rest_diagonal();
+    let term = LipschitzTerm {
+        encoding: &encoding,
+        potentials: &elastic,
+        scale: crate::methods::reduced::stepper::objective_scale(mass, diagonal, problem.scene.dt),
+        diagonal,
+    };
+    let z = normal_latents(24, settings.latent, &mut rand_chacha::ChaCha8Rng::seed_from_u64(9)).unwrap();
+    let held_out: Vec<LatentSample> = tensor_to_rows(&z)
+        .unwrap()
+        .into_iter()
+        .map(|row| LatentSample {
+            z: row.iter().map(|&v| v as f64).collect(),
+            targets: objective.targets().to_vec(),
+        })
+        .collect();
+    let loss_of = |decoder: &ExportedMlp| lipschitz_loss(&term.hessians(decoder, &held_out).unwrap(), &held_out);
+    let before = loss_of(&vanilla.decoder);
+    let lip = LipschitzSettings { weight: 1.0, samples: 8 };
+    let (losses, lambda) = optimise_data_free(&objective, &model, &settings, &term, &lip, 60, &Quiet).unwrap();
+    assert_eq!(losses.len(), 60);
+    assert!(lambda > 0.0);
+    let after = loss_of(&model.export().unwrap());
+    assert!(after < 0.7 * before, "Lipschitz loss on held-out samples {before:.3e} -> {after:.3e}");
+}
