@@ -234,11 +234,18 @@ fn a_quasi_static_step_is_the_static_equilibrium_of_its_targets() {
     assert!(max_distance(&bent, &rest) > 1e-3, "the beam starts bent");
     vibrate(&mut quasi, 1);
     let x = quasi.simulator.positions().to_vec();
-    assert!(max_distance(&x, &rest) < 1e-6, "{:e} from rest", max_distance(&x, &rest));
+    assert!(
+        max_distance(&x, &rest) < 1e-6,
+        "{:e} from rest",
+        max_distance(&x, &rest)
+    );
     let v = beam_velocity(&x, &bent, quasi.simulator.dt());
     assert!(max_distance(quasi.simulator.velocities(), &v) < 1e-12);
     vibrate(&mut quasi, 1);
-    assert!(max_distance(quasi.simulator.positions(), &rest) < 1e-6, "and stays there");
+    assert!(
+        max_distance(quasi.simulator.positions(), &rest) < 1e-6,
+        "and stays there"
+    );
     let mut euler = released_beam("implicit-euler");
     vibrate(&mut euler, 1);
     assert!(max_distance(euler.simulator.positions(), &rest) > 1e-4);

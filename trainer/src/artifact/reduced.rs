@@ -106,7 +106,9 @@ impl ReducedArtifact {
         let artifact: ReducedArtifact = postcard::from_bytes(payload)
             .map_err(|e| InputError::file(path, format!("reduced-method file is unreadable: {e}")))?;
         for (name, s) in [("vanilla", &artifact.vanilla), ("lipschitz", &artifact.lipschitz)] {
-            let decoder = s.decoder().map_err(|e| InputError::file(path, format!("{name} decoder: {e}")))?;
+            let decoder = s
+                .decoder()
+                .map_err(|e| InputError::file(path, format!("{name} decoder: {e}")))?;
             if decoder.spec().input != s.initial_latent.len() {
                 return Err(InputError::file(
                     path,

@@ -198,15 +198,30 @@ pub fn evaluate(
         });
     }
     // The reduced-order solver, when the scene was trained with a `[reduced]` table.
-    let reduced_file = crate::artifact::reduced::reduced_path(paths[0].parent().unwrap_or(Path::new(".")), &first.scene);
+    let reduced_file =
+        crate::artifact::reduced::reduced_path(paths[0].parent().unwrap_or(Path::new(".")), &first.scene);
     let reduced_reports = if reduced_file.is_file() {
         let file = crate::artifact::reduced::ReducedArtifact::load(&reduced_file)?;
-        reduced::evaluate_reduced(&file, &problem, &encoding, &tests, &plans, options.accuracy_frames, report)?
+        reduced::evaluate_reduced(
+            &file,
+            &problem,
+            &encoding,
+            &tests,
+            &plans,
+            options.accuracy_frames,
+            report,
+        )?
     } else {
         Vec::new()
     };
     fs::create_dir_all(&options.out_dir)?;
-    write_charts(&options.out_dir, &first.scene, &reports, &reduced_reports, reference_seconds)?;
+    write_charts(
+        &options.out_dir,
+        &first.scene,
+        &reports,
+        &reduced_reports,
+        reference_seconds,
+    )?;
     let mut text = report_markdown(&first.scene, &reports, reference_seconds, options);
     if !reduced_reports.is_empty() {
         reduced::write_convergence_chart(&options.out_dir, &first.scene, &reduced_reports)?;

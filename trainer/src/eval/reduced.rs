@@ -26,10 +26,10 @@ use crate::learn::reduced_spec::{ReducedSpec, SolverChoice};
 use crate::methods::lipschitz::cubature::ELASTIC_TERMS;
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::reduced::optimize::{Exit, ExitCounts, SolveSettings};
-use crate::report::chart::{self, Series};
 use crate::methods::reduced::stepper::{objective_scale, ReducedSolver, ReducedStepper, StepperSettings};
 use crate::methods::reduced::subspace::DecoderSubspace;
 use crate::progress::Reporter;
+use crate::report::chart::{self, Series};
 
 /// One subspace on one test sequence.
 #[derive(Clone, Debug, Default)]
@@ -116,7 +116,17 @@ pub fn evaluate_reduced(
         let mut sequences = Vec::new();
         let mut visited = Vec::new();
         for ((plan, reference), bc) in tests.iter().zip(plans) {
-            let metrics = roll(data, problem, encoding, &settings, &potentials, bc, reference, frames, &mut visited)?;
+            let metrics = roll(
+                data,
+                problem,
+                encoding,
+                &settings,
+                &potentials,
+                bc,
+                reference,
+                frames,
+                &mut visited,
+            )?;
             report.message(&format!(
                 "{} reduced ({name}) on {}: mean error {:.3}%, {:.2} ms/step, {:.1} iterations/step, {:.0}% converged",
                 problem.scene.name,
@@ -132,7 +142,11 @@ pub fn evaluate_reduced(
         let term = LipschitzTerm {
             encoding,
             potentials: &elastic,
-            scale: objective_scale(problem.simulator.masses().iter().sum(), problem.mesh.rest_diagonal(), problem.scene.dt),
+            scale: objective_scale(
+                problem.simulator.masses().iter().sum(),
+                problem.mesh.rest_diagonal(),
+                problem.scene.dt,
+            ),
             diagonal: problem.mesh.rest_diagonal(),
         };
         let lipschitz = lipschitz_estimate(&term.hessians(&decoder, &visited)?, &visited);

@@ -4,10 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
+use super::reduced_spec::ReducedSpec;
 use mochi_sim::scene::{read_text, BuiltScene, SceneDocument};
 use mochi_sim::{InputError, Scene};
 use serde::{Deserialize, Serialize};
-use super::reduced_spec::ReducedSpec;
 
 /// The penalty weight on boundary conditions in the physics loss (Eq. 4 of Li et al.).
 pub const PAPER_BC_WEIGHT: f64 = 1e5;

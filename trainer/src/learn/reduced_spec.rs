@@ -91,7 +91,10 @@ impl ReducedSpec {
             return Err(("samples", format!("needs at least 2 samples, got {}", self.samples)));
         }
         if !(self.lipschitz.is_finite() && self.lipschitz >= 0.0) {
-            return Err(("lipschitz", format!("must be finite and non-negative, got {}", self.lipschitz)));
+            return Err((
+                "lipschitz",
+                format!("must be finite and non-negative, got {}", self.lipschitz),
+            ));
         }
         if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
             return Err(("tolerance", format!("must be positive, got {}", self.tolerance)));
@@ -108,11 +111,41 @@ mod tests {
     fn bad_values_name_their_field() {
         assert!(ReducedSpec::default().validate().is_ok());
         let cases = [
-            (ReducedSpec { latent: 0, ..Default::default() }, "latent"),
-            (ReducedSpec { samples: 1, ..Default::default() }, "samples"),
-            (ReducedSpec { lipschitz: -1.0, ..Default::default() }, "lipschitz"),
-            (ReducedSpec { tolerance: 0.0, ..Default::default() }, "tolerance"),
-            (ReducedSpec { cubature: 0, ..Default::default() }, "cubature"),
+            (
+                ReducedSpec {
+                    latent: 0,
+                    ..Default::default()
+                },
+                "latent",
+            ),
+            (
+                ReducedSpec {
+                    samples: 1,
+                    ..Default::default()
+                },
+                "samples",
+            ),
+            (
+                ReducedSpec {
+                    lipschitz: -1.0,
+                    ..Default::default()
+                },
+                "lipschitz",
+            ),
+            (
+                ReducedSpec {
+                    tolerance: 0.0,
+                    ..Default::default()
+                },
+                "tolerance",
+            ),
+            (
+                ReducedSpec {
+                    cubature: 0,
+                    ..Default::default()
+                },
+                "cubature",
+            ),
         ];
         for (spec, field) in cases {
             assert_eq!(spec.validate().unwrap_err().0, field);

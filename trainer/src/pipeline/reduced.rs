@@ -21,8 +21,8 @@ use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource};
 use crate::learn::train::{AdamWConfig, CheckpointConfig, TrainConfig};
 use crate::methods::lipschitz::cubature::{fit_subspace_cubature, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
-use crate::methods::reduced::stepper::objective_scale;
 use crate::methods::lipschitz::train::{optimise_data_free, optimise_supervised, LipschitzSettings};
+use crate::methods::reduced::stepper::objective_scale;
 use crate::progress::Reporter;
 use mochi_sim::BuiltScene;
 
@@ -175,7 +175,11 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     let clock = Instant::now();
     let optimised = Autoencoder::from_exported(inputs.autoencoder.autoencoder.spec(), &vanilla_ae)?;
     let net = &inputs.recipe.latent.autoencoder;
-    let targets: Vec<Vec<f64>> = frames.sequences.iter().flat_map(|s| s.targets.iter().cloned()).collect();
+    let targets: Vec<Vec<f64>> = frames
+        .sequences
+        .iter()
+        .flat_map(|s| s.targets.iter().cloned())
+        .collect();
     let config = TrainConfig {
         name: "lipschitz".into(),
         epochs: spec.lipschitz_epochs,
@@ -196,7 +200,15 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         weight: spec.lipschitz,
         samples: spec.samples,
     };
-    let run = optimise_supervised(&optimised, &frames.f32s, &targets, &term, &settings, &config, inputs.work.resume)?;
+    let run = optimise_supervised(
+        &optimised,
+        &frames.f32s,
+        &targets,
+        &term,
+        &settings,
+        &config,
+        inputs.work.resume,
+    )?;
     let lipschitz_seconds = clock.elapsed().as_secs_f64();
     report.message(&format!(
         "Lipschitz optimisation: reconstruction {:.3e} and Lipschitz loss {:.3e} at the vanilla start, lambda {:.3e}",

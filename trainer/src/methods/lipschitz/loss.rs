@@ -111,7 +111,11 @@ impl LipschitzTerm<'_> {
         let (b, r) = (samples.len(), subspace.latent_len());
         let (n, q_len) = (subspace.state_len(), self.encoding.encoded_len());
         let mut directions = Vec::with_capacity(b * r * r);
-        let (mut c1, mut c2, mut c3) = (vec![0f32; b * r * q_len], vec![0f32; b * r * q_len], vec![0f32; b * q_len]);
+        let (mut c1, mut c2, mut c3) = (
+            vec![0f32; b * r * q_len],
+            vec![0f32; b * r * q_len],
+            vec![0f32; b * q_len],
+        );
         let (mut x, mut jac) = (vec![0.0; n], vec![0.0; n * r]);
         let (mut xd, mut xdd) = (vec![0.0; n], vec![0.0; n]);
         let (mut hxd, mut hxdd, mut third) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
@@ -146,14 +150,18 @@ impl LipschitzTerm<'_> {
         }
         let dev = Device::Cpu;
         let z: Vec<f32> = samples.iter().flat_map(|s| s.z.iter().map(|&v| v as f32)).collect();
-        let jet = jet(mlp, &Tensor::from_vec(z, (b, r), &dev)?, &Tensor::from_vec(directions, (b, r, r), &dev)?)?;
+        let jet = jet(
+            mlp,
+            &Tensor::from_vec(z, (b, r), &dev)?,
+            &Tensor::from_vec(directions, (b, r, r), &dev)?,
+        )?;
         let value = match offset {
             Some(o) => jet.value.broadcast_add(o)?,
             None => jet.value,
         };
         let surrogate = ((jet.tangent * Tensor::from_vec(c1, (b, r, q_len), &dev)?)?.sum_all()?
             + (jet.curvature * Tensor::from_vec(c2, (b, r, q_len), &dev)?)?.sum_all()?)?
-            .add(&(value * Tensor::from_vec(c3, (b, q_len), &dev)?)?.sum_all()?)?;
+        .add(&(value * Tensor::from_vec(c3, (b, q_len), &dev)?)?.sum_all()?)?;
         Ok(LipschitzBatch { loss, surrogate })
     }
 }

@@ -153,6 +153,11 @@ mod tests {
         at.third_times(&u, 1e-5, &mut third);
         let err: Vec<f64> = third.iter().zip(&fd).map(|(a, b)| a - b).collect();
         assert!(norm(&third) > 0.0);
-        assert!(norm(&err) < 1e-3 * norm(&third), "D3: {} vs {}", norm(&err), norm(&third));
+        assert!(
+            norm(&err) < 1e-3 * norm(&third),
+            "D3: {} vs {}",
+            norm(&err),
+            norm(&third)
+        );
     }
 }

@@ -21,7 +21,11 @@ fn nudged(mlp: &ExportedMlp, layer: usize, index: usize, delta: f32) -> Exported
 fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
     let beam = tiny_beam();
     let params = beam.ae.parameters();
-    let decoder_params: Vec<_> = params.iter().filter(|(n, _)| n.starts_with("decoder.block")).cloned().collect();
+    let decoder_params: Vec<_> = params
+        .iter()
+        .filter(|(n, _)| n.starts_with("decoder.block"))
+        .cloned()
+        .collect();
     randomise(&decoder_params, 0.3, &mut rand_chacha::ChaCha8Rng::seed_from_u64(5));
     let exported = beam.ae.export().unwrap();
     let seq = &beam.sequences[0];
@@ -32,7 +36,10 @@ fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
             let q: Vec<f32> = seq.encoded[t].iter().map(|&v| v as f32).collect();
             let z = forward_exported(&exported.encoder, &q).unwrap();
             LatentSample {
-                z: z.iter().enumerate().map(|(i, &v)| v as f64 + 0.1 * ((i + k) % 3) as f64).collect(),
+                z: z.iter()
+                    .enumerate()
+                    .map(|(i, &v)| v as f64 + 0.1 * ((i + k) % 3) as f64)
+                    .collect(),
                 targets: seq.targets[t].clone(),
             }
         })
@@ -44,7 +51,9 @@ fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
         scale: 1e-3,
         diagonal: beam.problem.mesh.rest_diagonal(),
     };
-    let batch = term.batch(beam.ae.decoder(), None, &exported.decoder, &samples).unwrap();
+    let batch = term
+        .batch(beam.ae.decoder(), None, &exported.decoder, &samples)
+        .unwrap();
     let hessians = term.hessians(&exported.decoder, &samples).unwrap();
     assert_eq!(batch.loss, lipschitz_loss(&hessians, &samples));
     assert!(batch.loss > 0.0);
@@ -52,7 +61,13 @@ fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
     // One weight of the first block's inner layer and one of the output layer.
     for (name, layer, index) in [("decoder.block0.inner.weight", 1, 7), ("decoder.output.weight", 3, 40)] {
         let var = &params.iter().find(|(n, _)| n == name).unwrap().1;
-        let analytic = grads.get(var.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f32>().unwrap()[index] as f64;
+        let analytic = grads
+            .get(var.as_tensor())
+            .unwrap()
+            .flatten_all()
+            .unwrap()
+            .to_vec1::<f32>()
+            .unwrap()[index] as f64;
         let delta = 1e-3f32;
         let loss_at = |d: f32| {
             let mlp = nudged(&exported.decoder, layer, index, d);
@@ -77,7 +92,11 @@ fn the_cubature_reproduces_energy_and_reduced_force_on_held_out_samples() {
 
     let beam = tiny_beam();
     let params = beam.ae.parameters();
-    let decoder_params: Vec<_> = params.iter().filter(|(n, _)| n.starts_with("decoder.block")).cloned().collect();
+    let decoder_params: Vec<_> = params
+        .iter()
+        .filter(|(n, _)| n.starts_with("decoder.block"))
+        .cloned()
+        .collect();
     randomise(&decoder_params, 0.3, &mut rand_chacha::ChaCha8Rng::seed_from_u64(5));
     let exported = beam.ae.export().unwrap();
     let seq = &beam.sequences[0];
@@ -85,7 +104,10 @@ fn the_cubature_reproduces_energy_and_reduced_force_on_held_out_samples() {
         let q: Vec<f32> = seq.encoded[t].iter().map(|&v| v as f32).collect();
         let z = forward_exported(&exported.encoder, &q).unwrap();
         LatentSample {
-            z: z.iter().enumerate().map(|(i, &v)| v as f64 + shift * (i as f64 - 1.0)).collect(),
+            z: z.iter()
+                .enumerate()
+                .map(|(i, &v)| v as f64 + shift * (i as f64 - 1.0))
+                .collect(),
             targets: seq.targets[t].clone(),
         }
     };
@@ -97,8 +119,14 @@ fn the_cubature_reproduces_energy_and_reduced_force_on_held_out_samples() {
         tolerance: 1e-4,
         ..CubatureSettings::default()
     };
-    let (cubature, fit) = fit_subspace_cubature(&exported.decoder, &beam.encoding, elastic, &training, &settings).unwrap();
-    assert!(cubature.elements.len() < elastic.len(), "{} of {}", cubature.elements.len(), elastic.len());
+    let (cubature, fit) =
+        fit_subspace_cubature(&exported.decoder, &beam.encoding, elastic, &training, &settings).unwrap();
+    assert!(
+        cubature.elements.len() < elastic.len(),
+        "{} of {}",
+        cubature.elements.len(),
+        elastic.len()
+    );
     assert!(fit.relative_residual < 1e-2, "{fit:?}");
     let approx = CubatureEnergy::new(elastic, cubature).unwrap();
     let full: [&dyn StencilEnergy; 1] = [elastic];
@@ -162,10 +190,16 @@ fn a_tiny_data_free_lipschitz_optimisation_lowers_the_lipschitz_loss() {
         .collect();
     let loss_of = |decoder: &ExportedMlp| lipschitz_loss(&term.hessians(decoder, &held_out).unwrap(), &held_out);
     let before = loss_of(&vanilla.decoder);
-    let lip = LipschitzSettings { weight: 1.0, samples: 8 };
+    let lip = LipschitzSettings {
+        weight: 1.0,
+        samples: 8,
+    };
     let (losses, lambda) = optimise_data_free(&objective, &model, &settings, &term, &lip, 60, &Quiet).unwrap();
     assert_eq!(losses.len(), 60);
     assert!(lambda > 0.0);
     let after = loss_of(&model.export().unwrap());
-    assert!(after < 0.7 * before, "Lipschitz loss on held-out samples {before:.3e} -> {after:.3e}");
+    assert!(
+        after < 0.7 * before,
+        "Lipschitz loss on held-out samples {before:.3e} -> {after:.3e}"
+    );
 }

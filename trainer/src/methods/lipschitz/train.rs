@@ -83,12 +83,15 @@ pub(crate) fn optimise_supervised(
     }
     let invalid = |e: crate::error::TrainerError| candle_core::Error::Msg(e.to_string());
     let samples_of = |indices: &[usize]| -> candle_core::Result<Vec<LatentSample>> {
-        let exported = autoencoder.export().map_err(|e| candle_core::Error::Msg(e.to_string()))?;
+        let exported = autoencoder
+            .export()
+            .map_err(|e| candle_core::Error::Msg(e.to_string()))?;
         indices
             .iter()
             .take(settings.samples)
             .map(|&i| {
-                let z = forward_exported(&exported.encoder, &data[i]).map_err(|e| candle_core::Error::Msg(e.to_string()))?;
+                let z = forward_exported(&exported.encoder, &data[i])
+                    .map_err(|e| candle_core::Error::Msg(e.to_string()))?;
                 Ok(LatentSample {
                     z: z.iter().map(|&v| v as f64).collect(),
                     targets: targets[i].clone(),
@@ -105,12 +108,19 @@ pub(crate) fn optimise_supervised(
         .map_err(|e| TrainError::Invalid(e.to_string()))?;
     let ls0 = super::loss::lipschitz_loss(&hessians, &start_samples);
     let lc0 = train::mean_reconstruction_error(autoencoder, data, 256)?;
-    let lambda = if ls0 > 0.0 { settings.weight * lc0.max(1e-12) / ls0 } else { 0.0 };
+    let lambda = if ls0 > 0.0 {
+        settings.weight * lc0.max(1e-12) / ls0
+    } else {
+        0.0
+    };
 
     let report = train::train(&autoencoder.parameters(), data, config, resume, |batch, _| {
-        let reconstruction = Autoencoder::reconstruction_loss_of(&autoencoder.reconstruct(&batch.inputs)?, &batch.inputs)?;
+        let reconstruction =
+            Autoencoder::reconstruction_loss_of(&autoencoder.reconstruct(&batch.inputs)?, &batch.inputs)?;
         let samples = samples_of(batch.indices)?;
-        let exported = autoencoder.export().map_err(|e| candle_core::Error::Msg(e.to_string()))?;
+        let exported = autoencoder
+            .export()
+            .map_err(|e| candle_core::Error::Msg(e.to_string()))?;
         let lip = term
             .batch(autoencoder.decoder(), None, &exported.decoder, &samples)
             .map_err(invalid)?;

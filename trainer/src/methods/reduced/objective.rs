@@ -219,9 +219,11 @@ impl<'a> ReducedObjective<'a> {
     /// The exact Hessian of the objective at `z` into `hess` (`r x r`), with its gradient into
     /// `grad`; returns the value.
     pub fn exact_hessian(&mut self, z: &[f64], grad: &mut [f64], hess: &mut [f64]) -> TrainerResult<f64> {
-        self.subspace.positions_and_jacobian(z, &mut self.buf.x, &mut self.buf.jac)?;
+        self.subspace
+            .positions_and_jacobian(z, &mut self.buf.x, &mut self.buf.jac)?;
         let value = self.accumulate(Want::Hessian { project: false }, Some(hess));
-        self.subspace.contracted_hessian(z, &self.buf.gx, &mut self.buf.curvature)?;
+        self.subspace
+            .contracted_hessian(z, &self.buf.gx, &mut self.buf.curvature)?;
         hess.iter_mut()
             .zip(&self.buf.curvature)
             .for_each(|(h, c)| *h = self.scale * (*h + c));
@@ -243,7 +245,11 @@ impl Objective for ReducedObjective<'_> {
     }
 
     fn gradient(&mut self, z: &[f64], grad: &mut [f64]) -> f64 {
-        if self.subspace.positions_and_jacobian(z, &mut self.buf.x, &mut self.buf.jac).is_err() {
+        if self
+            .subspace
+            .positions_and_jacobian(z, &mut self.buf.x, &mut self.buf.jac)
+            .is_err()
+        {
             grad.fill(f64::NAN);
             return f64::NAN;
         }
@@ -253,7 +259,11 @@ impl Objective for ReducedObjective<'_> {
     }
 
     fn hessian(&mut self, z: &[f64], grad: &mut [f64], hess: &mut [f64]) -> f64 {
-        if self.subspace.positions_and_jacobian(z, &mut self.buf.x, &mut self.buf.jac).is_err() {
+        if self
+            .subspace
+            .positions_and_jacobian(z, &mut self.buf.x, &mut self.buf.jac)
+            .is_err()
+        {
             grad.fill(f64::NAN);
             hess.fill(f64::NAN);
             return f64::NAN;

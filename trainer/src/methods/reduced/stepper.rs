@@ -203,8 +203,20 @@ impl ReducedStepper {
             ReducedObjective::new(&mut self.subspace, potentials, inertia, self.scale, &mut self.buffers);
         let record = self.settings.record_history;
         let report = match self.settings.solver {
-            ReducedSolver::Lbfgs => lbfgs(&mut objective, &mut self.z, &self.settings.solve, &mut self.lbfgs, record),
-            ReducedSolver::Newton => newton(&mut objective, &mut self.z, &self.settings.solve, &mut self.newton, record),
+            ReducedSolver::Lbfgs => lbfgs(
+                &mut objective,
+                &mut self.z,
+                &self.settings.solve,
+                &mut self.lbfgs,
+                record,
+            ),
+            ReducedSolver::Newton => newton(
+                &mut objective,
+                &mut self.z,
+                &self.settings.solve,
+                &mut self.newton,
+                record,
+            ),
         };
         if !self.z.iter().all(|v| v.is_finite()) {
             return Err(TrainerError::invalid("reduced solver: the latent is no longer finite"));

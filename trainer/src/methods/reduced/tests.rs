@@ -15,7 +15,10 @@ use crate::learn::samples::fixtures::{tiny_beam, TinyBeam};
 /// `frame`'s targets, and the latent of that frame.
 fn subspace_at(beam: &mut TinyBeam, frame: usize) -> (DecoderSubspace, Vec<f64>) {
     let params = beam.ae.parameters();
-    let block: Vec<_> = params.into_iter().filter(|(n, _)| n.starts_with("decoder.block")).collect();
+    let block: Vec<_> = params
+        .into_iter()
+        .filter(|(n, _)| n.starts_with("decoder.block"))
+        .collect();
     let mut rng = rand_chacha::ChaCha8Rng::from_seed_u64(3);
     randomise(&block, 0.3, &mut rng);
     let exported = beam.ae.export().unwrap();
@@ -50,12 +53,19 @@ fn relative(a: &[f64], b: &[f64]) -> f64 {
 fn reduced_gradient_and_hessian_match_finite_differences() {
     let mut beam = tiny_beam();
     let (mut subspace, z0) = subspace_at(&mut beam, 6);
-    let z: Vec<f64> = z0.iter().enumerate().map(|(i, v)| v + 0.05 * (i as f64 + 1.0)).collect();
+    let z: Vec<f64> = z0
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v + 0.05 * (i as f64 + 1.0))
+        .collect();
     let r = z.len();
     let masses = beam.problem.simulator.masses().to_vec();
     let mut inertia = InertiaTerm::new(3, masses, beam.problem.scene.dt);
     // A prediction off the subspace, so the inertia term pulls.
-    let prediction: Vec<f64> = beam.sequences[0].trajectory.positions[7].iter().map(|v| v + 1e-3).collect();
+    let prediction: Vec<f64> = beam.sequences[0].trajectory.positions[7]
+        .iter()
+        .map(|v| v + 1e-3)
+        .collect();
     inertia.set_prediction(&prediction);
     let pots = potentials(&beam);
     let mut buffers = ObjectiveBuffers::new(subspace.state_len(), r);
@@ -83,7 +93,10 @@ fn reduced_gradient_and_hessian_match_finite_differences() {
     }
     let mut g2 = vec![0.0; r];
     objective.gradient(&z, &mut g2);
-    assert!(relative(&grad, &g2) < 1e-12, "exact_hessian and gradient agree on the gradient");
+    assert!(
+        relative(&grad, &g2) < 1e-12,
+        "exact_hessian and gradient agree on the gradient"
+    );
     assert!(relative(&grad, &fd_grad) < 1e-6, "gradient {grad:?} vs {fd_grad:?}");
     assert!(relative(&hess, &fd_hess) < 1e-5, "Hessian {hess:?} vs {fd_hess:?}");
     for a in 0..r {
@@ -135,12 +148,19 @@ fn lbfgs_and_newton_steps_converge_to_the_same_state() {
             assert_eq!(report.exit, Exit::Converged, "{} step {t}: {report:?}", solver.name());
             assert!(report.gradient_norm <= 1e-8);
             assert_eq!(report.history.len(), report.iterations + 1);
-            assert!(report.history.windows(2).all(|w| w[1] <= w[0] + 1e-12 * w[0].abs()), "{report:?}");
+            assert!(
+                report.history.windows(2).all(|w| w[1] <= w[0] + 1e-12 * w[0].abs()),
+                "{report:?}"
+            );
         }
         ends.push(stepper.positions().to_vec());
     }
     let diagonal = beam.problem.mesh.rest_diagonal();
-    let diff = ends[0].iter().zip(&ends[1]).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let diff = ends[0]
+        .iter()
+        .zip(&ends[1])
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
     assert!(diff < 1e-5 * diagonal, "L-BFGS and Newton differ by {diff}");
 }
 
@@ -169,6 +189,8 @@ fn wrong_sizes_are_refused() {
     assert!(stepper.reset(&z0, &targets[1..]).is_err());
     let exported = beam.ae.export().unwrap();
     // The encoder maps states to latents: as a subspace map its sizes do not fit.
-    let err = DecoderSubspace::new(&exported.encoder, &beam.encoding, &targets).err().unwrap();
+    let err = DecoderSubspace::new(&exported.encoder, &beam.encoding, &targets)
+        .err()
+        .unwrap();
     assert!(err.to_string().contains("decoder gives"), "{err}");
 }
