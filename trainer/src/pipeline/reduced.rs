@@ -196,9 +196,12 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         }),
         progress: inputs.work.bars,
     };
+    let tolerance = inputs.recipe.latent.tolerance * problem.mesh.rest_diagonal();
     let settings = LipschitzSettings {
         weight: spec.lipschitz,
         samples: spec.samples,
+        // The per-coordinate mean square of a reconstruction at the tolerance.
+        floor: tolerance * tolerance / problem.mesh.dim as f64,
     };
     let run = optimise_supervised(
         &optimised,
@@ -295,6 +298,7 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
     let lip_settings = LipschitzSettings {
         weight: spec.lipschitz,
         samples: spec.samples,
+        floor: 0.0,
     };
     let (losses, lambda) = optimise_data_free(
         &objective,

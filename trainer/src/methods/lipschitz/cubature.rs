@@ -20,12 +20,15 @@ use crate::methods::reduced::subspace::DecoderSubspace;
 /// cheap per-vertex terms.
 pub const ELASTIC_TERMS: [&str; 5] = ["elastic", "membrane", "bending", "stretch", "bend"];
 
+/// Samples decoded: their world states, their Jacobians (`n x r` each) and `r`.
+struct Decoded {
+    states: Vec<Vec<f64>>,
+    jacobians: Vec<Vec<f64>>,
+    latent: usize,
+}
+
 /// The decoded states and Jacobians of `samples` in `decoder`'s subspace.
-fn decode_samples(
-    decoder: &ExportedMlp,
-    encoding: &Encoding,
-    samples: &[LatentSample],
-) -> TrainerResult<(Vec<Vec<f64>>, Vec<Vec<f64>>, usize)> {
+fn decode_samples(decoder: &ExportedMlp, encoding: &Encoding, samples: &[LatentSample]) -> TrainerResult<Decoded> {
     let first = samples
         .first()
         .ok_or_else(|| TrainerError::invalid("a cubature needs at least one latent sample"))?;
@@ -40,7 +43,11 @@ fn decode_samples(
         states.push(x);
         jacobians.push(j);
     }
-    Ok((states, jacobians, r))
+    Ok(Decoded {
+        states,
+        jacobians,
+        latent: r,
+    })
 }
 
 /// The training matrix of `energy` on `samples` decoded by `decoder` (module documentation).
@@ -50,7 +57,11 @@ pub fn cubature_matrix(
     energy: &dyn StencilEnergy,
     samples: &[LatentSample],
 ) -> TrainerResult<ColumnMatrix> {
-    let (states, jacobians, r) = decode_samples(decoder, encoding, samples)?;
+    let Decoded {
+        states,
+        jacobians,
+        latent: r,
+    } = decode_samples(decoder, encoding, samples)?;
     let dim = encoding.dim();
     let per_sample = r + 1;
     let rows = samples.len() * per_sample;

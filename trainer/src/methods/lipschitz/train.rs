@@ -8,8 +8,11 @@
 //! continues from its vanilla decoder with Eq. 4 as `L_C` and Gaussian latent samples.
 //!
 //! `lambda` is given relative to the two losses at the vanilla start: `lambda = weight *
-//! L_C(0) / L_LS(0)`, so `weight = 1` makes the Lipschitz term as large as the reconstruction
-//! term there, whatever the scene's units.
+//! max(L_C(0), floor) / L_LS(0)`, so `weight = 1` makes the Lipschitz term as large as the
+//! construction term there, whatever the scene's units. For a supervised subspace the floor
+//! is the reconstruction loss at the recipe's tolerance (`(tolerance * diagonal)^2 / dim`): a
+//! vanilla autoencoder that reconstructs its data almost exactly would otherwise leave the
+//! Lipschitz term no weight at all.
 
 use candle_core::Tensor;
 use rand::SeedableRng;
@@ -29,6 +32,9 @@ pub struct LipschitzSettings {
     pub weight: f64,
     /// Lipschitz samples per minibatch (the first frames of each; default 8, at least 2).
     pub samples: usize,
+    /// The construction loss below which `lambda` stops growing (module documentation;
+    /// default 0).
+    pub floor: f64,
 }
 
 impl Default for LipschitzSettings {
@@ -36,6 +42,7 @@ impl Default for LipschitzSettings {
         LipschitzSettings {
             weight: 1.0,
             samples: 8,
+            floor: 0.0,
         }
     }
 }
@@ -109,7 +116,7 @@ pub(crate) fn optimise_supervised(
     let ls0 = super::loss::lipschitz_loss(&hessians, &start_samples);
     let lc0 = train::mean_reconstruction_error(autoencoder, data, 256)?;
     let lambda = if ls0 > 0.0 {
-        settings.weight * lc0.max(1e-12) / ls0
+        settings.weight * lc0.max(settings.floor).max(1e-30) / ls0
     } else {
         0.0
     };
@@ -186,7 +193,7 @@ pub(crate) fn optimise_data_free(
         let lip = term.batch(&model.mlp, Some(model.offset_row()), &exported, &samples_of(&z)?)?;
         let lambda = *lambda.get_or_insert_with(|| {
             if lip.loss > 0.0 {
-                settings.weight * construction.abs().max(1e-12) / lip.loss
+                settings.weight * construction.abs().max(settings.floor).max(1e-30) / lip.loss
             } else {
                 0.0
             }
