@@ -42,6 +42,9 @@ pub enum TrainerError {
     /// A training run failed.
     #[error(transparent)]
     Train(#[from] TrainError),
+    /// A data-free subspace could not be trained.
+    #[error(transparent)]
+    DataFree(#[from] crate::learn::datafree::DataFreeError),
     /// Code generation failed.
     #[error(transparent)]
     Codegen(#[from] mochi_codegen::CodegenError),

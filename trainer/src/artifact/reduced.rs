@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{TrainerError, TrainerResult};
+use super::ArtifactError;
 use crate::learn::network::{DenseLayer, ExportedMlp};
 use mochi_runtime::envelope;
 use mochi_sim::error::InputError;
@@ -52,7 +52,7 @@ pub struct SubspaceData {
 
 impl SubspaceData {
     /// The runnable decoder.
-    pub fn decoder(&self) -> TrainerResult<ExportedMlp> {
+    pub fn decoder(&self) -> Result<ExportedMlp, ArtifactError> {
         Ok(ExportedMlp::from_layers(self.decoder.clone())?)
     }
 }
@@ -85,22 +85,21 @@ pub fn reduced_path(out_dir: &Path, scene: &str) -> PathBuf {
 
 impl ReducedArtifact {
     /// Writes the file (atomically: a crash leaves the old file or the new one).
-    pub fn save(&self, path: &Path) -> TrainerResult<()> {
-        let payload = postcard::to_allocvec(self)
-            .map_err(|e| TrainerError::invalid(format!("encoding {}: {e}", path.display())))?;
+    pub fn save(&self, path: &Path) -> Result<(), ArtifactError> {
+        let payload = postcard::to_allocvec(self).map_err(|source| ArtifactError::Encode {
+            section: "reduced-method file",
+            source,
+        })?;
         let bytes = envelope::wrap(REDUCED_MAGIC, REDUCED_VERSION, &payload);
-        crate::learn::train::write_atomically(path, &bytes).map_err(|source| TrainerError::Io {
+        crate::learn::train::write_atomically(path, &bytes).map_err(|source| ArtifactError::Write {
             path: path.to_path_buf(),
             source,
         })
     }
 
     /// Reads a file written by [`ReducedArtifact::save`].
-    pub fn load(path: &Path) -> TrainerResult<Self> {
-        let bytes = std::fs::read(path).map_err(|source| TrainerError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+    pub fn load(path: &Path) -> Result<Self, InputError> {
+        let bytes = std::fs::read(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
         let payload = envelope::open(&bytes, REDUCED_MAGIC, REDUCED_VERSION)
             .map_err(|e| InputError::file(path, format!("reduced-method file {e}")))?;
         let artifact: ReducedArtifact = postcard::from_bytes(payload)
@@ -117,8 +116,7 @@ impl ReducedArtifact {
                         s.initial_latent.len(),
                         decoder.spec().input
                     ),
-                )
-                .into());
+                ));
             }
         }
         Ok(artifact)

@@ -98,6 +98,20 @@ pub(crate) fn cubature_energies<'a>(
         .collect()
 }
 
+/// The Lipschitz term of `problem`'s body on `potentials`.
+fn lipschitz_term<'a>(
+    problem: &BuiltScene,
+    encoding: &'a Encoding,
+    potentials: &'a [&'a dyn StencilEnergy],
+) -> LipschitzTerm<'a> {
+    LipschitzTerm {
+        encoding,
+        potentials,
+        scale: scene_objective_scale(problem),
+        diagonal: problem.mesh.rest_diagonal(),
+    }
+}
+
 /// Runs the stage and writes `<scene>.reduced` into `out_dir`.
 pub(crate) fn train_reduced(
     inputs: &ReducedInputs<'_>,
@@ -164,12 +178,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     let cubatures = fit_cubatures(problem, encoding, &vanilla_ae.decoder, &samples, spec.cubature)?;
     let energies = cubature_energies(problem, &cubatures)?;
     let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
-    let term = LipschitzTerm {
-        encoding,
-        potentials: &potentials,
-        scale: scene_objective_scale(problem),
-        diagonal: problem.mesh.rest_diagonal(),
-    };
+    let term = lipschitz_term(problem, encoding, &potentials);
 
     report.stage("reduced: Lipschitz optimisation");
     let clock = Instant::now();
@@ -286,12 +295,7 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
     let cubatures = fit_cubatures(problem, encoding, &vanilla.decoder, &samples, spec.cubature)?;
     let energies = cubature_energies(problem, &cubatures)?;
     let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
-    let term = LipschitzTerm {
-        encoding,
-        potentials: &potentials,
-        scale: scene_objective_scale(problem),
-        diagonal: problem.mesh.rest_diagonal(),
-    };
+    let term = lipschitz_term(problem, encoding, &potentials);
 
     report.stage("reduced: Lipschitz optimisation");
     let clock = Instant::now();

@@ -41,10 +41,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use crate::error::{bail, Context, TrainerError, TrainerResult};
-use crate::learn::encoding::{Encoding, Frame};
-use crate::learn::network::{tensor_to_rows, ExportedMlp, MlpSpec, ResMlp};
-use crate::learn::train::{AdamW, AdamWConfig};
+use crate::learn::encoding::{Encoding, EncodingError, Frame};
+use crate::learn::network::{tensor_to_rows, ExportedMlp, MlpSpec, NetworkError, ResMlp};
+use crate::learn::train::{AdamW, AdamWConfig, TrainError};
 use crate::progress::{EpochsBar, Reporter};
 use mochi_sim::bc::Pose;
 use mochi_sim::energy::add_gradient_sequential;
@@ -52,6 +51,35 @@ use mochi_sim::{BuiltScene, StencilEnergy};
 
 #[cfg(test)]
 pub(crate) mod tests;
+
+/// Why a data-free training could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum DataFreeError {
+    /// A setting or the scene does not allow it (the message says which).
+    #[error("{0}")]
+    Invalid(String),
+    /// candle failed.
+    #[error(transparent)]
+    Candle(#[from] candle_core::Error),
+    /// A network could not be built or exported.
+    #[error(transparent)]
+    Network(#[from] NetworkError),
+    /// A state could not be encoded or decoded.
+    #[error(transparent)]
+    Encoding(#[from] EncodingError),
+    /// The optimiser could not be set up.
+    #[error(transparent)]
+    Train(#[from] TrainError),
+}
+
+impl DataFreeError {
+    fn invalid(message: String) -> Self {
+        DataFreeError::Invalid(message)
+    }
+}
+
+/// Result of this module's functions.
+pub type DataFreeResult<T> = Result<T, DataFreeError>;
 
 /// Settings of a data-free training run; [`Default`] gives the documented defaults.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,10 +127,12 @@ impl Default for DataFreeSettings {
 
 impl DataFreeSettings {
     /// Checks every setting, naming the first one out of range.
-    pub fn validate(&self) -> TrainerResult<()> {
-        let positive = |name: &str, value: usize| -> TrainerResult<()> {
+    pub fn validate(&self) -> DataFreeResult<()> {
+        let positive = |name: &str, value: usize| -> DataFreeResult<()> {
             if value == 0 {
-                bail!("data-free setting `{name}` must be at least 1 (got 0)");
+                return Err(DataFreeError::invalid(format!(
+                    "data-free setting `{name}` must be at least 1 (got 0)"
+                )));
             }
             Ok(())
         };
@@ -110,28 +140,28 @@ impl DataFreeSettings {
         positive("hidden", self.hidden)?;
         positive("iterations", self.iterations)?;
         if self.batch < 2 {
-            bail!(
+            return Err(DataFreeError::invalid(format!(
                 "data-free setting `batch` must be at least 2: the repulsion term needs pairs (got {})",
                 self.batch
-            );
+            )));
         }
         if !(self.learning_rate.is_finite() && self.learning_rate > 0.0) {
-            bail!(
+            return Err(DataFreeError::invalid(format!(
                 "data-free setting `learning_rate` must be positive and finite (got {})",
                 self.learning_rate
-            );
+            )));
         }
         if !(self.sigma.is_finite() && self.sigma > 0.0) {
-            bail!(
+            return Err(DataFreeError::invalid(format!(
                 "data-free setting `sigma` must be positive and finite (got {})",
                 self.sigma
-            );
+            )));
         }
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {
-            bail!(
+            return Err(DataFreeError::invalid(format!(
                 "data-free setting `lambda` must be non-negative and finite (got {})",
                 self.lambda
-            );
+            )));
         }
         Ok(())
     }
@@ -171,7 +201,7 @@ impl DataFreeModel {
         offset: Vec<f32>,
         output_scale: f64,
         seed: u64,
-    ) -> TrainerResult<Self> {
+    ) -> DataFreeResult<Self> {
         let spec = MlpSpec {
             input: latent,
             output: offset.len(),
@@ -208,7 +238,7 @@ impl DataFreeModel {
     }
 
     /// The frozen decoder, `q_rest` added to the output bias.
-    pub(crate) fn export(&self) -> TrainerResult<ExportedMlp> {
+    pub(crate) fn export(&self) -> DataFreeResult<ExportedMlp> {
         let plain = self.mlp.export()?;
         let mut layers: Vec<_> = plain.layers().into_iter().cloned().collect();
         if let Some(output) = layers.last_mut() {
@@ -258,10 +288,12 @@ pub(crate) struct DataFreeObjective<'a> {
 impl<'a> DataFreeObjective<'a> {
     /// The objective of `problem`'s body encoded by `encoding`, with repulsion length `sigma`
     /// diagonals per unit latent distance.
-    pub(crate) fn new(problem: &'a BuiltScene, encoding: &'a Encoding, sigma: f64) -> TrainerResult<Self> {
+    pub(crate) fn new(problem: &'a BuiltScene, encoding: &'a Encoding, sigma: f64) -> DataFreeResult<Self> {
         let dim = problem.mesh.dim;
         if encoding.state_len() != problem.mesh.rest.len() || encoding.dim() != dim {
-            bail!("the encoding does not belong to this scene's mesh");
+            return Err(DataFreeError::invalid(format!(
+                "the encoding does not belong to this scene's mesh"
+            )));
         }
         let mut targets = Vec::with_capacity(encoding.reference().len());
         for h in &problem.handles {
@@ -269,7 +301,7 @@ impl<'a> DataFreeObjective<'a> {
         }
         let frame = encoding
             .frame(&targets)
-            .context("frame of the start's handle targets")?;
+            .map_err(|e| DataFreeError::invalid(format!("frame of the start's handle targets: {e}")))?;
         let rest = encoding.encode(&problem.mesh.rest, &frame)?;
         let potentials = problem.simulator.potentials();
 
@@ -277,12 +309,14 @@ impl<'a> DataFreeObjective<'a> {
         let density = problem.scene.material.density;
         let energy_scale = problem.scene.material.youngs * masses.iter().sum::<f64>() / density;
         if !(energy_scale.is_finite() && energy_scale > 0.0) {
-            bail!("the energy scale (Young's modulus times rest volume) is {energy_scale}: the body has no stiffness or no volume");
+            return Err(DataFreeError::invalid(format!("the energy scale (Young's modulus times rest volume) is {energy_scale}: the body has no stiffness or no volume")));
         }
         let per_vertex = encoding.encoded_len() / encoding.free_vertices().len().max(1);
         let free_mass: f64 = encoding.free_vertices().iter().map(|&v| masses[v]).sum();
         if !free_mass.is_finite() || free_mass <= 0.0 {
-            bail!("the free vertices have no mass: there is nothing to learn");
+            return Err(DataFreeError::invalid(format!(
+                "the free vertices have no mass: there is nothing to learn"
+            )));
         }
         let weights: Vec<f32> = encoding
             .free_vertices()
@@ -308,7 +342,7 @@ impl<'a> DataFreeObjective<'a> {
     }
 
     /// The untrained decoder of `settings` around the rest shape.
-    pub(crate) fn initial_model(&self, settings: &DataFreeSettings) -> TrainerResult<DataFreeModel> {
+    pub(crate) fn initial_model(&self, settings: &DataFreeSettings) -> DataFreeResult<DataFreeModel> {
         let offset = self.rest.iter().map(|&v| v as f32).collect();
         DataFreeModel::new(
             settings.latent,
@@ -321,7 +355,7 @@ impl<'a> DataFreeObjective<'a> {
     }
 
     /// `P(x(q)) / E_ref` and its gradient with respect to `q`, in f64.
-    pub(crate) fn energy_of(&self, q: &[f64], x: &mut [f64], grad: &mut [f64], dq: &mut [f64]) -> TrainerResult<f64> {
+    pub(crate) fn energy_of(&self, q: &[f64], x: &mut [f64], grad: &mut [f64], dq: &mut [f64]) -> DataFreeResult<f64> {
         self.encoding.decode_into(q, &self.frame, &self.targets, x)?;
         let value = total_potential(self.potentials, x, grad);
         self.encoding
@@ -330,15 +364,17 @@ impl<'a> DataFreeObjective<'a> {
     }
 
     /// Both terms of the objective for latent rows `z: (batch, latent)`.
-    pub(crate) fn batch(&self, model: &DataFreeModel, z: &Tensor) -> TrainerResult<BatchTerms> {
+    pub(crate) fn batch(&self, model: &DataFreeModel, z: &Tensor) -> DataFreeResult<BatchTerms> {
         let q = model.forward(z)?;
         let rows = tensor_to_rows(&q)?;
         let (m, n) = (rows.len(), self.rest.len());
         if m < 2 {
-            bail!("a data-free minibatch needs at least 2 samples, got {m}");
+            return Err(DataFreeError::invalid(format!(
+                "a data-free minibatch needs at least 2 samples, got {m}"
+            )));
         }
         let state_len = self.encoding.state_len();
-        let parts: Vec<TrainerResult<(f64, Vec<f32>)>> = rows
+        let parts: Vec<DataFreeResult<(f64, Vec<f32>)>> = rows
             .par_iter()
             .map_init(
                 || (vec![0.0; n], vec![0.0; state_len], vec![0.0; state_len], vec![0.0; n]),
@@ -371,7 +407,7 @@ impl<'a> DataFreeObjective<'a> {
     /// `mean over pairs i != j of log(d(q_i, q_j) / (sigma D |z_i - z_j|))^2`, the squared
     /// distances taken from the Gram matrix of the mass-weighted, batch-centred rows (one
     /// matrix product instead of a difference per pair).
-    fn repulsion(&self, q: &Tensor, z: &Tensor) -> TrainerResult<Tensor> {
+    fn repulsion(&self, q: &Tensor, z: &Tensor) -> DataFreeResult<Tensor> {
         let zs = tensor_to_rows(z)?;
         let m = zs.len();
         let mut target = vec![0.0f32; m * m];
@@ -406,7 +442,7 @@ impl<'a> DataFreeObjective<'a> {
         model: &DataFreeModel,
         z: &Tensor,
         lambda: f64,
-    ) -> TrainerResult<(BatchTerms, GradStore)> {
+    ) -> DataFreeResult<(BatchTerms, GradStore)> {
         let terms = self.batch(model, z)?;
         let grads = terms.objective(lambda)?.backward()?;
         Ok((terms, grads))
@@ -442,7 +478,7 @@ pub(crate) fn optimise(
     settings: &DataFreeSettings,
     rng: &mut ChaCha8Rng,
     reporter: &dyn Reporter,
-) -> TrainerResult<Vec<(f64, f64)>> {
+) -> DataFreeResult<Vec<(f64, f64)>> {
     let config = AdamWConfig {
         lr: settings.learning_rate,
         ..AdamWConfig::default()
@@ -455,7 +491,7 @@ pub(crate) fn optimise(
         let (terms, grads) = objective.gradients(model, &z, settings.lambda)?;
         let total = terms.energy + settings.lambda * terms.repulsion;
         if !total.is_finite() {
-            return Err(TrainerError::invalid(format!(
+            return Err(DataFreeError::invalid(format!(
                 "data-free loss is not finite at iteration {iteration} (energy term {}, repulsion term {})",
                 terms.energy, terms.repulsion
             )));
@@ -475,7 +511,7 @@ pub fn train_data_free(
     encoding: &Encoding,
     settings: &DataFreeSettings,
     reporter: &dyn Reporter,
-) -> TrainerResult<DataFreeOutcome> {
+) -> DataFreeResult<DataFreeOutcome> {
     let objective = DataFreeObjective::new(problem, encoding, settings.sigma)?;
     Ok(train_data_free_model(&objective, settings, reporter)?.1)
 }
@@ -486,7 +522,7 @@ pub(crate) fn train_data_free_model(
     objective: &DataFreeObjective<'_>,
     settings: &DataFreeSettings,
     reporter: &dyn Reporter,
-) -> TrainerResult<(DataFreeModel, DataFreeOutcome)> {
+) -> DataFreeResult<(DataFreeModel, DataFreeOutcome)> {
     settings.validate()?;
     reporter.stage("data-free subspace");
     let model = objective.initial_model(settings)?;

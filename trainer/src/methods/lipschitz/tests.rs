@@ -8,7 +8,7 @@ use super::cubature::fit_subspace_cubature;
 use super::loss::{lipschitz_estimate, lipschitz_loss, LatentSample, LipschitzTerm};
 use crate::learn::network::test_support::randomise;
 use crate::learn::network::{forward_exported, DenseLayer, ExportedMlp};
-use crate::learn::samples::fixtures::tiny_beam;
+use crate::learn::samples::fixtures::{tiny_beam, TinyBeam};
 
 /// `mlp` with weight `index` of layer `layer` (evaluation order) moved by `delta`.
 fn nudged(mlp: &ExportedMlp, layer: usize, index: usize, delta: f32) -> ExportedMlp {
@@ -17,8 +17,8 @@ fn nudged(mlp: &ExportedMlp, layer: usize, index: usize, delta: f32) -> Exported
     ExportedMlp::from_layers(layers).unwrap()
 }
 
-#[test]
-fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
+/// The tiny beam with its decoder's residual block made visibly nonlinear.
+fn nonlinear_beam() -> TinyBeam {
     let beam = tiny_beam();
     let params = beam.ae.parameters();
     let decoder_params: Vec<_> = params
@@ -27,7 +27,14 @@ fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
         .cloned()
         .collect();
     randomise(&decoder_params, 0.3, &mut rand_chacha::ChaCha8Rng::seed_from_u64(5));
+    beam
+}
+
+#[test]
+fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
+    let beam = nonlinear_beam();
     let exported = beam.ae.export().unwrap();
+    let params = beam.ae.parameters();
     let seq = &beam.sequences[0];
     let samples: Vec<LatentSample> = [2, 5, 8, 11]
         .iter()
@@ -90,14 +97,7 @@ fn the_cubature_reproduces_energy_and_reduced_force_on_held_out_samples() {
     use crate::methods::reduced::subspace::DecoderSubspace;
     use mochi_sim::cubature::{CubatureEnergy, CubatureSettings};
 
-    let beam = tiny_beam();
-    let params = beam.ae.parameters();
-    let decoder_params: Vec<_> = params
-        .iter()
-        .filter(|(n, _)| n.starts_with("decoder.block"))
-        .cloned()
-        .collect();
-    randomise(&decoder_params, 0.3, &mut rand_chacha::ChaCha8Rng::seed_from_u64(5));
+    let beam = nonlinear_beam();
     let exported = beam.ae.export().unwrap();
     let seq = &beam.sequences[0];
     let sample = |t: usize, shift: f64| {
