@@ -291,9 +291,9 @@ impl<'a> DataFreeObjective<'a> {
     pub(crate) fn new(problem: &'a BuiltScene, encoding: &'a Encoding, sigma: f64) -> DataFreeResult<Self> {
         let dim = problem.mesh.dim;
         if encoding.state_len() != problem.mesh.rest.len() || encoding.dim() != dim {
-            return Err(DataFreeError::invalid(format!(
-                "the encoding does not belong to this scene's mesh"
-            )));
+            return Err(DataFreeError::invalid(
+                "the encoding does not belong to this scene's mesh".into(),
+            ));
         }
         let mut targets = Vec::with_capacity(encoding.reference().len());
         for h in &problem.handles {
@@ -314,9 +314,9 @@ impl<'a> DataFreeObjective<'a> {
         let per_vertex = encoding.encoded_len() / encoding.free_vertices().len().max(1);
         let free_mass: f64 = encoding.free_vertices().iter().map(|&v| masses[v]).sum();
         if !free_mass.is_finite() || free_mass <= 0.0 {
-            return Err(DataFreeError::invalid(format!(
-                "the free vertices have no mass: there is nothing to learn"
-            )));
+            return Err(DataFreeError::invalid(
+                "the free vertices have no mass: there is nothing to learn".into(),
+            ));
         }
         let weights: Vec<f32> = encoding
             .free_vertices()
