@@ -28,9 +28,9 @@ use crate::learn::reduced_spec::{ReducedSpec, SolverChoice};
 use crate::methods::lipschitz::cubature::ELASTIC_TERMS;
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::reduced::optimize::{Exit, ExitCounts, SolveSettings};
-use crate::methods::reduced::stepper::{objective_scale, ReducedSolver, ReducedStepper, StepperSettings};
+use crate::methods::reduced::stepper::{ReducedSolver, ReducedStepper, StepperSettings};
 use crate::methods::reduced::subspace::DecoderSubspace;
-use crate::pipeline::reduced::cubature_energies;
+use crate::pipeline::reduced::{cubature_energies, scene_objective_scale};
 use crate::progress::Reporter;
 use crate::report::chart::{self, Series};
 
@@ -164,11 +164,7 @@ pub fn evaluate_reduced(
         let term = LipschitzTerm {
             encoding,
             potentials: &elastic,
-            scale: objective_scale(
-                problem.simulator.masses().iter().sum(),
-                problem.mesh.rest_diagonal(),
-                problem.scene.dt,
-            ),
+            scale: scene_objective_scale(problem),
             diagonal: problem.mesh.rest_diagonal(),
         };
         let lipschitz = lipschitz_estimate(&term.hessians(&decoder, &visited)?, &visited);

@@ -108,8 +108,9 @@ pub trait StencilEnergy: Send + Sync {
     fn eval(&self, s: usize, x: &[f64], want: Want, out: &mut Local) -> f64;
 }
 
-/// Gathers the local positions of stencil `s` from the global vector `x`.
-pub(crate) fn gather(energy: &dyn StencilEnergy, s: usize, x: &[f64], local: &mut [f64; MAX_DOF]) -> usize {
+/// Gathers the local positions of stencil `s` from the global vector `x` into `local`;
+/// returns the local length (`stencil(s).len() * dim`).
+pub fn gather(energy: &dyn StencilEnergy, s: usize, x: &[f64], local: &mut [f64; MAX_DOF]) -> usize {
     let dim = energy.dim();
     let verts = energy.stencil(s);
     for (a, &v) in verts.iter().enumerate() {

@@ -7,7 +7,7 @@
 //! over all elements, so every sample counts alike.
 
 use mochi_sim::cubature::{fit_cubature, ColumnMatrix, Cubature, CubatureFit, CubatureSettings};
-use mochi_sim::energy::{Local, StencilEnergy, Want, MAX_DOF};
+use mochi_sim::energy::{gather, Local, StencilEnergy, Want, MAX_DOF};
 
 use super::loss::LatentSample;
 use crate::error::{TrainerError, TrainerResult};
@@ -69,11 +69,8 @@ pub fn cubature_matrix(
     let mut xl = [0.0; MAX_DOF];
     let mut a = ColumnMatrix::from_columns(rows, energy.len(), |e, column| {
         let verts = energy.stencil(e);
-        let nl = verts.len() * dim;
         for (i, (x, jac)) in states.iter().zip(&jacobians).enumerate() {
-            for (k, &v) in verts.iter().enumerate() {
-                xl[k * dim..(k + 1) * dim].copy_from_slice(&x[v * dim..(v + 1) * dim]);
-            }
+            let nl = gather(energy, e, x, &mut xl);
             let out = &mut column[i * per_sample..(i + 1) * per_sample];
             out[0] = energy.eval(e, &xl[..nl], Want::Gradient, &mut local);
             for (k, &v) in verts.iter().enumerate() {

@@ -11,7 +11,7 @@
 //! The potentials are usually cubature approximations (few stencils), so every stencil
 //! Hessian is kept.
 
-use mochi_sim::energy::{Local, StencilEnergy, Want, MAX_DOF};
+use mochi_sim::energy::{gather, Local, StencilEnergy, Want, MAX_DOF};
 
 /// One stencil's Hessian at the state.
 struct StencilHessian {
@@ -47,7 +47,7 @@ impl<'a> PotentialAt<'a> {
         let mut xl = [0.0; MAX_DOF];
         for (term, energy) in potentials.iter().enumerate() {
             for stencil in 0..energy.len() {
-                let n = gather(*energy, stencil, dim, x, &mut xl);
+                let n = gather(*energy, stencil, x, &mut xl);
                 at.value += energy.eval(stencil, &xl[..n], Want::Hessian { project: false }, &mut local);
                 for (a, &v) in energy.stencil(stencil).iter().enumerate() {
                     for i in 0..dim {
@@ -84,7 +84,7 @@ impl<'a> PotentialAt<'a> {
             let energy = self.potentials[sh.term];
             let verts = energy.stencil(sh.stencil);
             for (sign, weight) in [(1.0, 0.5 / h), (-1.0, -0.5 / h)] {
-                let n = gather(energy, sh.stencil, dim, &self.x, &mut xl);
+                let n = gather(energy, sh.stencil, &self.x, &mut xl);
                 for (a, &v) in verts.iter().enumerate() {
                     for i in 0..dim {
                         xl[a * dim + i] += sign * h * u[v * dim + i];
@@ -95,15 +95,6 @@ impl<'a> PotentialAt<'a> {
             }
         }
     }
-}
-
-/// Gathers stencil `s`'s positions from `x` into `local`; returns the local length.
-fn gather(energy: &dyn StencilEnergy, s: usize, dim: usize, x: &[f64], local: &mut [f64; MAX_DOF]) -> usize {
-    let verts = energy.stencil(s);
-    for (a, &v) in verts.iter().enumerate() {
-        local[a * dim..(a + 1) * dim].copy_from_slice(&x[v * dim..(v + 1) * dim]);
-    }
-    verts.len() * dim
 }
 
 /// `out[verts] += weight * hess * u[verts]` for one stencil's local Hessian.

@@ -21,7 +21,8 @@ use rand_chacha::ChaCha8Rng;
 use super::loss::{LatentSample, LipschitzTerm};
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::datafree::{normal_latents, DataFreeModel, DataFreeObjective, DataFreeSettings};
-use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder};
+use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, ExportedMlp};
+use crate::learn::samples::candle_err;
 use crate::learn::train::{self, AdamW, AdamWConfig, BatchLoss, TrainConfig, TrainError, TrainReport, TrainResult};
 use crate::progress::{EpochsBar, Reporter};
 
@@ -88,17 +89,13 @@ pub(crate) fn optimise_supervised(
             settings.weight
         )));
     }
-    let invalid = |e: crate::error::TrainerError| candle_core::Error::Msg(e.to_string());
-    let samples_of = |indices: &[usize]| -> candle_core::Result<Vec<LatentSample>> {
-        let exported = autoencoder
-            .export()
-            .map_err(|e| candle_core::Error::Msg(e.to_string()))?;
+    // The latents of the first `settings.samples` frames of `indices` under `encoder`.
+    let samples_of = |encoder: &ExportedMlp, indices: &[usize]| -> candle_core::Result<Vec<LatentSample>> {
         indices
             .iter()
             .take(settings.samples)
             .map(|&i| {
-                let z = forward_exported(&exported.encoder, &data[i])
-                    .map_err(|e| candle_core::Error::Msg(e.to_string()))?;
+                let z = forward_exported(encoder, &data[i]).map_err(candle_err)?;
                 Ok(LatentSample {
                     z: z.iter().map(|&v| v as f64).collect(),
                     targets: targets[i].clone(),
@@ -109,7 +106,7 @@ pub(crate) fn optimise_supervised(
     // The two losses at the start, on the first minibatch's worth of frames.
     let first: Vec<usize> = (0..data.len().min(config.batch_size)).collect();
     let exported = autoencoder.export().map_err(|e| TrainError::Invalid(e.to_string()))?;
-    let start_samples = samples_of(&first)?;
+    let start_samples = samples_of(&exported.encoder, &first)?;
     let hessians = term
         .hessians(&exported.decoder, &start_samples)
         .map_err(|e| TrainError::Invalid(e.to_string()))?;
@@ -124,13 +121,11 @@ pub(crate) fn optimise_supervised(
     let report = train::train(&autoencoder.parameters(), data, config, resume, |batch, _| {
         let reconstruction =
             Autoencoder::reconstruction_loss_of(&autoencoder.reconstruct(&batch.inputs)?, &batch.inputs)?;
-        let samples = samples_of(batch.indices)?;
-        let exported = autoencoder
-            .export()
-            .map_err(|e| candle_core::Error::Msg(e.to_string()))?;
+        let exported = autoencoder.export().map_err(candle_err)?;
+        let samples = samples_of(&exported.encoder, batch.indices)?;
         let lip = term
             .batch(autoencoder.decoder(), None, &exported.decoder, &samples)
-            .map_err(invalid)?;
+            .map_err(candle_err)?;
         let value = reconstruction.to_scalar::<f32>()? as f64 + lambda * lip.loss;
         let objective = (reconstruction + lip.surrogate.affine(lambda, 0.0)?)?;
         Ok(BatchLoss { objective, value })

@@ -13,7 +13,7 @@
 //! (quasi-static steps, potential-only Lipschitz estimates) the first term is left out.
 
 use mochi_sim::energy::inertia::Inertia;
-use mochi_sim::energy::{Local, StencilEnergy, Want, MAX_DOF};
+use mochi_sim::energy::{gather, Local, StencilEnergy, Want, MAX_DOF};
 
 use super::optimize::Objective;
 use super::subspace::DecoderSubspace;
@@ -148,10 +148,7 @@ impl<'a> ReducedObjective<'a> {
         let mut total = 0.0;
         for s in 0..energy.len() {
             let verts = energy.stencil(s);
-            let nl = verts.len() * dim;
-            for (a, &v) in verts.iter().enumerate() {
-                self.buf.local_x[a * dim..(a + 1) * dim].copy_from_slice(&self.buf.x[v * dim..(v + 1) * dim]);
-            }
+            let nl = gather(energy, s, &self.buf.x, &mut self.buf.local_x);
             total += weight * energy.eval(s, &self.buf.local_x[..nl], want, &mut self.buf.local);
             if !want.gradient() {
                 continue;
