@@ -148,6 +148,18 @@ enum Bench {
         #[arg(long, default_value = "f32", value_delimiter = ',', value_parser = parse_weights)]
         weights: Vec<mochi_runtime::WeightFormat>,
     },
+    /// The reduced-order solver in each subspace of a `.reduced` file (written by `mochi
+    /// train` for scenes with a `[reduced]` table), against the vanilla subspace.
+    Reduced {
+        /// The scene's `SCENE.reduced`.
+        reduced: PathBuf,
+        /// Frames of each test motion.
+        #[arg(long, default_value_t = 300)]
+        frames: usize,
+        /// Also write the table to this markdown file.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 /// `--weights` values.
@@ -231,6 +243,9 @@ fn run(cli: Cli) -> Result<()> {
                     weights,
                 },
         } => bench_runtime(&artifacts, frames, out, &weights),
+        Command::Bench {
+            what: Bench::Reduced { reduced, frames, out },
+        } => bench_reduced(&reduced, frames, out),
         Command::Scenes => {
             for name in shipped_scene_names() {
                 let scene = Recipe::load(&name)?.scene;
@@ -430,21 +445,43 @@ fn bench_runtime(
     out: Option<PathBuf>,
     weights: &[mochi_runtime::WeightFormat],
 ) -> Result<()> {
-    // Both sides run on one thread: candle reads its thread count from the environment, so
-    // the benchmark re-runs itself with it set when it is not.
-    if std::env::var(mochi_trainer::THREADS_VAR).as_deref() != Ok("1") {
-        let status = std::process::Command::new(std::env::current_exe()?)
-            .args(std::env::args_os().skip(1))
-            .env(mochi_trainer::THREADS_VAR, "1")
-            .status()?;
-        std::process::exit(status.code().unwrap_or(1));
-    }
+    // Both sides run on one thread: candle reads its thread count from the environment.
+    single_threaded()?;
     let timings = mochi_trainer::eval::runtime_bench::bench(artifacts, frames, weights)?;
     let table = mochi_trainer::eval::runtime_bench::table(&timings);
     println!("{table}");
     if let Some(out) = out {
         std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;
         println!("-> {}", out.display());
+    }
+    Ok(())
+}
+
+fn bench_reduced(path: &Path, frames: usize, out: Option<PathBuf>) -> Result<()> {
+    single_threaded()?;
+    let timings = mochi_trainer::eval::reduced_bench::bench(path, frames, &Terminal)?;
+    let scene = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let table = mochi_trainer::eval::reduced_bench::table(&scene, frames, &timings);
+    println!("{table}");
+    if let Some(out) = out {
+        std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;
+        println!("-> {}", out.display());
+    }
+    Ok(())
+}
+
+/// Re-runs this command with one thread when the thread variable is not set to 1 (candle and
+/// the solvers read it from the environment); returns only when it already is.
+fn single_threaded() -> Result<()> {
+    if std::env::var(mochi_trainer::THREADS_VAR).as_deref() != Ok("1") {
+        let status = std::process::Command::new(std::env::current_exe()?)
+            .args(std::env::args_os().skip(1))
+            .env(mochi_trainer::THREADS_VAR, "1")
+            .status()?;
+        std::process::exit(status.code().unwrap_or(1));
     }
     Ok(())
 }

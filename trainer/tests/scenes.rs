@@ -9,7 +9,16 @@ use std::path::Path;
 #[test]
 fn every_shipped_scene_builds_at_its_documented_size() {
     let names = shipped_scene_names();
-    for expected in ["beam", "beam-xl", "bistable", "cloth", "load3d", "rods", "twist-bar"] {
+    for expected in [
+        "beam",
+        "beam-xl",
+        "bistable",
+        "cloth",
+        "cloth-drape",
+        "load3d",
+        "rods",
+        "twist-bar",
+    ] {
         assert!(
             names.iter().any(|n| n == expected),
             "missing scene {expected}: {names:?}"
@@ -40,6 +49,11 @@ fn every_shipped_scene_builds_at_its_documented_size() {
                 assert_eq!(n, 431);
             }
             "load3d" => assert_eq!(n, 365),
+            "cloth-drape" => {
+                assert_eq!(n, 400);
+                assert!(matches!(problem.mesh.elements, Elements::Shell(_)));
+                assert!(!problem.scene.obstacles.is_empty(), "the ball");
+            }
             "twist-bar" => {
                 assert_eq!(n, 25 * 6 * 6);
                 assert_eq!(problem.simulator.scheme(), mochi_sim::TimeScheme::QuasiStatic);

@@ -31,6 +31,7 @@ use crate::progress::Reporter;
 use crate::report::chart::{self, LabelledPoint, Series};
 
 pub mod reduced;
+pub mod reduced_bench;
 pub mod rollout;
 pub mod runtime_bench;
 pub(crate) mod storage;

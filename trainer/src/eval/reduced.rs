@@ -14,6 +14,7 @@
 use std::time::Instant;
 
 use mochi_sim::bc::BcSequence;
+use mochi_sim::cubature::CubatureEnergy;
 use mochi_sim::dataset::SequencePlan;
 use mochi_sim::measure::mean_and_max_error;
 use mochi_sim::scene::Start;
@@ -47,6 +48,8 @@ pub struct ReducedMetrics {
     pub step_seconds: f64,
     /// Mean solver iterations per step.
     pub iterations: f64,
+    /// Mean objective evaluations per step (line-search trials included).
+    pub evaluations: f64,
     /// How the steps ended.
     pub exits: ExitCounts,
     /// Frames stepped before a step failed (all of them when none did).
@@ -87,6 +90,7 @@ pub fn stepper_settings(spec: &ReducedSpec, scheme: TimeScheme) -> StepperSettin
         solve: SolveSettings {
             tolerance: spec.tolerance,
             max_iterations: spec.max_iterations,
+            warm_start: spec.warm_start,
             ..SolveSettings::default()
         },
         quasi_static: scheme == TimeScheme::QuasiStatic,
@@ -109,53 +113,34 @@ pub fn evaluate_reduced(
     let spec = recipe.reduced.clone().unwrap_or_default();
     let settings = stepper_settings(&spec, problem.scene.integrator);
     let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
-    let elastic: Vec<&dyn StencilEnergy> = potentials
-        .iter()
-        .copied()
-        .filter(|p| ELASTIC_TERMS.contains(&p.name()))
-        .collect();
-    // Runtime cubature: the elastic terms through the cubature of the Lipschitz loss, the
-    // others exact.
+    let elastic = elastic_terms(&potentials);
     let cubatures = cubature_energies(problem, &reduced.cubature)?;
-    let with_cubature: Vec<&dyn StencilEnergy> = cubatures
-        .iter()
-        .map(|c| c as &dyn StencilEnergy)
-        .chain(
-            potentials
-                .iter()
-                .copied()
-                .filter(|p| !ELASTIC_TERMS.contains(&p.name())),
-        )
-        .collect();
-    let runs = [
-        ("vanilla", &reduced.vanilla, &potentials),
-        ("Lipschitz", &reduced.lipschitz, &potentials),
-        ("vanilla, runtime cubature", &reduced.vanilla, &with_cubature),
-        ("Lipschitz, runtime cubature", &reduced.lipschitz, &with_cubature),
-    ];
+    let with_cubature = with_runtime_cubature(&potentials, &cubatures);
+    let runs = subspace_runs(reduced, &potentials, &with_cubature);
     let mut out = Vec::new();
     for (name, data, terms) in runs {
         let mut sequences = Vec::new();
         let mut visited = Vec::new();
         for ((plan, reference), bc) in tests.iter().zip(plans) {
-            let metrics = roll(
+            let metrics = step_sequence(
                 data,
                 problem,
                 encoding,
                 &settings,
                 terms,
                 bc,
-                reference,
+                Some(reference),
                 frames,
                 &mut visited,
             )?;
             report.message(&format!(
-                "{} reduced ({name}) on {}: mean error {:.3}%, {:.2} ms/step, {:.1} iterations/step, {:.0}% converged",
+                "{} reduced ({name}) on {}: mean error {:.3}%, {:.2} ms/step, {:.1} iterations/step ({:.1} evaluations), {:.0}% converged",
                 problem.scene.name,
                 plan.name,
                 100.0 * metrics.mean_error,
                 1e3 * metrics.step_seconds,
                 metrics.iterations,
+                metrics.evaluations,
                 100.0 * metrics.exits.fraction(Exit::Converged)
             ));
             sequences.push((plan.clone(), metrics));
@@ -179,17 +164,59 @@ pub fn evaluate_reduced(
     Ok(out)
 }
 
-/// One rollout of `data`'s subspace over `bc`; pushes every tenth frame's latent into
-/// `visited`.
+/// The elastic terms among `potentials` (those the Lipschitz loss and the cubature cover).
+pub fn elastic_terms<'a>(potentials: &[&'a dyn StencilEnergy]) -> Vec<&'a dyn StencilEnergy> {
+    potentials
+        .iter()
+        .copied()
+        .filter(|p| ELASTIC_TERMS.contains(&p.name()))
+        .collect()
+}
+
+/// Runtime cubature: the elastic terms through `cubatures` (fitted for the Lipschitz loss),
+/// the other terms of `potentials` exact.
+pub fn with_runtime_cubature<'a>(
+    potentials: &[&'a dyn StencilEnergy],
+    cubatures: &'a [CubatureEnergy<'a>],
+) -> Vec<&'a dyn StencilEnergy> {
+    cubatures
+        .iter()
+        .map(|c| c as &dyn StencilEnergy)
+        .chain(
+            potentials
+                .iter()
+                .copied()
+                .filter(|p| !ELASTIC_TERMS.contains(&p.name())),
+        )
+        .collect()
+}
+
+/// The four runs of a `.reduced` file: each subspace with the scene's energies (`exact`),
+/// then each with runtime cubature (`cubature`).
+pub fn subspace_runs<'a>(
+    reduced: &'a ReducedArtifact,
+    exact: &'a Vec<&'a dyn StencilEnergy>,
+    cubature: &'a Vec<&'a dyn StencilEnergy>,
+) -> [(&'static str, &'a SubspaceData, &'a Vec<&'a dyn StencilEnergy>); 4] {
+    [
+        ("vanilla", &reduced.vanilla, exact),
+        ("Lipschitz", &reduced.lipschitz, exact),
+        ("vanilla, runtime cubature", &reduced.vanilla, cubature),
+        ("Lipschitz, runtime cubature", &reduced.lipschitz, cubature),
+    ]
+}
+
+/// One rollout of `data`'s subspace over `bc`, measured against `reference` when given;
+/// pushes every tenth frame's latent into `visited`.
 #[allow(clippy::too_many_arguments)]
-fn roll(
+pub fn step_sequence(
     data: &SubspaceData,
     problem: &BuiltScene,
     encoding: &Encoding,
     settings: &StepperSettings,
     potentials: &[&dyn StencilEnergy],
     bc: &BcSequence,
-    reference: &Trajectory,
+    reference: Option<&Trajectory>,
     frames: usize,
     visited: &mut Vec<LatentSample>,
 ) -> TrainerResult<ReducedMetrics> {
@@ -211,13 +238,14 @@ fn roll(
         stepper.settle(potentials, &targets0)?;
     }
     let frames = frames.min(bc.frames());
-    let measured = frames.min(reference.num_frames() - 1);
+    let measured = reference.map_or(0, |r| frames.min(r.num_frames().saturating_sub(1)));
     let mut m = ReducedMetrics {
         stable_frames: frames,
         ..Default::default()
     };
     let mut seconds = 0.0;
     let mut iterations = 0usize;
+    let mut evaluations = 0usize;
     for t in 1..=frames {
         let targets = bc.targets(&problem.handles, t, dim);
         let clock = Instant::now();
@@ -232,6 +260,7 @@ fn roll(
             break;
         };
         iterations += result.iterations;
+        evaluations += result.evaluations;
         m.exits.add(&result);
         if t == 10 {
             m.convergence = result.history.clone();
@@ -242,7 +271,7 @@ fn roll(
                 targets: targets.clone(),
             });
         }
-        if t <= measured {
+        if let Some(reference) = reference.filter(|_| t <= measured) {
             let (mean, max) = mean_and_max_error(stepper.positions(), &reference.positions[t], dim, diagonal);
             m.error_curve.push(mean);
             m.max_error = m.max_error.max(max);
@@ -251,6 +280,7 @@ fn roll(
     let done = m.stable_frames.max(1) as f64;
     m.step_seconds = seconds / done;
     m.iterations = iterations as f64 / done;
+    m.evaluations = evaluations as f64 / done;
     m.mean_error = if m.error_curve.len() < measured {
         f64::INFINITY
     } else {

@@ -54,6 +54,9 @@ pub struct ReducedSpec {
     pub tolerance: f64,
     /// Iteration cap of each step (default 1024, the paper's).
     pub max_iterations: usize,
+    /// L-BFGS starts each step from the curvature pairs of the previous step instead of
+    /// steepest descent (default true).
+    pub warm_start: bool,
 }
 
 impl Default for ReducedSpec {
@@ -69,6 +72,7 @@ impl Default for ReducedSpec {
             solver: SolverChoice::Lbfgs,
             tolerance: 1e-5,
             max_iterations: 1024,
+            warm_start: true,
         }
     }
 }

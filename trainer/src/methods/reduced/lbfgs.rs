@@ -7,6 +7,12 @@
 //! `s^T y <= 0` again and again, freezing the memory on a stale model; the curvature
 //! condition makes every accepted pair usable.
 //!
+//! With [`SolveSettings::warm_start`] a solve starts from the pairs the previous solve on the
+//! same workspace left (a time step's curvature is close to the last one's): the first
+//! direction is already scaled and curved, where a cold start takes halvings to find the
+//! scale of `-g`. Pairs stay valid quasi-Newton data whatever the new objective is, since
+//! a non-descent direction or a failed line search resets them and retries along `-g`.
+//!
 //! Each line-search trial evaluates the gradient as well as E, so an accepted step (almost
 //! always the first trial) costs one objective call. A pair is stored only when
 //! `s^T y > eps |s| |y|` holds, which keeps the implied inverse Hessian positive definite;
@@ -73,11 +79,18 @@ impl LbfgsWorkspace {
     }
 
     /// Sizes the buffers for `r` unknowns and `memory` pairs (allocating only when these
-    /// changed) and forgets every pair.
-    fn fit(&mut self, r: usize, memory: usize) {
+    /// changed, which forgets every pair) and, unless `warm`, forgets every pair.
+    fn fit(&mut self, r: usize, memory: usize, warm: bool) {
         if self.r != r || self.memory != memory {
             *self = LbfgsWorkspace::new(r, memory);
+        } else if !warm {
+            self.reset();
         }
+    }
+
+    /// Forgets every pair, so the next solve starts from steepest descent whatever the
+    /// settings say (a new sequence).
+    pub fn forget(&mut self) {
         self.reset();
     }
 
@@ -164,7 +177,7 @@ pub fn lbfgs(
     record_history: bool,
 ) -> SolveReport {
     let ws = workspace;
-    ws.fit(z.len(), settings.memory);
+    ws.fit(z.len(), settings.memory, settings.warm_start);
     if obj.dim() != z.len() {
         return report(Exit::Saddle, 0, 0, f64::NAN, &[f64::NAN], Vec::new());
     }
@@ -286,6 +299,39 @@ mod tests {
     }
 
     #[test]
+    fn a_warm_start_reuses_the_last_solves_curvature() {
+        // A sequence of stiff quadratics whose minimiser moves a little each time, as a
+        // time step's objective does: the warm solves need fewer evaluations, reach the
+        // same minimisers, and forgetting the pairs restores the cold behaviour.
+        let a = [1.0, 40.0, 900.0, 3.0];
+        let run = |warm_start: bool, forget_at: Option<usize>| {
+            let settings = SolveSettings {
+                warm_start,
+                ..SolveSettings::default()
+            };
+            let mut ws = LbfgsWorkspace::new(4, settings.memory);
+            let mut z = [0.0; 4];
+            let mut evaluations = Vec::new();
+            for k in 0..6 {
+                let m: Vec<f64> = (0..4).map(|i| 0.1 * (k * (i + 1)) as f64).collect();
+                if forget_at == Some(k) {
+                    ws.forget();
+                }
+                let report = lbfgs(&mut quadratic(&a, &m, None), &mut z, &settings, &mut ws, false);
+                assert_eq!(report.exit, Exit::Converged, "{report:?}");
+                assert_near(&z, &m, 1e-5);
+                evaluations.push(report.evaluations);
+            }
+            evaluations
+        };
+        let (cold, warm) = (run(false, None), run(true, None));
+        let later = |e: &[usize]| e[1..].iter().sum::<usize>();
+        assert!(later(&warm) < later(&cold), "warm {warm:?} against cold {cold:?}");
+        assert_eq!(warm[0], cold[0]);
+        assert_eq!(run(true, Some(3))[3], cold[3]);
+    }
+
+    #[test]
     fn stops_at_the_iteration_cap() {
         let mut z = [-1.2, 1.0];
         let settings = SolveSettings {
@@ -318,6 +364,7 @@ mod tests {
         assert_eq!(recorded.history.len(), recorded.iterations + 1);
         assert_eq!(recorded.history[0], rosenbrock().value(&[-1.2, 1.0]));
         let mut z = [-1.2, 1.0];
+        ws.forget();
         let plain = lbfgs(&mut rosenbrock(), &mut z, &settings, &mut ws, false);
         assert!(plain.history.is_empty());
         assert_eq!(plain.iterations, recorded.iterations);

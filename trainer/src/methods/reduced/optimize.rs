@@ -60,6 +60,9 @@ pub struct SolveSettings {
     pub max_line_search: usize,
     /// How many (s, y) pairs L-BFGS keeps; 0 gives steepest descent. Default `8`.
     pub memory: usize,
+    /// L-BFGS starts from the pairs of the previous solve on the same workspace instead of
+    /// steepest descent (see [`super::lbfgs`]). Default `true`.
+    pub warm_start: bool,
 }
 
 impl Default for SolveSettings {
@@ -69,6 +72,7 @@ impl Default for SolveSettings {
             max_iterations: 1024,
             max_line_search: 128,
             memory: 8,
+            warm_start: true,
         }
     }
 }

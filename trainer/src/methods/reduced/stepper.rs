@@ -1,6 +1,9 @@
 //! The reduced method as a stepper: one solve of Eq. 2 per frame, warm-started at the last
 //! latent, with the handles placed by the boundary-condition script.
 //!
+//! With warm starts (the default), L-BFGS begins each step from the previous step's
+//! curvature pairs; [`ReducedStepper::reset`] forgets them.
+//!
 //! Dynamic scenes step implicit Euler inside the subspace (`xhat = x_t + dt v_t`, velocities
 //! from consecutive decoded states); quasi-static scenes minimise the potential alone each
 //! frame. The objective is scaled by `dt^2 / (M L^2)` (`M` the total mass, `L` the rest
@@ -139,6 +142,7 @@ impl ReducedStepper {
         self.z.copy_from_slice(z);
         self.subspace.positions(&self.z, &mut self.x)?;
         self.v.fill(0.0);
+        self.lbfgs.forget();
         Ok(())
     }
 

@@ -1,0 +1,124 @@
+//! `mochi bench reduced`: the reduced-order solver's cost per step in each subspace of a
+//! scene's `.reduced` file, as a ratio against the vanilla subspace stepped in the same
+//! process over the same test motions.
+//!
+//! No full-space reference is simulated (`mochi eval` measures errors); each subspace steps
+//! the scene's test sequences (their boundary conditions, regenerated from the scene's
+//! plan) for the given number of frames, one thread.
+
+use std::path::Path;
+
+use mochi_sim::dataset::{self, Split};
+use mochi_sim::StencilEnergy;
+
+use super::reduced::{
+    elastic_terms, step_sequence, stepper_settings, subspace_runs, with_runtime_cubature, ReducedMetrics,
+};
+use crate::artifact::reduced::ReducedArtifact;
+use crate::error::TrainerResult;
+use crate::learn::encoding::Encoding;
+use crate::learn::recipe::Recipe;
+use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
+use crate::methods::reduced::optimize::Exit;
+use crate::pipeline::reduced::{cubature_energies, scene_objective_scale};
+use crate::progress::Reporter;
+
+/// One subspace over every test sequence.
+#[derive(Clone, Debug)]
+pub struct ReducedTiming {
+    /// "vanilla" or "Lipschitz", with or without runtime cubature.
+    pub name: &'static str,
+    /// Mean milliseconds per step.
+    pub ms_per_step: f64,
+    /// Mean iterations per step.
+    pub iterations: f64,
+    /// Mean objective evaluations per step.
+    pub evaluations: f64,
+    /// Share of steps that converged.
+    pub converged: f64,
+    /// `Lip[d^2 P/dz^2]` (Eq. 7) on every tenth visited latent.
+    pub lipschitz: f64,
+}
+
+/// Steps every subspace of the `.reduced` file at `path` over the scene's test motions for
+/// `frames` frames each.
+pub fn bench(path: &Path, frames: usize, report: &dyn Reporter) -> TrainerResult<Vec<ReducedTiming>> {
+    let reduced = ReducedArtifact::load(path)?;
+    let recipe = Recipe::parse(&reduced.scene_toml, Path::new(&reduced.scene_path))?;
+    let spec = recipe.reduced.clone().unwrap_or_default();
+    let problem = recipe.build()?;
+    let encoding = Encoding::new(&problem, recipe.latent.rods)?;
+    let settings = stepper_settings(&spec, problem.scene.integrator);
+    let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+    let elastic = elastic_terms(&potentials);
+    let cubatures = cubature_energies(&problem, &reduced.cubature)?;
+    let with_cubature = with_runtime_cubature(&potentials, &cubatures);
+    let motions: Vec<_> = dataset::plan(&problem.scene.dataset)
+        .into_iter()
+        .filter(|p| p.split == Split::Test)
+        .map(|p| problem.sequence(&p.speeds, frames, p.seed))
+        .collect();
+    let mut out = Vec::new();
+    for (name, data, terms) in subspace_runs(&reduced, &potentials, &with_cubature) {
+        let mut visited: Vec<LatentSample> = Vec::new();
+        let mut runs: Vec<ReducedMetrics> = Vec::new();
+        for bc in &motions {
+            runs.push(step_sequence(
+                data,
+                &problem,
+                &encoding,
+                &settings,
+                terms,
+                bc,
+                None,
+                frames,
+                &mut visited,
+            )?);
+        }
+        let mean = |f: &dyn Fn(&ReducedMetrics) -> f64| runs.iter().map(f).sum::<f64>() / runs.len().max(1) as f64;
+        let term = LipschitzTerm {
+            encoding: &encoding,
+            potentials: &elastic,
+            scale: scene_objective_scale(&problem),
+            diagonal: problem.mesh.rest_diagonal(),
+        };
+        let lipschitz = lipschitz_estimate(&term.hessians(&data.decoder()?, &visited)?, &visited);
+        let timing = ReducedTiming {
+            name,
+            ms_per_step: mean(&|m| 1e3 * m.step_seconds),
+            iterations: mean(&|m| m.iterations),
+            evaluations: mean(&|m| m.evaluations),
+            converged: mean(&|m| m.exits.fraction(Exit::Converged)),
+            lipschitz,
+        };
+        report.message(&format!(
+            "{}: {name}: {:.3} ms/step, {:.2} iterations, {:.2} evaluations",
+            reduced.scene, timing.ms_per_step, timing.iterations, timing.evaluations
+        ));
+        out.push(timing);
+    }
+    Ok(out)
+}
+
+/// A markdown table of `timings`, each step time also as the vanilla run's (the first row,
+/// or the first cubature row for cubature rows) divided by it.
+pub fn table(scene: &str, frames: usize, timings: &[ReducedTiming]) -> String {
+    let mut s = format!(
+        "{scene}: reduced-order solver, {frames} frames of each test motion\n\n| subspace | ms/step | speedup vs vanilla \
+         | iterations/step | evaluations/step | converged % | Lip |\n|---|---|---|---|---|---|---|\n"
+    );
+    for (k, t) in timings.iter().enumerate() {
+        let baseline = &timings[k - k % 2];
+        s += &format!(
+            "| {} | {:.3} | {:.2}x | {:.2} | {:.2} | {:.1} | {:.3e} |\n",
+            t.name,
+            t.ms_per_step,
+            baseline.ms_per_step / t.ms_per_step.max(1e-12),
+            t.iterations,
+            t.evaluations,
+            100.0 * t.converged,
+            t.lipschitz
+        );
+    }
+    s
+}
