@@ -29,6 +29,7 @@ use crate::learn::reduced_spec::{ReducedSpec, SolverChoice};
 use crate::methods::lipschitz::cubature::ELASTIC_TERMS;
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::reduced::optimize::{Exit, ExitCounts, SolveSettings};
+use crate::methods::reduced::projection::project;
 use crate::methods::reduced::stepper::{ReducedSolver, ReducedStepper, StepperSettings};
 use crate::methods::reduced::subspace::DecoderSubspace;
 use crate::pipeline::reduced::{cubature_energies, scene_objective_scale};
@@ -56,6 +57,11 @@ pub struct ReducedMetrics {
     pub stable_frames: usize,
     /// Objective after each iteration of the tenth step (the convergence chart).
     pub convergence: Vec<f64>,
+    /// Mean vertex error / diagonal of the subspace's projections of every tenth reference
+    /// frame (the closest the subspace comes to them; NaN where not measured).
+    pub projection_error: f64,
+    /// Those projected states, in order.
+    pub projections: Vec<Vec<f64>>,
 }
 
 /// One subspace on every test sequence.
@@ -71,6 +77,10 @@ pub struct ReducedReport {
     pub lipschitz: f64,
     /// Training seconds (from the file).
     pub training_seconds: f64,
+    /// Mean vertex distance / diagonal between this subspace's projections of the reference
+    /// frames and the vanilla subspace's (the paper's Fig. 7 check; NaN for the vanilla
+    /// subspace itself and the runtime-cubature runs).
+    pub manifold_gap: f64,
 }
 
 impl ReducedReport {
@@ -117,12 +127,13 @@ pub fn evaluate_reduced(
     let cubatures = cubature_energies(problem, &reduced.cubature)?;
     let with_cubature = with_runtime_cubature(&potentials, &cubatures);
     let runs = subspace_runs(reduced, &potentials, &with_cubature);
-    let mut out = Vec::new();
-    for (name, data, terms) in runs {
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let mut out: Vec<ReducedReport> = Vec::new();
+    for (run, (name, data, terms)) in runs.into_iter().enumerate() {
         let mut sequences = Vec::new();
         let mut visited = Vec::new();
         for ((plan, reference), bc) in tests.iter().zip(plans) {
-            let metrics = step_sequence(
+            let mut metrics = step_sequence(
                 data,
                 problem,
                 encoding,
@@ -143,8 +154,27 @@ pub fn evaluate_reduced(
                 metrics.evaluations,
                 100.0 * metrics.exits.fraction(Exit::Converged)
             ));
+            // The exact-energy runs also project the reference frames onto their subspace.
+            metrics.projection_error = f64::NAN;
+            if run < 2 {
+                metrics.projections = project_reference(data, problem, encoding, bc, reference, frames)?;
+                let errors: Vec<f64> = metrics
+                    .projections
+                    .iter()
+                    .enumerate()
+                    .map(|(k, x)| {
+                        let t = PROJECTION_EVERY * (k + 1);
+                        mean_and_max_error(x, &reference.positions[t], dim, diagonal).0
+                    })
+                    .collect();
+                metrics.projection_error = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+            }
             sequences.push((plan.clone(), metrics));
         }
+        let manifold_gap = match (run, out.first()) {
+            (1, Some(vanilla)) => mean_gap(&vanilla.sequences, &sequences, dim, diagonal),
+            _ => f64::NAN,
+        };
         let decoder = data.decoder()?;
         let term = LipschitzTerm {
             encoding,
@@ -159,9 +189,61 @@ pub fn evaluate_reduced(
             sequences,
             lipschitz,
             training_seconds: data.training_seconds,
+            manifold_gap,
         });
     }
     Ok(out)
+}
+
+/// Every how many frames the reference is projected onto a subspace.
+pub const PROJECTION_EVERY: usize = 10;
+
+/// The projections of reference frames `PROJECTION_EVERY`, `2 PROJECTION_EVERY`, ... (up to
+/// `frames`) onto `data`'s subspace with the handles of `bc`, each started from the last.
+fn project_reference(
+    data: &SubspaceData,
+    problem: &BuiltScene,
+    encoding: &Encoding,
+    bc: &BcSequence,
+    reference: &Trajectory,
+    frames: usize,
+) -> TrainerResult<Vec<Vec<f64>>> {
+    let dim = problem.mesh.dim;
+    let masses = problem.simulator.masses();
+    let diagonal = problem.mesh.rest_diagonal();
+    let targets0 = bc.targets(&problem.handles, 0, dim);
+    let mut subspace = DecoderSubspace::new(&data.decoder()?, encoding, &targets0)?;
+    let mut z = data.initial_latent.clone();
+    let last = frames.min(reference.num_frames().saturating_sub(1)).min(bc.frames());
+    let mut out = Vec::new();
+    for t in (PROJECTION_EVERY..=last).step_by(PROJECTION_EVERY) {
+        let targets = bc.targets(&problem.handles, t, dim);
+        subspace.set_frame(&encoding.frame(&targets)?, &targets);
+        let mut x = vec![0.0; reference.positions[t].len()];
+        project(&mut subspace, masses, diagonal, &reference.positions[t], &mut z, &mut x)?;
+        out.push(x);
+    }
+    Ok(out)
+}
+
+/// Mean over sequences and projected frames of the mean vertex distance / diagonal between
+/// the projections of `a` and `b`.
+fn mean_gap(
+    a: &[(SequencePlan, ReducedMetrics)],
+    b: &[(SequencePlan, ReducedMetrics)],
+    dim: usize,
+    diagonal: f64,
+) -> f64 {
+    let gaps: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .flat_map(|((_, ma), (_, mb))| ma.projections.iter().zip(&mb.projections))
+        .map(|(xa, xb)| mean_and_max_error(xa, xb, dim, diagonal).0)
+        .collect();
+    if gaps.is_empty() {
+        return f64::NAN;
+    }
+    gaps.iter().sum::<f64>() / gaps.len() as f64
 }
 
 /// The elastic terms among `potentials` (those the Lipschitz loss and the cubature cover).
@@ -324,19 +406,21 @@ pub fn markdown(problem: &BuiltScene, reports: &[ReducedReport], reference_secon
     let mut s = format!(
         "\n## Reduced-order solver\n\nOne solve of Eq. 2 per frame in each subspace, over the first {frames} frames of \
          each test sequence (errors against the full-space reference frames). Exits: I converged, II saddle, III \
-         line-search cap, IV iteration cap.\n\n| subspace | sequence | mean err % | max err % | ms/step | \
-         iterations/step | I / II / III / IV % | stable frames |\n|---|---|---|---|---|---|---|---|\n"
+         line-search cap, IV iteration cap. Projection: the mean error of the subspace's closest states to every \
+         tenth reference frame.\n\n| subspace | sequence | mean err % | max err % | projection err % | ms/step | \
+         iterations/step | I / II / III / IV % | stable frames |\n|---|---|---|---|---|---|---|---|---|\n"
     );
     for r in reports {
         for (plan, m) in &r.sequences {
             let pct = |e| 100.0 * m.exits.fraction(e);
             s += &format!(
-                "| {} r={} | {} | {:.3} | {:.3} | {:.3} | {:.1} | {:.0} / {:.0} / {:.0} / {:.0} | {} |\n",
+                "| {} r={} | {} | {:.3} | {:.3} | {} | {:.3} | {:.1} | {:.0} / {:.0} / {:.0} / {:.0} | {} |\n",
                 r.name,
                 r.latent,
                 plan.name,
                 100.0 * m.mean_error,
                 100.0 * m.max_error,
+                percent_or_dash(m.projection_error),
                 1e3 * m.step_seconds,
                 m.iterations,
                 pct(Exit::Converged),
@@ -377,5 +461,21 @@ pub fn markdown(problem: &BuiltScene, reports: &[ReducedReport], reference_secon
             reference_seconds / step(ours).max(1e-12)
         );
     }
+    if let [_, ours, ..] = reports {
+        s += &format!(
+            "\nProjection check (the paper's Fig. 7): the two subspaces' closest states to the same reference frames \
+             lie {}% of the diagonal apart on average.\n",
+            percent_or_dash(ours.manifold_gap)
+        );
+    }
     s
+}
+
+/// `100 v` with three decimals, or a dash for NaN.
+fn percent_or_dash(v: f64) -> String {
+    if v.is_nan() {
+        "-".into()
+    } else {
+        format!("{:.3}", 100.0 * v)
+    }
 }

@@ -7,11 +7,13 @@
 //! contract every optimiser solves, the exits it reports and the shared line search),
 //! `lbfgs` (L-BFGS with a weak-Wolfe line search), `newton` (Newton on the PSD-projected
 //! reduced Hessian, Armijo backtracking), `stepper` (one solve per frame over a
-//! boundary-condition script).
+//! boundary-condition script), `projection` (the closest state of a subspace to a given one,
+//! for comparing subspaces).
 pub mod lbfgs;
 pub mod newton;
 pub mod objective;
 pub mod optimize;
+pub mod projection;
 pub mod stepper;
 pub mod subspace;
 

@@ -1,0 +1,90 @@
+//! The reduced method end to end on a tiny scene: `mochi train` with a `[reduced]` table
+//! writes both subspaces and their cubature, `mochi eval` steps them on the test sequences
+//! (every step converged, projections measured), and `mochi bench reduced` times them.
+
+use mochi_trainer::artifact::reduced::{reduced_path, ReducedArtifact};
+use mochi_trainer::eval::reduced_bench;
+use mochi_trainer::{artifact_paths, evaluate, train_scene, EvalOptions, Quiet, Recipe, TrainOptions};
+
+/// The tiny cantilever of the latent tests, asking for the reduced method with a short
+/// Lipschitz optimisation.
+const TINY: &str = include_str!("../sim/tests/fixtures/tiny-train.toml");
+const REDUCED: &str = "\n[reduced]\nsubspace = \"supervised\"\nlipschitz_epochs = 3\nsamples = 4\ncubature = 40\n";
+
+#[test]
+fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tiny.toml");
+    std::fs::write(&path, format!("{TINY}{REDUCED}")).unwrap();
+    let recipe = Recipe::load(path.to_str().unwrap()).unwrap();
+    let out = dir.path().join("out");
+    let options = TrainOptions {
+        out_dir: out.clone(),
+        resume: false,
+        latent: None,
+    };
+    let outcome = train_scene(&recipe, &options, &Quiet).unwrap();
+
+    // Both subspaces share the kept autoencoder's latent size, the Lipschitz one differs
+    // from the vanilla one, and the file on disk is what the stage returned.
+    let reduced = outcome.reduced.expect("a [reduced] scene writes its subspaces");
+    assert_eq!(reduced.source, "supervised");
+    let k = outcome.model.latent as usize;
+    assert_eq!(reduced.vanilla.initial_latent.len(), k);
+    assert_eq!(reduced.lipschitz.initial_latent.len(), k);
+    assert!(reduced.lipschitz.training_seconds >= reduced.vanilla.training_seconds);
+    assert!(!reduced.cubature.is_empty() && reduced.lambda > 0.0);
+    let file = reduced_path(&out, "tiny");
+    assert_eq!(ReducedArtifact::load(&file).unwrap(), reduced);
+
+    // Evaluation adds the four reduced runs; every step converges, the exact-energy runs
+    // project the reference, and the report has the section and the projection check.
+    let (model_path, _) = artifact_paths(&out, "tiny");
+    let eval = EvalOptions {
+        out_dir: dir.path().join("eval"),
+        stability_frames: 100,
+        accuracy_frames: 60,
+    };
+    evaluate(std::slice::from_ref(&model_path), &eval, &Quiet).unwrap();
+    let report = std::fs::read_to_string(dir.path().join("eval/report.md")).unwrap();
+    let section = &report[report.find("## Reduced-order solver").expect("reduced section")..];
+    let rows: Vec<Vec<&str>> = section
+        .lines()
+        .filter(|l| l.starts_with("| vanilla") || l.starts_with("| Lipschitz"))
+        .map(|l| l.split('|').map(str::trim).collect())
+        .collect();
+    assert_eq!(rows.len(), 4 * 2, "four runs on two test sequences: {section}");
+    for cells in &rows {
+        let mean: f64 = cells[3].parse().unwrap();
+        assert!(mean.is_finite() && mean < 50.0, "percent of the diagonal: {cells:?}");
+        assert_eq!(cells[8], "100 / 0 / 0 / 0", "every step converged: {cells:?}");
+        assert_eq!(cells[9], "60", "{cells:?}");
+        let cubature = cells[1].contains("cubature");
+        assert_eq!(
+            cells[5] == "-",
+            cubature,
+            "projections for the exact runs only: {cells:?}"
+        );
+        if !cubature {
+            // The closest state of a subspace is no farther from the reference than the
+            // solver's state (both are states of that subspace), up to the projection's
+            // own tolerance.
+            let projection: f64 = cells[5].parse().unwrap();
+            assert!(projection <= mean + 1e-3, "{cells:?}");
+        }
+    }
+    assert!(section.contains("Projection check"), "{section}");
+    assert!(dir.path().join("eval/convergence.png").is_file());
+
+    // The bench steps the same four runs without a reference.
+    let timings = reduced_bench::bench(&file, 20, &Quiet).unwrap();
+    assert_eq!(timings.len(), 4);
+    for t in &timings {
+        assert!(t.ms_per_step > 0.0 && t.iterations > 0.0, "{t:?}");
+        assert!(t.evaluations >= t.iterations, "{t:?}");
+        assert_eq!(t.converged, 1.0, "{t:?}");
+        assert!(t.lipschitz.is_finite() && t.lipschitz > 0.0, "{t:?}");
+    }
+    let table = reduced_bench::table("tiny", 20, &timings);
+    assert_eq!(table.lines().filter(|l| l.contains("| 1.00x |")).count(), 2, "{table}");
+}
