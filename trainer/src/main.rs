@@ -156,6 +156,10 @@ enum Bench {
         /// Frames of each test motion.
         #[arg(long, default_value_t = 300)]
         frames: usize,
+        /// Start every step's L-BFGS from steepest descent, whatever the scene's
+        /// `reduced.warm_start` says (the paper's solver).
+        #[arg(long)]
+        cold: bool,
         /// Also write the table to this markdown file.
         #[arg(long)]
         out: Option<PathBuf>,
@@ -244,8 +248,14 @@ fn run(cli: Cli) -> Result<()> {
                 },
         } => bench_runtime(&artifacts, frames, out, &weights),
         Command::Bench {
-            what: Bench::Reduced { reduced, frames, out },
-        } => bench_reduced(&reduced, frames, out),
+            what:
+                Bench::Reduced {
+                    reduced,
+                    frames,
+                    cold,
+                    out,
+                },
+        } => bench_reduced(&reduced, frames, cold, out),
         Command::Scenes => {
             for name in shipped_scene_names() {
                 let scene = Recipe::load(&name)?.scene;
@@ -457,14 +467,14 @@ fn bench_runtime(
     Ok(())
 }
 
-fn bench_reduced(path: &Path, frames: usize, out: Option<PathBuf>) -> Result<()> {
+fn bench_reduced(path: &Path, frames: usize, cold: bool, out: Option<PathBuf>) -> Result<()> {
     single_threaded()?;
-    let timings = mochi_trainer::eval::reduced_bench::bench(path, frames, &Terminal)?;
+    let timings = mochi_trainer::eval::reduced_bench::bench(path, frames, cold, &Terminal)?;
     let scene = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let table = mochi_trainer::eval::reduced_bench::table(&scene, frames, &timings);
+    let table = mochi_trainer::eval::reduced_bench::table(&scene, frames, cold, &timings);
     println!("{table}");
     if let Some(out) = out {
         std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;

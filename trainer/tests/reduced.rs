@@ -77,7 +77,7 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     assert!(dir.path().join("eval/convergence.png").is_file());
 
     // The bench steps the same four runs without a reference.
-    let timings = reduced_bench::bench(&file, 20, &Quiet).unwrap();
+    let timings = reduced_bench::bench(&file, 20, false, &Quiet).unwrap();
     assert_eq!(timings.len(), 4);
     for t in &timings {
         assert!(t.ms_per_step > 0.0 && t.iterations > 0.0, "{t:?}");
@@ -85,6 +85,13 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         assert_eq!(t.converged, 1.0, "{t:?}");
         assert!(t.lipschitz.is_finite() && t.lipschitz > 0.0, "{t:?}");
     }
-    let table = reduced_bench::table("tiny", 20, &timings);
+    let table = reduced_bench::table("tiny", 20, false, &timings);
     assert_eq!(table.lines().filter(|l| l.contains("| 1.00x |")).count(), 2, "{table}");
+    // Cold solves (the paper's) take at least as many evaluations as warm ones on a whole
+    // rollout, where every step after the first inherits curvature.
+    let cold = reduced_bench::bench(&file, 20, true, &Quiet).unwrap();
+    for (w, c) in timings.iter().zip(&cold) {
+        assert_eq!(c.converged, 1.0, "{c:?}");
+        assert!(c.evaluations >= w.evaluations, "cold {c:?} warm {w:?}");
+    }
 }

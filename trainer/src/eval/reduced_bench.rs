@@ -41,11 +41,13 @@ pub struct ReducedTiming {
 }
 
 /// Steps every subspace of the `.reduced` file at `path` over the scene's test motions for
-/// `frames` frames each.
-pub fn bench(path: &Path, frames: usize, report: &dyn Reporter) -> TrainerResult<Vec<ReducedTiming>> {
+/// `frames` frames each; `cold` starts every L-BFGS solve from steepest descent whatever the
+/// scene's `reduced.warm_start` says (the paper's solver).
+pub fn bench(path: &Path, frames: usize, cold: bool, report: &dyn Reporter) -> TrainerResult<Vec<ReducedTiming>> {
     let reduced = ReducedArtifact::load(path)?;
     let recipe = Recipe::parse(&reduced.scene_toml, Path::new(&reduced.scene_path))?;
-    let spec = recipe.reduced.clone().unwrap_or_default();
+    let mut spec = recipe.reduced.clone().unwrap_or_default();
+    spec.warm_start &= !cold;
     let problem = recipe.build()?;
     let encoding = Encoding::new(&problem, recipe.latent.rods)?;
     let settings = stepper_settings(&spec, problem.scene.integrator);
@@ -100,11 +102,12 @@ pub fn bench(path: &Path, frames: usize, report: &dyn Reporter) -> TrainerResult
     Ok(out)
 }
 
-/// A markdown table of `timings`, each step time also as the vanilla run's (the first row,
+/// A markdown table of `timings` (`cold`: as passed to [`bench`]), each step time also as the vanilla run's (the first row,
 /// or the first cubature row for cubature rows) divided by it.
-pub fn table(scene: &str, frames: usize, timings: &[ReducedTiming]) -> String {
+pub fn table(scene: &str, frames: usize, cold: bool, timings: &[ReducedTiming]) -> String {
+    let start = if cold { "cold" } else { "as the scene says" };
     let mut s = format!(
-        "{scene}: reduced-order solver, {frames} frames of each test motion\n\n| subspace | ms/step | speedup vs vanilla \
+        "{scene}: reduced-order solver, {frames} frames of each test motion, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
          | iterations/step | evaluations/step | converged % | Lip |\n|---|---|---|---|---|---|---|\n"
     );
     for (k, t) in timings.iter().enumerate() {
