@@ -172,10 +172,15 @@ pub(crate) enum Search {
 ///
 /// The first trial is step 1. A trial whose value is non-finite or fails the Armijo
 /// condition `E <= f0 + c1 * step * slope` bounds the step from above. Without slopes the
-/// first trial that passes is accepted: plain backtracking, halving the step. With slopes
-/// the accepted trial must also meet the weak Wolfe curvature condition
+/// first trial that passes is accepted: backtracking, halving the step. With slopes the
+/// accepted trial must also meet the weak Wolfe curvature condition
 /// `slope(trial) >= c2 * slope`; a trial that passes Armijo but not it bounds the step from
-/// below, and the next step doubles (no upper bound yet) or bisects the bracket. Every
+/// below. With slopes the next step is interpolated rather than halved or doubled: inside a
+/// bracket, the minimiser of the cubic through both ends' values and slopes (Nocedal &
+/// Wright, Eq. 3.59), kept at least a tenth of the bracket from either end; beyond the
+/// last step that was too short, where the slope extrapolates linearly to zero, between
+/// 2 and 10 times that step. Where the cubic is undefined (a non-finite end, no real
+/// minimiser) the bracket is bisected, and without an upper bound the step doubles. Every
 /// trial after the first counts as one halving against `max_halvings`; when they run out
 /// after some step passed Armijo, the largest such step is re-evaluated and accepted.
 ///
@@ -191,7 +196,18 @@ pub(crate) fn line_search(
     trial: &mut [f64],
     mut eval: impl FnMut(&[f64]) -> (f64, Option<f64>),
 ) -> (Search, usize) {
-    let (mut lo, mut hi, mut step) = (0.0, f64::INFINITY, 1.0);
+    // The bracket's ends: step, value and slope (NaN where unknown).
+    let mut lo = Probe {
+        step: 0.0,
+        value: f0,
+        slope,
+    };
+    let mut hi = Probe {
+        step: f64::INFINITY,
+        value: f64::NAN,
+        slope: f64::NAN,
+    };
+    let mut step = 1.0;
     let mut evaluations = 0;
     for _ in 0..=max_halvings {
         if !place(trial, z, d, step) {
@@ -199,15 +215,21 @@ pub(crate) fn line_search(
         }
         let (value, trial_slope) = eval(trial);
         evaluations += 1;
+        let probe = Probe {
+            step,
+            value,
+            slope: trial_slope.unwrap_or(f64::NAN),
+        };
         if !(value.is_finite() && value <= f0 + ARMIJO_C1 * step * slope) {
-            hi = step;
+            hi = probe;
         } else if trial_slope.is_some_and(|s| s < WOLFE_C2 * slope) {
-            lo = step;
+            lo = probe;
         } else {
             return (Search::Accepted(value), evaluations);
         }
-        step = if hi.is_finite() { 0.5 * (lo + hi) } else { 2.0 * step };
+        step = next_step(&lo, &hi, slope);
     }
+    let lo = lo.step;
     if lo > 0.0 && place(trial, z, d, lo) {
         let (value, _) = eval(trial);
         evaluations += 1;
@@ -216,6 +238,52 @@ pub(crate) fn line_search(
         }
     }
     (Search::Capped, evaluations)
+}
+
+/// One evaluated point of a line search: `step`, E there and the slope `grad E . d` (NaN
+/// where unknown).
+struct Probe {
+    step: f64,
+    value: f64,
+    slope: f64,
+}
+
+/// The next trial step of [`line_search`] for the bracket `lo` (passed Armijo, too short;
+/// step 0 at first) .. `hi` (failed Armijo; infinite while none has), `slope0` the slope at
+/// step 0 (see its documentation).
+fn next_step(lo: &Probe, hi: &Probe, slope0: f64) -> f64 {
+    if !hi.step.is_finite() {
+        // Extrapolate: where the slope, linear in the step through 0 and `lo`, reaches zero.
+        let rise = lo.slope - slope0;
+        let zero = if rise > 0.0 {
+            lo.step * -slope0 / rise
+        } else {
+            f64::INFINITY
+        };
+        return if zero.is_finite() {
+            zero.clamp(2.0 * lo.step, 10.0 * lo.step)
+        } else {
+            2.0 * lo.step
+        };
+    }
+    let width = hi.step - lo.step;
+    let bisect = lo.step + 0.5 * width;
+    let known = [lo.value, lo.slope, hi.value, hi.slope].iter().all(|v| v.is_finite());
+    if !known {
+        return bisect;
+    }
+    // Minimiser of the cubic through (lo, hi) with both values and slopes (N&W Eq. 3.59).
+    let d1 = lo.slope + hi.slope - 3.0 * (lo.value - hi.value) / (lo.step - hi.step);
+    let disc = d1 * d1 - lo.slope * hi.slope;
+    if !(disc >= 0.0) {
+        return bisect;
+    }
+    let d2 = disc.sqrt();
+    let cubic = hi.step - width * (hi.slope + d2 - d1) / (hi.slope - lo.slope + 2.0 * d2);
+    if !cubic.is_finite() {
+        return bisect;
+    }
+    cubic.clamp(lo.step + 0.1 * width, hi.step - 0.1 * width)
 }
 
 /// Writes `z + step * d` into `trial`; false when that equals `z`.
@@ -439,23 +507,48 @@ mod tests {
     }
 
     #[test]
-    fn line_search_with_slopes_expands_until_the_curvature_condition_holds() {
+    fn line_search_with_slopes_extrapolates_until_the_curvature_condition_holds() {
         // E(x) = (x - 100)^2 from 0 along +1: step 1 decreases E enough but the slope is
-        // still steep; doubling reaches a slope above c2 times the initial one at 16.
+        // still steep; the slope, extrapolated linearly, vanishes at 100, and the next trial
+        // is clamped to 10 times the last: there the slope is c2 times the initial one.
         let mut seen = Vec::new();
         let mut trial = [0.0];
         let (outcome, evaluations) = line_search(&[0.0], &[1.0], 1e4, -200.0, 128, &mut trial, |t| {
             seen.push(t[0]);
             ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
         });
-        assert_eq!(seen, vec![1.0, 2.0, 4.0, 8.0, 16.0]);
-        assert_eq!((outcome, evaluations), (Search::Accepted(7056.0), 5));
-        // With too few trials the largest Armijo step is re-evaluated and taken.
-        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 1e4, -200.0, 2, &mut trial, |t| {
+        assert_eq!(seen, vec![1.0, 10.0]);
+        assert_eq!((outcome, evaluations), (Search::Accepted(8100.0), 2));
+        // With no trials left the largest Armijo step is re-evaluated and taken.
+        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 1e4, -200.0, 0, &mut trial, |t| {
             ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
         });
-        assert_eq!((outcome, evaluations), (Search::Accepted(9216.0), 4));
-        assert_eq!(trial, [4.0]);
+        assert_eq!((outcome, evaluations), (Search::Accepted(9801.0), 2));
+        assert_eq!(trial, [1.0]);
+    }
+
+    #[test]
+    fn line_search_with_slopes_interpolates_inside_a_bracket() {
+        // E(x) = (x - 0.3)^2: step 1 overshoots, and the cubic through both ends' values
+        // and slopes is the quadratic itself, so the second trial is its minimiser.
+        let mut seen = Vec::new();
+        let mut trial = [0.0];
+        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 0.09, -0.6, 128, &mut trial, |t| {
+            seen.push(t[0]);
+            ((t[0] - 0.3).powi(2), Some(2.0 * (t[0] - 0.3)))
+        });
+        assert_eq!(evaluations, 2, "{seen:?}");
+        assert!((seen[1] - 0.3).abs() < 1e-12, "{seen:?}");
+        assert!(matches!(outcome, Search::Accepted(v) if v < 1e-20));
+        // A non-finite end cannot be interpolated: the bracket is bisected instead.
+        let mut seen = Vec::new();
+        let (outcome, _) = line_search(&[0.0], &[1.0], 0.09, -0.6, 128, &mut trial, |t| {
+            seen.push(t[0]);
+            let e = if t[0] > 0.6 { f64::NAN } else { (t[0] - 0.3).powi(2) };
+            (e, Some(2.0 * (t[0] - 0.3)))
+        });
+        assert_eq!(seen[1], 0.5, "{seen:?}");
+        assert!(matches!(outcome, Search::Accepted(_)));
     }
 
     #[test]
