@@ -172,6 +172,12 @@ fn tick_text(v: f64) -> String {
     }
 }
 
+/// Height of one legend row, the legend's padding and the plotting area's height, in pixels
+/// (for the headroom a scatter chart leaves its legend).
+const LEGEND_ROW_PX: f64 = 24.0;
+const LEGEND_PAD_PX: f64 = 24.0;
+const PLOT_HEIGHT_PX: f64 = 500.0;
+
 /// Draws the chart with linear or logarithmic axes as asked.
 fn render(
     path: &Path,
@@ -194,6 +200,24 @@ fn render(
         (Body::Scatter(_), true) => x1 * (x1 / x0).powf(0.06),
         (Body::Scatter(_), false) => x1 + 0.06 * (x1 - x0),
         _ => x1,
+    };
+    // The legend sits in the upper right: above the points, so it hides none of them.
+    let y1 = match body {
+        Body::Scatter(points) => {
+            let groups: std::collections::BTreeSet<&str> = points
+                .iter()
+                .map(|p| p.group.as_str())
+                .filter(|g| !g.is_empty())
+                .collect();
+            let share = (LEGEND_ROW_PX * groups.len() as f64 + LEGEND_PAD_PX) / PLOT_HEIGHT_PX;
+            let grow = share.min(0.7) / (1.0 - share.min(0.7));
+            match (groups.is_empty(), log_y) {
+                (true, _) => y1,
+                (false, true) => y1 * (y1 / y0).powf(grow),
+                (false, false) => y1 + grow * (y1 - y0),
+            }
+        }
+        _ => y1,
     };
     match (log_x, log_y) {
         (false, false) => draw(path, labels, x0..x1, y0..y1, body),
