@@ -275,7 +275,7 @@ fn next_step(lo: &Probe, hi: &Probe, slope0: f64) -> f64 {
     // Minimiser of the cubic through (lo, hi) with both values and slopes (N&W Eq. 3.59).
     let d1 = lo.slope + hi.slope - 3.0 * (lo.value - hi.value) / (lo.step - hi.step);
     let disc = d1 * d1 - lo.slope * hi.slope;
-    if !(disc >= 0.0) {
+    if disc.is_nan() || disc < 0.0 {
         return bisect;
     }
     let d2 = disc.sqrt();
