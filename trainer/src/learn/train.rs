@@ -279,6 +279,9 @@ pub struct TrainReport {
     /// Mean loss (weighted by batch size) of every finished epoch, including those before a
     /// resumed checkpoint.
     pub losses: Vec<f64>,
+    /// Training seconds spent before this call, as recorded in the checkpoint it resumed
+    /// from (0 for a fresh run), so that a resumed stage reports its whole cost.
+    pub earlier_seconds: f64,
 }
 
 /// Trains `params` on `data` (equal-length rows) for `config.epochs` epochs with AdamW,
@@ -306,10 +309,11 @@ where
     }
     let mut optimizer = AdamW::new(params, config.optimizer)?;
     let run = RunIdentity::new(config, data.len(), dim);
-    let mut losses = Vec::new();
+    let clock = std::time::Instant::now();
+    let (mut losses, mut earlier_seconds) = (Vec::new(), 0.0);
     if resume {
         if let Some(path) = config.checkpoint_path().filter(|p| p.exists()) {
-            losses = load_checkpoint(&path, &run, config.epochs, &mut optimizer)?;
+            (losses, earlier_seconds) = load_checkpoint(&path, &run, config.epochs, &mut optimizer)?;
         }
     }
     let start_epoch = losses.len();
@@ -340,12 +344,17 @@ where
         if let (Some(path), Some(c)) = (config.checkpoint_path(), &config.checkpoint) {
             let done = epoch + 1;
             if done.is_multiple_of(c.every) || done == config.epochs {
-                save_checkpoint(&path, &run, &optimizer, &losses)?;
+                let seconds = earlier_seconds + clock.elapsed().as_secs_f64();
+                save_checkpoint(&path, &run, &optimizer, &losses, seconds)?;
             }
         }
     }
     bar.finish();
-    Ok(TrainReport { start_epoch, losses })
+    Ok(TrainReport {
+        start_epoch,
+        losses,
+        earlier_seconds,
+    })
 }
 
 /// Trains the autoencoder on states `data` with the reconstruction loss of Eq. 2, plus
@@ -464,7 +473,7 @@ impl RunIdentity {
     }
 }
 
-fn save_checkpoint(path: &Path, run: &RunIdentity, optimizer: &AdamW, losses: &[f64]) -> TrainResult<()> {
+fn save_checkpoint(path: &Path, run: &RunIdentity, optimizer: &AdamW, losses: &[f64], seconds: f64) -> TrainResult<()> {
     let mut tensors: Vec<(String, Vec<usize>, Dtype, Vec<u8>)> = Vec::new();
     for slot in &optimizer.slots {
         let shape = slot.param.as_tensor().dims().to_vec();
@@ -485,6 +494,7 @@ fn save_checkpoint(path: &Path, run: &RunIdentity, optimizer: &AdamW, losses: &[
     let mut metadata: HashMap<String, String> = run.fields.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
     metadata.insert("epoch".into(), losses.len().to_string());
     metadata.insert("adam_step".into(), optimizer.step.to_string());
+    metadata.insert("seconds".into(), format!("{seconds:?}"));
     let payload = safetensors::serialize(views, Some(metadata))
         .map_err(|e| TrainError::Invalid(format!("building checkpoint: {e}")))?;
 
@@ -511,9 +521,14 @@ pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()>
 }
 
 /// Reads a checkpoint, checks it against this run, and loads parameters and optimiser state.
-/// Returns the loss history (its length is the epoch to continue from). On any error nothing
-/// has been modified.
-fn load_checkpoint(path: &Path, run: &RunIdentity, max_epochs: usize, optimizer: &mut AdamW) -> TrainResult<Vec<f64>> {
+/// Returns the loss history (its length is the epoch to continue from) and the training
+/// seconds it records (0 when it records none). On any error nothing has been modified.
+fn load_checkpoint(
+    path: &Path,
+    run: &RunIdentity,
+    max_epochs: usize,
+    optimizer: &mut AdamW,
+) -> TrainResult<(Vec<f64>, f64)> {
     let whole = |message: String| InputError::file(path, message);
     let bytes = fs::read(path).map_err(|e| whole(format!("cannot read checkpoint: {e}")))?;
     let payload = match mochi_runtime::envelope::open(&bytes, CHECKPOINT_MAGIC, CHECKPOINT_VERSION) {
@@ -548,6 +563,14 @@ fn load_checkpoint(path: &Path, run: &RunIdentity, max_epochs: usize, optimizer:
     };
     let epoch = number("epoch")? as usize;
     let adam_step = number("adam_step")?;
+    let seconds = match metadata.get("seconds") {
+        None => 0.0,
+        Some(text) => text
+            .parse::<f64>()
+            .ok()
+            .filter(|s| s.is_finite() && *s >= 0.0)
+            .ok_or_else(|| InputError::field(path, "metadata.seconds", "not a non-negative number of seconds"))?,
+    };
     if epoch > max_epochs {
         let msg = format!("checkpoint is at epoch {epoch}, beyond the {max_epochs} epochs asked for");
         return Err(InputError::field(path, "metadata.epoch", msg).into());
@@ -600,7 +623,7 @@ fn load_checkpoint(path: &Path, run: &RunIdentity, max_epochs: usize, optimizer:
         slot.v = v;
     }
     optimizer.step = adam_step;
-    Ok(history)
+    Ok((history, seconds))
 }
 
 #[cfg(test)]
@@ -722,11 +745,14 @@ mod tests {
         // N epochs, then resume to 2N.
         let split = with_checkpoints(config("full", 3, 8, 1e-2), &dir.path().join("b"), 2);
         let ae = Autoencoder::new(TINY, 11).unwrap();
-        train(&ae.parameters(), &data, &split, true, |b, r| noisy_loss(&ae, b, r)).unwrap();
+        let first = train(&ae.parameters(), &data, &split, true, |b, r| noisy_loss(&ae, b, r)).unwrap();
+        assert_eq!(first.earlier_seconds, 0.0, "nothing to resume");
         let rest = TrainConfig { epochs: 6, ..split };
         let resumed = train(&ae.parameters(), &data, &rest, true, |b, r| noisy_loss(&ae, b, r)).unwrap();
         assert_eq!(resumed.start_epoch, 3);
         assert_eq!(resumed.losses, uninterrupted.losses);
+        // The resumed run knows what the first three epochs cost.
+        assert!(resumed.earlier_seconds > 0.0, "{resumed:?}");
         assert!(
             weight_bits(&ae.parameters()) == weight_bits(&reference.parameters()),
             "weights differ"

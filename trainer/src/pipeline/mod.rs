@@ -83,15 +83,9 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
         let name = format!("integrator ({})", method.label());
         report.stage(&name);
         let clock = Instant::now();
-        integrators.push(stages::train_integrator(
-            problem,
-            spec,
-            &data,
-            &selected.autoencoder,
-            method,
-            &work,
-        )?);
-        times.record(name, clock);
+        let trained = stages::train_integrator(problem, spec, &data, &selected.autoencoder, method, &work)?;
+        times.record_resumed(name, clock, trained.earlier_seconds);
+        integrators.push(trained);
     }
 
     report.stage("artifacts");

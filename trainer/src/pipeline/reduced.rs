@@ -221,7 +221,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         &config,
         inputs.work.resume,
     )?;
-    let lipschitz_seconds = clock.elapsed().as_secs_f64();
+    let lipschitz_seconds = clock.elapsed().as_secs_f64() + run.train.earlier_seconds;
     report.message(&format!(
         "Lipschitz optimisation: reconstruction {:.3e} and Lipschitz loss {:.3e} at the vanilla start, lambda {:.3e}",
         run.start.0, run.start.1, run.lambda

@@ -46,7 +46,13 @@ pub(crate) struct StageTimes(pub(crate) Vec<(String, f64)>);
 impl StageTimes {
     /// Records stage `name`, started at `clock`.
     pub(crate) fn record(&mut self, name: impl Into<String>, clock: Instant) {
-        self.0.push((name.into(), clock.elapsed().as_secs_f64()));
+        self.record_resumed(name, clock, 0.0);
+    }
+
+    /// Records stage `name`, started at `clock`, which resumed training that had already
+    /// taken `earlier` seconds (from its checkpoint).
+    pub(crate) fn record_resumed(&mut self, name: impl Into<String>, clock: Instant, earlier: f64) {
+        self.0.push((name.into(), clock.elapsed().as_secs_f64() + earlier));
     }
 }
 
@@ -293,7 +299,7 @@ pub(crate) fn select_autoencoder(
             ae = initial;
         }
         let error = rms(&ae)?;
-        times.record(format!("autoencoder k={k}"), clock);
+        times.record_resumed(format!("autoencoder k={k}"), clock, trained.earlier_seconds);
         trials.push(SizeTrial {
             size: k as u32,
             pca_error: pca.error(k),
@@ -332,6 +338,8 @@ pub(crate) struct TrainedIntegrator {
     pub(crate) integrator: LatentIntegrator,
     /// Its training loss per epoch.
     pub(crate) losses: Vec<f64>,
+    /// Training seconds before a resume (see [`train::TrainReport::earlier_seconds`]).
+    pub(crate) earlier_seconds: f64,
 }
 
 /// Stage 4: the latent integrator on `data`, trained by `method`: self-supervised on the
@@ -392,6 +400,7 @@ pub(crate) fn train_integrator(
         method,
         integrator,
         losses: trained.losses,
+        earlier_seconds: trained.earlier_seconds,
     })
 }
 
