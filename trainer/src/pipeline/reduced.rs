@@ -189,8 +189,13 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         .iter()
         .flat_map(|s| s.targets.iter().cloned())
         .collect();
+    // Runs with other Lipschitz settings get their own checkpoints (the loss is not part of
+    // a checkpoint's identity).
     let config = TrainConfig {
-        name: "lipschitz".into(),
+        name: format!(
+            "lipschitz-k{k}-w{:?}-s{}-c{}",
+            spec.lipschitz, spec.samples, spec.cubature
+        ),
         epochs: spec.lipschitz_epochs,
         batch_size: net.batch.max(spec.samples),
         seed: 7,
