@@ -8,12 +8,15 @@ use std::path::Path;
 mod support;
 use support::{build, rest_targets, static_tip_deflection};
 
-/// A scene shipped with the trainer (its `[latent]` table, the trainer's, set aside).
+/// A scene shipped with the trainer (its `[latent]` and `[reduced]` tables, the trainer's,
+/// set aside).
 fn shipped(name: &str) -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../scenes/{name}.toml"));
     let text = std::fs::read_to_string(&path).unwrap();
     let mut document = SceneDocument::parse(&text, &path).unwrap();
-    document.take_section::<toml::Table>("latent").unwrap();
+    for trainer_table in ["latent", "reduced"] {
+        document.take_section::<toml::Table>(trainer_table).unwrap();
+    }
     document.into_scene().unwrap()
 }
 
