@@ -23,7 +23,7 @@ impl Stored for f32 {
     }
 }
 
-/// Half-precision bit pattern.
+/// Half-precision bit pattern (an exact conversion: every `f16` is an `f32`).
 impl Stored for u16 {
     #[inline(always)]
     fn value(self) -> f32 {

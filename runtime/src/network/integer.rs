@@ -11,8 +11,9 @@
 //!   where the CPU has AVX-512 VNNI; chosen at run time under `std`, by target features
 //!   without it;
 //! - wasm with `simd128`: `i32x4.dot_i16x8_s` on 8 weights at a time;
-//! - Armv7E-M (Cortex-M4): `SMLAD`, two 16-bit multiply-accumulates per instruction, on
-//!   weight pairs unpacked by `SXTB16` (the activations are stored pair-interleaved to match);
+//! - Armv7E-M (Cortex-M4, the `armv7em` feature): `SMLAD`, two 16-bit multiply-accumulates per
+//!   instruction, on weight pairs unpacked by `SXTB16` (the activations are stored
+//!   pair-interleaved to match);
 //! - anywhere else: a plain loop.
 //!
 //! An input with a NaN or infinity gives NaN rows (the instance then reports a non-finite
@@ -107,11 +108,11 @@ pub fn rows(params: &[f32], layer: &Layer, w: &[i8], parts: &[&[f32]], first: us
 fn arrange(q: &mut [i16]) {
     // SMLAD pairs: `SXTB16` unpacks bytes 0 and 2 of a weight word into one register and bytes
     // 1 and 3 into another, so each group of four activations is stored as (0, 2, 1, 3).
-    #[cfg(all(target_arch = "arm", target_feature = "dsp"))]
+    #[cfg(all(target_arch = "arm", feature = "armv7em"))]
     for g in q.chunks_exact_mut(4) {
         g.swap(1, 2);
     }
-    #[cfg(not(all(target_arch = "arm", target_feature = "dsp")))]
+    #[cfg(not(all(target_arch = "arm", feature = "armv7em")))]
     let _ = q;
 }
 
@@ -124,7 +125,7 @@ fn dot(w: &[i8], q: &[i16]) -> i32 {
     }
     #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
     return wasm::dot(w, q);
-    #[cfg(all(target_arch = "arm", target_feature = "dsp"))]
+    #[cfg(all(target_arch = "arm", feature = "armv7em"))]
     return arm::dot(w, q);
     #[allow(unreachable_code)]
     dot_portable(w, q)
@@ -165,7 +166,7 @@ mod wasm {
     }
 }
 
-#[cfg(all(target_arch = "arm", target_feature = "dsp"))]
+#[cfg(all(target_arch = "arm", feature = "armv7em"))]
 #[allow(unsafe_code)]
 mod arm {
     use core::arch::asm;
@@ -183,7 +184,7 @@ mod arm {
             let pair = |a: i16, b: i16| u32::from(a as u16) | (u32::from(b as u16) << 16);
             let (q02, q13) = (pair(q4[0], q4[1]), pair(q4[2], q4[3]));
             let (w02, w13): (u32, u32);
-            // SAFETY: register-only DSP instructions of Armv7E-M (the `dsp` feature).
+            // SAFETY: register-only DSP instructions of Armv7E-M (the `armv7em` feature).
             unsafe {
                 asm!("sxtb16 {0}, {1}", out(reg) w02, in(reg) word, options(pure, nomem, nostack));
                 asm!("sxtb16 {0}, {1}, ror #8", out(reg) w13, in(reg) word, options(pure, nomem, nostack));
