@@ -192,22 +192,23 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     }
 
     /// Checks that `model` has the sizes this instance was created for (every call checks: an
-    /// instance may be handed a different model than the one it was created with). Returns the
-    /// latent size and signal length.
+    /// instance may be handed a different model than the one it was created with) and that
+    /// they fit the instance's room (instance memory that a C caller overwrote may claim more
+    /// than it has). Returns the latent size and signal length.
     fn check_sizes(&self, model: &ValidModel) -> Result<(usize, usize), SizeError> {
         let m = model.model();
         let (k, s) = (self.latent as usize, self.signal_len as usize);
-        for (size, need, has) in [
-            ("latent", m.latent as usize, k),
-            ("signal", m.bc_len as usize, s),
-            ("hidden", m.hidden(), H),
+        // An instance stores no hidden width: the model's need only fit the room.
+        for (size, need, stored, room) in [
+            ("latent", m.latent as usize, k, K),
+            ("signal", m.bc_len as usize, s, S),
+            ("hidden", m.hidden(), m.hidden(), H),
         ] {
-            let fits = if size == "hidden" { need <= has } else { need == has };
-            if !fits {
+            if need > room || need != stored {
                 return Err(SizeError {
                     size,
                     model: need,
-                    compiled: has,
+                    compiled: if need > room { room } else { stored },
                 });
             }
         }
