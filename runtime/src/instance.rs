@@ -500,9 +500,9 @@ mod tests {
     type Body = Instance<1, 12, HIDDEN>;
 
     /// A one-strand model: vertices 0 and 1 prescribed (one handle), 2, 3 and 4 free, hanging
-    /// along -y at spacing `L`, the chain tables as the trainer writes them
-    /// and the loader completes them; networks of zeros
-    /// whose decoder outputs the bends `q` whatever the latent.
+    /// along -y at spacing `L`, the chain tables as the trainer writes them and the loader
+    /// completes them (`chain_order`); networks of zeros whose decoder outputs the bends `q`
+    /// whatever the latent.
     struct Strand {
         params: Vec<f32>,
         floats: Vec<f32>,

@@ -84,7 +84,7 @@ pub struct Weights<'a> {
 /// A handle: prescribed vertices moved rigidly about a pivot.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Handle {
-    /// Its vertices, in [`Model::indices`].
+    /// Its vertices, ascending, in [`Model::indices`].
     pub vertices: Span,
     /// Their identity-pose positions (3 per vertex), in [`Model::floats`].
     pub reference: Span,
@@ -185,7 +185,8 @@ pub struct Model<'a> {
     pub handles: &'a [Handle],
     /// Rest positions (`dim` per vertex), in `floats`.
     pub rest: Span,
-    /// Prescribed vertices in handle order (handles concatenated), in `indices`.
+    /// Prescribed vertices in handle order (handles concatenated, each handle's ascending), in
+    /// `indices`.
     pub handle_vertices: Span,
     /// Encoded (free) vertices, ascending, in `indices`.
     pub free_vertices: Span,
