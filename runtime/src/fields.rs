@@ -60,6 +60,7 @@ impl Model<'static> {
         root_slots: EMPTY_SPAN,
         chains: EMPTY_SPAN,
         chain_floats: EMPTY_SPAN,
+        chain_order: EMPTY_SPAN,
         surface_vertices: EMPTY_SPAN,
         surface_source: EMPTY_SPAN,
         initial_latent: EMPTY_SPAN,
@@ -70,7 +71,7 @@ impl Model<'static> {
 
 impl<'a> Model<'a> {
     /// Number of fields of a [`Model`].
-    pub const FIELDS: usize = 27;
+    pub const FIELDS: usize = 28;
 
     /// Every field with its name, in declaration order.
     pub fn fields(&self) -> [(&'static str, FieldValue<'a>); Model::FIELDS] {
@@ -98,6 +99,7 @@ impl<'a> Model<'a> {
             root_slots,
             chains,
             chain_floats,
+            chain_order,
             surface_vertices,
             surface_source,
             initial_latent,
@@ -127,6 +129,7 @@ impl<'a> Model<'a> {
             ("root_slots", V::Span(root_slots)),
             ("chains", V::Span(chains)),
             ("chain_floats", V::Span(chain_floats)),
+            ("chain_order", V::Span(chain_order)),
             ("surface_vertices", V::Span(surface_vertices)),
             ("surface_source", V::Span(surface_source)),
             ("initial_latent", V::Span(initial_latent)),
