@@ -29,7 +29,8 @@ command -v taskset >/dev/null || { echo "taskset (util-linux) is needed to pin t
 
 if ! "$venv/bin/python" -c 'import jax, numpy' 2>/dev/null; then
   echo "== jax[cpu] and numpy from PyPI into $venv"
-  python3 -m venv "$venv"
+  python3 -m venv "$venv" ||
+    { echo "python3 -m venv failed (on Debian and Ubuntu: apt-get install python3-venv)" >&2; exit 1; }
   "$venv/bin/python" -m pip install --quiet --upgrade pip
   "$venv/bin/python" -m pip install --quiet "jax[cpu]" numpy
 fi
