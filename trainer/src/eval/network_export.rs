@@ -73,7 +73,7 @@ pub struct Exported {
 /// [`Script`] to `out` (see the module docs).
 pub fn export(artifact: &Path, out: &Path, frames: usize, weights: WeightFormat) -> Result<Exported> {
     if frames == 0 {
-        bail!("the script needs at least one frame");
+        bail!("--frames must be at least 1");
     }
     let bytes = crate::error::fs::read(artifact)?;
     let mut storage = OwnedModel::default();
