@@ -163,8 +163,22 @@ mod tests {
                     .collect();
                 let mut portable = std::vec![0.0; rows_n];
                 match format {
-                    WeightFormat::F32 => rows(&case.params, &layer, matrix(&case.params, &layer), &[&x], 0, &mut portable),
-                    _ => rows(&case.params, &layer, matrix(&case.halves, &layer), &[&x], 0, &mut portable),
+                    WeightFormat::F32 => rows(
+                        &case.params,
+                        &layer,
+                        matrix(&case.params, &layer),
+                        &[&x],
+                        0,
+                        &mut portable,
+                    ),
+                    _ => rows(
+                        &case.params,
+                        &layer,
+                        matrix(&case.halves, &layer),
+                        &[&x],
+                        0,
+                        &mut portable,
+                    ),
                 }
                 assert_eq!(portable, want, "{format:?} {rows_n}x{cols} portable");
                 if format == WeightFormat::F32 {

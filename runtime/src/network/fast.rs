@@ -75,10 +75,15 @@ mod tests {
             dense_rows(&case.weights(), &layer, &[&x], 0, &mut out);
             for (r, y) in out.iter().enumerate() {
                 let w = case.row(WeightFormat::F32, r);
-                let exact: f64 = case.params[r] as f64 + w.iter().zip(&x).map(|(w, x)| *w as f64 * *x as f64).sum::<f64>();
-                let size: f64 = case.params[r].abs() as f64 + w.iter().zip(&x).map(|(w, x)| (w * x).abs() as f64).sum::<f64>();
+                let exact: f64 =
+                    case.params[r] as f64 + w.iter().zip(&x).map(|(w, x)| *w as f64 * *x as f64).sum::<f64>();
+                let size: f64 =
+                    case.params[r].abs() as f64 + w.iter().zip(&x).map(|(w, x)| (w * x).abs() as f64).sum::<f64>();
                 let bound = 4.0 * f32::EPSILON as f64 * size;
-                assert!((*y as f64 - exact).abs() <= bound, "{rows_n}x{cols} row {r}: {y} vs {exact}");
+                assert!(
+                    (*y as f64 - exact).abs() <= bound,
+                    "{rows_n}x{cols} row {r}: {y} vs {exact}"
+                );
             }
             let mut tail = std::vec![0.0; rows_n - 1];
             dense_rows(&case.weights(), &layer, &[&x], 1, &mut tail);

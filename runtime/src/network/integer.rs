@@ -134,7 +134,9 @@ fn dot(w: &[i8], q: &[i16]) -> i32 {
 /// The plain loop (any `q` order that matches `w`).
 #[inline]
 pub fn dot_portable(w: &[i8], q: &[i16]) -> i32 {
-    w.iter().zip(q).fold(0i32, |acc, (&w, &q)| acc.wrapping_add(i32::from(w) * i32::from(q)))
+    w.iter()
+        .zip(q)
+        .fold(0i32, |acc, (&w, &q)| acc.wrapping_add(i32::from(w) * i32::from(q)))
 }
 
 #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
@@ -223,7 +225,17 @@ mod tests {
     /// float product.
     #[test]
     fn integer_kernel_gives_the_definition_bit_for_bit() {
-        for (rows_n, cols) in [(1, 8), (3, 16), (13, 24), (21, 40), (9, 7), (17, 44), (40, 128), (5, 3), (6, 1000)] {
+        for (rows_n, cols) in [
+            (1, 8),
+            (3, 16),
+            (13, 24),
+            (21, 40),
+            (9, 7),
+            (17, 44),
+            (40, 128),
+            (5, 3),
+            (6, 1000),
+        ] {
             let case = Case::new(rows_n, cols);
             let x: Vec<f32> = noise(cols as u32 + 5, cols).map(|v| 3.0 * v).collect();
             let layer = case.layer(WeightFormat::Int8);

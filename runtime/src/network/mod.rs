@@ -174,7 +174,10 @@ pub(crate) mod test_support {
             let span = r * self.cols..(r + 1) * self.cols;
             match format {
                 WeightFormat::F32 => self.params[2 * self.rows..][span].to_vec(),
-                WeightFormat::F16 => self.halves[span].iter().map(|&h| half::f16::from_bits(h).to_f32()).collect(),
+                WeightFormat::F16 => self.halves[span]
+                    .iter()
+                    .map(|&h| half::f16::from_bits(h).to_f32())
+                    .collect(),
                 WeightFormat::Int8 => self.bytes[span].iter().map(|&b| f32::from(b)).collect(),
             }
         }

@@ -49,7 +49,10 @@ fn reduce8(s: [__m256; BLOCK]) -> __m256 {
     let t3 = _mm256_hadd_ps(s[6], s[7]);
     let u0 = _mm256_hadd_ps(t0, t1);
     let u1 = _mm256_hadd_ps(t2, t3);
-    _mm256_add_ps(_mm256_permute2f128_ps::<0x20>(u0, u1), _mm256_permute2f128_ps::<0x31>(u0, u1))
+    _mm256_add_ps(
+        _mm256_permute2f128_ps::<0x20>(u0, u1),
+        _mm256_permute2f128_ps::<0x31>(u0, u1),
+    )
 }
 
 /// Writes the reduced sums of `n` rows from `r` (bias added) into `out`.
@@ -77,25 +80,47 @@ pub(super) fn rows_f32(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], firs
     }
 }
 
-/// Rows `first..first + out.len()` of an `f32` layer with AVX-512F: for each row, one chain
-/// of 16-lane fused multiply-adds over the columns (the last 16 masked), then the lanes'
-/// halves added and [`reduce8`]. Returns the rows written (all of `out`).
+/// The accumulators of `N` consecutive rows starting at `base` (row stride `cols`): for each
+/// row one chain of 16-lane fused multiply-adds over the columns, the last 16 masked; the
+/// rows past `N` stay zero. `N` is a constant so that the chains live in registers.
 ///
 /// # Safety
-/// The CPU must have AVX-512F. `w.len() == rows * cols`, `x.len() == cols` and
-/// `first + out.len() <= rows` (checked by [`super::fast::rows`]).
-#[target_feature(enable = "avx512f,avx2")]
-unsafe fn rows_f32_avx512(
-    params: &[f32],
-    layer: &Layer,
-    w: &[f32],
-    x: &[f32],
-    first: usize,
-    out: &mut [f32],
-) -> usize {
-    let cols = x.len();
+/// The CPU must have AVX-512F; `base..base + N * cols` and `x..x + cols` must be readable.
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn chains512<const N: usize>(base: *const f32, x: *const f32, cols: usize) -> [__m512; BLOCK] {
     let (whole, rem) = (cols / 16, cols % 16);
-    let mask: __mmask16 = ((1u32 << rem) - 1) as u16;
+    let mut acc = [_mm512_setzero_ps(); BLOCK];
+    // SAFETY: for row k < N and column block i < whole, k * cols + 16 i + 16 <= N * cols and
+    // 16 i + 16 <= cols; the masked tail reads only the `rem` columns that exist.
+    unsafe {
+        for i in 0..whole {
+            let xv = _mm512_loadu_ps(x.add(16 * i));
+            for (k, a) in acc.iter_mut().enumerate().take(N) {
+                *a = _mm512_fmadd_ps(_mm512_loadu_ps(base.add(k * cols + 16 * i)), xv, *a);
+            }
+        }
+        if rem > 0 {
+            let mask: __mmask16 = ((1u32 << rem) - 1) as u16;
+            let xv = _mm512_maskz_loadu_ps(mask, x.add(16 * whole));
+            for (k, a) in acc.iter_mut().enumerate().take(N) {
+                *a = _mm512_fmadd_ps(_mm512_maskz_loadu_ps(mask, base.add(k * cols + 16 * whole)), xv, *a);
+            }
+        }
+    }
+    acc
+}
+
+/// Rows `first..first + out.len()` of an `f32` layer with AVX-512F: eight rows at a time
+/// ([`chains512`]), the rest one at a time, then each accumulator's halves added and
+/// [`reduce8`] (which gives a row the same bits whichever lane it sits in). Returns the rows
+/// written.
+///
+/// # Safety
+/// The CPU must have AVX-512F. `x.len() == cols`; rows outside `w` are not written.
+#[target_feature(enable = "avx512f,avx2")]
+unsafe fn rows_f32_avx512(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], first: usize, out: &mut [f32]) -> usize {
+    let cols = x.len();
     let fold16 = |a: __m512| {
         _mm256_add_ps(
             _mm512_castps512_ps256(a),
@@ -105,76 +130,78 @@ unsafe fn rows_f32_avx512(
     let mut r = first;
     for o in out.chunks_mut(BLOCK) {
         let n = o.len();
-        let mut acc = [_mm512_setzero_ps(); BLOCK];
         let Some(block) = w.get(r * cols..(r + n) * cols) else {
             return r - first;
         };
-        let base = block.as_ptr();
-        // SAFETY: for row k < n and column block i < whole, k * cols + 16 i + 16 <= n * cols
-        // (inside `w[r * cols..(r + n) * cols]`) and 16 i + 16 <= cols = x.len(); the masked
-        // tail reads only the `rem` columns that exist.
-        unsafe {
-            for i in 0..whole {
-                let xv = _mm512_loadu_ps(x.as_ptr().add(16 * i));
-                for (k, a) in acc.iter_mut().enumerate().take(n) {
-                    *a = _mm512_fmadd_ps(_mm512_loadu_ps(base.add(k * cols + 16 * i)), xv, *a);
-                }
-            }
-            if rem > 0 {
-                let xv = _mm512_maskz_loadu_ps(mask, x.as_ptr().add(16 * whole));
-                for (k, a) in acc.iter_mut().enumerate().take(n) {
-                    *a = _mm512_fmadd_ps(_mm512_maskz_loadu_ps(mask, base.add(k * cols + 16 * whole)), xv, *a);
-                }
+        if n == BLOCK {
+            // SAFETY: `block` holds the 8 rows; `x` holds `cols` values.
+            let acc = unsafe { chains512::<BLOCK>(block.as_ptr(), x.as_ptr(), cols) };
+            store_rows(params, layer, reduce8(acc.map(fold16)), r, o);
+        } else {
+            for (k, o) in o.iter_mut().enumerate() {
+                // SAFETY: row k of `block` holds `cols` values.
+                let acc = unsafe { chains512::<1>(block.as_ptr().add(k * cols), x.as_ptr(), cols) };
+                store_rows(params, layer, reduce8(acc.map(fold16)), r + k, core::slice::from_mut(o));
             }
         }
-        store_rows(params, layer, reduce8(acc.map(fold16)), r, o);
         r += n;
     }
     out.len()
 }
 
-/// As [`rows_f32_avx512`] with 8-lane AVX2 fused multiply-adds.
+/// As [`chains512`] with 8-lane AVX2 fused multiply-adds (the tail by `maskload`).
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA; the pointers as for [`chains512`].
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn chains256<const N: usize>(base: *const f32, x: *const f32, cols: usize) -> [__m256; BLOCK] {
+    let (whole, rem) = (cols / 8, cols % 8);
+    let mut acc = [_mm256_setzero_ps(); BLOCK];
+    // SAFETY: as in `chains512`, with 8-column blocks; `maskload` reads only the lanes its
+    // mask enables.
+    unsafe {
+        for i in 0..whole {
+            let xv = _mm256_loadu_ps(x.add(8 * i));
+            for (k, a) in acc.iter_mut().enumerate().take(N) {
+                *a = _mm256_fmadd_ps(_mm256_loadu_ps(base.add(k * cols + 8 * i)), xv, *a);
+            }
+        }
+        if rem > 0 {
+            let mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(rem as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+            let xv = _mm256_maskload_ps(x.add(8 * whole), mask);
+            for (k, a) in acc.iter_mut().enumerate().take(N) {
+                *a = _mm256_fmadd_ps(_mm256_maskload_ps(base.add(k * cols + 8 * whole), mask), xv, *a);
+            }
+        }
+    }
+    acc
+}
+
+/// As [`rows_f32_avx512`] with AVX2 and FMA ([`chains256`]).
 ///
 /// # Safety
 /// The CPU must have AVX2 and FMA; the slices as for [`rows_f32_avx512`].
 #[target_feature(enable = "avx2,fma")]
-unsafe fn rows_f32_avx2(
-    params: &[f32],
-    layer: &Layer,
-    w: &[f32],
-    x: &[f32],
-    first: usize,
-    out: &mut [f32],
-) -> usize {
+unsafe fn rows_f32_avx2(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], first: usize, out: &mut [f32]) -> usize {
     let cols = x.len();
-    let (whole, rem) = (cols / 8, cols % 8);
-    let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    let mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(rem as i32), lane);
     let mut r = first;
     for o in out.chunks_mut(BLOCK) {
         let n = o.len();
-        let mut acc = [_mm256_setzero_ps(); BLOCK];
         let Some(block) = w.get(r * cols..(r + n) * cols) else {
             return r - first;
         };
-        let base = block.as_ptr();
-        // SAFETY: as in `rows_f32_avx512`, with 8-column blocks; `maskload` reads only the
-        // lanes its mask enables.
-        unsafe {
-            for i in 0..whole {
-                let xv = _mm256_loadu_ps(x.as_ptr().add(8 * i));
-                for (k, a) in acc.iter_mut().enumerate().take(n) {
-                    *a = _mm256_fmadd_ps(_mm256_loadu_ps(base.add(k * cols + 8 * i)), xv, *a);
-                }
-            }
-            if rem > 0 {
-                let xv = _mm256_maskload_ps(x.as_ptr().add(8 * whole), mask);
-                for (k, a) in acc.iter_mut().enumerate().take(n) {
-                    *a = _mm256_fmadd_ps(_mm256_maskload_ps(base.add(k * cols + 8 * whole), mask), xv, *a);
-                }
+        if n == BLOCK {
+            // SAFETY: `block` holds the 8 rows; `x` holds `cols` values.
+            let acc = unsafe { chains256::<BLOCK>(block.as_ptr(), x.as_ptr(), cols) };
+            store_rows(params, layer, reduce8(acc), r, o);
+        } else {
+            for (k, o) in o.iter_mut().enumerate() {
+                // SAFETY: row k of `block` holds `cols` values.
+                let acc = unsafe { chains256::<1>(block.as_ptr().add(k * cols), x.as_ptr(), cols) };
+                store_rows(params, layer, reduce8(acc), r + k, core::slice::from_mut(o));
             }
         }
-        store_rows(params, layer, reduce8(acc), r, o);
         r += n;
     }
     out.len()
@@ -208,7 +235,14 @@ fn lanes(v: __m256) -> [f32; LANES] {
 /// per eight rows), then one at a time (multiply, then add: no FMA). `x.len() == cols`,
 /// `cols % 8 == 0`. Returns the leading rows of `out` written.
 #[target_feature(enable = "avx2,f16c")]
-fn rows_canonical_avx<T: Load8>(params: &[f32], layer: &Layer, w: &[T], x: &[f32], first: usize, out: &mut [f32]) -> usize {
+fn rows_canonical_avx<T: Load8>(
+    params: &[f32],
+    layer: &Layer,
+    w: &[T],
+    x: &[f32],
+    first: usize,
+    out: &mut [f32],
+) -> usize {
     let cols = layer.cols as usize;
     let mut done = 0;
     for (block, o) in out.chunks_exact_mut(8).enumerate() {
@@ -410,6 +444,9 @@ mod tests {
         }
     }
 
+    /// A wide `f32` kernel's signature.
+    type WideKernel = unsafe fn(&[f32], &Layer, &[f32], &[f32], usize, &mut [f32]) -> usize;
+
     /// Both wide `f32` kernels this CPU may have: each row is within rounding of the exact
     /// sum and gets the same bits alone as in a block of eight.
     #[test]
@@ -419,7 +456,7 @@ mod tests {
             let x: Vec<f32> = noise(cols as u32, cols).collect();
             let layer = case.layer(WeightFormat::F32);
             let w = &case.params[2 * rows_n..];
-            let kernels: [(&str, bool, unsafe fn(&[f32], &Layer, &[f32], &[f32], usize, &mut [f32]) -> usize); 2] = [
+            let kernels: [(&str, bool, WideKernel); 2] = [
                 ("avx512", has!("avx512f"), rows_f32_avx512),
                 ("avx2", has!("avx2") && has!("fma"), rows_f32_avx2),
             ];
@@ -436,9 +473,14 @@ mod tests {
                     unsafe { kernel(&case.params, &layer, w, &x, r, &mut one) };
                     assert_eq!(one[0], all[r], "{name} {rows_n}x{cols} row {r}");
                     let row = case.row(WeightFormat::F32, r);
-                    let exact: f64 = case.params[r] as f64 + row.iter().zip(&x).map(|(a, b)| *a as f64 * *b as f64).sum::<f64>();
-                    let size: f64 = case.params[r].abs() as f64 + row.iter().zip(&x).map(|(a, b)| (a * b).abs() as f64).sum::<f64>();
-                    assert!((all[r] as f64 - exact).abs() <= 4.0 * f32::EPSILON as f64 * size, "{name} row {r}");
+                    let exact: f64 =
+                        case.params[r] as f64 + row.iter().zip(&x).map(|(a, b)| *a as f64 * *b as f64).sum::<f64>();
+                    let size: f64 = case.params[r].abs() as f64
+                        + row.iter().zip(&x).map(|(a, b)| (a * b).abs() as f64).sum::<f64>();
+                    assert!(
+                        (all[r] as f64 - exact).abs() <= 4.0 * f32::EPSILON as f64 * size,
+                        "{name} row {r}"
+                    );
                 }
             }
         }

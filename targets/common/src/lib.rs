@@ -271,7 +271,9 @@ pub mod host {
                 }
                 ["frame", frame, values @ ..] => {
                     let n = frame.parse().map_err(|e| format!("frame `{frame}`: {e}"))?;
-                    report.samples.push((n, floats(values).map_err(|e| format!("frame {n}: {e}"))?));
+                    report
+                        .samples
+                        .push((n, floats(values).map_err(|e| format!("frame {n}: {e}"))?));
                 }
                 ["instructions_per_frame", n] => {
                     report.instructions_per_frame =
@@ -290,7 +292,10 @@ pub mod host {
 
     /// The hexadecimal bit patterns of `values` as floats.
     fn floats(values: &[&str]) -> Result<Vec<f32>, std::num::ParseIntError> {
-        values.iter().map(|v| u32::from_str_radix(v, 16).map(f32::from_bits)).collect()
+        values
+            .iter()
+            .map(|v| u32::from_str_radix(v, 16).map(f32::from_bits))
+            .collect()
     }
 
     /// Runs the reference on the host with `Instance<K, S, H>` and checks `report` against it:

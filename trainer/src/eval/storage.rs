@@ -31,7 +31,10 @@ pub struct Storage {
 
 impl Storage {
     fn stored(options: Options) -> Self {
-        Storage { options, widened: false }
+        Storage {
+            options,
+            widened: false,
+        }
     }
 }
 
@@ -58,7 +61,10 @@ pub fn storages() -> [Storage; 5] {
 pub(crate) fn storage_name(storage: &Storage) -> String {
     let options = &storage.options;
     if storage.widened {
-        format!("{}, widened to f32 (no input quantisation)", storage_name(&Storage::stored(*options)))
+        format!(
+            "{}, widened to f32 (no input quantisation)",
+            storage_name(&Storage::stored(*options))
+        )
     } else if options == &Options::weights(options.decoder) {
         format_name(options.decoder).into()
     } else {
