@@ -11,8 +11,6 @@
 
 use core::fmt;
 
-use crate::vertex_lists::ascending;
-
 /// Largest number of handles a model may have.
 pub const MAX_HANDLES: usize = 16;
 /// Largest number of layers in one network (input, output and 2 per residual block).
@@ -724,4 +722,9 @@ impl<'a> Model<'a> {
         }
         Ok(())
     }
+}
+
+/// Whether `v` ascends strictly.
+pub(crate) fn ascending(v: &[u32]) -> bool {
+    v.windows(2).all(|w| w[0] < w[1])
 }

@@ -12,7 +12,7 @@
 
 use core::cmp::Ordering;
 
-use crate::model::{Model, Problem, MAX_HANDLES};
+use crate::model::{ascending, Model, Problem, MAX_HANDLES};
 
 /// Marks a free vertex that no slot names while [`fill_chain_order`] runs.
 pub(crate) const UNNAMED: u32 = u32::MAX;
@@ -98,11 +98,6 @@ pub(crate) fn fill_chain_order(table: &[u32], order: &mut [u32]) {
         }
         rest = tail;
     }
-}
-
-/// Whether `v` ascends strictly.
-pub(crate) fn ascending(v: &[u32]) -> bool {
-    v.windows(2).all(|w| w[0] < w[1])
 }
 
 /// Whether the ascending lists `a` and `b` have a value in common (one merge).

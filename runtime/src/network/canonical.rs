@@ -1,11 +1,11 @@
 //! The canonical sum (see [`super`]): eight lanes over the columns, every product and sum
 //! rounded to `f32`, no fused multiply-add, a fixed fold. `f16` layers always use it (the same
 //! bits on every target); `f32` layers use it where the CPU has no [`super::fast`] kernel.
-//! The loops are written so the compiler vectorises them; on x86-64 with `std` an AVX2
-//! version of the same arithmetic is chosen at run time for `f16` weights.
+//! The loops are written so the compiler vectorises them; on x86-64 an AVX2 version of the
+//! same arithmetic serves `f16` weights where the CPU has it (see [`super::dense_rows`]).
 
-use super::{finish, matrix};
-use crate::model::{Layer, Weights};
+use super::finish;
+use crate::model::Layer;
 
 /// Lanes of the canonical sum.
 pub const LANES: usize = 8;
@@ -35,19 +35,6 @@ impl Stored for u16 {
 #[inline(always)]
 pub fn fold(l: &[f32; LANES]) -> f32 {
     ((l[0] + l[4]) + (l[1] + l[5])) + ((l[2] + l[6]) + (l[3] + l[7]))
-}
-
-/// Rows `first..first + out.len()` of an `f16` layer for the input `parts`.
-pub fn rows_f16(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usize, out: &mut [f32]) {
-    #[cfg(target_arch = "x86_64")]
-    let done = match parts {
-        [x] => super::x86::rows_f16(weights, layer, x, first, out),
-        _ => 0,
-    };
-    #[cfg(not(target_arch = "x86_64"))]
-    let done = 0;
-    let (first, out) = (first + done, &mut out[done..]);
-    rows(weights.params, layer, matrix(weights.halves, layer), parts, first, out);
 }
 
 /// Rows `first..first + out.len()` of `layer`, whose weights are `w`, for the input given as
@@ -135,8 +122,8 @@ mod tests {
 
     use super::*;
     use crate::model::WeightFormat;
-    use crate::network::dense_rows;
     use crate::network::test_support::{noise, Case};
+    use crate::network::{dense_rows, matrix};
 
     /// The canonical sum written out plainly, for one row.
     fn reference(w: &[f32], x: &[f32], b: f32) -> f32 {

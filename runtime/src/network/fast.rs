@@ -6,18 +6,8 @@
 //! without it (`-C target-cpu=native`, or `-C target-feature=+avx512f`). Elsewhere, and on
 //! x86-64 CPUs with neither, no rows are computed here and the caller runs the canonical sum.
 
+use super::Width;
 use crate::model::Layer;
-
-/// Which wide kernel this CPU runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Width {
-    /// 16 lanes, AVX-512F.
-    Avx512,
-    /// 8 lanes, AVX2 with FMA.
-    Avx2,
-    /// No wide kernel: the canonical sum.
-    Canonical,
-}
 
 /// The kernel [`rows`] uses on this CPU.
 pub fn width() -> Width {

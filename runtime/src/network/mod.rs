@@ -34,6 +34,17 @@ mod x86;
 
 use crate::model::{Layer, WeightFormat, Weights};
 
+/// Which wide `f32` kernel this CPU runs ([`fast::width`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Width {
+    /// 16 lanes, AVX-512F.
+    Avx512,
+    /// 8 lanes, AVX2 with FMA.
+    Avx2,
+    /// No wide kernel: the canonical sum.
+    Canonical,
+}
+
 /// `x * sigmoid(x)`.
 #[inline]
 pub fn swish(x: f32) -> f32 {
@@ -71,7 +82,17 @@ pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usi
             let (first, out) = (first + done, &mut out[done..]);
             canonical::rows(p, layer, matrix(p, layer), parts, first, out);
         }
-        WeightFormat::F16 => canonical::rows_f16(weights, layer, parts, first, out),
+        WeightFormat::F16 => {
+            #[cfg(target_arch = "x86_64")]
+            let done = match parts {
+                [x] => x86::rows_f16(weights, layer, x, first, out),
+                _ => 0,
+            };
+            #[cfg(not(target_arch = "x86_64"))]
+            let done = 0;
+            let (first, out) = (first + done, &mut out[done..]);
+            canonical::rows(p, layer, matrix(weights.halves, layer), parts, first, out);
+        }
         WeightFormat::Int8 => integer::rows(p, layer, matrix(weights.bytes, layer), parts, first, out),
     }
 }

@@ -7,8 +7,7 @@
 use core::arch::x86_64::*;
 
 use super::canonical::{fold, Stored, LANES};
-use super::fast::Width;
-use super::{finish, matrix};
+use super::{finish, matrix, Width};
 use crate::model::{Layer, Weights};
 
 /// Whether this CPU has a feature: detected at run time (once, then cached by std) under
@@ -405,7 +404,8 @@ unsafe fn dot_avx2(w: &[i8], q: &[i16]) -> i32 {
     // SAFETY: `lanes` holds 8 integers.
     unsafe { _mm256_storeu_si256(lanes.as_mut_ptr().cast(), acc) };
     let head = lanes.iter().fold(0i32, |a, &b| a.wrapping_add(b));
-    head.wrapping_add(super::integer::dot_portable(&w[c..], &q[c..]))
+    let tail = w[c..].iter().zip(&q[c..]);
+    tail.fold(head, |acc, (&w, &q)| acc.wrapping_add(i32::from(w) * i32::from(q)))
 }
 
 #[cfg(all(test, feature = "std"))]
@@ -415,7 +415,6 @@ mod tests {
 
     use super::*;
     use crate::model::WeightFormat;
-    use crate::network::integer::dot_portable;
     use crate::network::test_support::{noise, Case};
 
     /// Every integer kernel this CPU has gives the plain loop's sum, for lengths around every
@@ -428,7 +427,10 @@ mod tests {
             if n > 2 {
                 (w[0], q[0], w[n - 1], q[n - 1]) = (-128, -32767, 127, 32767);
             }
-            let want = dot_portable(&w, &q);
+            let want = w
+                .iter()
+                .zip(&q)
+                .fold(0i32, |a, (&w, &q)| a.wrapping_add(i32::from(w) * i32::from(q)));
             // SAFETY: each kernel runs only where the CPU has its features.
             unsafe {
                 if has!("avx2") {
