@@ -11,17 +11,19 @@ use mochi_runtime::WeightFormat;
 
 /// Artifact, weight storage, length and FNV-1a 64 of the generated module.
 ///
-/// Last change: artifact format 3 (the artifacts converted from format 2, weights unchanged).
-/// The modules differ from those of format 2 only in their second line, the header comment
-/// `// Artifact format 3; ...` (was 2); every array, constant and the `MODEL` literal are
-/// byte for byte the same.
+/// Last change: artifact format 4 (the artifacts converted from format 3 by `mochi upgrade`,
+/// weights unchanged): the triangles to draw joined the runtime's fields. The modules differ
+/// from those of format 3 only in the header comment (`// Artifact format 4`), `INDICES_LEN`,
+/// the `INDICES` pool (the triangles inserted after the drawn vertices, every other index
+/// unchanged), the `surface_source` span's start (moved past them) and the new
+/// `surface_triangles` span; every other array and constant is byte for byte the same.
 const EXPECTED: [(&str, WeightFormat, usize, u64); 6] = [
-    ("tiny", WeightFormat::F32, 195034, 0xa4e8b90b2462acf4),
-    ("beam", WeightFormat::F32, 11385382, 0xc9006abe23a5a24b),
-    ("strands", WeightFormat::F32, 93363, 0x9c8b08c2a7c200b6),
-    ("tiny", WeightFormat::F16, 119057, 0xd950a19ca57e4bfb),
-    ("tiny", WeightFormat::Int8, 85523, 0xd2128fcdd2200f76),
-    ("beam", WeightFormat::Int8, 3392035, 0x198db90e6404ed26),
+    ("tiny", WeightFormat::F32, 196845, 0x566c51fbe2903918),
+    ("beam", WeightFormat::F32, 11411027, 0xb208cb4ae30b4bc4),
+    ("strands", WeightFormat::F32, 93430, 0x2b37b1e7aea91536),
+    ("tiny", WeightFormat::F16, 120868, 0x59cb74683e7057f5),
+    ("tiny", WeightFormat::Int8, 87334, 0x57031270b88fa4da),
+    ("beam", WeightFormat::Int8, 3417680, 0xc20eff5d3f8addcd),
 ];
 
 fn fnv1a(bytes: &[u8]) -> u64 {

@@ -595,6 +595,7 @@ mod tests {
                 chain_floats,
                 surface_vertices,
                 surface_source,
+                surface_triangles: Span::default(),
                 initial_latent,
                 latent_min,
                 latent_max,

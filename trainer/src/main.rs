@@ -114,6 +114,13 @@ enum Command {
         #[arg(long, default_value = "f32", value_parser = parse_weights)]
         weights: mochi_runtime::WeightFormat,
     },
+    /// Rewrite artifacts of an older format (2, 3) in place in the current one; weights and
+    /// fields unchanged (the runtime and codegen read only the current format).
+    Upgrade {
+        /// Artifacts (`SCENE.mochi`).
+        #[arg(required = true)]
+        artifacts: Vec<PathBuf>,
+    },
     /// Timings.
     Bench {
         #[command(subcommand)]
@@ -233,6 +240,14 @@ fn run(cli: Cli) -> Result<()> {
                 out.display(),
                 mochi_codegen::format_name(weights)
             );
+            Ok(())
+        }
+        Command::Upgrade { artifacts } => {
+            for path in artifacts {
+                let artifact = mochi_trainer::artifact::Artifact::read(&path)?;
+                artifact.write(&path)?;
+                println!("{}: format {}", path.display(), mochi_trainer::artifact::FORMAT_VERSION);
+            }
             Ok(())
         }
         Command::Bench {
