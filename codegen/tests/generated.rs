@@ -16,14 +16,19 @@ use mochi_runtime::WeightFormat;
 /// from those of format 3 only in the header comment (`// Artifact format 4`), `INDICES_LEN`,
 /// the `INDICES` pool (the triangles inserted after the drawn vertices, every other index
 /// unchanged), the `surface_source` span's start (moved past them) and the new
-/// `surface_triangles` span; every other array and constant is byte for byte the same.
+/// `surface_triangles` span; every other array and constant is byte for byte the same (each
+/// module is longer by exactly what it grew on its own, over the one with `chain_order`).
+/// Before: the loader's derived `chain_order` (the inverse of the strands' slots): every
+/// module gained the line `chain_order: mochi_runtime::Span { .. }` in its `MODEL` literal (an
+/// empty span without strands); `strands` also the 24 entries `0, 1, ..., 23` at the end of
+/// `INDICES`.
 const EXPECTED: [(&str, WeightFormat, usize, u64); 6] = [
-    ("tiny", WeightFormat::F32, 196845, 0x566c51fbe2903918),
-    ("beam", WeightFormat::F32, 11411027, 0xb208cb4ae30b4bc4),
-    ("strands", WeightFormat::F32, 93430, 0x2b37b1e7aea91536),
-    ("tiny", WeightFormat::F16, 120868, 0x59cb74683e7057f5),
-    ("tiny", WeightFormat::Int8, 87334, 0x57031270b88fa4da),
-    ("beam", WeightFormat::Int8, 3417680, 0xc20eff5d3f8addcd),
+    ("tiny", WeightFormat::F32, 196906, 0x58356de6e9ceaeab),
+    ("beam", WeightFormat::F32, 11411089, 0x00bc42f403faa16d),
+    ("strands", WeightFormat::F32, 93582, 0x26dbac8aa54462fa),
+    ("tiny", WeightFormat::F16, 120929, 0xb350694335a73c3c),
+    ("tiny", WeightFormat::Int8, 87395, 0xdd610f751c4f913d),
+    ("beam", WeightFormat::Int8, 3417742, 0xf07625a343f5c73c),
 ];
 
 fn fnv1a(bytes: &[u8]) -> u64 {

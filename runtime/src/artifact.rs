@@ -18,6 +18,7 @@ use serde::{Deserialize, Deserializer};
 use crate::envelope::{self, EnvelopeError};
 use crate::instance::ValidModel;
 use crate::model::{Handle, Layer, Model, ModelError, Problem, Span, HANDLE_SOURCE, MAX_HANDLES, MAX_LAYERS};
+use crate::vertex_lists::{fill_chain_order, UNNAMED};
 
 /// First bytes of every artifact (the magic of its first section).
 pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
@@ -93,6 +94,8 @@ pub trait Pool<T> {
     fn push(&mut self, v: T) -> bool;
     /// The elements.
     fn as_slice(&self) -> &[T];
+    /// The elements, to change in place.
+    fn as_mut_slice(&mut self) -> &mut [T];
 }
 
 impl<T, const N: usize> Pool<T> for heapless::Vec<T, N> {
@@ -103,6 +106,9 @@ impl<T, const N: usize> Pool<T> for heapless::Vec<T, N> {
         heapless::Vec::push(self, v).is_ok()
     }
     fn as_slice(&self) -> &[T] {
+        self
+    }
+    fn as_mut_slice(&mut self) -> &mut [T] {
         self
     }
 }
@@ -117,6 +123,9 @@ impl<T> Pool<T> for std::vec::Vec<T> {
         true
     }
     fn as_slice(&self) -> &[T] {
+        self
+    }
+    fn as_mut_slice(&mut self) -> &mut [T] {
         self
     }
 }
@@ -272,21 +281,28 @@ where
             _ => return Err(LoadError::TrailingBytes),
         }
         self.header.surface_source = self.surface_source()?;
+        self.header.chain_order = self.chain_order()?;
         Ok(())
     }
 
-    /// Per drawn vertex, its free-vertex index or its handle slot (see [`Model`]).
+    /// Per drawn vertex, its free-vertex index or its handle slot (see [`Model`]): a binary
+    /// search in the free vertices, then in each handle's (ascending) vertices.
     fn surface_source(&mut self) -> Result<Span, LoadError> {
-        let h = self.header;
+        if self.handles.as_slice().len() > MAX_HANDLES {
+            return Err(invalid("handles", Problem::Unsupported));
+        }
         let start = self.indices.as_slice().len();
-        for i in 0..h.surface_vertices.len as usize {
-            let indices = self.indices.as_slice();
-            let get = |span: Span| span.of(indices).unwrap_or(&[]);
-            let v = get(h.surface_vertices)[i];
-            let source = match get(h.free_vertices).binary_search(&v) {
+        for i in 0..self.header.surface_vertices.len as usize {
+            let m = self.describe();
+            let v = m.surface_vertices().get(i).copied().unwrap_or(u32::MAX);
+            let source = match m.free_vertices().binary_search(&v) {
                 Ok(j) => j as u32,
-                Err(_) => match get(h.handle_vertices).iter().position(|&u| u == v) {
-                    Some(slot) => HANDLE_SOURCE | slot as u32,
+                Err(_) => match m.handle_slot(v) {
+                    Some(slot) => HANDLE_SOURCE | slot,
+                    // A handle out of order hides its vertices from the search.
+                    None if !m.handle_lists_ascend() => {
+                        return Err(invalid("handle_vertices", Problem::Inconsistent));
+                    }
                     None => {
                         return Err(LoadError::Malformed {
                             field: "surface_vertices",
@@ -302,6 +318,28 @@ where
         }
         Ok(span(start, self.indices.as_slice().len()))
     }
+
+    /// Per free vertex of a bend-encoded model, its position among the strands' slots
+    /// ([`Model::chain_order`]); empty without strands.
+    fn chain_order(&mut self) -> Result<Span, LoadError> {
+        let h = self.header;
+        let start = self.indices.as_slice().len();
+        if h.chains.len == 0 {
+            return Ok(span(start, start));
+        }
+        for _ in 0..h.free_vertices.len {
+            if !self.indices.push(UNNAMED) {
+                return Err(LoadError::Capacity { field: "chain_order" });
+            }
+        }
+        let (before, order) = self.indices.as_mut_slice().split_at_mut(start);
+        fill_chain_order(h.chains.of(before).unwrap_or(&[]), order);
+        Ok(span(start, self.indices.as_slice().len()))
+    }
+}
+
+fn invalid(field: &'static str, problem: Problem) -> LoadError {
+    LoadError::Invalid(ModelError { field, problem })
 }
 
 fn span(start: usize, end: usize) -> Span {

@@ -60,6 +60,7 @@ impl Model<'static> {
         root_slots: EMPTY_SPAN,
         chains: EMPTY_SPAN,
         chain_floats: EMPTY_SPAN,
+        chain_order: EMPTY_SPAN,
         surface_vertices: EMPTY_SPAN,
         surface_source: EMPTY_SPAN,
         surface_triangles: EMPTY_SPAN,
@@ -71,7 +72,7 @@ impl Model<'static> {
 
 impl<'a> Model<'a> {
     /// Number of fields of a [`Model`].
-    pub const FIELDS: usize = 28;
+    pub const FIELDS: usize = 29;
 
     /// Every field with its name, in declaration order.
     pub fn fields(&self) -> [(&'static str, FieldValue<'a>); Model::FIELDS] {
@@ -99,6 +100,7 @@ impl<'a> Model<'a> {
             root_slots,
             chains,
             chain_floats,
+            chain_order,
             surface_vertices,
             surface_source,
             surface_triangles,
@@ -129,6 +131,7 @@ impl<'a> Model<'a> {
             ("root_slots", V::Span(root_slots)),
             ("chains", V::Span(chains)),
             ("chain_floats", V::Span(chain_floats)),
+            ("chain_order", V::Span(chain_order)),
             ("surface_vertices", V::Span(surface_vertices)),
             ("surface_source", V::Span(surface_source)),
             ("surface_triangles", V::Span(surface_triangles)),

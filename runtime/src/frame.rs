@@ -187,11 +187,14 @@ impl<'m, 'a> Placement<'m, 'a> {
 
     /// World position of handle slot `slot` (z = 0 in 2D).
     pub fn target(&self, slot: usize) -> Vector3<f32> {
-        let Some((h, handle, i)) = self.locate(slot) else {
+        let Some((handle, i, translation, rotation)) = self
+            .locate(slot)
+            .and_then(|(h, handle, i)| Some((handle, i, self.translations.get(h)?, self.rotations.get(h)?)))
+        else {
             return Vector3::zeros();
         };
         let pivot = Vector3::from(handle.pivot);
-        let p = pivot + self.translations[h] + self.rotations[h] * (self.reference_in(handle, i) - pivot);
+        let p = pivot + translation + rotation * (self.reference_in(handle, i) - pivot);
         if self.model.dim() == 2 {
             Vector3::new(p.x, p.y, 0.0)
         } else {
@@ -335,4 +338,30 @@ fn normal_to(d: &[f32; 3]) -> [f32; 3] {
     let mut e = [0.0; 3];
     e[axis] = 1.0;
     normalized(core::array::from_fn(|i| e[i] - d[i] * d[axis]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Span;
+
+    #[test]
+    fn a_handle_past_the_room_is_placed_at_zero_not_panicked_on() {
+        let one = Handle {
+            vertices: Span { start: 0, len: 1 },
+            reference: Span { start: 0, len: 3 },
+            pivot: [1.0, 2.0, 3.0],
+        };
+        let handles = [one; MAX_HANDLES + 1];
+        let floats = [5.0, 6.0, 7.0];
+        let model = Model {
+            dim: 3,
+            floats: &floats,
+            handles: &handles,
+            ..Model::EMPTY
+        };
+        let place = Placement::new(&model, &[]);
+        assert_eq!(place.target(MAX_HANDLES - 1), Vector3::new(5.0, 6.0, 7.0));
+        assert_eq!(place.target(MAX_HANDLES), Vector3::zeros());
+    }
 }

@@ -192,22 +192,23 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     }
 
     /// Checks that `model` has the sizes this instance was created for (every call checks: an
-    /// instance may be handed a different model than the one it was created with). Returns the
-    /// latent size and signal length.
+    /// instance may be handed a different model than the one it was created with) and that
+    /// they fit the instance's room (instance memory that a C caller overwrote may claim more
+    /// than it has). Returns the latent size and signal length.
     fn check_sizes(&self, model: &ValidModel) -> Result<(usize, usize), SizeError> {
         let m = model.model();
         let (k, s) = (self.latent as usize, self.signal_len as usize);
-        for (size, need, has) in [
-            ("latent", m.latent as usize, k),
-            ("signal", m.bc_len as usize, s),
-            ("hidden", m.hidden(), H),
+        // An instance stores no hidden width: the model's need only fit the room.
+        for (size, need, stored, room) in [
+            ("latent", m.latent as usize, k, K),
+            ("signal", m.bc_len as usize, s, S),
+            ("hidden", m.hidden(), m.hidden(), H),
         ] {
-            let fits = if size == "hidden" { need <= has } else { need == has };
-            if !fits {
+            if need > room || need != stored {
                 return Err(SizeError {
                     size,
                     model: need,
-                    compiled: has,
+                    compiled: if need > room { room } else { stored },
                 });
             }
         }
@@ -499,8 +500,9 @@ mod tests {
     type Body = Instance<1, 12, HIDDEN>;
 
     /// A one-strand model: vertices 0 and 1 prescribed (one handle), 2, 3 and 4 free, hanging
-    /// along -y at spacing `L`, the chain tables as the trainer writes them; networks of zeros
-    /// whose decoder outputs the bends `q` whatever the latent.
+    /// along -y at spacing `L`, the chain tables as the trainer writes them and the loader
+    /// completes them (`chain_order`); networks of zeros whose decoder outputs the bends `q`
+    /// whatever the latent.
     struct Strand {
         params: Vec<f32>,
         floats: Vec<f32>,
@@ -509,7 +511,7 @@ mod tests {
         integrator: [Layer; 2],
         handles: [Handle; 1],
         rotates: bool,
-        spans: [Span; 12],
+        spans: [Span; 13],
     }
 
     /// Appends `values` to `pool`; their span.
@@ -549,6 +551,7 @@ mod tests {
                 push(&mut floats, &[1.0, 0.0, 0.0, L, L, L]),
                 push(&mut indices, &[0, 1, 2, 3, 4]),
                 push(&mut indices, &[HANDLE_SOURCE, HANDLE_SOURCE | 1, 0, 1, 2]),
+                push(&mut indices, &[0, 1, 2]),
             ];
             let handles = [Handle {
                 vertices: spans[4],
@@ -568,7 +571,7 @@ mod tests {
         }
 
         fn model(&self) -> Model<'_> {
-            let [rest, initial_latent, latent_min, latent_max, handle_vertices, free_vertices, origin_of, root_slots, chains, chain_floats, surface_vertices, surface_source] =
+            let [rest, initial_latent, latent_min, latent_max, handle_vertices, free_vertices, origin_of, root_slots, chains, chain_floats, surface_vertices, surface_source, chain_order] =
                 self.spans;
             Model {
                 dim: 3,
@@ -593,6 +596,7 @@ mod tests {
                 root_slots,
                 chains,
                 chain_floats,
+                chain_order,
                 surface_vertices,
                 surface_source,
                 surface_triangles: Span::default(),
@@ -729,12 +733,23 @@ mod tests {
         };
         let (chains, chain_floats) = (good.spans[8].start as usize, good.spans[9].start as usize);
         type Edit<'e> = &'e dyn Fn(&mut Strand);
-        let cases: [(Edit, &str, Problem); 10] = [
+        let order = good.spans[12].start as usize;
+        let cases: [(Edit, &str, Problem); 12] = [
             (&|s| s.indices[chains] = 2, "chains.parent", Problem::OutOfRange),
             (&|s| s.indices[chains] = 1, "chains.parent", Problem::Inconsistent),
             (&|s| s.indices[chains + 2] = 9, "chains", Problem::Inconsistent),
             (&|s| s.indices[chains + 4] = 3, "chains.slots", Problem::OutOfRange),
             (&|s| s.indices[chains + 4] = 0, "chains.slots", Problem::Inconsistent),
+            (
+                &|s| s.indices.swap(order, order + 1),
+                "chain_order",
+                Problem::Inconsistent,
+            ),
+            (
+                &|s| s.spans[12].len -= 1,
+                "chain_order",
+                Problem::Length { expected: 3, found: 2 },
+            ),
             (&|s| s.floats[chain_floats] = 1.1, "chains.rest_normal", Problem::Domain),
             (
                 &|s| s.floats[chain_floats + 1] = f32::NAN,

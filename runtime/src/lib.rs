@@ -31,6 +31,7 @@ pub mod model;
 pub mod network;
 #[cfg(feature = "std")]
 pub mod payload;
+mod vertex_lists;
 
 #[cfg(feature = "std")]
 pub use artifact::OwnedModel;

@@ -82,7 +82,7 @@ pub struct Weights<'a> {
 /// A handle: prescribed vertices moved rigidly about a pivot.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Handle {
-    /// Its vertices, in [`Model::indices`].
+    /// Its vertices, ascending, in [`Model::indices`].
     pub vertices: Span,
     /// Their identity-pose positions (3 per vertex), in [`Model::floats`].
     pub reference: Span,
@@ -183,7 +183,8 @@ pub struct Model<'a> {
     pub handles: &'a [Handle],
     /// Rest positions (`dim` per vertex), in `floats`.
     pub rest: Span,
-    /// Prescribed vertices in handle order (handles concatenated), in `indices`.
+    /// Prescribed vertices in handle order (handles concatenated, each handle's ascending), in
+    /// `indices`.
     pub handle_vertices: Span,
     /// Encoded (free) vertices, ascending, in `indices`.
     pub free_vertices: Span,
@@ -201,6 +202,11 @@ pub struct Model<'a> {
     /// `[normal_x, normal_y, normal_z, length_0, ..., length_(n-1)]`. Validation names its parts
     /// `chains.rest_normal` and `chains.lengths`.
     pub chain_floats: Span,
+    /// Per free vertex of a bend-encoded model, its position among the slots of
+    /// [`Model::chains`] taken strand after strand (their inverse, so that validation checks
+    /// in one pass that they name every free vertex once); empty without strands. Derived
+    /// when an artifact is loaded, not stored in it. In `indices`.
+    pub chain_order: Span,
     /// Vertices that are drawn, ascending, in `indices`.
     pub surface_vertices: Span,
     /// Per drawn vertex, its free-vertex index, or [`HANDLE_SOURCE`] | its handle slot.
@@ -437,6 +443,7 @@ impl<'a> Model<'a> {
             ("surface_vertices", self.surface_vertices),
             ("surface_source", self.surface_source),
             ("surface_triangles", self.surface_triangles),
+            ("chain_order", self.chain_order),
         ];
         for (field, span) in index_spans {
             if span.of(self.indices).is_none() {
@@ -481,17 +488,13 @@ impl<'a> Model<'a> {
                 },
             );
         }
-        let ascending = |v: &[u32]| v.windows(2).all(|w| w[0] < w[1]);
         if !ascending(free) || free.last().is_some_and(|&v| v as usize >= n) {
             return fail("free_vertices", Problem::Inconsistent);
         }
-        // Prescribed vertices are in range, not free, and listed once (with the count above,
-        // handle and free vertices then partition the mesh).
-        let repeated = |i: usize, v: &u32| handle[..i].contains(v);
-        if handle
-            .iter()
-            .enumerate()
-            .any(|(i, v)| *v as usize >= n || free.binary_search(v).is_ok() || repeated(i, v))
+        // Prescribed vertices are in range, not free, and listed once, each handle's in
+        // ascending order (with the count above, handle and free vertices then partition the
+        // mesh).
+        if handle.iter().any(|v| *v as usize >= n || free.binary_search(v).is_ok()) || !self.handle_vertices_distinct()
         {
             return fail("handle_vertices", Problem::Inconsistent);
         }
@@ -571,6 +574,16 @@ impl<'a> Model<'a> {
             problem: Problem::OutOfRange,
         })?;
         if table.is_empty() {
+            let order = self.chain_order.len as usize;
+            if order != 0 {
+                return fail(
+                    "chain_order",
+                    Problem::Length {
+                        expected: 0,
+                        found: order,
+                    },
+                );
+            }
             if !reals.is_empty() {
                 return fail(
                     "chains.lengths",
@@ -650,13 +663,11 @@ impl<'a> Model<'a> {
                 },
             );
         }
-        // Every free vertex exactly once: at once when the strands list them in order (as the
-        // trainer writes the procedural rods), otherwise pair by pair (once per model).
-        let all = || self.chains().flat_map(|c| c.slots.iter().copied());
-        if !all().eq(0..free as u32) && all().enumerate().any(|(p, j)| all().take(p).any(|k| k == j)) {
-            return fail("chains.slots", Problem::Inconsistent);
+        // Every free vertex exactly once, through the positions `chain_order` gives them.
+        match self.chain_order_problem(free) {
+            Some((field, problem)) => fail(field, problem),
+            None => Ok(()),
         }
-        Ok(())
     }
 
     fn validate_handles(&self) -> Result<(), ModelError> {
@@ -740,4 +751,9 @@ impl<'a> Model<'a> {
         }
         Ok(())
     }
+}
+
+/// Whether `v` ascends strictly.
+pub(crate) fn ascending(v: &[u32]) -> bool {
+    v.windows(2).all(|w| w[0] < w[1])
 }

@@ -28,7 +28,7 @@ pub struct Payload {
     pub diagonal: f64,
     /// Whether states are encoded relative to the handles' best-fit rotation.
     pub rotates: bool,
-    /// Prescribed vertices, in handle-target order.
+    /// Prescribed vertices, in handle-target order (the handles' lists concatenated).
     pub handle_vertices: Vec<u32>,
     /// Encoded (free) vertices, ascending.
     pub free_vertices: Vec<u32>,
@@ -80,7 +80,7 @@ pub struct ChainData {
 /// A handle: prescribed vertices moved rigidly about a pivot.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct HandleData {
-    /// Prescribed vertices.
+    /// Prescribed vertices, ascending (the runtime searches them).
     pub vertices: Vec<u32>,
     /// Their identity-pose positions, 3 per vertex.
     pub reference: Vec<f32>,

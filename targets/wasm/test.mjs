@@ -1,6 +1,6 @@
 // Runs the reference script inside the wasm module under node and prints the protocol every
-// target prints (see mochi-target-common::host), for the host to compare bit for bit; then
-// checks the viewer: the compiled model and the same artifact loaded from bytes (with f32
+// target prints (see mochi-target-common::host), for the host to compare with its own run;
+// then checks the viewer: the compiled model and the same artifact loaded from bytes (with f32
 // weights, the same weights) step to the same bits, its triangles index its drawn vertices,
 // and damaged bytes are refused with a reason.
 //   node test.mjs MODULE.wasm NAME WEIGHTS [ARTIFACT.mochi]
@@ -30,8 +30,27 @@ for (let i = 0; i < m.mochi_checkpoint_count(); i++) {
   lines.push(`checksum ${m.mochi_checkpoint_frame(i)} ${hex(m.mochi_checkpoint_hi(i), 8)}${hex(m.mochi_checkpoint_lo(i), 8)}`);
 }
 const n = m.mochi_vertex_count() * m.mochi_dim();
-const bits = new Uint32Array(m.memory.buffer, m.mochi_positions(), n);
-lines.push("positions " + Array.from(bits, (b) => hex(b, 8)).join(" "));
+const positions = () => Array.from(new Uint32Array(m.memory.buffer, m.mochi_positions(), n), (b) => hex(b, 8)).join(" ");
+lines.push("positions " + positions());
+// Time per frame (step + full decode) of the reference run, best of 3.
+let best = Infinity;
+for (let round = 0; round < 3; round++) {
+  const start = performance.now();
+  m.mochi_reference_run(frames);
+  best = Math.min(best, performance.now() - start);
+}
+lines.push(`microseconds_per_frame ${((1000 * best) / frames).toFixed(2)}`);
+// f32 weights agree with the host within a tolerance, not bit for bit: the positions every
+// 10th frame (each run starts from rest, so frame f of a run of f frames is frame f of all).
+if (weights === "f32") {
+  for (let f = 10; f <= frames; f += 10) {
+    if (m.mochi_reference_run(f) !== 0) {
+      console.log(`status error mochi_reference_run(${f}) failed`);
+      process.exit(1);
+    }
+    lines.push(`frame ${f} ${positions()}`);
+  }
+}
 // The interactive path: a pose step moves the object and reports a non-negative status.
 m.mochi_reset();
 const moved = m.mochi_step_pose(0, 0.01, 0, 0.01, 0, 0);

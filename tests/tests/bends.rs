@@ -156,7 +156,16 @@ fn strands_artifact_round_trips_and_loads_field_for_field() {
     assert_eq!(m.params, generated.params);
     assert_eq!(m.floats, generated.floats);
     assert_eq!(m.indices, generated.indices);
-    assert_eq!((m.chains, m.chain_floats), (generated.chains, generated.chain_floats));
+    assert_eq!(
+        (m.chains, m.chain_floats, m.chain_order),
+        (generated.chains, generated.chain_floats, generated.chain_order)
+    );
+    // The loader's inverse of the strands' slots.
+    let order = m.chain_order.of(m.indices).unwrap();
+    assert_eq!(order.len(), m.free_vertices().len());
+    for (p, j) in m.chains().flat_map(|c| c.slots.iter().copied()).enumerate() {
+        assert_eq!(order[j as usize] as usize, p);
+    }
 }
 
 #[test]

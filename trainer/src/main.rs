@@ -121,6 +121,21 @@ enum Command {
         #[arg(required = true)]
         artifacts: Vec<PathBuf>,
     },
+    /// Write an artifact's networks as the runtime runs them, with the runtime's rollout of
+    /// the targets' reference script, to a numpy `.npz` archive (for `scripts/bench-jax.sh`).
+    ExportWeights {
+        /// Artifact (`SCENE.mochi`).
+        artifact: PathBuf,
+        /// Output archive (`.npz`).
+        #[arg(long)]
+        out: PathBuf,
+        /// Frames of the reference script.
+        #[arg(long, default_value_t = 1000)]
+        frames: usize,
+        /// Weight storage, as `mochi codegen --weights`.
+        #[arg(long, default_value = "f32", value_parser = parse_weights)]
+        weights: mochi_runtime::WeightFormat,
+    },
     /// Timings.
     Bench {
         #[command(subcommand)]
@@ -248,6 +263,27 @@ fn run(cli: Cli) -> Result<()> {
                 artifact.write(&path)?;
                 println!("{}: format {}", path.display(), mochi_trainer::artifact::FORMAT_VERSION);
             }
+            Ok(())
+        }
+        Command::ExportWeights {
+            artifact,
+            out,
+            frames,
+            weights,
+        } => {
+            let e = eval::network_export::export(&artifact, &out, frames, weights)?;
+            println!(
+                "{} -> {}: latent {}, signal {}, hidden {}, {} integrator and {} decoder layers, {} frames ({} clamped or held)",
+                artifact.display(),
+                out.display(),
+                e.latent,
+                e.signal,
+                e.hidden,
+                e.layers[0],
+                e.layers[1],
+                e.frames,
+                e.departures
+            );
             Ok(())
         }
         Command::Bench {

@@ -116,7 +116,8 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
             assert!(m.step_seconds > 0.0 && m.decode_seconds > 0.0);
         }
     }
-    // The weight-storage table: one row per storage; a runtime rollout that ran the whole
+    // The weight-storage table: one row per storage (the last, int8 widened to f32, shows
+    // what the int8 kernel's input quantisation costs); a runtime rollout that ran the whole
     // window (bounded 60) has a finite mean error, however far it drifted; the f32 row is
     // the one the others are compared with.
     let report = std::fs::read_to_string(dir.path().join("eval/report.md")).unwrap();
@@ -126,7 +127,8 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
         .filter(|l| l.starts_with("| f") || l.starts_with("| int8"))
         .map(|l| l.split('|').map(str::trim).collect())
         .collect();
-    assert_eq!(rows.len(), 4, "{storage}");
+    assert_eq!(rows.len(), 5, "{storage}");
+    assert!(rows[4][1].contains("widened"), "{:?}", rows[4]);
     for cells in &rows {
         let mean: f64 = cells[3].parse().unwrap();
         let (stable, bounded) = cells[6].split_once(" (").unwrap();

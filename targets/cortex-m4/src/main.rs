@@ -14,7 +14,7 @@ use cortex_m::peripheral::SYST;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hio};
 use mochi_runtime::{HandleMotion, ValidModel};
-use mochi_target_common::{run, Script, CHECKPOINTS, FRAMES};
+use mochi_target_common::{run, sampled, Script, CHECKPOINTS, FRAMES};
 
 #[allow(dead_code, missing_docs)]
 mod model {
@@ -67,9 +67,16 @@ fn body(out: &mut hio::HostStream, stack_floor: usize) -> Result<(), &'static st
     // SAFETY: the only reference to POSITIONS, taken once.
     let positions: &mut [f32] = unsafe { &mut *addr_of_mut!(POSITIONS) };
     let mut failed = false;
-    run::<{ model::LATENT }, { model::SIGNAL }, { model::HIDDEN }>(&model, FRAMES, positions, |frame, sum, _| {
+    run::<{ model::LATENT }, { model::SIGNAL }, { model::HIDDEN }>(&model, FRAMES, positions, |frame, sum, now| {
         if CHECKPOINTS.contains(&frame) {
             failed |= writeln!(out, "checksum {frame} {:016x}", sum.0).is_err();
+        }
+        if sampled(WEIGHTS, frame) {
+            let _ = write!(out, "frame {frame}");
+            for v in now {
+                let _ = write!(out, " {:08x}", v.to_bits());
+            }
+            failed |= writeln!(out).is_err();
         }
     })
     .map_err(|_| "the reference run was refused")?;

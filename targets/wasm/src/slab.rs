@@ -85,4 +85,7 @@ impl<T: Copy, const POOL: usize> Pool<T> for Slab<T, POOL> {
     fn as_slice(&self) -> &[T] {
         self.items.get(..self.len).unwrap_or(&[])
     }
+    fn as_mut_slice(&mut self) -> &mut [T] {
+        self.items.get_mut(..self.len).unwrap_or(&mut [])
+    }
 }

@@ -15,6 +15,7 @@ pub mod error;
 pub mod material;
 pub mod measure;
 pub mod mesh;
+pub mod npz;
 pub mod progress;
 pub mod scene;
 pub mod solver;

@@ -20,14 +20,14 @@
 //! array's presence, dtype and shape; errors name the file and the array.
 
 use std::fs::File;
-use std::io::{self, BufReader, BufWriter, Cursor, Read};
+use std::io::{self, BufReader, Cursor, Read};
 use std::path::Path;
 
-use npyz::npz::NpzWriter;
 use npyz::zip::{self, CompressionMethod};
-use npyz::{DType, Deserialize, NpyFile, TypeStr, WriterBuilder};
+use npyz::{Deserialize, NpyFile};
 
 use crate::error::{InputError, SimError};
+use crate::npz::NpzOut;
 
 /// Version number stored in `format_version`; bumped when the layout changes.
 pub const FORMAT_VERSION: u32 = 1;
@@ -144,49 +144,26 @@ impl Trajectory {
         let n = self.num_vertices() as u64;
         let p = self.bc_signal[0].len() as u64;
         let k = self.energy_names.len() as u64;
-        let mut npz = NpzWriter::create(path)?;
-        put(&mut npz, "format_version", &[], [FORMAT_VERSION])?;
-        put_strings(&mut npz, "scene", &[], [self.scene.as_str()])?;
-        put(&mut npz, "dt", &[], [self.dt])?;
-        put(
-            &mut npz,
+        let mut npz = NpzOut::create(path)?;
+        npz.array("format_version", &[], [FORMAT_VERSION])?;
+        npz.strings("scene", &[], [self.scene.as_str()])?;
+        npz.array("dt", &[], [self.dt])?;
+        npz.array(
             "positions",
             &[frames, n, self.dim as u64],
             self.positions.iter().flatten().copied(),
         )?;
-        put(
-            &mut npz,
-            "bc_signal",
-            &[frames, p],
-            self.bc_signal.iter().flatten().copied(),
-        )?;
-        put_strings(
-            &mut npz,
-            "energy_names",
-            &[k],
-            self.energy_names.iter().map(String::as_str),
-        )?;
-        put(
-            &mut npz,
-            "energies",
-            &[frames, k],
-            self.energies.iter().flatten().copied(),
-        )?;
-        put(
-            &mut npz,
-            "newton_iterations",
-            &[frames],
-            self.newton_iterations.iter().copied(),
-        )?;
-        put(&mut npz, "step_seconds", &[frames], self.step_seconds.iter().copied())?;
-        put_strings(
-            &mut npz,
+        npz.array("bc_signal", &[frames, p], self.bc_signal.iter().flatten().copied())?;
+        npz.strings("energy_names", &[k], self.energy_names.iter().map(String::as_str))?;
+        npz.array("energies", &[frames, k], self.energies.iter().flatten().copied())?;
+        npz.array("newton_iterations", &[frames], self.newton_iterations.iter().copied())?;
+        npz.array("step_seconds", &[frames], self.step_seconds.iter().copied())?;
+        npz.strings(
             "meta",
             &[self.meta.len() as u64, 2],
             self.meta.iter().flat_map(|(k, v)| [k.as_str(), v.as_str()]),
         )?;
-        let mut file = npz.zip_writer().finish()?;
-        io::Write::flush(&mut file)
+        npz.finish()
     }
 
     /// Reads a trajectory written by [`Self::write_npz`] (or by numpy in the same layout).
@@ -315,63 +292,6 @@ fn rows<T: Clone>(flat: Vec<T>, count: usize, width: usize) -> Vec<Vec<T>> {
     } else {
         flat.chunks(width).map(<[T]>::to_vec).collect()
     }
-}
-
-// ---------------------------------------------------------------------------------------
-// Writing
-
-type Writer = NpzWriter<BufWriter<File>>;
-
-fn entry_options() -> zip::write::FileOptions {
-    // Like `numpy.savez`: stored, so large arrays cost no compression time. Zip64 entries
-    // for arrays of 2 GiB and more.
-    zip::write::FileOptions::default()
-        .compression_method(CompressionMethod::Stored)
-        .large_file(true)
-}
-
-/// Writes a numeric array of `shape` with the default dtype of `T` (little-endian).
-fn put<T: npyz::AutoSerialize>(
-    npz: &mut Writer,
-    name: &str,
-    shape: &[u64],
-    data: impl IntoIterator<Item = T>,
-) -> io::Result<()> {
-    let mut writer = npz
-        .array::<T>(name, entry_options())?
-        .default_dtype()
-        .shape(shape)
-        .begin_nd()?;
-    writer.extend(data)?;
-    writer.finish()
-}
-
-/// Writes strings as a fixed-width unicode (`<U`) array of `shape`.
-fn put_strings<'a>(
-    npz: &mut Writer,
-    name: &str,
-    shape: &[u64],
-    strings: impl IntoIterator<Item = &'a str> + Clone,
-) -> io::Result<()> {
-    let width = strings
-        .clone()
-        .into_iter()
-        .map(|s| s.chars().count())
-        .max()
-        .unwrap_or(0)
-        .max(1);
-    let type_str: TypeStr = format!("<U{width}")
-        .parse()
-        .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, format!("{e}")))?;
-    let mut writer = npz
-        .array::<str>(name, entry_options())?
-        .dtype(DType::Plain(type_str))
-        .shape(shape)
-        .begin_nd()?;
-    for s in strings {
-        writer.push(s)?;
-    }
-    writer.finish()
 }
 
 // ---------------------------------------------------------------------------------------
@@ -567,6 +487,8 @@ fn pre_check_header(bytes: &[u8]) -> Result<(usize, Vec<u64>, u64), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::npz::entry_options;
+    use npyz::WriterBuilder;
     use std::process::Command;
 
     fn sample() -> Trajectory {

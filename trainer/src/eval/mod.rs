@@ -30,6 +30,7 @@ use crate::learn::encoding::Encoding;
 use crate::progress::Reporter;
 use crate::report::chart::{self, LabelledPoint, Series};
 
+pub mod network_export;
 pub mod reduced;
 pub mod reduced_bench;
 pub mod rollout;

@@ -286,9 +286,11 @@ fn candle_seconds(trainer: &LoadedModel, script: &[Vec<HandleMotion>], k: usize)
 
 /// The benchmark table (markdown).
 pub fn table(timings: &[RuntimeTiming]) -> String {
-    let mut s = String::from(
-        "| artifact | weights | latent | step + full decode | step + surface decode | candle batch-1 | runtime speed-up | GFLOP/s | weights | instance state | max disagreement (frames) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+    let mut s = format!(
+        "Runtime kernels on this CPU: `f32` {:?} (`mochi_runtime::network::fast`), `f16` canonical sum, int8 integer sum.\n\n",
+        mochi_runtime::network::fast::width()
     );
+    s += "| artifact | weights | latent | step + full decode | step + surface decode | candle batch-1 | runtime speed-up | GFLOP/s | weights | instance state | max disagreement (frames) |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
     for t in timings {
         s += &format!(
             "| {} | {} | {} | {:.1} µs | {:.1} µs | {:.1} µs | {:.1}x | {:.2} | {:.1} KiB | {} B | {:.1e} ({}) |\n",

@@ -1,7 +1,9 @@
 //! What each weight storage costs in accuracy (`mochi eval`, "Weight storage"): the runtime's
 //! rollout of one artifact with its weights stored as `f32`, `f16` and int8 (per-row scales,
 //! as `mochi codegen --weights` would generate them), against the full-space reference on the
-//! test sequences, and against the `f32` runtime.
+//! test sequences, and against the `f32` runtime. The int8 kernel also quantises each layer's
+//! input (see `mochi_runtime::network::integer`); the same int8 weights widened back to `f32`
+//! show what that costs apart from the weights' own rounding.
 
 use std::path::Path;
 
@@ -17,23 +19,53 @@ use mochi_sim::measure::{mean_and_max_error, vertex_errors};
 use mochi_sim::trajectory::Trajectory;
 use mochi_sim::BuiltScene;
 
+/// One storage compared: the networks' weight formats, and whether int8 weights are widened
+/// back to `f32` (exactly `scale * q`) so that the `f32` kernel runs on unquantised inputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Storage {
+    /// The weight formats.
+    pub options: Options,
+    /// Int8 weights widened to `f32`.
+    pub widened: bool,
+}
+
+impl Storage {
+    fn stored(options: Options) -> Self {
+        Storage {
+            options,
+            widened: false,
+        }
+    }
+}
+
 /// The storages compared: `--weights f32`, `f16` and `int8` (which keeps the integrator in
-/// `f16`), and int8 for both networks, the reason it does.
-pub fn storages() -> [Options; 4] {
+/// `f16`), int8 for both networks (the reason it does), and `--weights int8` widened to `f32`
+/// (what the int8 kernel's input quantisation costs).
+pub fn storages() -> [Storage; 5] {
     [
-        Options::weights(WeightFormat::F32),
-        Options::weights(WeightFormat::F16),
-        Options::weights(WeightFormat::Int8),
-        Options {
+        Storage::stored(Options::weights(WeightFormat::F32)),
+        Storage::stored(Options::weights(WeightFormat::F16)),
+        Storage::stored(Options::weights(WeightFormat::Int8)),
+        Storage::stored(Options {
             decoder: WeightFormat::Int8,
             integrator: WeightFormat::Int8,
+        }),
+        Storage {
+            options: Options::weights(WeightFormat::Int8),
+            widened: true,
         },
     ]
 }
 
 /// How a storage is called in reports.
-pub(crate) fn storage_name(options: &Options) -> String {
-    if options == &Options::weights(options.decoder) {
+pub(crate) fn storage_name(storage: &Storage) -> String {
+    let options = &storage.options;
+    if storage.widened {
+        format!(
+            "{}, widened to f32 (no input quantisation)",
+            storage_name(&Storage::stored(*options))
+        )
+    } else if options == &Options::weights(options.decoder) {
         format_name(options.decoder).into()
     } else {
         format!(
@@ -48,7 +80,7 @@ pub(crate) fn storage_name(options: &Options) -> String {
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct StorageReport {
     /// The weight storage.
-    pub storage: Options,
+    pub storage: Storage,
     /// Bytes of weights, biases and scales.
     pub weight_bytes: usize,
     /// Mean over sequences of the mean vertex error / diagonal over every measured frame
@@ -84,12 +116,20 @@ pub fn evaluate(
         .model();
     let mut f32_positions: Vec<Vec<Vec<f32>>> = Vec::new();
     let mut reports = Vec::new();
-    for options in storages() {
+    for storage in storages() {
+        let options = storage.options;
         let quantized = Quantized::split(&base, options.decoder, options.integrator);
-        let model = ValidModel::new(quantized.model(&base))
-            .with_context(|| format!("{}: with {} weights", source.display(), storage_name(&options)))?;
+        let widened;
+        let model = if storage.widened {
+            widened = Quantized::split(&quantized.model(&base), WeightFormat::F32, WeightFormat::F32);
+            widened.model(&base)
+        } else {
+            quantized.model(&base)
+        };
+        let model = ValidModel::new(model)
+            .with_context(|| format!("{}: with {} weights", source.display(), storage_name(&storage)))?;
         let mut report = StorageReport {
-            storage: options,
+            storage,
             weight_bytes: model.model().weight_bytes(),
             mean_error: 0.0,
             max_error: 0.0,

@@ -1,0 +1,296 @@
+//! The int8 kernel: integer products summed exactly, so every target computes the same bits.
+//!
+//! The input `x` of a layer is quantised once per call with one scale for the whole vector:
+//! `m = max |x_c|`, `L = levels(cols)`, `q_c = round(x_c * (L / m))` (an `i16` in `[-L, L]`),
+//! `scale_x = m / L`. A row is `acc = sum_c w[r][c] * q_c` in `i32`, then
+//! `y[r] = b[r] + s[r] * (acc * scale_x)` in `f32` (multiply, then add, in that order).
+//! `L` keeps `acc` inside `i32` for any weights (-128 included): `128 * L * cols <= i32::MAX`,
+//! so the sum is exact and its order free. Each target adds in its own way:
+//!
+//! - x86-64: `vpmaddwd` on 16 (AVX2) or 32 (AVX-512BW) weights at a time, or `vpdpwssd`
+//!   where the CPU has AVX-512 VNNI; chosen at run time under `std`, by target features
+//!   without it;
+//! - wasm with `simd128`: `i32x4.dot_i16x8_s` on 8 weights at a time;
+//! - Armv7E-M (Cortex-M4, the `armv7em` feature): `SMLAD`, two 16-bit multiply-accumulates per
+//!   instruction, on weight pairs unpacked by `SXTB16` (the activations are stored
+//!   pair-interleaved to match);
+//! - anywhere else: a plain loop.
+//!
+//! An input with a NaN or infinity gives NaN rows (the instance then reports a non-finite
+//! state, as the float kernels' NaN would).
+
+use super::finish;
+use crate::model::Layer;
+
+/// Largest layer input the integer path quantises (the quantised copy lives on the stack:
+/// 2 KiB). Larger inputs give NaN rows.
+pub const MAX_COLS: usize = 1024;
+
+/// Quantisation levels for a layer of `cols` inputs: the most that keeps `128 * L * cols`
+/// inside `i32`, at most `i16::MAX`.
+pub const fn levels(cols: usize) -> i32 {
+    let bound = i32::MAX as usize / (128 * if cols == 0 { 1 } else { cols });
+    if bound > i16::MAX as usize {
+        i16::MAX as i32
+    } else {
+        bound as i32
+    }
+}
+
+/// An input vector quantised for the integer kernels.
+pub struct Quantized {
+    q: [i16; MAX_COLS],
+    cols: usize,
+    scale: f32,
+}
+
+impl Quantized {
+    /// Quantises the concatenation of `parts` (the first `cols` values; missing values are
+    /// zeros). `None` when `cols` exceeds [`MAX_COLS`] or the input is not finite.
+    pub fn new(parts: &[&[f32]], cols: usize) -> Option<Quantized> {
+        if cols > MAX_COLS {
+            return None;
+        }
+        let values = || parts.iter().flat_map(|p| p.iter()).take(cols);
+        // The largest magnitude, NaN kept (`f32::max` would drop it).
+        let m = values().fold(0.0f32, |m, &v| if v.abs() > m || v.is_nan() { v.abs() } else { m });
+        if !m.is_finite() {
+            return None;
+        }
+        let mut quantized = Quantized {
+            q: [0; MAX_COLS],
+            cols,
+            scale: 0.0,
+        };
+        if m > 0.0 {
+            let levels = levels(cols) as f32;
+            let inv = levels / m;
+            for (q, &v) in quantized.q.iter_mut().zip(values()) {
+                *q = libm::roundf(v * inv).clamp(-levels, levels) as i16;
+            }
+            quantized.scale = m / levels;
+        }
+        arrange(&mut quantized.q[..cols]);
+        Some(quantized)
+    }
+
+    /// The quantisation step `scale_x`.
+    pub fn scale(&self) -> f32 {
+        self.scale
+    }
+
+    /// `sum_c w[c] * q_c` for a row `w` of `cols` weights (a shorter row reads as zeros).
+    pub fn dot(&self, w: &[i8]) -> i32 {
+        if w.len() != self.cols {
+            return 0;
+        }
+        dot(w, &self.q[..self.cols])
+    }
+}
+
+/// Rows `first..first + out.len()` of the int8 layer `layer` (scales and biases in `params`,
+/// weights `w`) for the input `parts`.
+pub fn rows(params: &[f32], layer: &Layer, w: &[i8], parts: &[&[f32]], first: usize, out: &mut [f32]) {
+    let cols = layer.cols as usize;
+    let Some(x) = Quantized::new(parts, cols) else {
+        out.fill(f32::NAN);
+        return;
+    };
+    for (i, o) in out.iter_mut().enumerate() {
+        let r = first + i;
+        let acc = w.get(r * cols..(r + 1) * cols).map_or(0, |row| x.dot(row));
+        *o = finish(params, layer, r, acc as f32 * x.scale);
+    }
+}
+
+/// Puts the quantised activations in the order this target's [`dot`] reads them.
+#[inline(always)]
+fn arrange(q: &mut [i16]) {
+    // SMLAD pairs: `SXTB16` unpacks bytes 0 and 2 of a weight word into one register and bytes
+    // 1 and 3 into another, so each group of four activations is stored as (0, 2, 1, 3).
+    #[cfg(all(target_arch = "arm", feature = "armv7em"))]
+    for g in q.chunks_exact_mut(4) {
+        g.swap(1, 2);
+    }
+    #[cfg(not(all(target_arch = "arm", feature = "armv7em")))]
+    let _ = q;
+}
+
+/// `sum w[c] * q[c]` in `i32` (`w.len() == q.len()`, `q` as [`arrange`] left it).
+#[inline]
+fn dot(w: &[i8], q: &[i16]) -> i32 {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(sum) = super::x86::dot_i8(w, q) {
+        return sum;
+    }
+    #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+    return wasm::dot(w, q);
+    #[cfg(all(target_arch = "arm", feature = "armv7em"))]
+    return arm::dot(w, q);
+    #[allow(unreachable_code)]
+    dot_portable(w, q)
+}
+
+/// The plain loop (any `q` order that matches `w`).
+#[inline]
+pub fn dot_portable(w: &[i8], q: &[i16]) -> i32 {
+    w.iter()
+        .zip(q)
+        .fold(0i32, |acc, (&w, &q)| acc.wrapping_add(i32::from(w) * i32::from(q)))
+}
+
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+#[allow(unsafe_code)]
+mod wasm {
+    use core::arch::wasm32::*;
+
+    /// Eight weights at a time: widened to `i16`, `i32x4.dot_i16x8_s` with the activations.
+    #[inline]
+    pub fn dot(w: &[i8], q: &[i16]) -> i32 {
+        let n = w.len().min(q.len());
+        let mut acc = i32x4_splat(0);
+        let mut c = 0;
+        while c + 8 <= n {
+            // SAFETY: c + 8 <= n, so 8 bytes of `w` and 8 halves of `q` are readable; wasm
+            // loads need no alignment.
+            unsafe {
+                let wv = i16x8_load_extend_i8x8(w.as_ptr().add(c).cast());
+                let qv = v128_load(q.as_ptr().add(c).cast());
+                acc = i32x4_add(acc, i32x4_dot_i16x8(wv, qv));
+            }
+            c += 8;
+        }
+        let lanes = i32x4_extract_lane::<0>(acc)
+            .wrapping_add(i32x4_extract_lane::<1>(acc))
+            .wrapping_add(i32x4_extract_lane::<2>(acc))
+            .wrapping_add(i32x4_extract_lane::<3>(acc));
+        lanes.wrapping_add(super::dot_portable(&w[c..n], &q[c..n]))
+    }
+}
+
+#[cfg(all(target_arch = "arm", feature = "armv7em"))]
+#[allow(unsafe_code)]
+mod arm {
+    use core::arch::asm;
+
+    /// Four weights per word: `SXTB16` gives (w0, w2) and, rotated by 8, (w1, w3); two
+    /// `SMLAD`s multiply them with the interleaved activations (q0, q2) and (q1, q3).
+    #[inline]
+    pub fn dot(w: &[i8], q: &[i16]) -> i32 {
+        let n = w.len().min(q.len());
+        let (wg, _) = w[..n].as_chunks::<4>();
+        let (qg, _) = q[..n].as_chunks::<4>();
+        let mut acc: i32 = 0;
+        for (w4, q4) in wg.iter().zip(qg) {
+            let word = u32::from_le_bytes(w4.map(|b| b as u8));
+            let pair = |a: i16, b: i16| u32::from(a as u16) | (u32::from(b as u16) << 16);
+            let (q02, q13) = (pair(q4[0], q4[1]), pair(q4[2], q4[3]));
+            let (w02, w13): (u32, u32);
+            // SAFETY: register-only DSP instructions of Armv7E-M (the `armv7em` feature).
+            unsafe {
+                asm!("sxtb16 {0}, {1}", out(reg) w02, in(reg) word, options(pure, nomem, nostack));
+                asm!("sxtb16 {0}, {1}, ror #8", out(reg) w13, in(reg) word, options(pure, nomem, nostack));
+                asm!("smlad {0}, {1}, {2}, {0}", inout(reg) acc, in(reg) w02, in(reg) q02, options(pure, nomem, nostack));
+                asm!("smlad {0}, {1}, {2}, {0}", inout(reg) acc, in(reg) w13, in(reg) q13, options(pure, nomem, nostack));
+            }
+        }
+        let tail = n - n % 4;
+        acc.wrapping_add(super::dot_portable(&w[tail..n], &q[tail..n]))
+    }
+}
+
+#[cfg(all(test, feature = "std"))]
+mod tests {
+    extern crate std;
+    use std::vec::Vec;
+
+    use super::*;
+    use crate::model::WeightFormat;
+    use crate::network::dense_rows;
+    use crate::network::test_support::{noise, Case};
+
+    /// The definition in the module docs, written out plainly in `i64` (no overflow to hide).
+    fn reference(case: &Case, x: &[f32], r: usize) -> f32 {
+        let cols = case.cols;
+        let m = x.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let levels = levels(cols) as f32;
+        let q: Vec<i64> = x.iter().map(|v| libm::roundf(v * (levels / m)) as i64).collect();
+        let acc: i64 = (0..cols).map(|c| i64::from(case.bytes[r * cols + c]) * q[c]).sum();
+        let scale = case.params[case.rows + r];
+        case.params[r] + scale * (acc as i32 as f32 * (m / levels))
+    }
+
+    /// Every row count and column count, whole or split into parts or from a row offset,
+    /// gives the definition's bits; the result is within the quantisation's error of the
+    /// float product.
+    #[test]
+    fn integer_kernel_gives_the_definition_bit_for_bit() {
+        for (rows_n, cols) in [
+            (1, 8),
+            (3, 16),
+            (13, 24),
+            (21, 40),
+            (9, 7),
+            (17, 44),
+            (40, 128),
+            (5, 3),
+            (6, 1000),
+        ] {
+            let case = Case::new(rows_n, cols);
+            let x: Vec<f32> = noise(cols as u32 + 5, cols).map(|v| 3.0 * v).collect();
+            let layer = case.layer(WeightFormat::Int8);
+            let want: Vec<f32> = (0..rows_n).map(|r| reference(&case, &x, r)).collect();
+            let mut out = std::vec![0.0; rows_n];
+            dense_rows(&case.weights(), &layer, &[&x], 0, &mut out);
+            assert_eq!(out, want, "{rows_n}x{cols}");
+            let (a, b) = x.split_at(cols / 3);
+            dense_rows(&case.weights(), &layer, &[a, b], 0, &mut out);
+            assert_eq!(out, want, "{rows_n}x{cols} in two parts");
+            let mut tail = std::vec![0.0; rows_n - 1];
+            dense_rows(&case.weights(), &layer, &[&x], 1, &mut tail);
+            assert_eq!(tail[..], want[1..], "{rows_n}x{cols} from row 1");
+            for (r, y) in want.iter().enumerate() {
+                let w = case.row(WeightFormat::Int8, r);
+                let s = case.params[rows_n + r];
+                let float: f32 = case.params[r] + s * w.iter().zip(&x).map(|(w, x)| w * x).sum::<f32>();
+                let step = 3.0 / levels(cols) as f32;
+                let bound = s * 127.0 * step * cols as f32 * 0.5 + 1e-4;
+                assert!((y - float).abs() <= bound, "{rows_n}x{cols} row {r}: {y} vs {float}");
+            }
+        }
+    }
+
+    /// The largest sums stay exact: every weight at -128 or 127 and every input at the
+    /// largest magnitude, for the widest input.
+    #[test]
+    fn extreme_weights_and_inputs_do_not_overflow() {
+        let cols = MAX_COLS;
+        let x = std::vec![-1.0f32; cols];
+        let q = Quantized::new(&[&x], cols).unwrap();
+        let w = std::vec![-128i8; cols];
+        let want = 128i64 * i64::from(levels(cols)) * cols as i64;
+        assert!(want <= i64::from(i32::MAX));
+        assert_eq!(i64::from(q.dot(&w)), want);
+        assert_eq!(dot_portable(&w, &q.q[..cols]), q.dot(&w));
+    }
+
+    /// Zero input gives the biases; NaN or infinite input and inputs wider than the room give
+    /// NaN rows, never a panic.
+    #[test]
+    fn degenerate_inputs() {
+        let case = Case::new(3, 16);
+        let layer = case.layer(WeightFormat::Int8);
+        let mut out = [0.0f32; 3];
+        dense_rows(&case.weights(), &layer, &[&[0.0; 16]], 0, &mut out);
+        assert_eq!(out[..], case.params[..3]);
+        let mut bad = [0.5f32; 16];
+        for v in [f32::NAN, f32::INFINITY] {
+            bad[7] = v;
+            dense_rows(&case.weights(), &layer, &[&bad], 0, &mut out);
+            assert!(out.iter().all(|y| y.is_nan()), "{v}");
+        }
+        assert!(Quantized::new(&[&[1.0; 4]], MAX_COLS + 1).is_none());
+        assert_eq!(levels(0), i16::MAX as i32);
+        assert_eq!(levels(1000), 16_777);
+    }
+}
