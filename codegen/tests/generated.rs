@@ -11,17 +11,24 @@ use mochi_runtime::WeightFormat;
 
 /// Artifact, weight storage, length and FNV-1a 64 of the generated module.
 ///
-/// Last change: the loader's derived `chain_order` (the inverse of the strands' slots). Every
-/// module gains the line `chain_order: mochi_runtime::Span { .. }` in its `MODEL` literal (an
-/// empty span without strands); `strands` also gains the 24 entries `0, 1, ..., 23` at the
-/// end of `INDICES` (`INDICES_LEN` 168 -> 192). Nothing else differs.
+/// Last change: artifact format 4 (the artifacts converted from format 3 by `mochi upgrade`,
+/// weights unchanged): the triangles to draw joined the runtime's fields. The modules differ
+/// from those of format 3 only in the header comment (`// Artifact format 4`), `INDICES_LEN`,
+/// the `INDICES` pool (the triangles inserted after the drawn vertices, every other index
+/// unchanged), the `surface_source` span's start (moved past them) and the new
+/// `surface_triangles` span; every other array and constant is byte for byte the same (each
+/// module is longer by exactly what it grew on its own, over the one with `chain_order`).
+/// Before: the loader's derived `chain_order` (the inverse of the strands' slots): every
+/// module gained the line `chain_order: mochi_runtime::Span { .. }` in its `MODEL` literal (an
+/// empty span without strands); `strands` also the 24 entries `0, 1, ..., 23` at the end of
+/// `INDICES`.
 const EXPECTED: [(&str, WeightFormat, usize, u64); 6] = [
-    ("tiny", WeightFormat::F32, 195095, 0x78ad8624e43fec24),
-    ("beam", WeightFormat::F32, 11385444, 0xd53aae0cd66cd495),
-    ("strands", WeightFormat::F32, 93515, 0x366c96193aa40cb2),
-    ("tiny", WeightFormat::F16, 119118, 0x0b1a5d9bbd5a2765),
-    ("tiny", WeightFormat::Int8, 85584, 0x191abfe105327c12),
-    ("beam", WeightFormat::Int8, 3392097, 0xc906bc6d733fc590),
+    ("tiny", WeightFormat::F32, 196906, 0x58356de6e9ceaeab),
+    ("beam", WeightFormat::F32, 11411089, 0x00bc42f403faa16d),
+    ("strands", WeightFormat::F32, 93582, 0x26dbac8aa54462fa),
+    ("tiny", WeightFormat::F16, 120929, 0xb350694335a73c3c),
+    ("tiny", WeightFormat::Int8, 87395, 0xdd610f751c4f913d),
+    ("beam", WeightFormat::Int8, 3417742, 0xf07625a343f5c73c),
 ];
 
 fn fnv1a(bytes: &[u8]) -> u64 {

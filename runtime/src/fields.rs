@@ -63,6 +63,7 @@ impl Model<'static> {
         chain_order: EMPTY_SPAN,
         surface_vertices: EMPTY_SPAN,
         surface_source: EMPTY_SPAN,
+        surface_triangles: EMPTY_SPAN,
         initial_latent: EMPTY_SPAN,
         latent_min: EMPTY_SPAN,
         latent_max: EMPTY_SPAN,
@@ -71,7 +72,7 @@ impl Model<'static> {
 
 impl<'a> Model<'a> {
     /// Number of fields of a [`Model`].
-    pub const FIELDS: usize = 28;
+    pub const FIELDS: usize = 29;
 
     /// Every field with its name, in declaration order.
     pub fn fields(&self) -> [(&'static str, FieldValue<'a>); Model::FIELDS] {
@@ -102,6 +103,7 @@ impl<'a> Model<'a> {
             chain_order,
             surface_vertices,
             surface_source,
+            surface_triangles,
             initial_latent,
             latent_min,
             latent_max,
@@ -132,6 +134,7 @@ impl<'a> Model<'a> {
             ("chain_order", V::Span(chain_order)),
             ("surface_vertices", V::Span(surface_vertices)),
             ("surface_source", V::Span(surface_source)),
+            ("surface_triangles", V::Span(surface_triangles)),
             ("initial_latent", V::Span(initial_latent)),
             ("latent_min", V::Span(latent_min)),
             ("latent_max", V::Span(latent_max)),

@@ -599,6 +599,7 @@ mod tests {
                 chain_order,
                 surface_vertices,
                 surface_source,
+                surface_triangles: Span::default(),
                 initial_latent,
                 latent_min,
                 latent_max,

@@ -211,6 +211,10 @@ pub struct Model<'a> {
     pub surface_vertices: Span,
     /// Per drawn vertex, its free-vertex index, or [`HANDLE_SOURCE`] | its handle slot.
     pub surface_source: Span,
+    /// Triangles to draw, three indices into [`Model::surface_vertices`] each (so into the
+    /// buffer of [`crate::Instance::decode_surface_into`]): a tet mesh's boundary faces
+    /// (outward), a 2D mesh's or cloth's triangles, none for rods. In `indices`.
+    pub surface_triangles: Span,
     /// Latent of the initial (rest) state, in `floats`.
     pub initial_latent: Span,
     /// Smallest value of each latent coordinate in the training data, in `floats`.
@@ -363,6 +367,10 @@ impl<'a> Model<'a> {
     pub fn surface_source(&self) -> &'a [u32] {
         self.indices_of(self.surface_source)
     }
+    /// Triangles to draw, three indices into the drawn vertices each.
+    pub fn surface_triangles(&self) -> &'a [u32] {
+        self.indices_of(self.surface_triangles)
+    }
     /// Vertices of handle `h`.
     pub fn handle_vertices_of(&self, h: &Handle) -> &'a [u32] {
         self.indices_of(h.vertices)
@@ -434,6 +442,7 @@ impl<'a> Model<'a> {
             ("root_slots", self.root_slots),
             ("surface_vertices", self.surface_vertices),
             ("surface_source", self.surface_source),
+            ("surface_triangles", self.surface_triangles),
             ("chain_order", self.chain_order),
         ];
         for (field, span) in index_spans {
@@ -442,6 +451,7 @@ impl<'a> Model<'a> {
             }
         }
         self.validate_vertices()?;
+        self.validate_triangles()?;
         self.validate_handles()?;
         self.validate_chains()?;
         let bc = SIGNAL_PER_HANDLE * self.handles.len();
@@ -528,6 +538,25 @@ impl<'a> Model<'a> {
             if found != Some(&v) {
                 return fail("surface_source", Problem::Inconsistent);
             }
+        }
+        Ok(())
+    }
+
+    /// Whole triangles over the drawn vertices (one pass).
+    fn validate_triangles(&self) -> Result<(), ModelError> {
+        let triangles = self.surface_triangles();
+        if !triangles.len().is_multiple_of(3) {
+            return fail(
+                "surface_triangles",
+                Problem::Length {
+                    expected: triangles.len() - triangles.len() % 3,
+                    found: triangles.len(),
+                },
+            );
+        }
+        let drawn = self.surface_vertices.len;
+        if triangles.iter().any(|&i| i >= drawn) {
+            return fail("surface_triangles", Problem::OutOfRange);
         }
         Ok(())
     }

@@ -58,6 +58,10 @@ pub struct Payload {
     pub decoder: Vec<LayerData>,
     /// Integrator: `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` -> latent increment.
     pub integrator: Vec<LayerData>,
+    /// Triangles to draw, three indices into `surface_vertices` each: the boundary faces of a
+    /// tet mesh (outward), the triangles of a 2D mesh or cloth, none for rods. Last, so that a
+    /// format-3 payload followed by one `0x00` byte (an empty list) reads as this one.
+    pub surface_triangles: Vec<u32>,
 }
 
 /// One rod strand of the bend encoding (see [`crate::Chain`]).
@@ -120,7 +124,7 @@ mod tests {
     use super::*;
     use crate::artifact::LoadError;
     use crate::envelope::EnvelopeError;
-    use crate::OwnedModel;
+    use crate::{OwnedModel, Problem};
     use std::vec;
 
     /// A tiny valid model: a 2D triangle, one handle on vertices 0 and 1, vertex 2 free.
@@ -156,6 +160,7 @@ mod tests {
             latent_max: vec![1.0],
             decoder: vec![layer(4, 1), layer(2, 4)],
             integrator: vec![layer(4, 38), layer(1, 4)],
+            surface_triangles: vec![0, 1, 2],
         }
     }
 
@@ -172,12 +177,47 @@ mod tests {
         assert_eq!(m.handle_vertices(), &p.handle_vertices[..]);
         assert_eq!(m.free_vertices(), &p.free_vertices[..]);
         assert_eq!(m.surface_vertices(), &p.surface_vertices[..]);
+        assert_eq!(m.surface_triangles(), &p.surface_triangles[..]);
         assert_eq!(m.decoder.len(), 2);
         assert_eq!(m.integrator.len(), 2);
         let first = m.decoder[0];
         assert_eq!((first.rows, first.cols), (4, 1));
         assert_eq!(&m.params[first.weights as usize..][..4], &p.decoder[0].weights[..]);
         assert_eq!(Payload::decode(crate::artifact::payload(&bytes).unwrap()).unwrap(), p);
+    }
+
+    #[test]
+    fn triangles_must_be_whole_and_over_the_drawn_vertices() {
+        let refused = |triangles: Vec<u32>| {
+            let p = Payload {
+                surface_triangles: triangles,
+                ..payload()
+            };
+            match OwnedModel::default().load(&p.to_section().unwrap()) {
+                Err(LoadError::Invalid(e)) => Some((e.field, e.problem)),
+                _ => None,
+            }
+        };
+        assert_eq!(refused(vec![]), None);
+        assert_eq!(refused(vec![2, 1, 0, 0, 1, 2]), None);
+        let field = "surface_triangles";
+        assert_eq!(refused(vec![0, 1, 3]), Some((field, Problem::OutOfRange)));
+        let length = Problem::Length { expected: 3, found: 5 };
+        assert_eq!(refused(vec![0, 1, 2, 0, 1]), Some((field, length)));
+        // Indices count drawn vertices, not mesh vertices: with vertex 2 not drawn, 2 is out.
+        let p = Payload {
+            surface_vertices: vec![0, 1],
+            surface_triangles: vec![0, 1, 2],
+            ..payload()
+        };
+        let err = OwnedModel::default().load(&p.to_section().unwrap()).unwrap_err();
+        assert_eq!(
+            err,
+            LoadError::Invalid(crate::ModelError {
+                field,
+                problem: Problem::OutOfRange
+            })
+        );
     }
 
     #[test]

@@ -62,6 +62,8 @@ fn one_large_handle() -> Payload {
         latent_max: vec![1.0],
         decoder: vec![layer(4, 1), layer(2 * FREE, 4)],
         integrator: vec![layer(4, 2 + 36), layer(1, 4)],
+        // A strip of triangles over every drawn vertex.
+        surface_triangles: (0..n as u32 - 2).flat_map(|i| [i, i + 1, i + 2]).collect(),
     }
 }
 
@@ -99,6 +101,7 @@ fn one_large_strand() -> Payload {
         latent_max: vec![1.0],
         decoder: vec![layer(1, 1), layer(2 * LARGE, 1)],
         integrator: vec![layer(4, 2 + 36), layer(1, 4)],
+        surface_triangles: vec![],
     }
 }
 

@@ -1,11 +1,14 @@
 // Runs the reference script inside the wasm module under node and prints the protocol every
-// target prints (see mochi-target-common::host), for the host to compare with its own run.
-//   node test.mjs MODULE.wasm NAME WEIGHTS
+// target prints (see mochi-target-common::host), for the host to compare with its own run;
+// then checks the viewer: the compiled model and the same artifact loaded from bytes (with f32
+// weights, the same weights) step to the same bits, its triangles index its drawn vertices,
+// and damaged bytes are refused with a reason.
+//   node test.mjs MODULE.wasm NAME WEIGHTS [ARTIFACT.mochi]
 import { readFileSync } from "node:fs";
 
-const [path, name = "tiny", weights = "f32"] = process.argv.slice(2);
+const [path, name = "tiny", weights = "f32", artifact] = process.argv.slice(2);
 if (!path) {
-  console.error("usage: node test.mjs MODULE.wasm [NAME] [WEIGHTS]");
+  console.error("usage: node test.mjs MODULE.wasm [NAME] [WEIGHTS] [ARTIFACT.mochi]");
   process.exit(2);
 }
 const { instance } = await WebAssembly.instantiate(readFileSync(path), {});
@@ -58,6 +61,40 @@ if (moved < 0) {
 if (m.mochi_step_pose(NaN, 0, 0, 0, 0, 0) >= 0) {
   console.log("status error a NaN pose was accepted");
   process.exit(1);
+}
+if (artifact) {
+  const fail = (why) => {
+    console.log(`status error ${why}`);
+    process.exit(1);
+  };
+  // 30 frames of the viewer; the drawn vertices' bits after them.
+  const roll = () => {
+    for (let f = 1; f <= 30; f++) {
+      if (m.mochi_step_pose(0, 0.002 * f, 0, 0.004 * f, 0, 0) < 0) fail(`the viewer's step ${f} was refused`);
+    }
+    return Uint32Array.from(new Uint32Array(m.memory.buffer, m.mochi_surface(), m.mochi_surface_count() * m.mochi_dim()));
+  };
+  m.mochi_init();
+  const compiled = roll();
+  const load = (bytes) => {
+    const at = m.mochi_artifact_buffer(bytes.length);
+    if (at === 0) fail(`no room for ${bytes.length} bytes`);
+    new Uint8Array(m.memory.buffer, at, bytes.length).set(bytes);
+    return m.mochi_load(bytes.length);
+  };
+  const bytes = readFileSync(artifact);
+  if ((status = load(bytes)) !== 0) fail(`mochi_load returned ${status}`);
+  const triangles = new Uint32Array(m.memory.buffer, m.mochi_triangles(), 3 * m.mochi_triangle_count());
+  if (triangles.length === 0 || triangles.some((i) => i >= m.mochi_surface_count())) fail("triangles");
+  const loaded = roll();
+  if (weights === "f32" && !(loaded.length === compiled.length && loaded.every((b, i) => b === compiled[i]))) {
+    fail("the loaded artifact and the compiled model stepped apart");
+  }
+  const damaged = Uint8Array.from(bytes);
+  damaged[damaged.length >> 1] ^= 1;
+  if (load(damaged) >= 0 || m.mochi_error_len() === 0) fail("damaged bytes were accepted");
+  if (m.mochi_step_pose(0, 0, 0, 0, 0, 0) >= 0) fail("a refused load left a model to step");
+  lines.push(`viewer loaded ${bytes.length} bytes, ${triangles.length / 3} triangles`);
 }
 lines.push("status ok");
 console.log(lines.join("\n"));

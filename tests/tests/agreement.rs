@@ -199,6 +199,15 @@ fn runtime_loads_what_the_trainer_wrote_field_for_field() {
     assert_eq!(m.free_vertices(), &artifact.encoding.free_vertices[..]);
     assert_eq!(m.handle_vertices(), &artifact.encoding.handle_vertices[..]);
     assert_eq!(m.surface_vertices(), &artifact.surface_vertices[..]);
+    // The triangles the runtime reads (over the drawn vertices) are the trainer's mesh faces.
+    let drawn = m.surface_vertices();
+    let triangles: Vec<[u32; 3]> = m
+        .surface_triangles()
+        .chunks(3)
+        .map(|t| [0, 1, 2].map(|c| drawn[t[c] as usize]))
+        .collect();
+    assert!(!triangles.is_empty());
+    assert_eq!(triangles, artifact.surface_triangles);
     assert_eq!(m.initial_latent(), &artifact.initial_latent[..]);
     assert_eq!(
         (m.latent_min(), m.latent_max()),

@@ -216,17 +216,18 @@ fn too_small_storage_names_the_field_that_did_not_fit() {
 #[test]
 fn wrong_magic_and_version_are_named() {
     let mut bytes = artifact_bytes();
-    assert_eq!(mochi_runtime::ARTIFACT_VERSION, 3);
-    // Format 1 (before `encoding.chains`), format 2 (one section) and a future format 4.
-    for version in [1, 2, 4] {
+    assert_eq!(mochi_runtime::ARTIFACT_VERSION, 4);
+    // Format 1 (before `encoding.chains`), 2 (one section), 3 (no triangles in the model
+    // section) and a future format 5.
+    for version in [1, 2, 3, 5] {
         bytes[8] = version;
         let expected = EnvelopeError::Version {
             found: version as u32,
-            expected: 3,
+            expected: 4,
         };
         assert_eq!(load(&bytes), Err(LoadError::Envelope(expected)));
-        if version == 2 {
-            continue; // the trainer reads format 2, and these bytes are not format 2
+        if version == 2 || version == 3 {
+            continue; // the trainer reads formats 2 and 3, and these bytes are neither
         }
         let trainer = mochi_trainer::artifact::Artifact::from_bytes(&bytes, std::path::Path::new("old.mochi"))
             .unwrap_err()

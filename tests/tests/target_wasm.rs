@@ -1,7 +1,10 @@
 //! The wasm module (`targets/wasm`) built for `wasm32-unknown-unknown` by `scripts/run-wasm.sh`:
 //! run in node, its checksums of the decoded positions equal the host runtime's bit for bit;
-//! its web page, served locally and opened in headless Chromium, advances frames, moves the
-//! mesh under the (synthetic) mouse and leaves a screenshot.
+//! its web page, served locally and opened in headless Chromium (`scripts/check-page.py`),
+//! offers the compiled-in tiny model and the fetched beam and cloth-line artifacts, and for
+//! each one chosen in its model list steps frames, moves the surface under the (synthetic)
+//! mouse, draws it with WebGL2 (pixels read back) and shows a time per frame; screenshots are
+//! left behind.
 
 use std::path::Path;
 use std::process::Command;
@@ -31,12 +34,40 @@ fn wasm_module_matches_the_host_and_its_page_runs_in_chromium() {
     let report = host::parse(&output).unwrap();
     let model = ValidModel::new(tiny::MODEL).unwrap();
     host::check::<{ tiny::LATENT }, { tiny::SIGNAL }, { tiny::HIDDEN }>(&model, &report).unwrap();
-    // The browser check passed (the script fails otherwise) and says so.
-    let page = stdout.lines().find(|l| l.starts_with("page: ")).expect("a page line");
-    assert!(page.contains(" done"), "{page}");
-    let png = std::fs::read(repo.join("target/targets/wasm-page.png")).unwrap();
+    // The viewer: the artifact loaded from bytes steps as the compiled model (test.mjs).
+    let bytes = std::fs::metadata(repo.join("tests/artifacts/tiny.mochi"))
+        .unwrap()
+        .len();
+    let triangles = tiny::MODEL.surface_triangles.len / 3;
     assert!(
-        png.starts_with(b"\x89PNG\r\n\x1a\n") && png.len() > 10_000,
-        "screenshot"
+        output.contains(&format!("viewer loaded {bytes} bytes, {triangles} triangles")),
+        "{output}"
     );
+    // The browser check passed (the script fails otherwise) and says so, model by model.
+    let pages: Vec<&str> = stdout.lines().filter_map(|l| l.strip_prefix("page: ")).collect();
+    let field = |line: &str, key: &str| -> String {
+        let value = line
+            .split(' ')
+            .find_map(|kv| kv.strip_prefix(key).and_then(|v| v.strip_prefix('=')));
+        value.unwrap_or_else(|| panic!("no {key} in {line:?}")).to_string()
+    };
+    let models: Vec<String> = pages.iter().map(|l| field(l, "model")).collect();
+    assert_eq!(
+        models,
+        ["beam", "tiny", "cloth-line"],
+        "the models the page showed: {pages:?}"
+    );
+    for line in &pages {
+        let number = |key| field(line, key).parse::<f64>().unwrap();
+        assert!(number("frames") >= 120.0, "{line}");
+        assert!(number("moved") > 1e-3, "{line}");
+        assert!(number("status") >= 0.0, "{line}");
+        assert!(number("drawn") >= 0.01 * 800.0 * 480.0, "{line}");
+        assert!(number("ms") > 0.0, "time per frame: {line}");
+        let png = std::fs::read(repo.join(format!("target/targets/wasm-page-{}.png", field(line, "model")))).unwrap();
+        assert!(
+            png.starts_with(b"\x89PNG\r\n\x1a\n") && png.len() > 10_000,
+            "screenshot of {line}"
+        );
+    }
 }

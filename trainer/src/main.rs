@@ -114,6 +114,13 @@ enum Command {
         #[arg(long, default_value = "f32", value_parser = parse_weights)]
         weights: mochi_runtime::WeightFormat,
     },
+    /// Rewrite artifacts of an older format (2, 3) in place in the current one; weights and
+    /// fields unchanged (the runtime and codegen read only the current format).
+    Upgrade {
+        /// Artifacts (`SCENE.mochi`).
+        #[arg(required = true)]
+        artifacts: Vec<PathBuf>,
+    },
     /// Write an artifact's networks as the runtime runs them, with the runtime's rollout of
     /// the targets' reference script, to a numpy `.npz` archive (for `scripts/bench-jax.sh`).
     ExportWeights {
@@ -248,6 +255,14 @@ fn run(cli: Cli) -> Result<()> {
                 out.display(),
                 mochi_codegen::format_name(weights)
             );
+            Ok(())
+        }
+        Command::Upgrade { artifacts } => {
+            for path in artifacts {
+                let artifact = mochi_trainer::artifact::Artifact::read(&path)?;
+                artifact.write(&path)?;
+                println!("{}: format {}", path.display(), mochi_trainer::artifact::FORMAT_VERSION);
+            }
             Ok(())
         }
         Command::ExportWeights {

@@ -45,6 +45,7 @@ fn model(latent: usize) -> MochiModel {
         latent_max: vec![1.0; latent],
         decoder: vec![layer(4, latent), layer(2, 4)],
         integrator: vec![layer(4, 2 * latent + 36), layer(latent, 4)],
+        surface_triangles: vec![0, 1, 2],
     };
     let storage: &'static mut OwnedModel = Box::leak(Box::default());
     let valid = storage.load(&payload.to_section().unwrap()).unwrap();

@@ -1,114 +1,202 @@
-// Loads the wasm module, steps the model every animation frame with the handle pose driven by
-// the mouse, and draws the mesh (edges between nearest neighbours of the rest shape) on a 2D
-// canvas. With ?test=1 the same mouse handlers are fed synthetic events and the page writes a
-// machine-readable line into #status (frames drawn, largest vertex displacement from rest as
-// a fraction of the diagonal) for the headless-browser test.
+// Loads the wasm module and the models listed in models.json (written beside the page by
+// scripts/run-wasm.sh), steps the chosen model every frame with its handles following the
+// mouse, and draws the surface the artifact carries (its drawn vertices and triangles) with
+// WebGL2 (render.js). The time per frame shown is the model's own: one latent step plus the
+// decode of the drawn vertices (mochi_step_pose), measured with performance.now() and
+// averaged over the last frames.
+//
+// With ?test=1 the mouse is synthetic (the same handler gets generated events) and #status
+// holds a machine-readable line for the headless-browser check (scripts/check-page.py):
+//   model=NAME frames=N moved=D status=S drawn=P ms=T
+// (frames since the model was chosen, largest drawn-vertex displacement from rest as a
+// fraction of the diagonal, the last step's status, non-background pixels of the last
+// read-back frame, mean milliseconds per frame).
+import { SurfaceView } from "./render.js";
+
 const params = new URLSearchParams(location.search);
 const testMode = params.has("test");
-const testFrames = Number(params.get("frames") || 120);
 const canvas = document.getElementById("view");
-const ctx = canvas.getContext("2d");
+const picker = document.getElementById("model");
+const about = document.getElementById("about");
+const timing = document.getElementById("timing");
 const statusLine = document.getElementById("status");
 
-const bytes = await (await fetch("mochi.wasm")).arrayBuffer();
-const { instance } = await WebAssembly.instantiate(bytes, {});
+const { instance } = await WebAssembly.instantiate(await (await fetch("mochi.wasm")).arrayBuffer(), {});
 const m = instance.exports;
-if (m.mochi_init() !== 0) throw new Error("mochi_init failed");
+const view = new SurfaceView(canvas);
 
-const dim = m.mochi_dim();
-const n = m.mochi_vertex_count();
-const dt = m.mochi_dt();
-const diagonal = m.mochi_diagonal();
-const rest = Float32Array.from(new Float32Array(m.memory.buffer, m.mochi_rest(), n * dim));
-const at = (p, i) => [p[i * dim], p[i * dim + 1], dim > 2 ? p[i * dim + 2] : 0];
-
-// Edges: each vertex to the vertices within 1.6 times its nearest neighbour's distance.
-const edges = [];
-{
-  const nearest = new Float32Array(n).fill(Infinity);
-  const dist = (i, j) => Math.hypot(...at(rest, i).map((v, c) => v - at(rest, j)[c]));
-  for (let i = 0; i < n; i++) for (let j = 0; j < n; j++) if (i !== j) nearest[i] = Math.min(nearest[i], dist(i, j));
-  for (let i = 0; i < n; i++)
-    for (let j = i + 1; j < n; j++) if (dist(i, j) <= 1.6 * Math.min(nearest[i], nearest[j])) edges.push([i, j]);
-}
-
-// A side view tilted a little so depth shows: screen x from world x and z, y from y and z.
-const lo = [0, 1, 2].map((c) => Math.min(...Array.from({ length: n }, (_, i) => at(rest, i)[c])));
-const hi = [0, 1, 2].map((c) => Math.max(...Array.from({ length: n }, (_, i) => at(rest, i)[c])));
-const scale = (0.55 * canvas.width) / Math.max(hi[0] - lo[0], 1e-6);
-const project = ([x, y, z]) => [
-  canvas.width * 0.2 + (x - lo[0] + 0.35 * (z - lo[2])) * scale,
-  canvas.height * 0.3 - (y - 0.5 * (lo[1] + hi[1]) - 0.2 * (z - lo[2])) * scale,
+// The model compiled into the module, then the artifacts the page fetches.
+const manifest = await fetch("models.json")
+  .then((r) => (r.ok ? r.json() : {}))
+  .catch(() => ({}));
+const compiled = manifest.compiled ?? { name: "compiled", weights: "f32" };
+const models = [
+  { name: compiled.name, label: `${compiled.name} (compiled into the module, ${compiled.weights} weights)` },
+  ...(manifest.models ?? []).map((e) => ({ ...e, label: `${e.name} (${(e.bytes / 1e6).toFixed(1)} MB artifact)` })),
 ];
+for (const model of models) picker.add(new Option(model.label, model.name));
 
-// The handle follows the mouse: vertical position -> translation along y, horizontal ->
-// twist about x; smoothed, with speeds capped near the trained range.
-const reach = 0.15 * diagonal;
-const maxSpeed = 0.5 * diagonal; // units per second
-const maxSpin = 1.0; // radians per second
-let target = { y: 0, twist: 0 };
-let pose = { y: 0, twist: 0 };
-function onMouse(event) {
+// How the mouse moves the handles: each model learned its own handle motions (its scene's
+// [handles.motion]), so the mouse drives those and no others. [kind, axis]: "move" translates
+// along the axis, "twist" turns about it. Solids (tiny, beam): up and down moves the clamped
+// end, left and right twists it; cloth-line: left and right swings the pinned corners across
+// the sheet (the one direction it was trained on).
+const MOUSE = {
+  solid: { horizontal: ["twist", 0], vertical: ["move", 1] },
+  cloth: { horizontal: ["move", 2], vertical: ["move", 1] },
+  "cloth-line": { horizontal: ["move", 2] },
+  strands: { horizontal: ["move", 0], vertical: ["move", 2] },
+};
+const mouseOf = (name) => MOUSE[name] ?? (name.startsWith("cloth") ? MOUSE["cloth-line"] : MOUSE.solid);
+const COLOURS = [[0.36, 0.55, 0.82], [0.83, 0.47, 0.3], [0.45, 0.68, 0.42], [0.7, 0.45, 0.75]];
+
+// The model on screen; null while one loads.
+let active = null;
+const artifacts = new Map();
+const TIMED_FRAMES = 60;
+
+async function choose(name) {
+  active = null;
+  const index = Math.max(models.findIndex((e) => e.name === name), 0);
+  const model = models[index];
+  statusLine.textContent = `model=${model.name} loading`;
+  let status;
+  if (model.file === undefined) {
+    status = m.mochi_init();
+  } else {
+    if (!artifacts.has(model.file)) {
+      const response = await fetch(model.file);
+      if (!response.ok) throw new Error(`${model.file}: HTTP ${response.status}`);
+      artifacts.set(model.file, new Uint8Array(await response.arrayBuffer()));
+    }
+    const bytes = artifacts.get(model.file);
+    const at = m.mochi_artifact_buffer(bytes.length);
+    if (at === 0) throw new Error(`${model.file}: ${bytes.length} bytes is more than the page takes`);
+    new Uint8Array(m.memory.buffer, at, bytes.length).set(bytes);
+    status = m.mochi_load(bytes.length);
+  }
+  if (status < 0) {
+    const text = new TextDecoder().decode(new Uint8Array(m.memory.buffer, m.mochi_error_text(), m.mochi_error_len()));
+    throw new Error(`${model.name}: ${text || `status ${status}`}`);
+  }
+  const dim = m.mochi_dim();
+  const count = m.mochi_surface_count();
+  const triangles = Uint32Array.from(new Uint32Array(m.memory.buffer, m.mochi_triangles(), 3 * m.mochi_triangle_count()));
+  const rest = surface(dim, count).slice();
+  view.setMesh(triangles, rest, COLOURS[index % COLOURS.length]);
+  about.textContent =
+    `${model.name}: ${m.mochi_vertex_count().toLocaleString()} vertices, ${count.toLocaleString()} drawn, ` +
+    `${(triangles.length / 3).toLocaleString()} triangles, ${m.mochi_handle_count()} handle(s), ` +
+    `${(1 / m.mochi_dt()).toFixed(0)} steps per second of simulated time`;
+  active = {
+    name: model.name,
+    dim,
+    count,
+    rest,
+    diagonal: m.mochi_diagonal(),
+    dt: m.mochi_dt(),
+    mouse: mouseOf(model.name),
+    pose: { t: [0, 0, 0], r: [0, 0, 0] },
+    target: { t: [0, 0, 0], r: [0, 0, 0] },
+    frames: 0,
+    moved: 0,
+    status: 0,
+    drawn: 0,
+    times: [],
+  };
+}
+
+// The drawn vertices' positions, 3 floats each (z = 0 for a 2D model).
+function surface(dim, count) {
+  const x = new Float32Array(m.memory.buffer, m.mochi_surface(), dim * count);
+  if (dim === 3) return x;
+  const out = new Float32Array(3 * count);
+  for (let i = 0; i < count; i++) out.set(x.subarray(dim * i, dim * i + dim), 3 * i);
+  return out;
+}
+
+// Mouse over the canvas without a button: the handles follow it (smoothed, speeds capped near
+// the trained ranges). Dragging turns the camera; the wheel zooms.
+function onMove(event) {
+  if (event.buttons !== 0) {
+    view.orbit(event.movementX, event.movementY);
+    return;
+  }
+  if (!active) return;
   const r = canvas.getBoundingClientRect();
-  const u = (event.clientX - r.left) / r.width - 0.5;
-  const v = (event.clientY - r.top) / r.height - 0.5;
-  target = { y: -2 * v * reach, twist: 2 * u * 0.3 };
+  const along = { horizontal: (event.clientX - r.left) / r.width - 0.5, vertical: 0.5 - (event.clientY - r.top) / r.height };
+  const target = { t: [0, 0, 0], r: [0, 0, 0] };
+  for (const [direction, [kind, axis]] of Object.entries(active.mouse)) {
+    if (kind === "move") target.t[axis] = 2 * along[direction] * 0.15 * active.diagonal;
+    else target.r[axis] = 2 * along[direction] * 0.3;
+  }
+  active.target = target;
 }
-canvas.addEventListener("mousemove", onMouse);
+canvas.addEventListener("mousemove", onMove);
+canvas.addEventListener("wheel", (event) => {
+  event.preventDefault();
+  view.zoom(Math.exp(0.001 * event.deltaY));
+});
+picker.addEventListener("change", () => choose(picker.value).catch(fail));
 
-let frames = 0;
-let moved = 0;
-let lastStatus = 0;
+function fail(error) {
+  active = null;
+  statusLine.textContent = `error ${error.message}`;
+}
+
 const clamp = (v, limit) => Math.max(-limit, Math.min(limit, v));
+
 function frame() {
-  pose.y += clamp(0.15 * (target.y - pose.y), maxSpeed * dt);
-  pose.twist += clamp(0.15 * (target.twist - pose.twist), maxSpin * dt);
-  lastStatus = m.mochi_step_pose(0, pose.y, 0, pose.twist, 0, 0);
-  const x = new Float32Array(m.memory.buffer, m.mochi_positions(), n * dim);
-  for (let i = 0; i < n; i++) moved = Math.max(moved, Math.hypot(...at(x, i).map((v, c) => v - at(rest, i)[c])) / diagonal);
-  draw(x);
-  frames++;
-  statusLine.textContent = `frames=${frames} moved=${moved.toFixed(5)} status=${lastStatus}` + (testMode && frames >= testFrames ? " done" : "");
-  if (!(testMode && frames >= testFrames)) schedule();
-}
-
-function drawEdges(points, colour) {
-  ctx.strokeStyle = colour;
-  ctx.beginPath();
-  for (const [i, j] of edges) {
-    const [a, b] = [project(at(points, i)), project(at(points, j))];
-    ctx.moveTo(a[0], a[1]);
-    ctx.lineTo(b[0], b[1]);
+  const a = active;
+  if (a) {
+    const maxMove = 0.5 * a.diagonal * a.dt;
+    const maxTurn = 1.0 * a.dt;
+    for (let c = 0; c < 3; c++) {
+      a.pose.t[c] += clamp(0.15 * (a.target.t[c] - a.pose.t[c]), maxMove);
+      a.pose.r[c] += clamp(0.15 * (a.target.r[c] - a.pose.r[c]), maxTurn);
+    }
+    const start = performance.now();
+    a.status = m.mochi_step_pose(...a.pose.t, ...a.pose.r);
+    a.times.push(performance.now() - start);
+    if (a.times.length > TIMED_FRAMES) a.times.shift();
+    const x = surface(a.dim, a.count);
+    view.draw(x);
+    a.frames++;
+    for (let i = 0; i < x.length; i += 3) {
+      const d = Math.hypot(x[i] - a.rest[i], x[i + 1] - a.rest[i + 1], x[i + 2] - a.rest[i + 2]);
+      a.moved = Math.max(a.moved, d / a.diagonal);
+    }
+    const ms = a.times.reduce((s, t) => s + t, 0) / a.times.length;
+    timing.textContent = `time per frame: ${ms.toFixed(3)} ms (latent step + decode of the drawn vertices, mean of the last ${a.times.length} frames)`;
+    if (testMode) {
+      if (a.frames % 10 === 0) a.drawn = view.drawnPixels();
+      statusLine.textContent = `model=${a.name} frames=${a.frames} moved=${a.moved.toFixed(5)} status=${a.status} drawn=${a.drawn} ms=${ms.toFixed(4)}`;
+    } else {
+      statusLine.textContent = a.status < 0 ? `step refused (status ${a.status})` : "";
+    }
   }
-  ctx.stroke();
+  schedule();
 }
 
-function draw(x) {
-  ctx.clearRect(0, 0, canvas.width, canvas.height);
-  drawEdges(rest, "#ccc");
-  drawEdges(x, "#2b6cb0");
-  ctx.fillStyle = "#c05621";
-  for (let i = 0; i < n; i++) {
-    const p = project(at(x, i));
-    ctx.fillRect(p[0] - 1.5, p[1] - 1.5, 3, 3);
-  }
-}
-
-// In test mode the mouse is synthetic: it circles the canvas, through the same handler.
+// In test mode the mouse is synthetic: it circles the canvas, through the same handler, and
+// the page paces itself with timers; an open page follows the display's frames.
 function schedule() {
   if (testMode) {
     const r = canvas.getBoundingClientRect();
-    const phase = (2 * Math.PI * frames) / 90;
+    const phase = (2 * Math.PI * (active?.frames ?? 0)) / 90;
     canvas.dispatchEvent(
       new MouseEvent("mousemove", {
         clientX: r.left + r.width * (0.5 + 0.4 * Math.sin(phase)),
         clientY: r.top + r.height * (0.5 + 0.4 * Math.cos(phase)),
       }),
     );
+    setTimeout(frame, 1000 / 60);
+  } else {
+    requestAnimationFrame(frame);
   }
-  // A headless browser paints no frames, so the test paces itself with timers (which its
-  // virtual clock advances); an open page follows the display's frames.
-  if (testMode) setTimeout(frame, 1000 / 60);
-  else requestAnimationFrame(frame);
 }
+
+const wanted = params.get("model") ?? manifest.default;
+picker.value = models.some((e) => e.name === wanted) ? wanted : models[0].name;
+await choose(picker.value).catch(fail);
 schedule();

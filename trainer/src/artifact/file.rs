@@ -8,13 +8,14 @@
 //!
 //! The first section is exactly what the runtime reads (and all a device needs); the second
 //! holds what only the trainer reads. Files of format 2 (one section, the whole [`Artifact`]
-//! in postcard) are still read.
+//! in postcard) and 3 (the triangles to draw in the training section, [`super::format3`]) are
+//! still read; `mochi upgrade` rewrites them in the current format.
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::{Artifact, EncodingData, HandleData, Method, TrainingSummary};
+use super::{format3, Artifact, EncodingData, HandleData, Method, TrainingSummary};
 use crate::learn::network::{DenseLayer, NetworkError};
 use mochi_runtime::artifact::{FORMAT_VERSION, MAGIC};
 use mochi_runtime::envelope::{self, EnvelopeError};
@@ -101,8 +102,6 @@ pub struct TrainingSection {
     pub reference: Vec<f32>,
     /// Handle names, in signal order.
     pub handle_names: Vec<String>,
-    /// Triangles to draw.
-    pub surface_triangles: Vec<[u32; 3]>,
     /// Polylines to draw.
     pub polylines: Vec<Vec<u32>>,
     /// PCA mean of the encoded training frames.
@@ -140,8 +139,23 @@ fn dense_layer(l: LayerData) -> Result<DenseLayer, ArtifactError> {
 }
 
 impl Artifact {
+    /// The triangles to draw over the drawn vertices (three indices into `surface_vertices`
+    /// each), as the model section holds them.
+    fn drawn_triangles(&self) -> Result<Vec<u32>, ArtifactError> {
+        let drawn = |v: u32| {
+            self.surface_vertices
+                .binary_search(&v)
+                .map(|i| i as u32)
+                .map_err(|_| ArtifactError::Invalid {
+                    field: "surface_triangles".into(),
+                    message: format!("vertex {v} is not a drawn vertex"),
+                })
+        };
+        self.surface_triangles.iter().flatten().map(|&v| drawn(v)).collect()
+    }
+
     /// The artifact as its two sections' contents.
-    pub fn sections(&self) -> (Payload, TrainingSection) {
+    pub fn sections(&self) -> Result<(Payload, TrainingSection), ArtifactError> {
         let e = &self.encoding;
         let payload = Payload {
             dt: self.dt,
@@ -172,6 +186,7 @@ impl Artifact {
             latent_max: self.latent_max.clone(),
             decoder: self.decoder.iter().map(layer_data).collect(),
             integrator: self.integrator.iter().map(layer_data).collect(),
+            surface_triangles: self.drawn_triangles()?,
         };
         let training = TrainingSection {
             scene: self.scene.clone(),
@@ -180,14 +195,13 @@ impl Artifact {
             method: self.method,
             reference: e.reference.clone(),
             handle_names: self.handles.iter().map(|h| h.name.clone()).collect(),
-            surface_triangles: self.surface_triangles.clone(),
             polylines: self.polylines.clone(),
             pca_mean: self.pca_mean.clone(),
             pca_basis: self.pca_basis.clone(),
             encoder: self.encoder.clone(),
             summary: self.summary.clone(),
         };
-        (payload, training)
+        Ok((payload, training))
     }
 
     /// The artifact of two sections' contents.
@@ -199,6 +213,25 @@ impl Artifact {
             });
         }
         let layers = |v: Vec<LayerData>| v.into_iter().map(dense_layer).collect::<Result<Vec<_>, _>>();
+        let triangles = p.surface_triangles.chunks(3);
+        if triangles.len() * 3 != p.surface_triangles.len() {
+            return Err(ArtifactError::Invalid {
+                field: "surface_triangles".into(),
+                message: format!("{} indices, not whole triangles", p.surface_triangles.len()),
+            });
+        }
+        let mesh_vertex = |i: &u32| {
+            p.surface_vertices
+                .get(*i as usize)
+                .copied()
+                .ok_or(ArtifactError::Invalid {
+                    field: "surface_triangles".into(),
+                    message: format!("index {i} beyond the {} drawn vertices", p.surface_vertices.len()),
+                })
+        };
+        let surface_triangles = triangles
+            .map(|t| Ok([mesh_vertex(&t[0])?, mesh_vertex(&t[1])?, mesh_vertex(&t[2])?]))
+            .collect::<Result<Vec<_>, ArtifactError>>()?;
         Ok(Artifact {
             scene: t.scene,
             scene_path: t.scene_path,
@@ -231,7 +264,7 @@ impl Artifact {
                 .collect(),
             bc_len: p.bc_len,
             surface_vertices: p.surface_vertices,
-            surface_triangles: t.surface_triangles,
+            surface_triangles,
             polylines: t.polylines,
             latent: p.latent,
             initial_latent: p.initial_latent,
@@ -248,7 +281,7 @@ impl Artifact {
 
     /// The artifact as bytes: the model section, then the training section.
     pub fn to_bytes(&self) -> Result<Vec<u8>, ArtifactError> {
-        let (payload, training) = self.sections();
+        let (payload, training) = self.sections()?;
         let mut bytes = payload.to_section().map_err(|source| ArtifactError::Encode {
             section: "model section",
             source,
@@ -261,14 +294,17 @@ impl Artifact {
         Ok(bytes)
     }
 
-    /// Parses and validates an artifact (format [`FORMAT_VERSION`] or 2), and checks that the
-    /// runtime accepts what it reads of it.
+    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 3 or 2), and checks that
+    /// the runtime accepts what it reads of it.
     pub fn parse(bytes: &[u8]) -> Result<Artifact, ArtifactError> {
         let decode = |section| move |source| ArtifactError::Decode { section, source };
         let header = envelope::Header::parse(bytes);
-        let artifact = if bytes.starts_with(MAGIC) && header.map(|h| h.version) == Ok(SINGLE_SECTION_VERSION) {
+        let old = |version| bytes.starts_with(MAGIC) && header.map(|h| h.version) == Ok(version);
+        let artifact = if old(SINGLE_SECTION_VERSION) {
             let payload = envelope::open(bytes, MAGIC, SINGLE_SECTION_VERSION).map_err(ArtifactError::Envelope)?;
             postcard::from_bytes(payload).map_err(decode("payload"))?
+        } else if old(format3::VERSION) {
+            format3::parse(bytes)?
         } else {
             let (model, rest) = envelope::split(bytes, MAGIC, FORMAT_VERSION).map_err(ArtifactError::Envelope)?;
             let training =
@@ -327,7 +363,7 @@ mod tests {
     fn artifact_bytes_round_trip_and_the_first_section_is_the_runtime_payload() {
         let (bytes, artifact) = tiny();
         assert_eq!(artifact.to_bytes().unwrap(), bytes);
-        let (payload, training) = artifact.sections();
+        let (payload, training) = artifact.sections().unwrap();
         let first = mochi_runtime::artifact::payload(&bytes).unwrap();
         assert_eq!(Payload::decode(first).unwrap(), payload);
         assert_eq!(Artifact::from_sections(payload, training).unwrap(), artifact);

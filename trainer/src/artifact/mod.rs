@@ -11,6 +11,7 @@
 //! `z_t - z_{t-1}` from `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`.
 
 pub mod file;
+mod format3;
 pub mod reduced;
 
 use serde::{Deserialize, Serialize};
@@ -165,7 +166,8 @@ pub struct Artifact {
     pub bc_len: u32,
     /// Vertices that are drawn (surface of a tet mesh, all otherwise), ascending.
     pub surface_vertices: Vec<u32>,
-    /// Triangles to draw (full-mesh vertex indices); empty for rods.
+    /// Triangles to draw (full-mesh vertex indices, all of them drawn vertices); empty for
+    /// rods. The model section holds them over the drawn vertices.
     pub surface_triangles: Vec<[u32; 3]>,
     /// Polylines to draw for rods (full-mesh vertex indices).
     pub polylines: Vec<Vec<u32>>,
@@ -299,6 +301,10 @@ impl Artifact {
             || self.polylines.iter().any(|p| !in_range(p))
         {
             return err("surface_vertices", "vertex index out of range".into());
+        }
+        let drawn = |v: &u32| self.surface_vertices.binary_search(v).is_ok();
+        if let Some(v) = self.surface_triangles.iter().flatten().find(|v| !drawn(v)) {
+            return err("surface_triangles", format!("vertex {v} is not a drawn vertex"));
         }
         let encoded = self.encoded_len();
         for (field, v, len) in [
