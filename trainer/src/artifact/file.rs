@@ -8,8 +8,9 @@
 //!
 //! The first section is exactly what the runtime reads (and all a device needs); the second
 //! holds what only the trainer reads. Files of format 2 (one section, the whole [`Artifact`]
-//! in postcard) and 3 (the triangles to draw in the training section, [`super::format3`]) are
-//! still read; `mochi upgrade` rewrites them in the current format.
+//! in postcard), 3 (the triangles to draw in the training section, [`super::format3`]) and 4
+//! (no `decoder_basis`: the payload ends before it) are still read; `mochi upgrade` rewrites
+//! them in the current format.
 
 use std::path::{Path, PathBuf};
 
@@ -27,6 +28,8 @@ use mochi_sim::error::InputError;
 pub const TRAINING_MAGIC: &[u8; 8] = b"MOCHITRN";
 /// The last format with the whole artifact in one section, still read.
 const SINGLE_SECTION_VERSION: u32 = 2;
+/// The last format without `decoder_basis` (every decoder a residual MLP), still read.
+const MLP_DECODER_VERSION: u32 = 4;
 
 /// Why an artifact could not be written or read.
 #[derive(Debug, thiserror::Error)]
@@ -187,6 +190,7 @@ impl Artifact {
             decoder: self.decoder.iter().map(layer_data).collect(),
             integrator: self.integrator.iter().map(layer_data).collect(),
             surface_triangles: self.drawn_triangles()?,
+            decoder_basis: self.decoder_basis,
         };
         let training = TrainingSection {
             scene: self.scene.clone(),
@@ -274,6 +278,7 @@ impl Artifact {
             pca_basis: t.pca_basis,
             encoder: t.encoder,
             decoder: layers(p.decoder)?,
+            decoder_basis: p.decoder_basis,
             integrator: layers(p.integrator)?,
             summary: t.summary,
         })
@@ -294,7 +299,7 @@ impl Artifact {
         Ok(bytes)
     }
 
-    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 3 or 2), and checks that
+    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 4, 3 or 2), and checks that
     /// the runtime accepts what it reads of it.
     pub fn parse(bytes: &[u8]) -> Result<Artifact, ArtifactError> {
         let decode = |section| move |source| ArtifactError::Decode { section, source };
@@ -306,12 +311,23 @@ impl Artifact {
         } else if old(format3::VERSION) {
             format3::parse(bytes)?
         } else {
-            let (model, rest) = envelope::split(bytes, MAGIC, FORMAT_VERSION).map_err(ArtifactError::Envelope)?;
-            let training =
-                envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).map_err(ArtifactError::TrainingEnvelope)?;
+            let version = if old(MLP_DECODER_VERSION) {
+                MLP_DECODER_VERSION
+            } else {
+                FORMAT_VERSION
+            };
+            let (model, rest) = envelope::split(bytes, MAGIC, version).map_err(ArtifactError::Envelope)?;
+            let training = envelope::open(rest, TRAINING_MAGIC, version).map_err(ArtifactError::TrainingEnvelope)?;
+            let (mut model, mut training) = (model.to_vec(), training.to_vec());
+            if version == MLP_DECODER_VERSION {
+                // Format 5 appended `decoder_basis` (false) and the summary's `candidates`
+                // (an empty list).
+                model.push(0);
+                training.push(0);
+            }
             Artifact::from_sections(
-                Payload::decode(model).map_err(decode("model section"))?,
-                postcard::from_bytes(training).map_err(decode("training section"))?,
+                Payload::decode(&model).map_err(decode("model section"))?,
+                postcard::from_bytes(&training).map_err(decode("training section"))?,
             )?
         };
         artifact

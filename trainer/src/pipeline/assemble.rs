@@ -76,6 +76,7 @@ pub fn build_artifact(
         pca_basis,
         encoder: exported.encoder.layers().into_iter().cloned().collect(),
         decoder: exported.decoder.layers().into_iter().cloned().collect(),
+        decoder_basis: exported.decoder.is_basis(),
         integrator: integrator.export()?.mlp().layers().into_iter().cloned().collect(),
         summary,
     };

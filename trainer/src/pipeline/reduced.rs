@@ -164,7 +164,8 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     let (problem, frames, spec) = (inputs.problem, inputs.frames, inputs.spec);
     let encoding = &frames.encoding;
     let vanilla_ae = inputs.autoencoder.autoencoder.export()?;
-    let k = vanilla_ae.decoder.spec().input;
+    let vanilla_decoder = vanilla_ae.decoder.as_mlp()?;
+    let k = vanilla_decoder.spec().input;
     let vanilla_seconds = inputs
         .times
         .0
@@ -175,7 +176,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     report.stage("reduced: cubature");
     let step = (frames.f32s.len() / CUBATURE_SAMPLES).max(1);
     let samples = encoded_samples(frames, &vanilla_ae.encoder, step)?;
-    let cubatures = fit_cubatures(problem, encoding, &vanilla_ae.decoder, &samples, spec.cubature)?;
+    let cubatures = fit_cubatures(problem, encoding, vanilla_decoder, &samples, spec.cubature)?;
     let energies = cubature_energies(problem, &cubatures)?;
     let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
     let term = lipschitz_term(problem, encoding, &potentials);
@@ -257,14 +258,14 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
             decoder: vanilla_ae.decoder.layers().into_iter().cloned().collect(),
             initial_latent: initial(&vanilla_ae.encoder)?,
             training_seconds: vanilla_seconds,
-            lipschitz_estimate: lip(&vanilla_ae.decoder, &vanilla_samples)?,
+            lipschitz_estimate: lip(vanilla_decoder, &vanilla_samples)?,
             losses: inputs.autoencoder.losses.clone(),
         },
         lipschitz: SubspaceData {
             decoder: ours.decoder.layers().into_iter().cloned().collect(),
             initial_latent: initial(&ours.encoder)?,
             training_seconds: vanilla_seconds + lipschitz_seconds,
-            lipschitz_estimate: lip(&ours.decoder, &our_samples)?,
+            lipschitz_estimate: lip(ours.decoder.as_mlp()?, &our_samples)?,
             losses: run.train.losses,
         },
         cubature: cubatures,
