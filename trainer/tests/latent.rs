@@ -94,7 +94,12 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
         assert!(t.autoencoder_error.is_none_or(|e| e > summary.tolerance));
     }
     // The candidates table lists every decoder family tried, one kept.
-    assert_eq!(summary.candidates.iter().filter(|c| c.kept).count(), 1, "{:?}", summary.candidates);
+    assert_eq!(
+        summary.candidates.iter().filter(|c| c.kept).count(),
+        1,
+        "{:?}",
+        summary.candidates
+    );
     assert_eq!(outcome.model.method, Method::SelfSupervised);
     assert_eq!(outcome.baseline.method, Method::Supervised);
     assert_eq!(
@@ -145,8 +150,14 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
         assert_eq!(mean.is_finite(), bounded == 60, "{cells:?}");
     }
     assert_eq!(rows[0][5], "0.0000", "{:?}", rows[0]);
+    assert!(
+        report.contains("## Model selection") && report.contains("**kept**"),
+        "{report}"
+    );
     for file in [
         "report.md",
+        "pareto-time.png",
+        "pareto-bytes.png",
         "speed-accuracy.png",
         "error-test-00.png",
         "error-test-01.png",
@@ -198,7 +209,12 @@ fn selection_keeps_the_linear_decoder_where_pca_meets_the_tolerance() {
         assert!(r.multiply_adds >= linear.multiply_adds, "{r:?}");
     }
     let kept = rows.iter().find(|r| r.kept).unwrap();
-    assert_eq!(kept.decoder, "linear", "{}", mochi_trainer::report::candidates_table(rows));
+    assert_eq!(
+        kept.decoder,
+        "linear",
+        "{}",
+        mochi_trainer::report::candidates_table(rows)
+    );
     assert!(outcome.model.decoder_basis && outcome.model.decoder.len() == 1);
     // The kept model is what the artifact holds, and the runtime runs its basis decoder.
     assert_eq!(outcome.model.latent, 8);

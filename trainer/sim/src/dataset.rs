@@ -391,6 +391,7 @@ mod tests {
             test_frames: None,
             steady: 0,
             varied: 0,
+            validation: 2,
         };
         let plans = plan(&spec);
         let train: Vec<f64> = plans
@@ -414,6 +415,23 @@ mod tests {
                 train.iter().all(|l| (l - level).abs() > 0.1),
                 "level {level} too close to training"
             );
+        }
+        // Validation levels lie between training levels and apart from the test levels.
+        let validation: Vec<f64> = plans
+            .iter()
+            .filter(|p| p.split == Split::Validation)
+            .map(|p| p.speeds.at(0).0)
+            .collect();
+        assert_eq!(validation.len(), 2);
+        for level in &validation {
+            assert!(
+                train.iter().all(|l| (l - level).abs() > 0.05),
+                "validation level {level}"
+            );
+            let apart = tests
+                .iter()
+                .all(|t| (t.speeds.at(0).0 - level).abs() > 0.01 || t.speeds.at(0).1 != 1.0);
+            assert!(apart, "validation level {level} equals a test level");
         }
         let mut seeds: Vec<u64> = plans.iter().map(|p| p.seed).collect();
         seeds.sort();

@@ -1,4 +1,4 @@
-//! Model selection over cost (docs/design.md, decision 10): `mochi train` trains the decoder
+//! Model selection over cost (docs/design.md, decision 6): `mochi train` trains the decoder
 //! families of `latent.selection` from the cheapest up, gives every decoder that meets the
 //! reconstruction tolerance a self-supervised integrator of each width, rolls every such
 //! model out over the validation sequences, times it in the runtime, and keeps the cheapest
