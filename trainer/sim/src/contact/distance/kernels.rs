@@ -1,0 +1,139 @@
+//! The three squared-distance kernels every contact distance reduces to, and the squared
+//! norm of a cross product (the edge-edge mollifier's argument), each with its exact
+//! gradient and Hessian in reduced variables (see [`super::reduced`]).
+//!
+//! Derivations (`I` the identity, `[a]x` the cross-product matrix):
+//! - point-point, `d = r.r`: `grad = 2r`, `H = 2I`.
+//! - point-line, `d = r.r - s^2 / c` with `s = r.e`, `c = e.e` (`r = p - e0`, `e = e1 - e0`):
+//!   `d_r = 2r - 2s e / c`, `d_e = -2s r / c + 2s^2 e / c^2`,
+//!   `H_rr = 2I - 2 e e^T / c`, `H_re = -2 (e r^T + s I) / c + 4s e e^T / c^2`,
+//!   `H_ee = -2 r r^T / c + 4s (r e^T + e r^T) / c^2 + 2s^2 I / c^2 - 8s^2 e e^T / c^3`.
+//! - point-plane / line-line, `d = q^2 / m` with `n = u x v`, `q = r.n`, `m = n.n`:
+//!   in `(r, n)`: `d_r = 2q n / m`, `d_n = 2q r / m - 2q^2 n / m^2`,
+//!   `H_rr = 2 n n^T / m`, `H_rn = 2 (n r^T + q I) / m - 4q n n^T / m^2`,
+//!   `H_nn = 2 r r^T / m - 4q (r n^T + n r^T) / m^2 - 2q^2 I / m^2 + 8q^2 n n^T / m^3`;
+//!   then `dn/du = -[v]x`, `dn/dv = [u]x`, and the bilinear `g.(u x v)` adds `-[g]x` to the
+//!   `(u, v)` block (and `[g]x` to `(v, u)`) for `g = d_n`.
+//! - cross squared norm, `x = n.n`: `x_n = 2n`, `H_nn = 2I`, chained as above.
+
+use super::reduced::{cross, cross_matrix, dot, mat_mul, scale, scale_matrix, transpose, Reduced};
+
+/// `d = |r|^2` in the reduced vector `r` (index 0).
+pub fn point_point(r: [f64; 3], hessian: bool) -> Reduced {
+    let mut out = Reduced {
+        value: dot(r, r),
+        ..Reduced::default()
+    };
+    out.set_grad(0, scale(2.0, r));
+    if hessian {
+        out.add_identity(0, 0, 2.0);
+    }
+    out
+}
+
+/// Squared distance from `p` to the line through `e0` along `e`, with `r = p - e0` (index 0)
+/// and `e = e1 - e0` (index 1).
+pub fn point_line(r: [f64; 3], e: [f64; 3], hessian: bool) -> Reduced {
+    let s = dot(r, e);
+    let c = dot(e, e);
+    let mut out = Reduced {
+        value: dot(r, r) - s * s / c,
+        ..Reduced::default()
+    };
+    let dr = [0, 1, 2].map(|i| 2.0 * r[i] - 2.0 * s * e[i] / c);
+    let de = [0, 1, 2].map(|i| -2.0 * s * r[i] / c + 2.0 * s * s * e[i] / (c * c));
+    out.set_grad(0, dr);
+    out.set_grad(1, de);
+    if hessian {
+        out.add_identity(0, 0, 2.0);
+        out.add_outer(0, 0, -2.0 / c, e, e);
+        // H_re and its transpose H_er.
+        out.add_outer(0, 1, -2.0 / c, e, r);
+        out.add_identity(0, 1, -2.0 * s / c);
+        out.add_outer(0, 1, 4.0 * s / (c * c), e, e);
+        out.add_outer(1, 0, -2.0 / c, r, e);
+        out.add_identity(1, 0, -2.0 * s / c);
+        out.add_outer(1, 0, 4.0 * s / (c * c), e, e);
+        out.add_outer(1, 1, -2.0 / c, r, r);
+        out.add_outer(1, 1, 4.0 * s / (c * c), r, e);
+        out.add_outer(1, 1, 4.0 * s / (c * c), e, r);
+        out.add_identity(1, 1, 2.0 * s * s / (c * c));
+        out.add_outer(1, 1, -8.0 * s * s / (c * c * c), e, e);
+    }
+    out
+}
+
+/// Chains derivatives known in `n = u x v` (`g_n`, `h_nn`) onto the reduced vectors `u`
+/// (index `ku`) and `v` (index `kv`): gradient and the `uu`, `uv`, `vu`, `vv` blocks.
+fn chain_cross(out: &mut Reduced, ku: usize, kv: usize, u: [f64; 3], v: [f64; 3], g_n: [f64; 3], h_nn: Option<[[f64; 3]; 3]>) {
+    out.set_grad(ku, cross(v, g_n));
+    out.set_grad(kv, cross(g_n, u));
+    if let Some(h) = h_nn {
+        let ju = scale_matrix(-1.0, cross_matrix(v));
+        let jv = cross_matrix(u);
+        out.add_block(ku, ku, mat_mul(transpose(ju), mat_mul(h, ju)));
+        out.add_block(ku, kv, mat_mul(transpose(ju), mat_mul(h, jv)));
+        out.add_block(kv, ku, mat_mul(transpose(jv), mat_mul(h, ju)));
+        out.add_block(kv, kv, mat_mul(transpose(jv), mat_mul(h, jv)));
+        let gx = cross_matrix(g_n);
+        out.add_block(ku, kv, scale_matrix(-1.0, gx));
+        out.add_block(kv, ku, gx);
+    }
+}
+
+/// `d = (r . n)^2 / |n|^2` with `n = u x v`: the squared distance from a point to a plane
+/// (`r = p - t0`, `u = t1 - t0`, `v = t2 - t0`) or between two lines (`r = eb0 - ea0`,
+/// `u = ea1 - ea0`, `v = eb1 - eb0`). Indices: `r` 0, `u` 1, `v` 2.
+pub fn plane(r: [f64; 3], u: [f64; 3], v: [f64; 3], hessian: bool) -> Reduced {
+    let n = cross(u, v);
+    let q = dot(r, n);
+    let m = dot(n, n);
+    let mut out = Reduced {
+        value: q * q / m,
+        ..Reduced::default()
+    };
+    out.set_grad(0, scale(2.0 * q / m, n));
+    let g_n = [0, 1, 2].map(|i| 2.0 * q * r[i] / m - 2.0 * q * q * n[i] / (m * m));
+    let h_nn = hessian.then(|| {
+        let mut h = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                h[i][j] = 2.0 * r[i] * r[j] / m - 4.0 * q * (r[i] * n[j] + n[i] * r[j]) / (m * m)
+                    + 8.0 * q * q * n[i] * n[j] / (m * m * m);
+            }
+            h[i][i] -= 2.0 * q * q / (m * m);
+        }
+        h
+    });
+    chain_cross(&mut out, 1, 2, u, v, g_n, h_nn);
+    if hessian {
+        out.add_outer(0, 0, 2.0 / m, n, n);
+        // H_rn, then chained: H_ru = H_rn (-[v]x), H_rv = H_rn [u]x.
+        let mut h_rn = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                h_rn[i][j] = 2.0 * n[i] * r[j] / m - 4.0 * q * n[i] * n[j] / (m * m);
+            }
+            h_rn[i][i] += 2.0 * q / m;
+        }
+        let h_ru = mat_mul(h_rn, scale_matrix(-1.0, cross_matrix(v)));
+        let h_rv = mat_mul(h_rn, cross_matrix(u));
+        out.add_block(0, 1, h_ru);
+        out.add_block(1, 0, transpose(h_ru));
+        out.add_block(0, 2, h_rv);
+        out.add_block(2, 0, transpose(h_rv));
+    }
+    out
+}
+
+/// `x = |u x v|^2`, with `u` at index 0 and `v` at index 1.
+pub fn cross_squared_norm(u: [f64; 3], v: [f64; 3], hessian: bool) -> Reduced {
+    let n = cross(u, v);
+    let mut out = Reduced {
+        value: dot(n, n),
+        ..Reduced::default()
+    };
+    let h = hessian.then_some([[2.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]]);
+    chain_cross(&mut out, 0, 1, u, v, scale(2.0, n), h);
+    out
+}
