@@ -43,7 +43,11 @@ pub fn barrier_second_derivative(d: f64, dhat: f64) -> f64 {
 /// `want` asks so.
 pub fn barrier_of_squared_distance(d2: f64, n: usize, dhat: f64, want: Want, out: &mut Local) -> f64 {
     let dhat2 = dhat * dhat;
-    let (b, db, ddb) = (barrier(d2, dhat2), barrier_first_derivative(d2, dhat2), barrier_second_derivative(d2, dhat2));
+    let (b, db, ddb) = (
+        barrier(d2, dhat2),
+        barrier_first_derivative(d2, dhat2),
+        barrier_second_derivative(d2, dhat2),
+    );
     if let Some(project) = want.hessian() {
         for i in 0..n {
             for j in 0..n {

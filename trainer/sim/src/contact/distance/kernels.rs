@@ -4,10 +4,10 @@
 //!
 //! Derivations (`I` the identity, `[a]x` the cross-product matrix):
 //! - point-point, `d = r.r`: `grad = 2r`, `H = 2I`.
-//! - point-line, `d = r.r - s^2 / c` with `s = r.e`, `c = e.e` (`r = p - e0`, `e = e1 - e0`):
-//!   `d_r = 2r - 2s e / c`, `d_e = -2s r / c + 2s^2 e / c^2`,
-//!   `H_rr = 2I - 2 e e^T / c`, `H_re = -2 (e r^T + s I) / c + 4s e e^T / c^2`,
-//!   `H_ee = -2 r r^T / c + 4s (r e^T + e r^T) / c^2 + 2s^2 I / c^2 - 8s^2 e e^T / c^3`.
+//! - point-line, `d = m / c` with `n = r x e`, `m = n.n`, `c = e.e` (`r = p - e0`,
+//!   `e = e1 - e0`): in `(n, c)`: `d_n = 2n / c`, `d_c = -m / c^2`, `H_nn = 2I / c`,
+//!   `H_nc = -2n / c^2`, `H_cc = 2m / c^3`; then `dn/dr = -[e]x`, `dn/de = [r]x` (with the
+//!   bilinear term below) and `dc/de = 2e`, `d2c/de2 = 2I`.
 //! - point-plane / line-line, `d = q^2 / m` with `n = u x v`, `q = r.n`, `m = n.n`:
 //!   in `(r, n)`: `d_r = 2q n / m`, `d_n = 2q r / m - 2q^2 n / m^2`,
 //!   `H_rr = 2 n n^T / m`, `H_rn = 2 (n r^T + q I) / m - 4q n n^T / m^2`,
@@ -32,40 +32,47 @@ pub fn point_point(r: [f64; 3], hessian: bool) -> Reduced {
 }
 
 /// Squared distance from `p` to the line through `e0` along `e`, with `r = p - e0` (index 0)
-/// and `e = e1 - e0` (index 1).
+/// and `e = e1 - e0` (index 1), as `|r x e|^2 / e.e` (no cancellation near the line; 2D
+/// embeds with `z = 0`).
 pub fn point_line(r: [f64; 3], e: [f64; 3], hessian: bool) -> Reduced {
-    let s = dot(r, e);
+    let n = cross(r, e);
+    let m = dot(n, n);
     let c = dot(e, e);
     let mut out = Reduced {
-        value: dot(r, r) - s * s / c,
+        value: m / c,
         ..Reduced::default()
     };
-    let dr = [0, 1, 2].map(|i| 2.0 * r[i] - 2.0 * s * e[i] / c);
-    let de = [0, 1, 2].map(|i| -2.0 * s * r[i] / c + 2.0 * s * s * e[i] / (c * c));
-    out.set_grad(0, dr);
-    out.set_grad(1, de);
+    let h_nn = hessian.then_some([[2.0 / c, 0.0, 0.0], [0.0, 2.0 / c, 0.0], [0.0, 0.0, 2.0 / c]]);
+    chain_cross(&mut out, 0, 1, r, e, scale(2.0 / c, n), h_nn);
+    // The dependence through c = e.e.
+    let de = out.grad_of(1);
+    out.set_grad(1, [0, 1, 2].map(|i| de[i] - 2.0 * m * e[i] / (c * c)));
     if hessian {
-        out.add_identity(0, 0, 2.0);
-        out.add_outer(0, 0, -2.0 / c, e, e);
-        // H_re and its transpose H_er.
-        out.add_outer(0, 1, -2.0 / c, e, r);
-        out.add_identity(0, 1, -2.0 * s / c);
-        out.add_outer(0, 1, 4.0 * s / (c * c), e, e);
-        out.add_outer(1, 0, -2.0 / c, r, e);
-        out.add_identity(1, 0, -2.0 * s / c);
-        out.add_outer(1, 0, 4.0 * s / (c * c), e, e);
-        out.add_outer(1, 1, -2.0 / c, r, r);
-        out.add_outer(1, 1, 4.0 * s / (c * c), r, e);
-        out.add_outer(1, 1, 4.0 * s / (c * c), e, r);
-        out.add_identity(1, 1, 2.0 * s * s / (c * c));
-        out.add_outer(1, 1, -8.0 * s * s / (c * c * c), e, e);
+        out.add_outer(1, 1, 8.0 * m / (c * c * c), e, e);
+        out.add_identity(1, 1, -2.0 * m / (c * c));
+        // Mixed n-c terms: d2f/dn dc = -2n / c^2, dn/dr = -[e]x, dn/de = [r]x, dc/de = 2e.
+        let a_r = scale(-2.0 / (c * c), cross(e, n));
+        let a_e = scale(2.0 / (c * c), cross(r, n));
+        let two_e = scale(2.0, e);
+        out.add_outer(0, 1, 1.0, a_r, two_e);
+        out.add_outer(1, 0, 1.0, two_e, a_r);
+        out.add_outer(1, 1, 1.0, a_e, two_e);
+        out.add_outer(1, 1, 1.0, two_e, a_e);
     }
     out
 }
 
 /// Chains derivatives known in `n = u x v` (`g_n`, `h_nn`) onto the reduced vectors `u`
 /// (index `ku`) and `v` (index `kv`): gradient and the `uu`, `uv`, `vu`, `vv` blocks.
-fn chain_cross(out: &mut Reduced, ku: usize, kv: usize, u: [f64; 3], v: [f64; 3], g_n: [f64; 3], h_nn: Option<[[f64; 3]; 3]>) {
+fn chain_cross(
+    out: &mut Reduced,
+    ku: usize,
+    kv: usize,
+    u: [f64; 3],
+    v: [f64; 3],
+    g_n: [f64; 3],
+    h_nn: Option<[[f64; 3]; 3]>,
+) {
     out.set_grad(ku, cross(v, g_n));
     out.set_grad(kv, cross(g_n, u));
     if let Some(h) = h_nn {

@@ -19,7 +19,9 @@ pub mod reduced;
 pub use edge_edge::{edge_edge_distance, edge_edge_distance_typed, edge_edge_type, EdgeEdgeType};
 pub use mollifier::{edge_edge_mollifier, edge_edge_mollifier_threshold, mollifier, mollifier_derivatives};
 pub use point_edge::{point_edge_distance, point_edge_distance_typed, point_edge_type, PointEdgeType};
-pub use point_triangle::{point_triangle_distance, point_triangle_distance_typed, point_triangle_type, PointTriangleType};
+pub use point_triangle::{
+    point_triangle_distance, point_triangle_distance_typed, point_triangle_type, PointTriangleType,
+};
 
 use crate::energy::{Local, Want};
 use reduced::{sub, vertex};

@@ -41,8 +41,12 @@ pub fn point_edge_distance_typed(x: &[f64], dim: usize, ty: PointEdgeType, want:
     let (p, e0, e1) = (vertex(x, dim, 0), vertex(x, dim, 1), vertex(x, dim, 2));
     let hess = want.hessian().is_some();
     match ty {
-        PointEdgeType::E0 => kernels::point_point(sub(p, e0), hess).scatter(&[[1.0, -1.0, 0.0, 0.0]], 3, dim, want, out),
-        PointEdgeType::E1 => kernels::point_point(sub(p, e1), hess).scatter(&[[1.0, 0.0, -1.0, 0.0]], 3, dim, want, out),
+        PointEdgeType::E0 => {
+            kernels::point_point(sub(p, e0), hess).scatter(&[[1.0, -1.0, 0.0, 0.0]], 3, dim, want, out)
+        }
+        PointEdgeType::E1 => {
+            kernels::point_point(sub(p, e1), hess).scatter(&[[1.0, 0.0, -1.0, 0.0]], 3, dim, want, out)
+        }
         PointEdgeType::Interior => kernels::point_line(sub(p, e0), sub(e1, e0), hess).scatter(
             &[[1.0, -1.0, 0.0, 0.0], [0.0, -1.0, 1.0, 0.0]],
             3,

@@ -29,7 +29,10 @@ fn edge_frame(t: [[f64; 3]; 3], normal: [f64; 3], i: usize, p: [f64; 3]) -> [f64
     let along = sub(t[(i + 1) % 3], t[i]);
     let outward = cross(along, normal);
     let r = sub(p, t[i]);
-    [dot(along, r) / dot(along, along), dot(outward, r) / dot(outward, outward)]
+    [
+        dot(along, r) / dot(along, along),
+        dot(outward, r) / dot(outward, outward),
+    ]
 }
 
 /// Classifies `x = [p, t0, t1, t2]`: the point's projection onto the triangle's plane is

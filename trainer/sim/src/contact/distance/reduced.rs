@@ -135,7 +135,11 @@ pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 /// Cross product.
 pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 /// The matrix `[a]_x` with `[a]_x b = a x b`.

@@ -12,7 +12,9 @@ pub mod potential;
 pub mod smoothing;
 pub mod tangent_basis;
 
-pub use closest_point::{edge_edge_closest_point, point_edge_closest_point, point_triangle_closest_point, RelativeVelocity};
+pub use closest_point::{
+    edge_edge_closest_point, point_edge_closest_point, point_triangle_closest_point, RelativeVelocity,
+};
 pub use potential::FrictionStencil;
 pub use smoothing::{f0, f1, f1_over_x, f2, f2_x_minus_f1_over_x3};
 pub use tangent_basis::{

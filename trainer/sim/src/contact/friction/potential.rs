@@ -73,7 +73,11 @@ impl FrictionStencil {
         if let Some(project) = want.hessian() {
             let mut inner = [[0.0; 2]; 2];
             let diag = f1_over_x(norm, eps_v);
-            let outer = if norm > 0.0 { f2_x_minus_f1_over_x3(norm, eps_v) } else { 0.0 };
+            let outer = if norm > 0.0 {
+                f2_x_minus_f1_over_x3(norm, eps_v)
+            } else {
+                0.0
+            };
             for k in 0..m {
                 for l in 0..m {
                     inner[k][l] = outer * tau[k] * tau[l];

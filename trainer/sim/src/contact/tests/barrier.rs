@@ -23,7 +23,14 @@ fn barrier_derivatives_match_finite_differences() {
 fn barrier_vanishes_to_second_order_at_dhat_and_grows_without_bound_at_contact() {
     let dhat = 2.0;
     for d in [2.0, 2.5] {
-        assert_eq!((barrier(d, dhat), barrier_first_derivative(d, dhat), barrier_second_derivative(d, dhat)), (0.0, 0.0, 0.0));
+        assert_eq!(
+            (
+                barrier(d, dhat),
+                barrier_first_derivative(d, dhat),
+                barrier_second_derivative(d, dhat)
+            ),
+            (0.0, 0.0, 0.0)
+        );
     }
     let just_below = dhat * (1.0 - 1e-6);
     assert!(barrier(just_below, dhat) < 1e-17 && barrier_first_derivative(just_below, dhat).abs() < 1e-11);
@@ -36,7 +43,11 @@ fn barrier_on_squared_distances_matches_finite_differences_and_projects_to_psd()
     let mut rng = rng(11);
     let dhat = 0.5;
     let f = |x: &[f64], w: Want, o: &mut Local| {
-        let exact = if w.hessian().is_some() { Want::Hessian { project: false } } else { w };
+        let exact = if w.hessian().is_some() {
+            Want::Hessian { project: false }
+        } else {
+            w
+        };
         let d2 = point_triangle_distance(x, exact, o);
         barrier_of_squared_distance(d2, 12, dhat, w, o)
     };
@@ -73,7 +84,11 @@ fn mollified_edge_edge_barrier_matches_finite_differences() {
             continue;
         }
         tested += 1;
-        assert_fd(fd(3, &x, 1e-7, |x, w, o| edge_edge_barrier(x, eps_x, dhat, w, o)), 1e-5, "edge-edge barrier");
+        assert_fd(
+            fd(3, &x, 1e-7, |x, w, o| edge_edge_barrier(x, eps_x, dhat, w, o)),
+            1e-5,
+            "edge-edge barrier",
+        );
     }
 }
 
@@ -89,7 +104,10 @@ fn force_magnitude_is_minus_the_barrier_derivative_in_distance() {
 fn initial_stiffness_balances_gradients_within_its_bounds() {
     let (diag, dhat, mass) = (1.0, 1e-3, 0.5);
     let lo = initial_barrier_stiffness(diag, dhat, mass, &[0.0; 3], &[0.0; 3], MIN_STIFFNESS_SCALE);
-    assert!((lo.max / lo.kappa - 100.0).abs() < 1e-9, "zero gradients give the smallest stiffness");
+    assert!(
+        (lo.max / lo.kappa - 100.0).abs() < 1e-9,
+        "zero gradients give the smallest stiffness"
+    );
     // kappa = -g_b.g_e / |g_b|^2 when inside the bounds.
     let want = 10.0 * lo.kappa;
     let gb = [1.0, -2.0, 0.5];
@@ -97,7 +115,10 @@ fn initial_stiffness_balances_gradients_within_its_bounds() {
     let mid = initial_barrier_stiffness(diag, dhat, mass, &ge, &gb, MIN_STIFFNESS_SCALE);
     assert!((mid.kappa / want - 1.0).abs() < 1e-12 && mid.max == lo.max);
     let huge: Vec<f64> = ge.iter().map(|g| g * 1e6).collect();
-    assert_eq!(initial_barrier_stiffness(diag, dhat, mass, &huge, &gb, MIN_STIFFNESS_SCALE).kappa, lo.max);
+    assert_eq!(
+        initial_barrier_stiffness(diag, dhat, mass, &huge, &gb, MIN_STIFFNESS_SCALE).kappa,
+        lo.max
+    );
 }
 
 #[test]
@@ -106,6 +127,9 @@ fn stiffness_doubles_only_while_a_small_distance_keeps_shrinking() {
     let tiny = 1e-20; // squared; below (1e-9 * diag)^2 = 1e-18
     assert_eq!(update_barrier_stiffness(2.0 * tiny, tiny, max, kappa, diag, 1e-9), 60.0);
     assert_eq!(update_barrier_stiffness(2.0 * tiny, tiny, max, 60.0, diag, 1e-9), 100.0);
-    assert_eq!(update_barrier_stiffness(tiny, 2.0 * tiny, max, kappa, diag, 1e-9), kappa);
+    assert_eq!(
+        update_barrier_stiffness(tiny, 2.0 * tiny, max, kappa, diag, 1e-9),
+        kappa
+    );
     assert_eq!(update_barrier_stiffness(1.0, tiny, max, kappa, diag, 1e-9), kappa);
 }

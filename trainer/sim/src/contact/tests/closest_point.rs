@@ -28,14 +28,24 @@ fn closest_point_jacobians_match_finite_differences() {
         for dim in [2, 3] {
             let xs = &x[..3 * dim];
             let (_, j) = point_edge_closest_point(xs, dim);
-            let err = jacobian_error(xs, 1, |x| vec![point_edge_closest_point(x, dim).0], &[j[..3 * dim].to_vec()]);
+            let err = jacobian_error(
+                xs,
+                1,
+                |x| vec![point_edge_closest_point(x, dim).0],
+                &[j[..3 * dim].to_vec()],
+            );
             assert!(err < 1e-6, "point-edge {dim}D: {err:e}");
         }
         let (_, j) = edge_edge_closest_point(&x);
         let err = jacobian_error(&x, 2, |x| edge_edge_closest_point(x).0.to_vec(), &j.map(|r| r.to_vec()));
         assert!(err < 1e-5, "edge-edge: {err:e}");
         let (_, j) = point_triangle_closest_point(&x);
-        let err = jacobian_error(&x, 2, |x| point_triangle_closest_point(x).0.to_vec(), &j.map(|r| r.to_vec()));
+        let err = jacobian_error(
+            &x,
+            2,
+            |x| point_triangle_closest_point(x).0.to_vec(),
+            &j.map(|r| r.to_vec()),
+        );
         assert!(err < 1e-5, "point-triangle: {err:e}");
     }
 }

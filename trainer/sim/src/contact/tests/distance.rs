@@ -37,7 +37,11 @@ fn point_point_and_point_edge_derivatives_match_finite_differences_in_2d_and_3d(
     for dim in [2, 3] {
         for _ in 0..20 {
             let x = random_vec(&mut rng, 2 * dim);
-            assert_fd(fd(dim, &x, H, |x, w, o| point_point_distance(x, dim, w, o)), TOL, "point-point");
+            assert_fd(
+                fd(dim, &x, H, |x, w, o| point_point_distance(x, dim, w, o)),
+                TOL,
+                "point-point",
+            );
             let x = random_vec(&mut rng, 3 * dim);
             for ty in [PointEdgeType::E0, PointEdgeType::E1, PointEdgeType::Interior] {
                 let r = fd(dim, &x, H, |x, w, o| point_edge_distance_typed(x, dim, ty, w, o));
@@ -53,10 +57,18 @@ fn point_triangle_and_edge_edge_derivatives_match_finite_differences_for_every_t
     for _ in 0..20 {
         let x = random_vec(&mut rng, 12);
         for ty in PT_TYPES {
-            assert_fd(fd(3, &x, H, |x, w, o| point_triangle_distance_typed(x, ty, w, o)), TOL, &format!("{ty:?}"));
+            assert_fd(
+                fd(3, &x, H, |x, w, o| point_triangle_distance_typed(x, ty, w, o)),
+                TOL,
+                &format!("{ty:?}"),
+            );
         }
         for ty in EE_TYPES {
-            assert_fd(fd(3, &x, H, |x, w, o| edge_edge_distance_typed(x, ty, w, o)), TOL, &format!("{ty:?}"));
+            assert_fd(
+                fd(3, &x, H, |x, w, o| edge_edge_distance_typed(x, ty, w, o)),
+                TOL,
+                &format!("{ty:?}"),
+            );
         }
     }
 }
@@ -73,7 +85,11 @@ fn mollifier_derivatives_match_finite_differences_inside_its_ramp() {
         let eps_x = edge_edge_mollifier_threshold(&x) * 10.0;
         let m = value(|o| edge_edge_mollifier(&x, eps_x, Want::Value, o));
         assert!(m > 0.0 && m < 1.0, "mollifier {m} should be inside its ramp");
-        assert_fd(fd(3, &x, 1e-7, |x, w, o| edge_edge_mollifier(x, eps_x, w, o)), 1e-5, "mollifier");
+        assert_fd(
+            fd(3, &x, 1e-7, |x, w, o| edge_edge_mollifier(x, eps_x, w, o)),
+            1e-5,
+            "mollifier",
+        );
     }
 }
 
@@ -93,7 +109,11 @@ fn mollifier_is_zero_for_parallel_edges_and_c1_at_its_threshold() {
 #[test]
 fn point_edge_classification_and_values_on_hand_made_cases() {
     // Edge from (0, 0) to (2, 0).
-    let cases = [([-1.0, 1.0], PointEdgeType::E0, 2.0), ([3.0, -1.0], PointEdgeType::E1, 2.0), ([0.5, 3.0], PointEdgeType::Interior, 9.0)];
+    let cases = [
+        ([-1.0, 1.0], PointEdgeType::E0, 2.0),
+        ([3.0, -1.0], PointEdgeType::E1, 2.0),
+        ([0.5, 3.0], PointEdgeType::Interior, 9.0),
+    ];
     for (p, ty, d) in cases {
         let x = [p[0], p[1], 0.0, 0.0, 2.0, 0.0];
         assert_eq!(point_edge_type(&x, 2), ty);
@@ -189,10 +209,16 @@ fn classified_distances_are_the_true_minima() {
         let x = random_vec(&mut rng, 12);
         let pt = value(|o| point_triangle_distance(&x, Want::Value, o));
         let sampled = sampled_point_triangle(&x);
-        assert!(pt <= sampled + 1e-12 && sampled - pt < 1e-4, "point-triangle {pt} vs sampled {sampled}");
+        assert!(
+            pt <= sampled + 1e-12 && sampled - pt < 1e-4,
+            "point-triangle {pt} vs sampled {sampled}"
+        );
         let ee = value(|o| edge_edge_distance(&x, Want::Value, o));
         let sampled = sampled_edge_edge(&x);
-        assert!(ee <= sampled + 1e-12 && sampled - ee < 1e-4, "edge-edge {ee} vs sampled {sampled}");
+        assert!(
+            ee <= sampled + 1e-12 && sampled - ee < 1e-4,
+            "edge-edge {ee} vs sampled {sampled}"
+        );
     }
 }
 
@@ -201,8 +227,16 @@ fn classified_distances_have_matching_derivatives_away_from_type_boundaries() {
     let mut rng = rng(5);
     for _ in 0..50 {
         let x = random_vec(&mut rng, 12);
-        assert_fd(fd(3, &x, H, |x, w, o| point_triangle_distance(x, w, o)), TOL, "point-triangle");
+        assert_fd(
+            fd(3, &x, H, |x, w, o| point_triangle_distance(x, w, o)),
+            TOL,
+            "point-triangle",
+        );
         assert_fd(fd(3, &x, H, |x, w, o| edge_edge_distance(x, w, o)), TOL, "edge-edge");
-        assert_fd(fd(3, &x[..9], H, |x, w, o| point_edge_distance(x, 3, w, o)), TOL, "point-edge");
+        assert_fd(
+            fd(3, &x[..9], H, |x, w, o| point_edge_distance(x, 3, w, o)),
+            TOL,
+            "point-edge",
+        );
     }
 }

@@ -26,7 +26,10 @@ fn orthonormal_and_normal_to(b: &TangentBasis, normal: [f64; 3]) {
     let scale = dot(normal, normal).sqrt();
     for k in 0..b.len() {
         assert!((dot(b.columns[k], b.columns[k]) - 1.0).abs() < 1e-12, "{b:?}");
-        assert!(dot(b.columns[k], normal).abs() < 1e-12 * scale, "{b:?} vs normal {normal:?}");
+        assert!(
+            dot(b.columns[k], normal).abs() < 1e-12 * scale,
+            "{b:?} vs normal {normal:?}"
+        );
     }
     if b.len() == 2 {
         assert!(dot(b.columns[0], b.columns[1]).abs() < 1e-12);
@@ -40,13 +43,22 @@ fn tangent_bases_are_orthonormal_and_normal_to_the_contact_normal() {
         let x = random_vec(&mut rng, 12);
         let v = |a: usize| [x[3 * a], x[3 * a + 1], x[3 * a + 2]];
         let sub = |a: [f64; 3], b: [f64; 3]| [0, 1, 2].map(|i| a[i] - b[i]);
-        let cross = |a: [f64; 3], b: [f64; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
         orthonormal_and_normal_to(&point_point_tangent_basis(&x[..6], 3), sub(v(1), v(0)));
         let (alpha, _) = point_edge_closest_point(&x[..9], 3);
         let foot = [0, 1, 2].map(|i| x[3 + i] + alpha * (x[6 + i] - x[3 + i]));
         orthonormal_and_normal_to(&point_edge_tangent_basis(&x[..9], 3), sub(v(0), foot));
         orthonormal_and_normal_to(&edge_edge_tangent_basis(&x), cross(sub(v(1), v(0)), sub(v(3), v(2))));
-        orthonormal_and_normal_to(&point_triangle_tangent_basis(&x), cross(sub(v(2), v(1)), sub(v(3), v(1))));
+        orthonormal_and_normal_to(
+            &point_triangle_tangent_basis(&x),
+            cross(sub(v(2), v(1)), sub(v(3), v(1))),
+        );
         let b2 = point_point_tangent_basis(&x[..4], 2);
         orthonormal_and_normal_to(&b2, [x[2] - x[0], x[3] - x[1], 0.0]);
     }
@@ -71,6 +83,8 @@ fn friction_potential_matches_finite_differences_in_both_regimes_and_projects_to
         let tau = stencil.tangential_velocity(&v);
         let scale = target / (tau[0] * tau[0] + tau[1] * tau[1]).sqrt();
         let v: Vec<f64> = v.iter().map(|u| u * scale).collect();
+        let tau = stencil.tangential_velocity(&v);
+        assert!(((tau[0] * tau[0] + tau[1] * tau[1]).sqrt() / target - 1.0).abs() < 1e-12);
         let h = 1e-4 * scale.min(1.0);
         assert_fd(fd(3, &v, h, |v, w, o| stencil.eval(v, eps_v, w, o)), 1e-6, "friction");
         let mut out = Local::default();
@@ -88,7 +102,11 @@ fn friction_potential_matches_finite_differences_in_both_regimes_and_projects_to
         mu: 0.5,
     };
     for v in [[1e-3, 2e-3, -1e-3, 0.0, 4e-3, 1e-3], [0.1, 0.2, -0.3, 0.0, 0.4, 0.1]] {
-        assert_fd(fd(2, &v, 1e-7, |v, w, o| stencil.eval(v, eps_v, w, o)), 1e-6, "2D friction");
+        assert_fd(
+            fd(2, &v, 1e-7, |v, w, o| stencil.eval(v, eps_v, w, o)),
+            1e-6,
+            "2D friction",
+        );
     }
 }
 

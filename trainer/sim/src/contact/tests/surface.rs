@@ -9,7 +9,11 @@ fn enclosed_volume(rest: &[f64], faces: &[[usize; 3]]) -> f64 {
         .iter()
         .map(|f| {
             let (a, b, c) = (p(f[0]), p(f[1]), p(f[2]));
-            let bc = [b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]];
+            let bc = [
+                b[1] * c[2] - b[2] * c[1],
+                b[2] * c[0] - b[0] * c[2],
+                b[0] * c[1] - b[1] * c[0],
+            ];
             (a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2]) / 6.0
         })
         .sum()
