@@ -102,7 +102,10 @@ pub fn parallel_type(x: &[f64]) -> EdgeEdgeType {
     let mut best = (f64::INFINITY, AB);
     let mut out = Local::default();
     for (p, s, t, interior, at_s, at_t) in cases {
-        let local: Vec<f64> = [v[p], v[s], v[t]].concat();
+        let mut local = [0.0; 9];
+        for (k, a) in [p, s, t].into_iter().enumerate() {
+            local[3 * k..3 * k + 3].copy_from_slice(&v[a]);
+        }
         let ty = point_edge_type(&local, 3);
         let d = super::point_edge_distance_typed(&local, 3, ty, Want::Value, &mut out);
         let ee = match ty {

@@ -8,6 +8,8 @@
 //! point-triangle `[p, t0, t1, t2]` and edge-edge `[ea0, ea1, eb0, eb1]` (3D). Each
 //! `*_distance` function classifies the closest features and evaluates the matching formula;
 //! the `*_distance_typed` variants take the type (for a lagged or known classification).
+//! Distance Hessians are always exact: a `Want::Hessian { project: true }` request is served
+//! unprojected, as projection belongs to the energy built on the distance.
 
 pub mod edge_edge;
 pub mod kernels;

@@ -227,12 +227,8 @@ fn classified_distances_have_matching_derivatives_away_from_type_boundaries() {
     let mut rng = rng(5);
     for _ in 0..50 {
         let x = random_vec(&mut rng, 12);
-        assert_fd(
-            fd(3, &x, H, |x, w, o| point_triangle_distance(x, w, o)),
-            TOL,
-            "point-triangle",
-        );
-        assert_fd(fd(3, &x, H, |x, w, o| edge_edge_distance(x, w, o)), TOL, "edge-edge");
+        assert_fd(fd(3, &x, H, point_triangle_distance), TOL, "point-triangle");
+        assert_fd(fd(3, &x, H, edge_edge_distance), TOL, "edge-edge");
         assert_fd(
             fd(3, &x[..9], H, |x, w, o| point_edge_distance(x, 3, w, o)),
             TOL,
