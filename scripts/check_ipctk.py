@@ -332,6 +332,11 @@ def main():
         differ = ours[f"{key}_type"].astype(int) != ref["type"]
         rows.append((key, "closest-feature type", len(differ), f"{differ.sum()} differ", int(cond.sum()), f"{differ[cond].sum()} differ",
                      not differ[cond].any()))
+        if differ.any():
+            # Where the types differ (edges parallel to rounding), ours must not be the farther pair.
+            closer = ours[f"{key}_d"][differ] <= ref["d"][differ] * (1 + 1e-12)
+            rows.append((key, "distance <= ipctk's where types differ", int(differ.sum()), f"{closer.sum()} of {differ.sum()}",
+                         int(differ.sum()), f"{closer.sum()} of {differ.sum()}", bool(closer.all())))
         for q, label in labels.items():
             if q not in ref:
                 continue
