@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use mochi_sim::cubature::{CubatureEnergy, CubatureSettings};
+use mochi_sim::cubature::CubatureSettings;
 use mochi_sim::StencilEnergy;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -19,10 +19,10 @@ use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, Expor
 use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource};
 use crate::learn::train::{AdamWConfig, CheckpointConfig, TrainConfig};
-use crate::methods::lipschitz::cubature::{fit_subspace_cubature, ELASTIC_TERMS};
+use crate::methods::lipschitz::cubature::{cubature_energies, fit_subspace_cubature, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::lipschitz::train::{optimise_data_free, optimise_supervised, LipschitzSettings};
-use crate::methods::reduced::stepper::objective_scale;
+use crate::methods::reduced::stepper::scene_objective_scale;
 use crate::progress::Reporter;
 use mochi_sim::BuiltScene;
 
@@ -38,12 +38,6 @@ pub(crate) struct ReducedInputs<'a> {
     pub(crate) autoencoder: &'a SelectedAutoencoder,
     pub(crate) times: &'a StageTimes,
     pub(crate) work: &'a Workspace,
-}
-
-/// The reduced solver's objective scale for `problem`'s body.
-pub(crate) fn scene_objective_scale(problem: &BuiltScene) -> f64 {
-    let mass: f64 = problem.simulator.masses().iter().sum();
-    objective_scale(mass, problem.mesh.rest_diagonal(), problem.scene.dt)
 }
 
 /// Fits a cubature of every elastic term to `decoder`'s subspace on `samples`.
@@ -72,30 +66,6 @@ fn fit_cubatures(
         });
     }
     Ok(out)
-}
-
-/// The potential of the Lipschitz loss: each elastic term through its cubature.
-pub(crate) fn cubature_energies<'a>(
-    problem: &'a BuiltScene,
-    cubatures: &[CubatureData],
-) -> TrainerResult<Vec<CubatureEnergy<'a>>> {
-    cubatures
-        .iter()
-        .map(|c| {
-            let energy = problem
-                .simulator
-                .potentials()
-                .iter()
-                .find(|p| p.name() == c.term)
-                .ok_or_else(|| TrainerError::invalid(format!("the scene has no energy term `{}`", c.term)))?;
-            let rule = mochi_sim::cubature::Cubature {
-                elements: c.elements.clone(),
-                weights: c.weights.clone(),
-            };
-            CubatureEnergy::new(energy.as_ref(), rule)
-                .map_err(|e| TrainerError::invalid(format!("cubature of `{}`: {e}", c.term)))
-        })
-        .collect()
 }
 
 /// The Lipschitz term of `problem`'s body on `potentials`.
