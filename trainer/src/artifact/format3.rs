@@ -8,7 +8,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::file::{ArtifactError, TrainingSection, TRAINING_MAGIC};
+use super::section::{ArtifactError, TrainingSection, TRAINING_MAGIC};
 use super::{Artifact, Method, TrainingSummary, MAGIC};
 use crate::learn::network::DenseLayer;
 use mochi_runtime::envelope;

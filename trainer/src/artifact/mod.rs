@@ -13,17 +13,18 @@
 pub mod file;
 mod format3;
 pub mod reduced;
+pub mod section;
 
 use serde::{Deserialize, Serialize};
 
 use crate::learn::encoding::{Encoding, Origins};
 use crate::learn::network::{DenseLayer, ExportedIntegrator, ExportedMlp, FrozenDecoder, NetworkError};
 
-pub use file::{ArtifactError, TrainingSection, TRAINING_MAGIC};
 pub use mochi_runtime::artifact::{FORMAT_VERSION, MAGIC};
 /// One rod strand of the bend encoding (see [`crate::learn::encoding::Chain`]): the runtime's
 /// record, stored as is.
 pub use mochi_runtime::payload::ChainData;
+pub use section::{ArtifactError, TrainingSection, TRAINING_MAGIC};
 
 /// How an artifact's integrator was trained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
