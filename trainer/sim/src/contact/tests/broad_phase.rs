@@ -69,7 +69,7 @@ fn grid_pairs_equal_brute_force_on_random_boxes() {
                 .collect()
         };
         let (a, b) = (make(&mut rng, n), make(&mut rng, n / 2 + 1));
-        let keep = |i: usize, j: usize| (i + j) % 5 != 0;
+        let keep = |i: usize, j: usize| !(i + j).is_multiple_of(5);
         assert_eq!(
             overlapping_pairs(&a, &b, keep),
             overlapping_pairs_brute_force(&a, &b, keep),

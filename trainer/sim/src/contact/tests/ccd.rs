@@ -89,7 +89,7 @@ fn parallel_edges_moving_into_each_other_stop_at_a_tenth_of_the_gap() {
     let x0 = [0.5, -1.0, 1.0, 0.5, 1.0, 1.0, 0.0, 0.0, -1.0, 1.0, 0.0, -1.0];
     let x1 = [0.5, -1.0, -1.0, 0.5, 1.0, -1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 1.0];
     let toi = ccd().edge_edge(&x0, &x1, 0.0, 1.0).expect("the edges collide");
-    assert!(toi < 0.5 && toi >= 0.45 - 1e-12, "toi {toi}");
+    assert!((0.45 - 1e-12..0.5).contains(&toi), "toi {toi}");
 }
 
 #[test]
@@ -114,12 +114,12 @@ fn a_fast_point_tunnelling_through_a_thin_triangle_is_caught() {
     let stencil = |z: f64| -> Vec<f64> { [0.1, 1e-4, z].iter().chain(&sliver).copied().collect() };
     let (x0, x1) = (stencil(1000.0), stencil(-1000.0));
     let toi = ccd().point_triangle(&x0, &x1, 0.0, 1.0).expect("crosses the sliver");
-    assert!(toi < 0.5 && toi >= 0.45 - 1e-12, "toi {toi}");
+    assert!((0.45 - 1e-12..0.5).contains(&toi), "toi {toi}");
     // Point-edge (2D) and point-point at high speed likewise.
     let x0 = [0.3, 1000.0, 0.0, 0.0, 1.0, 0.0];
     let x1 = [0.3, -1000.0, 0.0, 0.0, 1.0, 0.0];
     let toi = ccd().point_edge(&x0, &x1, 2, 0.0, 1.0).expect("crosses the edge");
-    assert!(toi < 0.5 && toi >= 0.45 - 1e-12, "toi {toi}");
+    assert!((0.45 - 1e-12..0.5).contains(&toi), "toi {toi}");
     let toi = ccd().point_point(
         &[-1e3, 0.0, 0.0, 1e3, 0.0, 0.0],
         &[1e3, 0.0, 0.0, -1e3, 0.0, 0.0],
@@ -128,7 +128,7 @@ fn a_fast_point_tunnelling_through_a_thin_triangle_is_caught() {
         1.0,
     );
     let toi = toi.expect("the points meet");
-    assert!(toi < 0.5 && toi >= 0.45 - 1e-12, "toi {toi}");
+    assert!((0.45 - 1e-12..0.5).contains(&toi), "toi {toi}");
 }
 
 #[test]
