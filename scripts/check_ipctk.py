@@ -4,7 +4,7 @@ Generates random cases per primitive pair (general positions and near-degenerate
 nearly parallel edges, points near planes, edges and vertices, nearly coincident points;
 10,000 per pair by default, 1.6 times that for point-edge and edge-edge so that their
 well-conditioned subsets alone reach 10,000), evaluates them with ipctk, runs the
-`contact_cases` example of mochi-sim on the same cases, and prints one table.
+`contact_cases` example of mochi-sim on the same cases, and prints a table.
 
 Error per case and quantity: max_i |ours_i - ref_i| / max(1, max_i |ref_i|) over the
 entries i of that case's array (scalar, vector or matrix); for friction Hessians the

@@ -89,3 +89,27 @@ fn two_squares_thrown_at_each_other_stop_before_touching_in_2d() {
     bad[0] = f64::NAN;
     assert_eq!(max_step(&surface, &x0, &bad, 0.0, &AdditiveCcd::default()), 0.0);
 }
+
+#[test]
+fn a_folded_flap_passing_through_its_own_sheet_is_stopped() {
+    // A 2 x 1 sheet whose last column of vertices is folded back over the sheet, 0.3 above
+    // it, and pushed to 0.3 below: the flap lies in the sheet at t = 1/2 and under it at the
+    // end, so only self-contact CCD sees the pass.
+    let sheet = cloth_grid([2.0, 1.0], [5, 3], [0.0; 3], ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0])).unwrap();
+    let surface = ContactSurface::of_mesh(&sheet);
+    let fold = |z: f64| -> Vec<f64> {
+        let mut x = sheet.rest.clone();
+        for j in 0..3 {
+            let v = 4 + 5 * j;
+            x[3 * v] = 0.5;
+            x[3 * v + 2] = z;
+        }
+        x
+    };
+    let (x0, x1) = (fold(0.3), fold(-0.3));
+    assert!(!has_intersections(&surface, &x0) && !has_intersections(&surface, &x1));
+    assert!(has_intersections(&surface, &lerp(&x0, &x1, 0.5)));
+    let t = max_step(&surface, &x0, &x1, 0.0, &AdditiveCcd::default());
+    assert!(t < 0.5 && t > 0.2, "max step {t}");
+    assert!(!has_intersections(&surface, &lerp(&x0, &x1, t)));
+}
