@@ -1,5 +1,5 @@
-//! Additive continuous collision detection (Li et al. 2021, *Codimensional Incremental
-//! Potential Contact*, Sec. 4 and its Algorithm 1).
+//! Additive continuous collision detection (ACCD; Li et al. 2021, *Codimensional
+//! Incremental Potential Contact*).
 //!
 //! For a stencil moving linearly from `x0` (time 0) to `x1` (time 1), conservative
 //! advancement on the distance: if every vertex of one primitive moves at most `|p_a|` and
