@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Compares mochi's contact primitives with IPC's toolkit (PyPI `ipctk`) on random cases:
 # builds a venv under target/ipctk-venv, builds the `contact_cases` example of mochi-sim,
-# and runs scripts/check_ipctk.py (which prints one table). Extra arguments go to the script
-# (e.g. --cases 20000 --seed 7).
+# and runs scripts/check_ipctk.py (which prints a table of the primitives and one of CCD times
+# of impact). Extra arguments go to the script
+# (e.g. --cases 20000 --seed 7, or --only ccd).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 target="${CARGO_TARGET_DIR:-target}"

@@ -4,16 +4,17 @@ Generates random cases per primitive pair (general positions and near-degenerate
 nearly parallel edges, points near planes, edges and vertices, nearly coincident points;
 10,000 per pair by default, 1.6 times that for point-edge and edge-edge so that their
 well-conditioned subsets alone reach 10,000), evaluates them with ipctk, runs the
-`contact_cases` example of mochi-sim on the same cases, and prints one table.
+`contact_cases` example of mochi-sim on the same cases, and prints a table.
 
 Error per case and quantity: max_i |ours_i - ref_i| / max(1, max_i |ref_i|) over the
 entries i of that case's array (scalar, vector or matrix); for friction Hessians the
 denominator also includes mu N f1(|tau|)/|tau| max |P^T P|, the size of the two terms that
 cancel along a sliding direction. A row passes when its worst error over the
 well-conditioned cases (see `conditioned`) is at most 1e-10; the worst error over all cases
-is printed beside it.
+is printed beside it. A second table compares the times of impact of additive CCD on
+random motions of every pair (`ipctk_ccd.py` beside this script).
 
-Usage: check_ipctk.py CONTACT_CASES_BINARY WORK_DIR [--cases N] [--seed S]
+Usage: check_ipctk.py CONTACT_CASES_BINARY WORK_DIR [--cases N] [--seed S] [--only primitives|ccd]
 """
 
 import argparse
@@ -23,6 +24,8 @@ import sys
 
 import numpy as np
 import ipctk
+
+import ipctk_ccd
 
 TOL = 1e-10
 EPS_V = 1e-2
@@ -250,16 +253,8 @@ def friction_hessian_scale(key, inputs, ref):
     return MU * np.abs(ref["Nfr"]) * f1x * ptp
 
 
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("binary")
-    ap.add_argument("work")
-    ap.add_argument("--cases", type=int, default=10000)
-    ap.add_argument("--seed", type=int, default=2020)
-    args = ap.parse_args()
-    rng = np.random.default_rng(args.seed)
-    n = args.cases
-    os.makedirs(args.work, exist_ok=True)
+def primitive_cases(rng, n):
+    """Random cases of every primitive pair and scalar function, and ipctk's values."""
     inputs = {"eps_v": np.array([EPS_V]), "mu": np.array([MU]), "kappa": np.array([KAPPA])}
     # Point-edge and edge-edge get more cases so that their well-conditioned subsets alone
     # hold at least `n`.
@@ -314,12 +309,11 @@ def main():
     ku_in = np.stack([lim * rng.uniform(0, 2, k), lim * rng.uniform(0, 2, k), log_uniform(rng, 3, 5, k), log_uniform(rng, 1, 4, k), diag, np.full(k, 1e-9)], axis=1)
     inputs["ku_in"] = ku_in
     refs["ku"] = np.array([ipctk.update_barrier_stiffness(*p) for p in ku_in])
+    return inputs, refs
 
-    in_path, out_path = os.path.join(args.work, "cases.npz"), os.path.join(args.work, "ours.npz")
-    np.savez(in_path, **inputs)
-    subprocess.run([args.binary, in_path, out_path], check=True)
-    ours = np.load(out_path)
 
+def primitive_table(inputs, refs, ours):
+    """Prints the primitives' table; returns whether every row passes."""
     rows = []
     labels = {"d": "distance", "g": "distance gradient", "h": "distance Hessian", "b": "barrier", "bg": "barrier gradient",
               "bh": "barrier Hessian", "m": "mollifier", "mg": "mollifier gradient", "mh": "mollifier Hessian",
@@ -356,7 +350,43 @@ def main():
     print(f"\n{len(rows) - len(failed)} of {len(rows)} rows pass: worst error over the well-conditioned cases <= {TOL:g}, "
           "error = max |ours - ref| / max(1, max |ref|) per case (friction Hessians: over max(1, max |ref|, mu N f1(|tau|)/|tau| max |P^T P|)).")
     print("Well-conditioned: ee with sin^2(angle between the edges) >= 1e-3 (outside the mollifier ramp at rest); pe with sin(angle between p - e0 and the edge) >= 1e-4; every other case.")
-    return 1 if failed else 0
+    return not failed
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("binary")
+    ap.add_argument("work")
+    ap.add_argument("--cases", type=int, default=10000)
+    ap.add_argument("--seed", type=int, default=2020)
+    ap.add_argument("--only", choices=["primitives", "ccd"], help="check only the primitives or only CCD")
+    args = ap.parse_args()
+    rng = np.random.default_rng(args.seed)
+    n = args.cases
+    os.makedirs(args.work, exist_ok=True)
+    inputs, refs, ccd_refs = {}, {}, {}
+    if args.only != "ccd":
+        inputs, refs = primitive_cases(rng, n)
+    if args.only != "primitives":
+        ccd_inputs, ccd_refs = ipctk_ccd.inputs(rng, n)
+        inputs.update(ccd_inputs)
+
+    in_path, out_path = os.path.join(args.work, "cases.npz"), os.path.join(args.work, "ours.npz")
+    np.savez(in_path, **inputs)
+    subprocess.run([args.binary, in_path, out_path], check=True)
+    ours = np.load(out_path)
+
+    ok = True
+    if refs:
+        ok &= primitive_table(inputs, refs, ours)
+    if ccd_refs:
+        lines, ccd_ok = ipctk_ccd.table(ccd_refs, ours)
+        print("\nAdditive CCD (default parameters: conservative rescaling 0.9), ours against ipctk's:\n")
+        print("\n".join(lines))
+        print(f"\nCCD passes: {'yes' if ccd_ok else 'NO'} (ipctk only = 0, ours after ipctk's = 0, "
+              f"min ours / ipctk >= {ipctk_ccd.MIN_RATIO} over the cases both find with ipctk's time > 0).")
+        ok &= ccd_ok
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":

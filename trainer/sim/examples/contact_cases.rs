@@ -5,7 +5,11 @@
 //! ee`): `K_x` (cases x dofs) positions, `K_dhat` (cases) barrier activation distances,
 //! `K_v` (cases x dofs) velocities and `K_Nfr` (cases) lagged normal forces for friction; `ee_epsx` mollifier thresholds; scalars
 //! `eps_v`, `mu`, `kappa`; `bar_d`, `bar_dhat` for the scalar barrier; `fr_y` for the
-//! friction smoothing; `ks_*` / `ku_in` for the barrier stiffness.
+//! friction smoothing; `ks_*` / `ku_in` for the barrier stiffness. For CCD (per pair `K`):
+//! `ccd_K_x0`, `ccd_K_x1` (cases x dofs) the positions at the start and end of a linear step
+//! and `ccd_K_xi` (cases) the minimum separations; out come `ccd_K_hit` (1 or 0) and
+//! `ccd_K_toi`, additive CCD's time of impact with default parameters and `tmax = 1`. Either
+//! group of inputs may be absent.
 
 use std::error::Error;
 use std::path::Path;
@@ -14,6 +18,7 @@ use mochi_sim::contact::barrier::{
     barrier, barrier_first_derivative, barrier_force_magnitude, barrier_of_squared_distance, barrier_second_derivative,
     edge_edge_barrier,
 };
+use mochi_sim::contact::ccd::AdditiveCcd;
 use mochi_sim::contact::distance::*;
 use mochi_sim::contact::friction::*;
 use mochi_sim::contact::stiffness::{initial_barrier_stiffness, update_barrier_stiffness};
@@ -187,19 +192,51 @@ fn run_pair(
     Ok(())
 }
 
+/// Additive CCD on the motions `ccd_{key}_x0` to `ccd_{key}_x1`, if the archive has them.
+fn run_ccd(npz: &mut Archive, key: &str, cols: &mut Columns) -> Result<(), Box<dyn Error>> {
+    if npz.by_name(&format!("ccd_{key}_x0"))?.is_none() {
+        return Ok(());
+    }
+    let (shape, x0s) = read(npz, &format!("ccd_{key}_x0"))?;
+    let (_, x1s) = read(npz, &format!("ccd_{key}_x1"))?;
+    let (_, xis) = read(npz, &format!("ccd_{key}_xi"))?;
+    let (cases, n) = (shape[0] as usize, shape[1] as usize);
+    let dim = if key.ends_with('2') { 2 } else { 3 };
+    let ccd = AdditiveCcd::default();
+    for c in 0..cases {
+        let (x0, x1, xi) = (&x0s[c * n..(c + 1) * n], &x1s[c * n..(c + 1) * n], xis[c]);
+        let toi = match key {
+            "pp2" | "pp3" => ccd.point_point(x0, x1, dim, xi, 1.0),
+            "pe2" | "pe3" => ccd.point_edge(x0, x1, dim, xi, 1.0),
+            "pt" => ccd.point_triangle(x0, x1, xi, 1.0),
+            "ee" => ccd.edge_edge(x0, x1, xi, 1.0),
+            _ => unreachable!("unknown pair {key}"),
+        };
+        cols.push(&format!("ccd_{key}_hit"), &[], &[if toi.is_some() { 1.0 } else { 0.0 }]);
+        cols.push(&format!("ccd_{key}_toi"), &[], &[toi.unwrap_or(1.0)]);
+    }
+    Ok(())
+}
+
 fn main() -> Result<(), Box<dyn Error>> {
     let args: Vec<String> = std::env::args().collect();
     if args.len() != 3 {
         return Err("usage: contact_cases IN.npz OUT.npz".into());
     }
     let mut npz = NpzArchive::open(&args[1])?;
+    let mut cols = Columns::default();
+    for key in ["pp2", "pp3", "pe2", "pe3", "pt", "ee"] {
+        run_ccd(&mut npz, key, &mut cols)?;
+    }
+    if npz.by_name("eps_v")?.is_none() {
+        return write(&cols, &args[2]);
+    }
     let scalar = |npz: &mut Archive, name: &str| read(npz, name).map(|(_, v)| v[0]);
     let (eps_v, mu, kappa) = (
         scalar(&mut npz, "eps_v")?,
         scalar(&mut npz, "mu")?,
         scalar(&mut npz, "kappa")?,
     );
-    let mut cols = Columns::default();
     for key in ["pp2", "pp3", "pe2", "pe3", "pt", "ee"] {
         run_pair(&mut npz, key, eps_v, mu, kappa, &mut cols)?;
     }
@@ -242,7 +279,11 @@ fn main() -> Result<(), Box<dyn Error>> {
             &[update_barrier_stiffness(p[0], p[1], p[2], p[3], p[4], p[5])],
         );
     }
-    let mut out = NpzOut::create(Path::new(&args[2]))?;
+    write(&cols, &args[2])
+}
+
+fn write(cols: &Columns, path: &str) -> Result<(), Box<dyn Error>> {
+    let mut out = NpzOut::create(Path::new(path))?;
     for (name, shape, values) in &cols.names {
         let rows = (values.len() / shape.iter().product::<u64>().max(1) as usize) as u64;
         let full: Vec<u64> = std::iter::once(rows).chain(shape.iter().copied()).collect();

@@ -2,15 +2,19 @@
 //! distances between points, edges and triangles with their exact derivatives and
 //! closest-feature classification, the edge-edge mollifier, the log barrier on squared
 //! distances with its adaptive stiffness, the building blocks of lagged smoothed friction,
-//! and the contact surface of a mesh.
+//! the contact surface of a mesh, the broad phase that finds candidate pairs, continuous
+//! collision detection that bounds every step, and an exact intersection check.
 //!
 //! Conventions follow IPC's toolkit (squared distances, `b(d^2, dhat^2)`, tangent bases and
 //! closest-point coordinates) so every quantity compares with it one to one
 //! (`scripts/check-ipctk.sh`). Local vectors are vertex-major as in [`crate::energy`].
 
 pub mod barrier;
+pub mod broad_phase;
+pub mod ccd;
 pub mod distance;
 pub mod friction;
+pub mod intersection;
 pub mod stiffness;
 pub mod surface;
 

@@ -52,6 +52,18 @@ impl ContactSurface {
             faces,
         }
     }
+
+    /// Adds the primitives of `other` with its vertex indices shifted by `offset`: the
+    /// surfaces of several bodies whose positions are stacked in one vector, the second
+    /// body's vertices starting at `offset`.
+    pub fn append(&mut self, other: &ContactSurface, offset: usize) {
+        assert_eq!(self.dim, other.dim, "surfaces of different dimensions");
+        self.vertices.extend(other.vertices.iter().map(|v| v + offset));
+        self.vertices.sort_unstable();
+        self.vertices.dedup();
+        self.edges.extend(other.edges.iter().map(|e| e.map(|v| v + offset)));
+        self.faces.extend(other.faces.iter().map(|f| f.map(|v| v + offset)));
+    }
 }
 
 /// Every edge of the triangles once, as sorted `[low, high]` pairs in ascending order.

@@ -2,9 +2,13 @@
 //! checks through the energy module's helpers.
 
 mod barrier;
+mod broad_phase;
+mod ccd;
 mod closest_point;
 mod distance;
 mod friction;
+mod intersection;
+mod max_step;
 mod surface;
 
 use rand::{Rng, SeedableRng};
