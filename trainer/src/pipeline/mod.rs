@@ -88,6 +88,7 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
         frames: &frames,
         validation: &validation,
         work: &work,
+        candidates_dir: &options.out_dir.join("candidates"),
     };
     let (candidates, skipped, kept) = selection::train_candidates(&inputs, &decoders, &mut times, report)?;
     let mut rows: Vec<CandidateRow> = candidates.iter().map(|c| c.row.clone()).collect();

@@ -217,6 +217,8 @@ pub(crate) struct SelectionInputs<'a> {
     pub(crate) validation: &'a [(dataset::SequencePlan, Trajectory)],
     /// Where training works.
     pub(crate) work: &'a Workspace,
+    /// Where every candidate's artifact is written (`candidates/` of the output directory).
+    pub(crate) candidates_dir: &'a Path,
 }
 
 /// Stage 4: a self-supervised integrator of every width for every decoder that meets the
@@ -297,6 +299,17 @@ pub(crate) fn train_candidates(
                 ),
             )?;
             measure(&artifact, inputs, &mut row)?;
+            // Every candidate is kept on disk, so another trade-off can be evaluated and shipped.
+            crate::error::fs::create_dir_all(inputs.candidates_dir)?;
+            artifact.write(&inputs.candidates_dir.join(format!(
+                "{}{}.mochi",
+                inputs.recipe.scene.name,
+                if shape.tag.is_empty() {
+                    "-mlp".to_string()
+                } else {
+                    shape.tag.clone()
+                }
+            )))?;
             report.message(&format!(
                 "{}: validation error {:.3}% (stable {} of {} frames), {} multiply-adds, {:.1} µs/frame",
                 decoder_name(trial),
