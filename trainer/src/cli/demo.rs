@@ -15,7 +15,7 @@ use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
-use crate::pipeline::stages::artifact_paths;
+use crate::pipeline::assemble::artifact_paths;
 use crate::pipeline::{train_scene, TrainOptions};
 use crate::progress::Reporter;
 use crate::report::chart::{self, Series};

@@ -23,7 +23,8 @@ use crate::learn::recipe::Recipe;
 use crate::learn::samples::IntegratorData;
 use crate::progress::Reporter;
 use crate::report::candidates_table;
-use stages::{StageTimes, Trained, Workspace};
+use assemble::Trained;
+use stages::{StageTimes, Workspace};
 
 /// Where `mochi train` works.
 #[derive(Clone, Debug)]
@@ -122,7 +123,7 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
         data: &data,
     };
     let integrators = [kept.integrator.clone(), baseline];
-    let mut artifacts = stages::write_artifacts(&trained, &integrators, &times, &rows, &options.out_dir)?.into_iter();
+    let mut artifacts = assemble::write_artifacts(&trained, &integrators, &times, &rows, &options.out_dir)?.into_iter();
     let (Some(model), Some(baseline)) = (artifacts.next(), artifacts.next()) else {
         unreachable!("two integrators make two artifacts");
     };

@@ -19,10 +19,10 @@ use crate::eval::runtime_bench::bench_artifact;
 use crate::learn::network::DecoderShape;
 use crate::learn::recipe::{DecoderCandidate, LatentSpec, Recipe};
 use crate::learn::samples::IntegratorData;
-use crate::pipeline::assemble::build_artifact;
+use crate::pipeline::assemble::{self, build_artifact, Trained};
 use crate::pipeline::stages::{
-    self, DecoderFamily, IntegratorShape, PcaFit, SelectedAutoencoder, StageTimes, Trained, TrainedIntegrator,
-    TrainingFrames, Workspace,
+    self, DecoderFamily, IntegratorShape, PcaFit, SelectedAutoencoder, StageTimes, TrainedIntegrator, TrainingFrames,
+    Workspace,
 };
 use crate::progress::Reporter;
 use mochi_runtime::WeightFormat;
@@ -286,7 +286,7 @@ pub(crate) fn train_candidates(
                 &data,
                 &trial.selected.pca,
                 Method::SelfSupervised,
-                stages::summary(
+                assemble::summary(
                     &Trained {
                         recipe: inputs.recipe,
                         problem: inputs.problem,

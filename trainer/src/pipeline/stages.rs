@@ -1,25 +1,26 @@
 //! The stages of `mochi train` (Li et al. 2025, Sec. 3.2-3.3), each a function from the
 //! values the stages before it made to the values the stages after it need; the pipeline
-//! ([`crate::learn::pipeline`]) calls them in order and times them.
+//! ([`crate::pipeline`]) calls them in order and times them.
 //!
 //! 1. [`generate_dataset`]: the scene's training split, simulated if missing;
 //!    [`encode_training_split`] encodes every frame relative to its boundary conditions.
 //! 2. [`fit_pca`]: PCA of the encoded frames and its error for every size.
-//! 3. [`select_autoencoder`]: autoencoders for the candidate latent sizes in ascending order,
-//!    each initialised with the PCA (Fulton et al. 2019); the first whose RMS reconstruction
-//!    error meets the scene's tolerance is kept (sizes whose PCA error is far above it are
-//!    skipped untrained).
+//! 3. [`select_autoencoder`]: autoencoders of one decoder family for the candidate latent
+//!    sizes in ascending order, each initialised with the PCA (Fulton et al. 2019); the first
+//!    whose RMS reconstruction error meets the scene's tolerance is kept (sizes whose PCA
+//!    error is far above it are skipped untrained); [`pca_autoencoder`] for the linear
+//!    family. [`super::selection`] runs them for every family.
 //! 4. [`train_integrator`]: the latent integrator, self-supervised on the full-space incremental
 //!    potential ([`crate::learn::integrator`]) or supervised on ground-truth latents as a
 //!    baseline ([`crate::learn::supervised`]).
-//! 5. [`write_artifacts`]: both artifacts, with the training summary.
+//! 5. [`super::assemble::write_artifacts`]: both artifacts, with the training summary.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use rand_chacha::ChaCha8Rng;
 
-use crate::artifact::{Artifact, CandidateRow, Method, SizeTrial, TrainingSummary};
+use crate::artifact::{Method, SizeTrial};
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 use crate::learn::integrator::PhysicsObjective;
@@ -27,13 +28,12 @@ use crate::learn::network::{
     rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, DecoderShape, IntegratorSpec, LatentIntegrator,
 };
 use crate::learn::pca::{self, Pca};
-use crate::learn::recipe::{LatentSpec, NetworkSpec, Recipe};
+use crate::learn::recipe::{LatentSpec, NetworkSpec};
 use crate::learn::samples::{Augmentation, IntegratorData};
 use crate::learn::sequences::{decoded_rms_error, encode_sequences, EncodedSequence};
 use crate::learn::stretch::EdgeStretch;
 use crate::learn::supervised::SupervisedObjective;
 use crate::learn::train::{self, AdamWConfig, Batch, BatchLoss, CheckpointConfig, TrainConfig};
-use crate::pipeline::assemble::build_artifact;
 use crate::progress::Reporter;
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::trajectory::Trajectory;
@@ -486,100 +486,6 @@ pub(crate) fn train_integrator(
         losses: trained.losses,
         earlier_seconds: trained.earlier_seconds,
     })
-}
-
-/// Everything the artifacts are made of.
-pub(crate) struct Trained<'a> {
-    /// The recipe trained.
-    pub(crate) recipe: &'a Recipe,
-    /// Its scene, built.
-    pub(crate) problem: &'a BuiltScene,
-    /// The encoded training split.
-    pub(crate) frames: &'a TrainingFrames,
-    /// The kept autoencoder.
-    pub(crate) autoencoder: &'a SelectedAutoencoder,
-    /// The integrator's training set.
-    pub(crate) data: &'a IntegratorData<'a>,
-}
-
-/// The training summary of a model (no candidates table): sizes tried, stage times so far,
-/// the integrator's last loss, and the training envelope.
-pub(crate) fn summary(trained: &Trained<'_>, integrator: &TrainedIntegrator, times: &StageTimes) -> TrainingSummary {
-    let (problem, frames, selected) = (trained.problem, trained.frames, trained.autoencoder);
-    let per_vertex = frames.encoding.values_per_vertex();
-    let max_radius = frames
-        .f64s
-        .iter()
-        .flat_map(|q| {
-            q.chunks_exact(per_vertex)
-                .map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt())
-        })
-        .fold(0.0, f64::max);
-    let masses = problem.simulator.masses().to_vec();
-    let dim = problem.mesh.dim;
-    let max_kinetic_energy = frames
-        .sequences
-        .iter()
-        .flat_map(|s| {
-            s.trajectory
-                .positions
-                .windows(2)
-                .map(|w| mochi_sim::measure::kinetic_energy(&masses, &w[1], &w[0], problem.scene.dt, dim))
-        })
-        .fold(0.0, f64::max);
-    TrainingSummary {
-        tolerance: trained.recipe.latent.tolerance,
-        trials: selected.trials.clone(),
-        stage_seconds: times.0.clone(),
-        final_loss: integrator.losses.last().copied().unwrap_or(f64::NAN),
-        samples: trained.data.inputs.len() as u64,
-        max_radius,
-        max_kinetic_energy,
-        candidates: Vec::new(),
-    }
-}
-
-/// Stage 5: one artifact per trained integrator, each with the training summary (`times`
-/// so far), written into `out_dir` (the first as the model, the second as its supervised
-/// baseline); returns them in order.
-pub(crate) fn write_artifacts(
-    trained: &Trained<'_>,
-    integrators: &[TrainedIntegrator],
-    times: &StageTimes,
-    candidates: &[CandidateRow],
-    out_dir: &Path,
-) -> TrainerResult<Vec<Artifact>> {
-    let mut artifacts = Vec::new();
-    for trained_integrator in integrators {
-        let summary = TrainingSummary {
-            candidates: candidates.to_vec(),
-            ..summary(trained, trained_integrator, times)
-        };
-        artifacts.push(build_artifact(
-            trained.recipe,
-            trained.problem,
-            &trained.frames.encoding,
-            &trained.autoencoder.autoencoder,
-            &trained_integrator.integrator,
-            trained.data,
-            &trained.autoencoder.pca,
-            trained_integrator.method,
-            summary,
-        )?);
-    }
-    let (model_path, baseline_path) = artifact_paths(out_dir, &trained.problem.scene.name);
-    for (artifact, path) in artifacts.iter().zip([model_path, baseline_path]) {
-        artifact.write(&path)?;
-    }
-    Ok(artifacts)
-}
-
-/// The artifact paths of a scene in `out_dir`: the model and its supervised baseline.
-pub fn artifact_paths(out_dir: &Path, scene: &str) -> (PathBuf, PathBuf) {
-    (
-        out_dir.join(format!("{scene}.mochi")),
-        out_dir.join(format!("{scene}.supervised.mochi")),
-    )
 }
 
 fn train_config(name: &str, net: &NetworkSpec, seed: u64, work: &Workspace) -> TrainConfig {
