@@ -36,6 +36,8 @@ def load(path):
     m = {key: d[key] for key in d.files}
     for key in ["dim", "num_vertices", "latent", "signal", "hidden", "rotates"]:
         m[key] = int(m[key])
+    # Archives written before basis decoders existed hold residual MLP decoders.
+    m["decoder_basis"] = int(m.get("decoder_basis", 0))
     for net in ["integrator", "decoder"]:
         layers = []
         for i in range(len(m[f"{net}_layers"])):
@@ -71,6 +73,18 @@ class Ops:
         for inner, outer in zip(blocks[0::2], blocks[1::2]):
             h = h + self.layer(outer, self.swish(self.layer(inner, h)))
         return self.layer(layers[-1], self.swish(h))
+
+    def decode(self, layers, z):
+        """The decoder: a residual MLP, or (`decoder_basis`) a basis applied to
+        `[z; 0] + g(z)`, `g` the layers before it (none: the basis applied to `z`)."""
+        if not self.m["decoder_basis"]:
+            return self.network(layers, z)
+        basis, mlp = layers[-1], layers[:-1]
+        modes = basis[0].shape[1]
+        f = self.xp.concatenate([z, self.xp.zeros(modes - z.shape[0], dtype=self.f32)])
+        if mlp:
+            f = f + self.network(mlp, z)
+        return self.layer(basis, f)
 
     def rotation(self, v):
         """Rodrigues' formula; the identity below an angle of f32 epsilon."""
@@ -149,7 +163,7 @@ class Ops:
         stepped = z + self.network(params["integrator"], x)
         stepped = xp.where(xp.all(xp.isfinite(stepped)), stepped, z)
         stepped = xp.clip(stepped, params["low"], params["high"])
-        q = self.network(params["decoder"], stepped).reshape(-1, m["dim"])
+        q = self.decode(params["decoder"], stepped).reshape(-1, m["dim"])
         targets, frame, origins = self.placement(params, p)
         if m["dim"] == 2:
             q = xp.concatenate([q, xp.zeros((q.shape[0], 1), dtype=self.f32)], axis=1)

@@ -11,24 +11,20 @@ use mochi_runtime::WeightFormat;
 
 /// Artifact, weight storage, length and FNV-1a 64 of the generated module.
 ///
-/// Last change: artifact format 4 (the artifacts converted from format 3 by `mochi upgrade`,
-/// weights unchanged): the triangles to draw joined the runtime's fields. The modules differ
-/// from those of format 3 only in the header comment (`// Artifact format 4`), `INDICES_LEN`,
-/// the `INDICES` pool (the triangles inserted after the drawn vertices, every other index
-/// unchanged), the `surface_source` span's start (moved past them) and the new
-/// `surface_triangles` span; every other array and constant is byte for byte the same (each
-/// module is longer by exactly what it grew on its own, over the one with `chain_order`).
-/// Before: the loader's derived `chain_order` (the inverse of the strands' slots): every
-/// module gained the line `chain_order: mochi_runtime::Span { .. }` in its `MODEL` literal (an
-/// empty span without strands); `strands` also the 24 entries `0, 1, ..., 23` at the end of
-/// `INDICES`.
+/// Last change: artifact format 5 (the artifacts converted from format 4 by `mochi upgrade`,
+/// weights unchanged): the `MODEL` literal gained the line `decoder_basis: false,` and the header
+/// comment says `// Artifact format 5`; every module is longer by exactly that line's 26 bytes.
+/// Before: artifact format 4 (converted from format 3): the triangles to draw joined the
+/// runtime's fields (`INDICES_LEN`, the `INDICES` pool with the triangles after the drawn
+/// vertices, the `surface_source` span's start and the new `surface_triangles` span). Before
+/// that: the loader's derived `chain_order` (the inverse of the strands' slots).
 const EXPECTED: [(&str, WeightFormat, usize, u64); 6] = [
-    ("tiny", WeightFormat::F32, 196906, 0x58356de6e9ceaeab),
-    ("beam", WeightFormat::F32, 11411089, 0x00bc42f403faa16d),
-    ("strands", WeightFormat::F32, 93582, 0x26dbac8aa54462fa),
-    ("tiny", WeightFormat::F16, 120929, 0xb350694335a73c3c),
-    ("tiny", WeightFormat::Int8, 87395, 0xdd610f751c4f913d),
-    ("beam", WeightFormat::Int8, 3417742, 0xf07625a343f5c73c),
+    ("tiny", WeightFormat::F32, 196932, 0x4266945bc02bb4fa),
+    ("beam", WeightFormat::F32, 11411115, 0x90bfdcd1c1b4090a),
+    ("strands", WeightFormat::F32, 93608, 0xea39b743f7ba30c9),
+    ("tiny", WeightFormat::F16, 120955, 0xd720dd064bae2d5b),
+    ("tiny", WeightFormat::Int8, 87421, 0xd518caf52d6f2c1e),
+    ("beam", WeightFormat::Int8, 3417768, 0x7e85ec6c25d7ac09),
 ];
 
 fn fnv1a(bytes: &[u8]) -> u64 {

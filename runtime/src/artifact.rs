@@ -27,9 +27,10 @@ pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
 /// Version 2 added the bend-encoded rod strands (`encoding.chains`); version 3 moved what only
 /// the trainer reads (scene, encoder, PCA, drawing lists, training summary) out of the first
 /// section into a section of its own; version 4 moved the triangles to draw from that section
-/// into the first (`surface_triangles`, over the drawn vertices). Other versions are refused
-/// with [`EnvelopeError::Version`].
-pub const FORMAT_VERSION: u32 = 4;
+/// into the first (`surface_triangles`, over the drawn vertices); version 5 added decoders that
+/// end in a linear basis (`decoder_basis`). Other versions are refused with
+/// [`EnvelopeError::Version`].
+pub const FORMAT_VERSION: u32 = 5;
 
 /// Why an artifact was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -276,6 +277,7 @@ where
         r.network("decoder", &mut self.params, &mut self.decoder)?;
         r.network("integrator", &mut self.params, &mut self.integrator)?;
         self.header.surface_triangles = r.seq("surface_triangles", &mut self.indices)?;
+        self.header.decoder_basis = r.value("decoder_basis")?;
         match r.de.finalize() {
             Ok([]) => {}
             _ => return Err(LoadError::TrailingBytes),

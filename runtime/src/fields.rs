@@ -51,6 +51,7 @@ impl Model<'static> {
         floats: &[],
         indices: &[],
         decoder: &[],
+        decoder_basis: false,
         integrator: &[],
         handles: &[],
         rest: EMPTY_SPAN,
@@ -72,7 +73,7 @@ impl Model<'static> {
 
 impl<'a> Model<'a> {
     /// Number of fields of a [`Model`].
-    pub const FIELDS: usize = 29;
+    pub const FIELDS: usize = 30;
 
     /// Every field with its name, in declaration order.
     pub fn fields(&self) -> [(&'static str, FieldValue<'a>); Model::FIELDS] {
@@ -91,6 +92,7 @@ impl<'a> Model<'a> {
             floats,
             indices,
             decoder,
+            decoder_basis,
             integrator,
             handles,
             rest,
@@ -122,6 +124,7 @@ impl<'a> Model<'a> {
             ("floats", V::F32s(floats)),
             ("indices", V::U32s(indices)),
             ("decoder", V::Layers(decoder)),
+            ("decoder_basis", V::Bool(decoder_basis)),
             ("integrator", V::Layers(integrator)),
             ("handles", V::Handles(handles)),
             ("rest", V::Span(rest)),

@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 
 use crate::frame::{HandleMotion, Placement};
 use crate::model::{Layer, Model, ModelError, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
-use crate::network::{dense_rows, hidden};
+use crate::network::{self, dense_rows, hidden};
 
 /// Latent room of an [`AnyInstance`].
 pub const MAX_LATENT: usize = 64;
@@ -284,7 +284,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let m = model.model();
         let d = m.dim();
         check_len(out, m.state_len())?;
-        let h = last_hidden::<H>(&m.weights(), m.decoder, &[&self.z[..k]]);
+        let h = decoder_features::<H>(m, &self.z[..k]);
         let place = Placement::new(m, &self.signal[..s]);
         if m.bends() {
             let free = m.free_vertices();
@@ -316,7 +316,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let m = model.model();
         let d = m.dim();
         check_len(out, m.surface_len())?;
-        let h = last_hidden::<H>(&m.weights(), m.decoder, &[&self.z[..k]]);
+        let h = decoder_features::<H>(m, &self.z[..k]);
         let place = Placement::new(m, &self.signal[..s]);
         let (origins, sources) = (m.origin_of(), m.surface_source());
         if m.bends() {
@@ -390,6 +390,21 @@ fn last_hidden<const H: usize>(weights: &Weights, layers: &[Layer], parts: &[&[f
     let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
     hidden(weights, layers, parts, &mut h, [&mut a, &mut b]);
     h
+}
+
+/// What the decoder's last layer reads for the latent `z` ([`network::decoder_features`]),
+/// with scratch on the stack.
+fn decoder_features<const H: usize>(m: &Model, z: &[f32]) -> [f32; H] {
+    let (mut f, mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H], [0.0f32; H]);
+    network::decoder_features(
+        &m.weights(),
+        m.decoder,
+        m.decoder_basis,
+        z,
+        &mut f,
+        [&mut h, &mut a, &mut b],
+    );
+    f
 }
 
 /// Rows `first..first + out.len()` of the output layer of `layers` applied to the last hidden
@@ -587,6 +602,7 @@ mod tests {
                 floats: &self.floats,
                 indices: &self.indices,
                 decoder: &self.decoder,
+                decoder_basis: false,
                 integrator: &self.integrator,
                 handles: &self.handles,
                 rest,

@@ -8,6 +8,11 @@
 //! maps a latent to the encoded state of the free vertices: `dim` numbers each (positions in
 //! the encoding frame), or two numbers each for rod strands encoded by their bends
 //! ([`Model::chains`], see [`Chain`]).
+//!
+//! A decoder may instead end in a linear basis ([`Model::decoder_basis`]): its last layer maps
+//! the features `f = [z; 0] + g(z)` to the encoded state, `g` the residual MLP of the layers
+//! before it (whose output has as many values as the basis has columns, at least the latent
+//! size), or `f = z` when the basis is the only layer (a linear decoder, e.g. a PCA basis).
 
 use core::fmt;
 
@@ -177,6 +182,9 @@ pub struct Model<'a> {
     pub indices: &'a [u32],
     /// Decoder layers.
     pub decoder: &'a [Layer],
+    /// Whether the decoder's last layer is a linear basis applied to `[z; 0] + g(z)` (see the
+    /// module docs) rather than the output layer of a residual MLP.
+    pub decoder_basis: bool,
     /// Integrator layers.
     pub integrator: &'a [Layer],
     /// Handles, in boundary-condition signal order.
@@ -308,10 +316,15 @@ impl<'a> Model<'a> {
     pub fn encoded_len(&self) -> usize {
         self.values_per_vertex() * self.free_vertices.len as usize
     }
-    /// Widest hidden layer of either network.
+    /// Widest hidden layer of either network (for a basis decoder, of its MLP and its
+    /// features).
     pub fn hidden(&self) -> usize {
         let net = |layers: &[Layer]| layers.first().map_or(0, |l| l.rows as usize);
-        net(self.decoder).max(net(self.integrator))
+        let decoder = match self.decoder.split_last() {
+            Some((basis, mlp)) if self.decoder_basis => net(mlp).max(basis.cols as usize),
+            _ => net(self.decoder),
+        };
+        decoder.max(net(self.integrator))
     }
     /// Bytes of network weights, biases and scales.
     pub fn weight_bytes(&self) -> usize {
@@ -464,7 +477,7 @@ impl<'a> Model<'a> {
                 },
             );
         }
-        self.validate_network("decoder", self.decoder, k, self.encoded_len())?;
+        self.validate_decoder(k)?;
         self.validate_network("integrator", self.integrator, 2 * k + 3 * bc, k)?;
         if !self.params.iter().all(|v| v.is_finite()) {
             return fail("params", Problem::NotFinite);
@@ -714,6 +727,23 @@ impl<'a> Model<'a> {
         Ok(())
     }
 
+    /// The decoder: a residual MLP `k -> encoded`, or a basis `encoded x m` (`m >= k`) after a
+    /// residual MLP `k -> m` (none when `m == k`).
+    fn validate_decoder(&self, k: usize) -> Result<(), ModelError> {
+        let (encoded, field) = (self.encoded_len(), "decoder");
+        let Some((basis, mlp)) = self.decoder.split_last().filter(|_| self.decoder_basis) else {
+            return self.validate_network(field, self.decoder, k, encoded);
+        };
+        let m = basis.cols as usize;
+        if m < k || (mlp.is_empty() && m != k) || basis.rows as usize != encoded {
+            return fail(field, Problem::Shape);
+        }
+        if !mlp.is_empty() {
+            self.validate_network(field, mlp, k, m)?;
+        }
+        self.validate_layers(field, core::slice::from_ref(basis), |_| (encoded, m))
+    }
+
     fn validate_network(
         &self,
         field: &'static str,
@@ -726,13 +756,23 @@ impl<'a> Model<'a> {
         }
         let hidden = layers[0].rows as usize;
         let last = layers.len() - 1;
+        self.validate_layers(field, layers, |i| match i {
+            0 => (hidden, input),
+            _ if i == last => (output, hidden),
+            _ => (hidden, hidden),
+        })
+    }
+
+    /// Each layer has the shape `shape(i)` gives (rows, cols) and fits its pools.
+    fn validate_layers(
+        &self,
+        field: &'static str,
+        layers: &[Layer],
+        shape: impl Fn(usize) -> (usize, usize),
+    ) -> Result<(), ModelError> {
         for (i, l) in layers.iter().enumerate() {
             let (rows, cols) = (l.rows as usize, l.cols as usize);
-            let (want_rows, want_cols) = match i {
-                0 => (hidden, input),
-                _ if i == last => (output, hidden),
-                _ => (hidden, hidden),
-            };
+            let (want_rows, want_cols) = shape(i);
             if rows != want_rows || cols != want_cols || rows == 0 {
                 return fail(field, Problem::Shape);
             }

@@ -62,6 +62,9 @@ pub struct Payload {
     /// tet mesh (outward), the triangles of a 2D mesh or cloth, none for rods. Last, so that a
     /// format-3 payload followed by one `0x00` byte (an empty list) reads as this one.
     pub surface_triangles: Vec<u32>,
+    /// Whether the decoder's last layer is a linear basis (see [`crate::Model::decoder_basis`]).
+    /// Last, so that a format-4 payload followed by one `0x00` byte (`false`) reads as this one.
+    pub decoder_basis: bool,
 }
 
 /// One rod strand of the bend encoding (see [`crate::Chain`]).
@@ -161,6 +164,7 @@ mod tests {
             decoder: vec![layer(4, 1), layer(2, 4)],
             integrator: vec![layer(4, 38), layer(1, 4)],
             surface_triangles: vec![0, 1, 2],
+            decoder_basis: false,
         }
     }
 
@@ -238,5 +242,128 @@ mod tests {
             OwnedModel::default().load(&bytes),
             Err(LoadError::Envelope(EnvelopeError::Truncated { len: 1 }))
         ));
+    }
+
+    /// The decoder of [`payload`] replaced by a basis decoder: `layers` before a `2 x m` basis.
+    fn with_basis(mlp: Vec<LayerData>, m: u64) -> Payload {
+        let mut decoder = mlp;
+        decoder.push(LayerData {
+            rows: 2,
+            cols: m,
+            weights: (0..2 * m).map(|i| 0.3 - 0.2 * i as f32).collect(),
+            bias: vec![0.25, -0.5],
+        });
+        Payload {
+            decoder,
+            decoder_basis: true,
+            ..payload()
+        }
+    }
+
+    fn layer(rows: u64, cols: u64, seed: f32) -> LayerData {
+        LayerData {
+            rows,
+            cols,
+            weights: (0..rows * cols).map(|i| (seed * (i as f32 + 1.0)).sin()).collect(),
+            bias: (0..rows).map(|i| 0.1 * seed * i as f32).collect(),
+        }
+    }
+
+    /// `x * sigmoid(x)` in `f64`.
+    fn swish(x: f64) -> f64 {
+        x / (1.0 + (-x).exp())
+    }
+
+    /// `W x + b` in `f64`.
+    fn apply(l: &LayerData, x: &[f64]) -> Vec<f64> {
+        (0..l.rows as usize)
+            .map(|r| {
+                let row = &l.weights[r * l.cols as usize..][..l.cols as usize];
+                l.bias[r] as f64 + row.iter().zip(x).map(|(&w, &v)| w as f64 * v).sum::<f64>()
+            })
+            .collect()
+    }
+
+    /// The encoded state a basis decoder gives for `z`, written out: `B ([z; 0] + g(z)) + b`.
+    fn basis_decode(decoder: &[LayerData], z: &[f64]) -> Vec<f64> {
+        let (basis, mlp) = decoder.split_last().unwrap();
+        let mut f = vec![0.0; basis.cols as usize];
+        if let [input, blocks @ .., output] = mlp {
+            let mut h = apply(input, z);
+            for pair in blocks.chunks_exact(2) {
+                let a: Vec<f64> = apply(&pair[0], &h).into_iter().map(swish).collect();
+                h.iter_mut().zip(apply(&pair[1], &a)).for_each(|(h, r)| *h += r);
+            }
+            let h: Vec<f64> = h.into_iter().map(swish).collect();
+            f = apply(output, &h);
+        }
+        f.iter_mut().zip(z).for_each(|(f, z)| *f += z);
+        apply(basis, &f)
+    }
+
+    #[test]
+    fn basis_decoders_decode_as_written_out() {
+        use crate::{HandleMotion, Instance};
+        let cases = [
+            ("linear", with_basis(vec![], 1)),
+            ("mlp + basis", with_basis(vec![layer(4, 1, 0.7), layer(3, 4, 1.3)], 3)),
+            (
+                "mlp with a block + basis",
+                with_basis(
+                    vec![layer(5, 1, 0.4), layer(5, 5, 0.9), layer(5, 5, 1.1), layer(2, 5, 0.6)],
+                    2,
+                ),
+            ),
+        ];
+        for (what, p) in cases {
+            let mut storage = OwnedModel::default();
+            let model = storage.load(&p.to_section().unwrap()).unwrap();
+            assert!(model.model().decoder_basis);
+            let mut body = Instance::<1, 12, 8>::new(&model).unwrap();
+            body.step(&model, &[HandleMotion::default()]).unwrap();
+            let z = body.latent()[0];
+            let mut full = [0.0f32; 6];
+            body.decode_into(&model, &mut full).unwrap();
+            // Handles at rest: vertex 2 is its encoded offset from the handle centroid (0.5, 0).
+            let q = basis_decode(&p.decoder, &[z as f64]);
+            let want = [0.5 + q[0], q[1]];
+            for c in 0..2 {
+                assert!(
+                    (full[4 + c] as f64 - want[c]).abs() < 1e-5,
+                    "{what}: {:?} vs {want:?}",
+                    &full[4..]
+                );
+            }
+            let mut surface = [0.0f32; 6];
+            body.decode_surface_into(&model, &mut surface).unwrap();
+            assert_eq!(surface, full, "{what}: the surface decode is the full decode");
+        }
+    }
+
+    #[test]
+    fn basis_decoders_of_the_wrong_shape_are_refused() {
+        let refused = |p: Payload| match OwnedModel::default().load(&p.to_section().unwrap()) {
+            Err(LoadError::Invalid(e)) => Some((e.field, e.problem)),
+            Ok(_) => None,
+            Err(e) => panic!("{e:?}"),
+        };
+        let shape = Some(("decoder", Problem::Shape));
+        // A linear basis has as many columns as the latent.
+        assert_eq!(refused(with_basis(vec![], 2)), shape);
+        // The MLP before the basis writes as many features as the basis reads.
+        assert_eq!(refused(with_basis(vec![layer(4, 1, 0.7), layer(3, 4, 1.3)], 2)), shape);
+        // ... and maps the latent.
+        assert_eq!(refused(with_basis(vec![layer(4, 2, 0.7), layer(3, 4, 1.3)], 3)), shape);
+        // The basis writes the encoded state.
+        let mut p = with_basis(vec![], 1);
+        p.decoder[0] = layer(3, 1, 0.5);
+        assert_eq!(refused(p), shape);
+        // The same layers without the flag are an MLP decoder of the wrong shape.
+        let p = Payload {
+            decoder_basis: false,
+            ..with_basis(vec![layer(4, 1, 0.7), layer(3, 4, 1.3)], 3)
+        };
+        assert_eq!(refused(p), Some(("decoder", Problem::Unsupported)));
+        assert_eq!(refused(with_basis(vec![layer(4, 1, 0.7), layer(3, 4, 1.3)], 3)), None);
     }
 }

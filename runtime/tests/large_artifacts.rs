@@ -64,6 +64,7 @@ fn one_large_handle() -> Payload {
         integrator: vec![layer(4, 2 + 36), layer(1, 4)],
         // A strip of triangles over every drawn vertex.
         surface_triangles: (0..n as u32 - 2).flat_map(|i| [i, i + 1, i + 2]).collect(),
+        decoder_basis: false,
     }
 }
 
@@ -102,6 +103,7 @@ fn one_large_strand() -> Payload {
         decoder: vec![layer(1, 1), layer(2 * LARGE, 1)],
         integrator: vec![layer(4, 2 + 36), layer(1, 4)],
         surface_triangles: vec![],
+        decoder_basis: false,
     }
 }
 

@@ -14,7 +14,7 @@ use mochi_tests::{motions, strands};
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::eval;
 use mochi_trainer::learn::encoding::Encoding;
-use mochi_trainer::learn::network::{forward_exported, DenseLayer};
+use mochi_trainer::learn::network::DenseLayer;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -59,7 +59,7 @@ fn runtime_bend_decode_agrees_with_the_trainer_encoding() {
             body.step(&model, &motions(bc, t)).unwrap();
             body.decode_into(&model, &mut x).unwrap();
             // The trainer decodes the same latent: its decoder, then its encoding.
-            let q = forward_exported(&decoder, body.latent()).unwrap();
+            let q = decoder.decode(body.latent()).unwrap();
             largest_bend = q.iter().fold(largest_bend, |m, v| m.max(v.abs()));
             let q: Vec<f64> = q.iter().map(|&v| v as f64).collect();
             let want = encoding.decode(&q, &bc.targets(&problem.handles, t, 3)).unwrap();

@@ -216,18 +216,18 @@ fn too_small_storage_names_the_field_that_did_not_fit() {
 #[test]
 fn wrong_magic_and_version_are_named() {
     let mut bytes = artifact_bytes();
-    assert_eq!(mochi_runtime::ARTIFACT_VERSION, 4);
+    assert_eq!(mochi_runtime::ARTIFACT_VERSION, 5);
     // Format 1 (before `encoding.chains`), 2 (one section), 3 (no triangles in the model
-    // section) and a future format 5.
-    for version in [1, 2, 3, 5] {
+    // section), 4 (no `decoder_basis`) and a future format 6.
+    for version in [1, 2, 3, 4, 6] {
         bytes[8] = version;
         let expected = EnvelopeError::Version {
             found: version as u32,
-            expected: 4,
+            expected: 5,
         };
         assert_eq!(load(&bytes), Err(LoadError::Envelope(expected)));
-        if version == 2 || version == 3 {
-            continue; // the trainer reads formats 2 and 3, and these bytes are neither
+        if (2..=4).contains(&version) {
+            continue; // the trainer reads formats 2, 3 and 4, and these bytes are none of them
         }
         let trainer = mochi_trainer::artifact::Artifact::from_bytes(&bytes, std::path::Path::new("old.mochi"))
             .unwrap_err()

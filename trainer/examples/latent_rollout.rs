@@ -22,7 +22,7 @@ mod common;
 use common::{rollout, Subspace};
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::eval::{rebuild_problem, LoadedModel};
-use mochi_trainer::learn::network::{forward_exported, ExportedMlp};
+use mochi_trainer::learn::network::{forward_exported, ExportedMlp, FrozenDecoder};
 use nalgebra::{DMatrix, DVector};
 
 /// Step of the decoder's central differences, in latent units.
@@ -32,15 +32,15 @@ const JACOBIAN_STEP: f64 = 1e-5;
 struct DecoderSubspace {
     name: String,
     encoder: ExportedMlp,
-    decoder: ExportedMlp,
+    decoder: FrozenDecoder,
 }
 
 impl Subspace for DecoderSubspace {
     fn describe(&self) -> String {
-        format!("the latent space of {} (k={})", self.name, self.decoder.spec().input)
+        format!("the latent space of {} (k={})", self.name, self.decoder.latent())
     }
     fn lower(&self, z: &[f64]) -> anyhow::Result<Vec<f64>> {
-        Ok(forward_exported(&self.decoder, z)?)
+        Ok(self.decoder.decode(z)?)
     }
     fn lift(&self, q: &[f64]) -> anyhow::Result<Vec<f64>> {
         Ok(forward_exported(&self.encoder, q)?)

@@ -63,7 +63,7 @@ fn main() -> anyhow::Result<()> {
             .map(|q| forward_exported(&encoder, &q.iter().map(|&v| v as f32).collect::<Vec<_>>()))
             .collect::<Result<Vec<_>, _>>()?;
         let world = |z: &[f32], t: usize| -> anyhow::Result<Vec<f64>> {
-            let q = forward_exported(&model.decoder, z)?;
+            let q = model.decoder.decode(z)?;
             Ok(decode_world(&encoding, &q, &seq.frames[t], &seq.targets[t])?)
         };
         let last = seq.encoded.len() - 1;

@@ -33,7 +33,7 @@ pub use eval::{evaluate, EvalOptions, ModelReport};
 pub use learn::recipe::{shipped_scene_names, Recipe};
 pub use learn::train::TrainError;
 pub use mochi_sim::{InputError, Location};
-pub use pipeline::stages::artifact_paths;
+pub use pipeline::assemble::artifact_paths;
 pub use pipeline::{train_scene, TrainOptions, TrainOutcome};
 pub use progress::{FramesBar, Quiet, Reporter};
 

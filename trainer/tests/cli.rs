@@ -62,7 +62,9 @@ fn dataset_writes_train_and_test_sequences() {
             "test-01.npz",
             "test-02.npz",
             "train-00.npz",
-            "train-01.npz"
+            "train-01.npz",
+            "validation-00.npz",
+            "validation-01.npz"
         ]
     );
     let test = Trajectory::read_npz(&out.join("test-00.npz")).unwrap();

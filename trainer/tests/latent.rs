@@ -9,9 +9,15 @@ use std::path::Path;
 /// A 8x2x2-cell cantilever whose clamp translates and rotates, with small networks.
 const TINY: &str = include_str!("../sim/tests/fixtures/tiny-train.toml");
 
+/// The tiny scene with the residual MLP decoder only (what the tests of training itself use).
 fn tiny_scene(dir: &Path) -> Recipe {
+    tiny_scene_with(dir, "\n[latent.selection]\ndecoders = [\"mlp\"]\n")
+}
+
+/// The tiny scene with `extra` appended to its file.
+fn tiny_scene_with(dir: &Path, extra: &str) -> Recipe {
     let path = dir.join("tiny.toml");
-    std::fs::write(&path, TINY).unwrap();
+    std::fs::write(&path, format!("{TINY}{extra}")).unwrap();
     Recipe::load(path.to_str().unwrap()).unwrap()
 }
 
@@ -61,11 +67,10 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     assert_eq!(reported.last().map(String::as_str), Some("artifacts"));
     assert_eq!(&reported[..reported.len() - 1], trained.as_slice());
     assert_eq!(&trained[..2], ["dataset (train split)", "pca"]);
-    assert!(trained[2].starts_with("autoencoder k="), "{trained:?}");
-    assert_eq!(
-        &trained[trained.len() - 2..],
-        ["integrator (self-supervised)", "integrator (supervised)"]
-    );
+    assert!(trained[2].starts_with("autoencoder"), "{trained:?}");
+    // One self-supervised integrator per candidate, then the kept one's supervised twin.
+    assert!(trained[trained.len() - 2].starts_with("integrator ("), "{trained:?}");
+    assert_eq!(trained.last().map(String::as_str), Some("integrator (supervised)"));
 
     let falls = |name: &str, losses: &[f64]| {
         let (first, last) = (losses[0], *losses.last().unwrap());
@@ -77,8 +82,8 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     // value has a large constant part, so compare its first and last epochs directly.
     falls("self-supervised integrator", &outcome.losses.0);
 
-    // The latent size is the first candidate that meets the tolerance, and every size tried is
-    // reported.
+    // The latent size is the first candidate of the kept decoder's family that meets the
+    // tolerance, and every size tried is reported.
     let summary = &outcome.model.summary;
     let kept = outcome.model.latent;
     let last = summary.trials.last().unwrap();
@@ -88,6 +93,13 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     for t in &summary.trials[..summary.trials.len() - 1] {
         assert!(t.autoencoder_error.is_none_or(|e| e > summary.tolerance));
     }
+    // The candidates table lists every decoder family tried, one kept.
+    assert_eq!(
+        summary.candidates.iter().filter(|c| c.kept).count(),
+        1,
+        "{:?}",
+        summary.candidates
+    );
     assert_eq!(outcome.model.method, Method::SelfSupervised);
     assert_eq!(outcome.baseline.method, Method::Supervised);
     assert_eq!(
@@ -138,8 +150,14 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
         assert_eq!(mean.is_finite(), bounded == 60, "{cells:?}");
     }
     assert_eq!(rows[0][5], "0.0000", "{:?}", rows[0]);
+    assert!(
+        report.contains("## Model selection") && report.contains("**kept**"),
+        "{report}"
+    );
     for file in [
         "report.md",
+        "pareto-time.png",
+        "pareto-bytes.png",
         "speed-accuracy.png",
         "error-test-00.png",
         "error-test-01.png",
@@ -162,6 +180,47 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
         err.contains("test-01.npz") && err.contains("prescribed vertices"),
         "{err}"
     );
+}
+
+/// Selection over cost on the tiny scene, where PCA with 8 components meets the tolerance:
+/// the linear decoder is tried first and kept when its rollouts are as accurate as the rest.
+#[test]
+fn selection_keeps_the_linear_decoder_where_pca_meets_the_tolerance() {
+    let dir = tempfile::tempdir().unwrap();
+    // The scene's default selection: linear, mlp(32) + basis, mlp.
+    let recipe = tiny_scene_with(dir.path(), "");
+    let outcome = train_scene(&recipe, &options(dir.path(), false), &Quiet).unwrap();
+    let rows = &outcome.model.summary.candidates;
+    println!("{}", mochi_trainer::report::candidates_table(rows));
+    let families: Vec<&str> = rows.iter().map(|r| r.decoder.as_str()).collect();
+    assert_eq!(families.first(), Some(&"linear"), "{families:?}");
+    for family in ["mlp + basis", "mlp"] {
+        assert!(families.contains(&family), "{family} missing from {families:?}");
+    }
+    let linear = &rows[0];
+    assert_eq!((linear.modes, linear.latent, linear.decoder_width), (8, 8, 0));
+    assert!(linear.reconstruction <= outcome.model.summary.tolerance);
+    // Every trained candidate was rolled out over both validation sequences and timed in
+    // every storage; the linear one has the fewest multiply-adds.
+    for r in rows.iter().filter(|r| r.integrator_width > 0) {
+        assert_eq!(r.validation_frames, 40, "{r:?}");
+        assert_eq!(r.storages.len(), 3, "{r:?}");
+        assert!(r.storages.iter().all(|s| s.1 > 0 && s.2 > 0.0), "{r:?}");
+        assert!(r.multiply_adds >= linear.multiply_adds, "{r:?}");
+    }
+    let kept = rows.iter().find(|r| r.kept).unwrap();
+    assert_eq!(
+        kept.decoder,
+        "linear",
+        "{}",
+        mochi_trainer::report::candidates_table(rows)
+    );
+    assert!(outcome.model.decoder_basis && outcome.model.decoder.len() == 1);
+    // The kept model is what the artifact holds, and the runtime runs its basis decoder.
+    assert_eq!(outcome.model.latent, 8);
+    let bytes = outcome.model.to_bytes().unwrap();
+    let mut storage = mochi_runtime::OwnedModel::default();
+    assert!(storage.load(&bytes).unwrap().model().decoder_basis);
 }
 
 #[test]

@@ -15,7 +15,9 @@ const REDUCED: &str = "\n[reduced]\nsubspace = \"supervised\"\nlipschitz_epochs 
 fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("tiny.toml");
-    std::fs::write(&path, format!("{TINY}{REDUCED}")).unwrap();
+    // The reduced method's vanilla subspace is the MLP decoder; the selection tries only it here.
+    let mlp_only = "\n[latent.selection]\ndecoders = [\"mlp\"]\n";
+    std::fs::write(&path, format!("{TINY}{REDUCED}{mlp_only}")).unwrap();
     let recipe = Recipe::load(path.to_str().unwrap()).unwrap();
     let out = dir.path().join("out");
     let options = TrainOptions {

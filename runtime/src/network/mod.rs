@@ -118,6 +118,33 @@ pub fn hidden(weights: &Weights, layers: &[Layer], parts: &[&[f32]], h: &mut [f3
     h.iter_mut().for_each(|v| *v = swish(*v));
 }
 
+/// What a decoder's last layer reads for the latent `z`, written into `f`: the last hidden
+/// activation of a residual MLP decoder ([`hidden`]), or for a basis decoder
+/// (`basis = true`, see [`crate::model`]) the features `[z; 0] + g(z)`, `g` the layers before
+/// the basis (`f = z` when there are none). `f` and `scratch` must hold the hidden width.
+pub fn decoder_features(
+    weights: &Weights,
+    layers: &[Layer],
+    basis: bool,
+    z: &[f32],
+    f: &mut [f32],
+    scratch: [&mut [f32]; 3],
+) {
+    let Some(mlp) = layers.split_last().map(|(_, mlp)| mlp).filter(|_| basis) else {
+        let [a, r, _] = scratch;
+        return hidden(weights, layers, &[z], f, [a, r]);
+    };
+    f.iter_mut().for_each(|v| *v = 0.0);
+    if let Some(output) = mlp.last() {
+        let [h, a, r] = scratch;
+        hidden(weights, mlp, &[z], h, [a, r]);
+        let m = (output.rows as usize).min(f.len());
+        let x = h.get(..output.cols as usize).unwrap_or(h);
+        dense_rows(weights, output, &[x], 0, &mut f[..m]);
+    }
+    f.iter_mut().zip(z).for_each(|(f, z)| *f += z);
+}
+
 /// Multiply-adds of one forward pass of `layers` (for GFLOP/s reports).
 pub fn multiply_adds(layers: &[Layer]) -> usize {
     layers.iter().map(|l| l.rows as usize * l.cols as usize).sum()

@@ -46,6 +46,7 @@ fn model(latent: usize) -> MochiModel {
         decoder: vec![layer(4, latent), layer(2, 4)],
         integrator: vec![layer(4, 2 * latent + 36), layer(latent, 4)],
         surface_triangles: vec![0, 1, 2],
+        decoder_basis: false,
     };
     let storage: &'static mut OwnedModel = Box::leak(Box::default());
     let valid = storage.load(&payload.to_section().unwrap()).unwrap();

@@ -69,7 +69,7 @@ pub const VARIED_PIECE_FRAMES: usize = 30;
 /// of its directions and segment lengths.
 const VARIED_SEED_OFFSET: u64 = 0x5eed;
 
-/// The train and test sequences of a dataset.
+/// The train, test and validation sequences of a dataset.
 pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
     let mut plans = Vec::new();
     let n = spec.train;
@@ -154,6 +154,18 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
             description,
             speeds,
             seed: spec.seed.wrapping_mul(1000).wrapping_add(500 + k as u64),
+        });
+    }
+    // Validation levels split the training range in `validation + 1` equal parts (1/3 and 2/3
+    // for two): between the training levels and apart from the held-out test levels.
+    for k in 0..spec.validation {
+        let level = (k + 1) as f64 / (spec.validation + 1) as f64;
+        plans.push(SequencePlan {
+            name: format!("validation-{k:02}"),
+            split: Split::Validation,
+            description: format!("validation speed level {level:.2}"),
+            speeds: SpeedPlan::constant(level),
+            seed: spec.seed.wrapping_mul(1000).wrapping_add(700 + k as u64),
         });
     }
     plans
@@ -379,6 +391,7 @@ mod tests {
             test_frames: None,
             steady: 0,
             varied: 0,
+            validation: 2,
         };
         let plans = plan(&spec);
         let train: Vec<f64> = plans
@@ -402,6 +415,23 @@ mod tests {
                 train.iter().all(|l| (l - level).abs() > 0.1),
                 "level {level} too close to training"
             );
+        }
+        // Validation levels lie between training levels and apart from the test levels.
+        let validation: Vec<f64> = plans
+            .iter()
+            .filter(|p| p.split == Split::Validation)
+            .map(|p| p.speeds.at(0).0)
+            .collect();
+        assert_eq!(validation.len(), 2);
+        for level in &validation {
+            assert!(
+                train.iter().all(|l| (l - level).abs() > 0.05),
+                "validation level {level}"
+            );
+            let apart = tests
+                .iter()
+                .all(|t| (t.speeds.at(0).0 - level).abs() > 0.01 || t.speeds.at(0).1 != 1.0);
+            assert!(apart, "validation level {level} equals a test level");
         }
         let mut seeds: Vec<u64> = plans.iter().map(|p| p.seed).collect();
         seeds.sort();

@@ -8,6 +8,7 @@
 //! build on it; nothing here reaches up to them.
 
 pub mod bc;
+pub mod contact;
 pub mod cubature;
 pub mod dataset;
 pub mod energy;

@@ -298,6 +298,9 @@ pub enum Split {
     Train,
     /// Held out for evaluation.
     Test,
+    /// Held out from training, for choosing between trained candidates (`mochi train`'s
+    /// model selection); never used by evaluation.
+    Validation,
 }
 
 impl Split {
@@ -306,6 +309,7 @@ impl Split {
         match self {
             Split::Train => "train",
             Split::Test => "test",
+            Split::Validation => "validation",
         }
     }
 }
@@ -349,6 +353,9 @@ pub struct DatasetSpec {
     /// one sequence, so the training states include a body still swinging from a fast
     /// motion while its handles move slowly. Default 0.
     pub varied: usize,
+    /// Validation sequences (held-out constant speed levels, `frames` long each), made by
+    /// `mochi train` for its model selection. Default 2.
+    pub validation: usize,
 }
 
 impl Default for DatasetSpec {
@@ -362,6 +369,7 @@ impl Default for DatasetSpec {
             test_frames: None,
             steady: 0,
             varied: 0,
+            validation: 2,
         }
     }
 }
@@ -370,7 +378,7 @@ impl DatasetSpec {
     /// Frames of a sequence of `split`.
     pub fn frames_of(&self, split: Split) -> usize {
         match split {
-            Split::Train => self.frames,
+            Split::Train | Split::Validation => self.frames,
             Split::Test => self.test_frames.unwrap_or(self.frames),
         }
     }

@@ -8,111 +8,24 @@
 //!
 //! The first section is exactly what the runtime reads (and all a device needs); the second
 //! holds what only the trainer reads. Files of format 2 (one section, the whole [`Artifact`]
-//! in postcard) and 3 (the triangles to draw in the training section, [`super::format3`]) are
-//! still read; `mochi upgrade` rewrites them in the current format.
+//! in postcard), 3 (the triangles to draw in the training section, [`super::format3`]) and 4
+//! (no `decoder_basis`: the payload ends before it) are still read; `mochi upgrade` rewrites
+//! them in the current format.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use serde::{Deserialize, Serialize};
-
-use super::{format3, Artifact, EncodingData, HandleData, Method, TrainingSummary};
-use crate::learn::network::{DenseLayer, NetworkError};
+use super::section::{ArtifactError, TrainingSection, TRAINING_MAGIC};
+use super::{format3, Artifact, EncodingData, HandleData};
+use crate::learn::network::DenseLayer;
 use mochi_runtime::artifact::{FORMAT_VERSION, MAGIC};
-use mochi_runtime::envelope::{self, EnvelopeError};
+use mochi_runtime::envelope;
 use mochi_runtime::payload::{HandleData as RuntimeHandle, LayerData, Payload};
-use mochi_runtime::LoadError;
 use mochi_sim::error::InputError;
 
-/// Magic of the training section (the second section of an artifact).
-pub const TRAINING_MAGIC: &[u8; 8] = b"MOCHITRN";
 /// The last format with the whole artifact in one section, still read.
 const SINGLE_SECTION_VERSION: u32 = 2;
-
-/// Why an artifact could not be written or read.
-#[derive(Debug, thiserror::Error)]
-pub enum ArtifactError {
-    /// The model section's envelope was refused.
-    #[error("model artifact {0}")]
-    Envelope(EnvelopeError),
-    /// The training section's envelope was refused.
-    #[error("model artifact's training section is missing or {0}")]
-    TrainingEnvelope(EnvelopeError),
-    /// A section could not be encoded.
-    #[error("encoding the artifact's {section}: {source}")]
-    Encode {
-        /// Which section.
-        section: &'static str,
-        /// Why.
-        source: postcard::Error,
-    },
-    /// A section's payload could not be decoded.
-    #[error("model artifact's {section} is unreadable: {source}")]
-    Decode {
-        /// Which section.
-        section: &'static str,
-        /// Why.
-        source: postcard::Error,
-    },
-    /// A field is inconsistent.
-    #[error("field `{field}`: {message}")]
-    Invalid {
-        /// The field.
-        field: String,
-        /// What is wrong.
-        message: String,
-    },
-    /// What the runtime reads was refused by the runtime.
-    #[error("refused by the runtime: {0}")]
-    Runtime(#[from] LoadError),
-    /// A network could not be rebuilt from its layers.
-    #[error(transparent)]
-    Network(#[from] NetworkError),
-    /// The file could not be written.
-    #[error("writing artifact {}: {source}", path.display())]
-    Write {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        source: std::io::Error,
-    },
-}
-
-impl ArtifactError {
-    /// The error as a problem of the input file `source`.
-    pub fn in_file(self, source: &Path) -> InputError {
-        match self {
-            ArtifactError::Invalid { field, message } => InputError::field(source, field, message),
-            other => InputError::file(source, other.to_string()),
-        }
-    }
-}
-
-/// What only the trainer reads: the second section of an artifact.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct TrainingSection {
-    /// Scene name.
-    pub scene: String,
-    /// The scene file the model was trained from.
-    pub scene_path: String,
-    /// Scene TOML text.
-    pub scene_toml: String,
-    /// How the integrator was trained.
-    pub method: Method,
-    /// Identity-pose targets of the handle vertices (`encoding.reference`).
-    pub reference: Vec<f32>,
-    /// Handle names, in signal order.
-    pub handle_names: Vec<String>,
-    /// Polylines to draw.
-    pub polylines: Vec<Vec<u32>>,
-    /// PCA mean of the encoded training frames.
-    pub pca_mean: Vec<f32>,
-    /// PCA components, row-major.
-    pub pca_basis: Vec<f32>,
-    /// Encoder: encoded state -> latent.
-    pub encoder: Vec<DenseLayer>,
-    /// How the model was made.
-    pub summary: TrainingSummary,
-}
+/// The last format without `decoder_basis` (every decoder a residual MLP), still read.
+const MLP_DECODER_VERSION: u32 = 4;
 
 fn layer_data(l: &DenseLayer) -> LayerData {
     LayerData {
@@ -187,6 +100,7 @@ impl Artifact {
             decoder: self.decoder.iter().map(layer_data).collect(),
             integrator: self.integrator.iter().map(layer_data).collect(),
             surface_triangles: self.drawn_triangles()?,
+            decoder_basis: self.decoder_basis,
         };
         let training = TrainingSection {
             scene: self.scene.clone(),
@@ -274,6 +188,7 @@ impl Artifact {
             pca_basis: t.pca_basis,
             encoder: t.encoder,
             decoder: layers(p.decoder)?,
+            decoder_basis: p.decoder_basis,
             integrator: layers(p.integrator)?,
             summary: t.summary,
         })
@@ -294,7 +209,7 @@ impl Artifact {
         Ok(bytes)
     }
 
-    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 3 or 2), and checks that
+    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 4, 3 or 2), and checks that
     /// the runtime accepts what it reads of it.
     pub fn parse(bytes: &[u8]) -> Result<Artifact, ArtifactError> {
         let decode = |section| move |source| ArtifactError::Decode { section, source };
@@ -306,12 +221,23 @@ impl Artifact {
         } else if old(format3::VERSION) {
             format3::parse(bytes)?
         } else {
-            let (model, rest) = envelope::split(bytes, MAGIC, FORMAT_VERSION).map_err(ArtifactError::Envelope)?;
-            let training =
-                envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).map_err(ArtifactError::TrainingEnvelope)?;
+            let version = if old(MLP_DECODER_VERSION) {
+                MLP_DECODER_VERSION
+            } else {
+                FORMAT_VERSION
+            };
+            let (model, rest) = envelope::split(bytes, MAGIC, version).map_err(ArtifactError::Envelope)?;
+            let training = envelope::open(rest, TRAINING_MAGIC, version).map_err(ArtifactError::TrainingEnvelope)?;
+            let (mut model, mut training) = (model.to_vec(), training.to_vec());
+            if version == MLP_DECODER_VERSION {
+                // Format 5 appended `decoder_basis` (false) and the summary's `candidates`
+                // (an empty list).
+                model.push(0);
+                training.push(0);
+            }
             Artifact::from_sections(
-                Payload::decode(model).map_err(decode("model section"))?,
-                postcard::from_bytes(training).map_err(decode("training section"))?,
+                Payload::decode(&model).map_err(decode("model section"))?,
+                postcard::from_bytes(&training).map_err(decode("training section"))?,
             )?
         };
         artifact
@@ -351,6 +277,8 @@ impl Artifact {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mochi_runtime::envelope::EnvelopeError;
+    use mochi_runtime::LoadError;
 
     fn tiny() -> (Vec<u8>, Artifact) {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/artifacts/tiny.mochi");

@@ -8,7 +8,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::file::{ArtifactError, TrainingSection, TRAINING_MAGIC};
+use super::section::{ArtifactError, TrainingSection, TRAINING_MAGIC};
 use super::{Artifact, Method, TrainingSummary, MAGIC};
 use crate::learn::network::DenseLayer;
 use mochi_runtime::envelope;
@@ -70,13 +70,17 @@ impl TrainingSectionV3 {
 pub fn parse(bytes: &[u8]) -> Result<Artifact, ArtifactError> {
     let (model, rest) = envelope::split(bytes, MAGIC, VERSION).map_err(ArtifactError::Envelope)?;
     let training = envelope::open(rest, TRAINING_MAGIC, VERSION).map_err(ArtifactError::TrainingEnvelope)?;
+    // Format 4 appended the triangles (an empty list here), format 5 `decoder_basis` (false).
     let mut payload = model.to_vec();
-    payload.push(0);
+    payload.extend([0, 0]);
     let payload = Payload::decode(&payload).map_err(|source| ArtifactError::Decode {
         section: "model section",
         source,
     })?;
-    let training: TrainingSectionV3 = postcard::from_bytes(training).map_err(|source| ArtifactError::Decode {
+    // Format 5 appended the training summary's `candidates` (an empty list here).
+    let mut training = training.to_vec();
+    training.push(0);
+    let training: TrainingSectionV3 = postcard::from_bytes(&training).map_err(|source| ArtifactError::Decode {
         section: "training section",
         source,
     })?;

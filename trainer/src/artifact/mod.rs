@@ -13,17 +13,18 @@
 pub mod file;
 mod format3;
 pub mod reduced;
+pub mod section;
 
 use serde::{Deserialize, Serialize};
 
 use crate::learn::encoding::{Encoding, Origins};
-use crate::learn::network::{DenseLayer, ExportedIntegrator, ExportedMlp, NetworkError};
+use crate::learn::network::{DenseLayer, ExportedIntegrator, ExportedMlp, FrozenDecoder, NetworkError};
 
-pub use file::{ArtifactError, TrainingSection, TRAINING_MAGIC};
 pub use mochi_runtime::artifact::{FORMAT_VERSION, MAGIC};
 /// One rod strand of the bend encoding (see [`crate::learn::encoding::Chain`]): the runtime's
 /// record, stored as is.
 pub use mochi_runtime::payload::ChainData;
+pub use section::{ArtifactError, TrainingSection, TRAINING_MAGIC};
 
 /// How an artifact's integrator was trained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -135,6 +136,43 @@ pub struct TrainingSummary {
     pub max_radius: f64,
     /// Largest kinetic energy over the training frames.
     pub max_kinetic_energy: f64,
+    /// Every model tried by the selection over cost, in the order tried (empty for artifacts
+    /// of format 4 and older). Last, so that an older training section followed by one `0x00`
+    /// byte (an empty list) reads as this one.
+    pub candidates: Vec<CandidateRow>,
+}
+
+/// One model `mochi train` tried while selecting over cost (`latent.selection`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CandidateRow {
+    /// Decoder family: `linear`, `mlp + basis` or `mlp`.
+    pub decoder: String,
+    /// Latent size.
+    pub latent: u32,
+    /// Columns of the decoder's basis (0 for a residual MLP decoder).
+    pub modes: u32,
+    /// Hidden width of the decoder's MLP (0 for a linear decoder).
+    pub decoder_width: u32,
+    /// Hidden width of the integrator (0: none trained, the decoder missed the tolerance).
+    pub integrator_width: u32,
+    /// RMS vertex error / diagonal of the decoder's reconstruction of the training frames.
+    pub reconstruction: f64,
+    /// Mean over the validation sequences of the rollout's mean vertex error / diagonal
+    /// (infinite when a rollout diverged inside its window or none was run).
+    pub validation_error: f64,
+    /// Fewest frames any validation rollout ran before diverging.
+    pub stable_frames: u64,
+    /// Frames of each validation rollout.
+    pub validation_frames: u64,
+    /// Per weight storage (`f32`, `f16`, `int8`): bytes of weights and microseconds per frame
+    /// (runtime step + full decode, one thread) measured while training.
+    pub storages: Vec<(String, u64, f64)>,
+    /// Multiply-adds per frame (integrator + full decode).
+    pub multiply_adds: u64,
+    /// Microseconds per frame of candle's batch-1 forward of the same networks.
+    pub candle_microseconds: f64,
+    /// Whether this is the model kept.
+    pub kept: bool,
 }
 
 /// A trained model.
@@ -187,6 +225,8 @@ pub struct Artifact {
     pub encoder: Vec<DenseLayer>,
     /// Decoder: latent -> encoded state.
     pub decoder: Vec<DenseLayer>,
+    /// Whether the decoder's last layer is a linear basis ([`FrozenDecoder`]).
+    pub decoder_basis: bool,
     /// Integrator: packed input -> latent increment.
     pub integrator: Vec<DenseLayer>,
     /// How it was made.
@@ -210,8 +250,8 @@ impl Artifact {
     }
 
     /// The decoder as a runnable network.
-    pub fn decoder(&self) -> Result<ExportedMlp, NetworkError> {
-        ExportedMlp::from_layers(self.decoder.clone())
+    pub fn decoder(&self) -> Result<FrozenDecoder, NetworkError> {
+        FrozenDecoder::from_layers(self.decoder.clone(), self.decoder_basis)
     }
 
     /// The integrator as a runnable network.
@@ -324,13 +364,16 @@ impl Artifact {
             ("integrator", &self.integrator, 2 * k + 3 * self.bc_len as usize, k),
         ];
         for (field, layers, input, output) in nets {
-            let mlp = ExportedMlp::from_layers(layers.clone()).map_err(|e| (field.to_string(), e.to_string()))?;
-            let spec = mlp.spec();
-            if spec.input != input || spec.output != output {
-                return err(
-                    field,
-                    format!("maps {} -> {}, expected {input} -> {output}", spec.input, spec.output),
-                );
+            let wrong = |e: NetworkError| (field.to_string(), e.to_string());
+            let (from, to) = if field == "decoder" {
+                let decoder = FrozenDecoder::from_layers(layers.clone(), self.decoder_basis).map_err(wrong)?;
+                (decoder.latent(), decoder.output())
+            } else {
+                let spec = ExportedMlp::from_layers(layers.clone()).map_err(wrong)?.spec();
+                (spec.input, spec.output)
+            };
+            if from != input || to != output {
+                return err(field, format!("maps {from} -> {to}, expected {input} -> {output}"));
             }
         }
         let all_finite = [&self.rest, &self.initial_latent, &self.pca_mean, &self.pca_basis]

@@ -15,7 +15,7 @@ use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
-use crate::pipeline::stages::artifact_paths;
+use crate::pipeline::assemble::artifact_paths;
 use crate::pipeline::{train_scene, TrainOptions};
 use crate::progress::Reporter;
 use crate::report::chart::{self, Series};
@@ -96,6 +96,9 @@ pub fn run(options: &DemoOptions, report: &dyn Reporter) -> Result<DemoReport> {
     // scene's reduced-method subspaces.
     let mut recipe = Recipe::load(&options.scene)?;
     recipe.reduced = None;
+    // One integrator width per decoder family (the scene's `latent.integrator`): the demo shows
+    // the selection without training every width `mochi train` tries.
+    recipe.latent.selection.integrator_widths.clear();
     let scene = &recipe.scene;
     let mut problem = scene.build()?;
     let out = &options.out_dir;

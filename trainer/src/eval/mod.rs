@@ -235,8 +235,29 @@ pub fn evaluate(
     let storage = storage::evaluate(&bytes, first_path, &problem, &tests, options.accuracy_frames)?;
     storage::write_chart(&options.out_dir, &first.scene, &storage)?;
     text += &storage::markdown(&storage, options.accuracy_frames);
+    // The model selection that chose the first artifact's networks (`mochi train`).
+    let candidates = &first.summary.candidates;
+    if !candidates.is_empty() {
+        crate::report::candidates::pareto_charts(&options.out_dir, &first.scene, candidates)?;
+        text += &format!(
+            "\n## Model selection\n\nEvery model `mochi train` tried (`latent.selection`), with its cost measured \
+             while training (runtime step + full decode, one thread) and its rollout error on the validation \
+             sequences; the kept one is the cheapest within {:.0}% of the best stable candidate.\n\n{}\n\
+             ![time against error](pareto-time.png)\n\n![bytes against error](pareto-bytes.png)\n",
+            100.0 * slack_of(first),
+            crate::report::candidates_table(candidates)
+        );
+    }
     fs::write(&options.out_dir.join("report.md"), &text)?;
     Ok((reports, reference_seconds))
+}
+
+/// The selection slack the artifact's scene was trained with.
+fn slack_of(artifact: &Artifact) -> f64 {
+    crate::learn::recipe::Recipe::parse(&artifact.scene_toml, Path::new(&artifact.scene_path))
+        .map_or(crate::learn::recipe::SelectionSpec::default().slack, |r| {
+            r.latent.selection.slack
+        })
 }
 
 /// `paths`, each followed by its supervised sibling (`X.supervised.mochi` beside `X.mochi`)

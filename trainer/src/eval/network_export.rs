@@ -19,6 +19,7 @@
 //! | `format_version` | uint32 | `()` |
 //! | `artifact`, `weights` | unicode | `()`: file name, storage (`f32`, `f16`, `int8`) |
 //! | `dim`, `num_vertices`, `latent`, `signal`, `hidden`, `rotates` | uint32 | `()` |
+//! | `decoder_basis` | uint32 | `()`: 1 when the decoder's last layer is a basis applied to `[z; 0] + g(z)` (`mochi_runtime::Model::decoder_basis`) |
 //! | `dt`, `diagonal`, `range_margin` | float32 | `()` |
 //! | `integrator_layers`, `decoder_layers` | uint32 | `(layers, 2)`: rows, cols |
 //! | `integrator_I_w`, `decoder_I_w` | float32 | `(rows, cols)`: layer `I`'s stored weights, converted exactly (int8: the integers) |
@@ -168,6 +169,7 @@ fn write(m: &Model, name: &str, weights: WeightFormat, r: &Rollout, out: &Path) 
         ("signal", m.bc_len),
         ("hidden", m.hidden() as u32),
         ("rotates", u32::from(m.rotates)),
+        ("decoder_basis", u32::from(m.decoder_basis)),
     ] {
         npz.array(key, &[], [value])?;
     }

@@ -26,13 +26,14 @@ use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{ReducedSpec, SolverChoice};
+use crate::methods::lipschitz::cubature::cubature_energies;
 use crate::methods::lipschitz::cubature::ELASTIC_TERMS;
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::reduced::optimize::{Exit, ExitCounts, SolveSettings};
 use crate::methods::reduced::projection::project;
+use crate::methods::reduced::stepper::scene_objective_scale;
 use crate::methods::reduced::stepper::{ReducedSolver, ReducedStepper, StepperSettings};
 use crate::methods::reduced::subspace::DecoderSubspace;
-use crate::pipeline::reduced::{cubature_energies, scene_objective_scale};
 use crate::progress::Reporter;
 use crate::report::chart::{self, Series};
 

@@ -18,9 +18,10 @@ use crate::artifact::reduced::ReducedArtifact;
 use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
+use crate::methods::lipschitz::cubature::cubature_energies;
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::reduced::optimize::Exit;
-use crate::pipeline::reduced::{cubature_energies, scene_objective_scale};
+use crate::methods::reduced::stepper::scene_objective_scale;
 use crate::progress::Reporter;
 
 /// One subspace over every test sequence.

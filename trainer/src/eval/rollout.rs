@@ -13,7 +13,7 @@ use mochi_sim::BuiltScene;
 use crate::artifact::Artifact;
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::{decode_world, pack_signals, Encoding};
-use crate::learn::network::{forward_exported, ExportedIntegrator, ExportedMlp};
+use crate::learn::network::{ExportedIntegrator, FrozenDecoder};
 use crate::learn::recipe::Recipe;
 
 /// Frames over which accuracy is measured (from the start of each test sequence).
@@ -26,7 +26,7 @@ pub struct LoadedModel {
     /// The artifact.
     pub artifact: Artifact,
     /// Its decoder.
-    pub decoder: ExportedMlp,
+    pub decoder: FrozenDecoder,
     /// Its integrator.
     pub integrator: ExportedIntegrator,
 }
@@ -150,7 +150,7 @@ pub fn roll(
         let mid = Instant::now();
         let targets = bc.targets(&problem.handles, t, dim);
         let frame = encoding.frame(&targets)?;
-        let q = forward_exported(&model.decoder, &z)?;
+        let q = model.decoder.decode(&z)?;
         let x = decode_world(encoding, &q, &frame, &targets)?;
         step_time += (mid - clock).as_secs_f64();
         decode_time += mid.elapsed().as_secs_f64();

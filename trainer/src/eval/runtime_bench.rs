@@ -18,7 +18,7 @@ use crate::artifact::Artifact;
 use crate::error::{bail, Context, TrainerResult as Result};
 use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
-use crate::learn::network::ResMlp;
+use crate::learn::network::{Decoder, ResMlp};
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::measure::vertex_errors;
 
@@ -97,9 +97,20 @@ pub fn bench(paths: &[PathBuf], frames: usize, storages: &[WeightFormat]) -> Res
 fn bench_one(path: &Path, frames: usize, storages: &[WeightFormat]) -> Result<Vec<RuntimeTiming>> {
     let bytes = crate::error::fs::read(path)?;
     let artifact = Artifact::from_bytes(&bytes, path)?;
+    bench_artifact(&artifact, &bytes, path, frames, storages)
+}
+
+/// [`bench`] of one artifact held in memory (`bytes` its file, `path` its name in reports).
+pub(crate) fn bench_artifact(
+    artifact: &Artifact,
+    bytes: &[u8],
+    path: &Path,
+    frames: usize,
+    storages: &[WeightFormat],
+) -> Result<Vec<RuntimeTiming>> {
     let mut storage = OwnedModel::default();
     let model = storage
-        .load(&bytes)
+        .load(bytes)
         .with_context(|| format!("{}: runtime refused the artifact", path.display()))?;
     let m = model.model();
     if m.hidden() > MAX_HIDDEN {
@@ -109,7 +120,7 @@ fn bench_one(path: &Path, frames: usize, storages: &[WeightFormat]) -> Result<Ve
             m.hidden()
         );
     }
-    let (problem, encoding) = eval::rebuild_problem(&artifact)?;
+    let (problem, encoding) = eval::rebuild_problem(artifact)?;
     let plan = dataset::plan(&problem.scene.dataset)
         .into_iter()
         .find(|p| p.split == Split::Test)
@@ -244,7 +255,7 @@ fn run_for_sizes(k: usize, s: usize, run: &Run) -> Result<Measured> {
 /// candle does less work than the runtime here.
 fn candle_seconds(trainer: &LoadedModel, script: &[Vec<HandleMotion>], k: usize) -> Result<f64> {
     let integrator = ResMlp::from_exported(trainer.integrator.mlp())?;
-    let decoder = ResMlp::from_exported(&trainer.decoder)?;
+    let decoder = Decoder::from_frozen(&trainer.decoder)?;
     let signal = |i: usize| -> Vec<f32> { script[i].iter().flat_map(|m| m.signal()).collect() };
     let initial = trainer.artifact.initial_latent.clone();
     let (mut z, mut z_prev) = (initial.clone(), initial);

@@ -169,6 +169,67 @@ pub struct LatentSpec {
     pub seed: u64,
     /// What the latent space of a rods scene encodes (`positions` or `bends`).
     pub rods: RodEncoding,
+    /// Model selection over cost (`[latent.selection]`).
+    pub selection: SelectionSpec,
+}
+
+/// A decoder family `mochi train` may try (scene field `latent.selection.decoders`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DecoderCandidate {
+    /// The PCA basis with as many components as meet the tolerance, not trained (PCA is the
+    /// least-squares optimum among linear decoders): `linear`.
+    Linear,
+    /// A residual MLP of this width (one block) from a smaller latent to the coefficients of
+    /// that basis, trained from the PCA initialisation: `{ basis = 32 }`.
+    Basis(usize),
+    /// The residual MLP of `latent.autoencoder`: `mlp`.
+    Mlp,
+}
+
+/// Which models `mochi train` trains and how it keeps one (`[latent.selection]`).
+///
+/// Decoders are tried in the order given; those whose reconstruction meets the tolerance get
+/// a self-supervised integrator of each width. Every candidate is rolled out over the
+/// validation sequences; among those stable over every validation frame, the cheapest
+/// (multiply-adds per frame, then bytes) whose mean error is within `slack` of the best
+/// candidate's is kept.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SelectionSpec {
+    /// Decoder families, cheapest first. Default: `linear`, `{ basis = 32 }`, `mlp`.
+    pub decoders: Vec<DecoderCandidate>,
+    /// Integrator widths (blocks, epochs and schedule from `latent.integrator`). Default: the
+    /// width of `latent.integrator` alone.
+    pub integrator_widths: Vec<usize>,
+    /// How far above the best candidate's mean validation error the kept one may be, relative
+    /// (default 0.1).
+    pub slack: f64,
+}
+
+impl Default for SelectionSpec {
+    fn default() -> Self {
+        SelectionSpec {
+            decoders: vec![
+                DecoderCandidate::Linear,
+                DecoderCandidate::Basis(32),
+                DecoderCandidate::Mlp,
+            ],
+            integrator_widths: Vec::new(),
+            slack: 0.1,
+        }
+    }
+}
+
+impl SelectionSpec {
+    /// The integrator widths to try, `default` when none are listed.
+    pub fn widths(&self, default: usize) -> Vec<usize> {
+        if self.integrator_widths.is_empty() {
+            vec![default]
+        } else {
+            self.integrator_widths.clone()
+        }
+    }
 }
 
 /// How rod strands are encoded for the latent space (scene field `latent.rods`).
@@ -211,6 +272,7 @@ impl Default for LatentSpec {
             stretch: 0.0,
             seed: 0,
             rods: RodEncoding::Positions,
+            selection: SelectionSpec::default(),
         }
     }
 }
@@ -251,6 +313,19 @@ impl LatentSpec {
         }
         if !(self.stretch.is_finite() && self.stretch >= 0.0) {
             return Err(("stretch".into(), "must be a non-negative number".into()));
+        }
+        let selection = &self.selection;
+        if selection.decoders.is_empty() || selection.decoders.contains(&DecoderCandidate::Basis(0)) {
+            return Err((
+                "selection.decoders".into(),
+                "needs at least one decoder family, and basis widths of at least 1".into(),
+            ));
+        }
+        if selection.integrator_widths.contains(&0) || !(selection.slack.is_finite() && selection.slack >= 0.0) {
+            return Err((
+                "selection".into(),
+                "integrator widths must be positive and slack a non-negative number".into(),
+            ));
         }
         if self.stretch > 0.0 && self.rods == RodEncoding::Bends {
             return Err((

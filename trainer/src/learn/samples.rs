@@ -351,6 +351,7 @@ pub(crate) mod fixtures {
             latent: 3,
             hidden: 16,
             blocks: 1,
+            shape: crate::learn::network::DecoderShape::Mlp,
         };
         let ae = Autoencoder::new_pca_init(spec, &pca.mean, &pca.basis, 1).unwrap();
         TinyBeam {

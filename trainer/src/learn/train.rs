@@ -675,6 +675,7 @@ mod tests {
             latent: 2,
             hidden: 32,
             blocks: 2,
+            shape: crate::learn::network::DecoderShape::Mlp,
         };
         let ae = Autoencoder::new(spec, 7).unwrap();
         let initial = mean_reconstruction_error(&ae, &data, 64).unwrap();
@@ -698,6 +699,7 @@ mod tests {
             latent: 3,
             hidden: 24,
             blocks: 2,
+            shape: crate::learn::network::DecoderShape::Mlp,
         };
         let ae = Autoencoder::new_pca_init(spec, &mean, &basis, 3).unwrap();
         let linear = pca_reconstruction_error(&data, &mean, &basis);
@@ -729,6 +731,7 @@ mod tests {
         latent: 2,
         hidden: 8,
         blocks: 1,
+        shape: crate::learn::network::DecoderShape::Mlp,
     };
 
     #[test]

@@ -1,13 +1,17 @@
 //! The artifact of a trained model: everything the runtime and codegen need, assembled from
-//! the scene, the encoding, the networks and the training summary.
+//! the scene, the encoding, the networks and the training summary; and stage 5 of
+//! `mochi train`, which writes the model and its supervised baseline.
 
-use crate::artifact::{Artifact, ArtifactError, EncodingData, HandleData, Method, TrainingSummary};
+use std::path::{Path, PathBuf};
+
+use crate::artifact::{Artifact, ArtifactError, CandidateRow, EncodingData, HandleData, Method, TrainingSummary};
 use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::network::{Autoencoder, LatentIntegrator};
 use crate::learn::pca::Pca;
 use crate::learn::recipe::Recipe;
 use crate::learn::samples::IntegratorData;
+use crate::pipeline::stages::{SelectedAutoencoder, StageTimes, TrainedIntegrator, TrainingFrames};
 use mochi_sim::mesh::Elements;
 use mochi_sim::BuiltScene;
 
@@ -76,6 +80,7 @@ pub fn build_artifact(
         pca_basis,
         encoder: exported.encoder.layers().into_iter().cloned().collect(),
         decoder: exported.decoder.layers().into_iter().cloned().collect(),
+        decoder_basis: exported.decoder.is_basis(),
         integrator: integrator.export()?.mlp().layers().into_iter().cloned().collect(),
         summary,
     };
@@ -84,4 +89,98 @@ pub fn build_artifact(
         message: format!("built an invalid artifact: {message}"),
     })?;
     Ok(artifact)
+}
+
+/// Everything the artifacts are made of.
+pub(crate) struct Trained<'a> {
+    /// The recipe trained.
+    pub(crate) recipe: &'a Recipe,
+    /// Its scene, built.
+    pub(crate) problem: &'a BuiltScene,
+    /// The encoded training split.
+    pub(crate) frames: &'a TrainingFrames,
+    /// The kept autoencoder.
+    pub(crate) autoencoder: &'a SelectedAutoencoder,
+    /// The integrator's training set.
+    pub(crate) data: &'a IntegratorData<'a>,
+}
+
+/// The training summary of a model (no candidates table): sizes tried, stage times so far,
+/// the integrator's last loss, and the training envelope.
+pub(crate) fn summary(trained: &Trained<'_>, integrator: &TrainedIntegrator, times: &StageTimes) -> TrainingSummary {
+    let (problem, frames, selected) = (trained.problem, trained.frames, trained.autoencoder);
+    let per_vertex = frames.encoding.values_per_vertex();
+    let max_radius = frames
+        .f64s
+        .iter()
+        .flat_map(|q| {
+            q.chunks_exact(per_vertex)
+                .map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt())
+        })
+        .fold(0.0, f64::max);
+    let masses = problem.simulator.masses().to_vec();
+    let dim = problem.mesh.dim;
+    let max_kinetic_energy = frames
+        .sequences
+        .iter()
+        .flat_map(|s| {
+            s.trajectory
+                .positions
+                .windows(2)
+                .map(|w| mochi_sim::measure::kinetic_energy(&masses, &w[1], &w[0], problem.scene.dt, dim))
+        })
+        .fold(0.0, f64::max);
+    TrainingSummary {
+        tolerance: trained.recipe.latent.tolerance,
+        trials: selected.trials.clone(),
+        stage_seconds: times.0.clone(),
+        final_loss: integrator.losses.last().copied().unwrap_or(f64::NAN),
+        samples: trained.data.inputs.len() as u64,
+        max_radius,
+        max_kinetic_energy,
+        candidates: Vec::new(),
+    }
+}
+
+/// Stage 5: one artifact per trained integrator, each with the training summary (`times`
+/// so far), written into `out_dir` (the first as the model, the second as its supervised
+/// baseline); returns them in order.
+pub(crate) fn write_artifacts(
+    trained: &Trained<'_>,
+    integrators: &[TrainedIntegrator],
+    times: &StageTimes,
+    candidates: &[CandidateRow],
+    out_dir: &Path,
+) -> TrainerResult<Vec<Artifact>> {
+    let mut artifacts = Vec::new();
+    for trained_integrator in integrators {
+        let summary = TrainingSummary {
+            candidates: candidates.to_vec(),
+            ..summary(trained, trained_integrator, times)
+        };
+        artifacts.push(build_artifact(
+            trained.recipe,
+            trained.problem,
+            &trained.frames.encoding,
+            &trained.autoencoder.autoencoder,
+            &trained_integrator.integrator,
+            trained.data,
+            &trained.autoencoder.pca,
+            trained_integrator.method,
+            summary,
+        )?);
+    }
+    let (model_path, baseline_path) = artifact_paths(out_dir, &trained.problem.scene.name);
+    for (artifact, path) in artifacts.iter().zip([model_path, baseline_path]) {
+        artifact.write(&path)?;
+    }
+    Ok(artifacts)
+}
+
+/// The artifact paths of a scene in `out_dir`: the model and its supervised baseline.
+pub fn artifact_paths(out_dir: &Path, scene: &str) -> (PathBuf, PathBuf) {
+    (
+        out_dir.join(format!("{scene}.mochi")),
+        out_dir.join(format!("{scene}.supervised.mochi")),
+    )
 }

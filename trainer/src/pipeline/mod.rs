@@ -1,24 +1,30 @@
 //! `mochi train`: from a scene's training trajectories to a latent model (Li et al. 2025,
 //! Sec. 3.2-3.3), as named stages run in order ([`stages`]): dataset (train
-//! split), PCA, an autoencoder per candidate size (size selection), the self-supervised
-//! integrator, the supervised baseline, and the artifacts; then, for scenes with a
+//! split), PCA, a decoder per family of `latent.selection` (each with its latent-size
+//! selection), a self-supervised integrator per width on each decoder that meets the
+//! tolerance, the selection over cost ([`selection`]), the supervised baseline of the kept
+//! model, and the artifacts; then, for scenes with a
 //! `[reduced]` table, the reduced method's vanilla and Lipschitz-optimised subspaces
 //! ([`reduced`]). Each stage's seconds go into the artifacts' training summary.
 
 pub(crate) mod assemble;
 pub(crate) mod reduced;
+pub(crate) mod selection;
 pub(crate) mod stages;
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::artifact::reduced::ReducedArtifact;
-use crate::artifact::{Artifact, Method};
-use crate::error::TrainerResult;
+use crate::artifact::{Artifact, CandidateRow, Method};
+use crate::error::{TrainerError, TrainerResult};
+use crate::learn::recipe::DecoderCandidate;
 use crate::learn::recipe::Recipe;
 use crate::learn::samples::IntegratorData;
 use crate::progress::Reporter;
-use stages::{StageTimes, Trained, Workspace};
+use crate::report::candidates_table;
+use assemble::Trained;
+use stages::{StageTimes, Workspace};
 
 /// Where `mochi train` works.
 #[derive(Clone, Debug)]
@@ -75,39 +81,70 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
     let pca = stages::fit_pca(&frames, &sizes, spec.tolerance, diagonal, report)?;
     times.record("pca", clock);
 
-    let selected = stages::select_autoencoder(problem, spec, &frames, &pca, &sizes, &work, &mut times, report)?;
+    let decoders = selection::train_decoders(problem, spec, &frames, &pca, &sizes, &work, &mut times, report)?;
+    let validation = selection::validation_split(problem, &work, report)?;
+    let inputs = selection::SelectionInputs {
+        recipe,
+        problem,
+        frames: &frames,
+        validation: &validation,
+        work: &work,
+        candidates_dir: &options.out_dir.join("candidates"),
+    };
+    let (candidates, skipped, kept) = selection::train_candidates(&inputs, &decoders, &mut times, report)?;
+    let mut rows: Vec<CandidateRow> = candidates.iter().map(|c| c.row.clone()).collect();
+    rows.extend(skipped);
+    report.message(&candidates_table(&rows));
+    let kept = &candidates[kept];
+    let selected = &decoders[kept.decoder].selected;
 
+    // The supervised baseline of the kept model (same decoder, same width).
     let data = IntegratorData::new(problem, &frames.encoding, &selected.autoencoder, &frames.sequences)?;
-    let mut integrators = Vec::new();
-    for method in [Method::SelfSupervised, Method::Supervised] {
-        let name = format!("integrator ({})", method.label());
-        report.stage(&name);
-        let clock = Instant::now();
-        let trained = stages::train_integrator(problem, spec, &data, &selected.autoencoder, method, &work)?;
-        times.record_resumed(name, clock, trained.earlier_seconds);
-        integrators.push(trained);
-    }
+    let name = format!("integrator ({})", Method::Supervised.label());
+    report.stage(&name);
+    let clock = Instant::now();
+    let baseline = stages::train_integrator(
+        problem,
+        spec,
+        &data,
+        &selected.autoencoder,
+        Method::Supervised,
+        &kept.shape,
+        &work,
+    )?;
+    times.record_resumed(name, clock, baseline.earlier_seconds);
 
     report.stage("artifacts");
     let trained = Trained {
         recipe,
         problem,
         frames: &frames,
-        autoencoder: &selected,
+        autoencoder: selected,
         data: &data,
     };
-    let mut artifacts = stages::write_artifacts(&trained, &integrators, &times, &options.out_dir)?.into_iter();
+    let integrators = [kept.integrator.clone(), baseline];
+    let mut artifacts = assemble::write_artifacts(&trained, &integrators, &times, &rows, &options.out_dir)?.into_iter();
     let (Some(model), Some(baseline)) = (artifacts.next(), artifacts.next()) else {
         unreachable!("two integrators make two artifacts");
     };
     let reduced = match &recipe.reduced {
         Some(spec) => {
+            // The reduced method differentiates through a residual MLP decoder.
+            let mlp = decoders
+                .iter()
+                .find(|d| d.family == DecoderCandidate::Mlp)
+                .ok_or_else(|| {
+                    TrainerError::invalid(format!(
+                        "scene `{}`: [reduced] needs `mlp` among latent.selection.decoders",
+                        recipe.scene.name
+                    ))
+                })?;
             let inputs = reduced::ReducedInputs {
                 recipe,
                 spec,
                 problem,
                 frames: &frames,
-                autoencoder: &selected,
+                autoencoder: &mlp.selected,
                 times: &times,
                 work: &work,
             };
@@ -120,7 +157,7 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
         model,
         baseline,
         losses: (losses.next().unwrap_or_default(), losses.next().unwrap_or_default()),
-        autoencoder_losses: selected.losses,
+        autoencoder_losses: selected.losses.clone(),
         reduced,
     })
 }

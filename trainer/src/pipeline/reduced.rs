@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use mochi_sim::cubature::{CubatureEnergy, CubatureSettings};
+use mochi_sim::cubature::CubatureSettings;
 use mochi_sim::StencilEnergy;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -19,10 +19,10 @@ use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, Expor
 use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource};
 use crate::learn::train::{AdamWConfig, CheckpointConfig, TrainConfig};
-use crate::methods::lipschitz::cubature::{fit_subspace_cubature, ELASTIC_TERMS};
+use crate::methods::lipschitz::cubature::{cubature_energies, fit_subspace_cubature, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::lipschitz::train::{optimise_data_free, optimise_supervised, LipschitzSettings};
-use crate::methods::reduced::stepper::objective_scale;
+use crate::methods::reduced::stepper::scene_objective_scale;
 use crate::progress::Reporter;
 use mochi_sim::BuiltScene;
 
@@ -38,12 +38,6 @@ pub(crate) struct ReducedInputs<'a> {
     pub(crate) autoencoder: &'a SelectedAutoencoder,
     pub(crate) times: &'a StageTimes,
     pub(crate) work: &'a Workspace,
-}
-
-/// The reduced solver's objective scale for `problem`'s body.
-pub(crate) fn scene_objective_scale(problem: &BuiltScene) -> f64 {
-    let mass: f64 = problem.simulator.masses().iter().sum();
-    objective_scale(mass, problem.mesh.rest_diagonal(), problem.scene.dt)
 }
 
 /// Fits a cubature of every elastic term to `decoder`'s subspace on `samples`.
@@ -72,30 +66,6 @@ fn fit_cubatures(
         });
     }
     Ok(out)
-}
-
-/// The potential of the Lipschitz loss: each elastic term through its cubature.
-pub(crate) fn cubature_energies<'a>(
-    problem: &'a BuiltScene,
-    cubatures: &[CubatureData],
-) -> TrainerResult<Vec<CubatureEnergy<'a>>> {
-    cubatures
-        .iter()
-        .map(|c| {
-            let energy = problem
-                .simulator
-                .potentials()
-                .iter()
-                .find(|p| p.name() == c.term)
-                .ok_or_else(|| TrainerError::invalid(format!("the scene has no energy term `{}`", c.term)))?;
-            let rule = mochi_sim::cubature::Cubature {
-                elements: c.elements.clone(),
-                weights: c.weights.clone(),
-            };
-            CubatureEnergy::new(energy.as_ref(), rule)
-                .map_err(|e| TrainerError::invalid(format!("cubature of `{}`: {e}", c.term)))
-        })
-        .collect()
 }
 
 /// The Lipschitz term of `problem`'s body on `potentials`.
@@ -164,7 +134,8 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     let (problem, frames, spec) = (inputs.problem, inputs.frames, inputs.spec);
     let encoding = &frames.encoding;
     let vanilla_ae = inputs.autoencoder.autoencoder.export()?;
-    let k = vanilla_ae.decoder.spec().input;
+    let vanilla_decoder = vanilla_ae.decoder.as_mlp()?;
+    let k = vanilla_decoder.spec().input;
     let vanilla_seconds = inputs
         .times
         .0
@@ -175,7 +146,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     report.stage("reduced: cubature");
     let step = (frames.f32s.len() / CUBATURE_SAMPLES).max(1);
     let samples = encoded_samples(frames, &vanilla_ae.encoder, step)?;
-    let cubatures = fit_cubatures(problem, encoding, &vanilla_ae.decoder, &samples, spec.cubature)?;
+    let cubatures = fit_cubatures(problem, encoding, vanilla_decoder, &samples, spec.cubature)?;
     let energies = cubature_energies(problem, &cubatures)?;
     let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
     let term = lipschitz_term(problem, encoding, &potentials);
@@ -257,14 +228,14 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
             decoder: vanilla_ae.decoder.layers().into_iter().cloned().collect(),
             initial_latent: initial(&vanilla_ae.encoder)?,
             training_seconds: vanilla_seconds,
-            lipschitz_estimate: lip(&vanilla_ae.decoder, &vanilla_samples)?,
+            lipschitz_estimate: lip(vanilla_decoder, &vanilla_samples)?,
             losses: inputs.autoencoder.losses.clone(),
         },
         lipschitz: SubspaceData {
             decoder: ours.decoder.layers().into_iter().cloned().collect(),
             initial_latent: initial(&ours.encoder)?,
             training_seconds: vanilla_seconds + lipschitz_seconds,
-            lipschitz_estimate: lip(&ours.decoder, &our_samples)?,
+            lipschitz_estimate: lip(ours.decoder.as_mlp()?, &our_samples)?,
             losses: run.train.losses,
         },
         cubature: cubatures,

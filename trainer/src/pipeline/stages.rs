@@ -1,39 +1,39 @@
 //! The stages of `mochi train` (Li et al. 2025, Sec. 3.2-3.3), each a function from the
 //! values the stages before it made to the values the stages after it need; the pipeline
-//! ([`crate::learn::pipeline`]) calls them in order and times them.
+//! ([`crate::pipeline`]) calls them in order and times them.
 //!
 //! 1. [`generate_dataset`]: the scene's training split, simulated if missing;
 //!    [`encode_training_split`] encodes every frame relative to its boundary conditions.
 //! 2. [`fit_pca`]: PCA of the encoded frames and its error for every size.
-//! 3. [`select_autoencoder`]: autoencoders for the candidate latent sizes in ascending order,
-//!    each initialised with the PCA (Fulton et al. 2019); the first whose RMS reconstruction
-//!    error meets the scene's tolerance is kept (sizes whose PCA error is far above it are
-//!    skipped untrained).
+//! 3. [`select_autoencoder`]: autoencoders of one decoder family for the candidate latent
+//!    sizes in ascending order, each initialised with the PCA (Fulton et al. 2019); the first
+//!    whose RMS reconstruction error meets the scene's tolerance is kept (sizes whose PCA
+//!    error is far above it are skipped untrained); [`pca_autoencoder`] for the linear
+//!    family. [`super::selection`] runs them for every family.
 //! 4. [`train_integrator`]: the latent integrator, self-supervised on the full-space incremental
 //!    potential ([`crate::learn::integrator`]) or supervised on ground-truth latents as a
 //!    baseline ([`crate::learn::supervised`]).
-//! 5. [`write_artifacts`]: both artifacts, with the training summary.
+//! 5. [`super::assemble::write_artifacts`]: both artifacts, with the training summary.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use rand_chacha::ChaCha8Rng;
 
-use crate::artifact::{Artifact, Method, SizeTrial, TrainingSummary};
+use crate::artifact::{Method, SizeTrial};
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 use crate::learn::integrator::PhysicsObjective;
 use crate::learn::network::{
-    rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, IntegratorSpec, LatentIntegrator,
+    rows_to_tensor, tensor_to_rows, Autoencoder, AutoencoderSpec, DecoderShape, IntegratorSpec, LatentIntegrator,
 };
 use crate::learn::pca::{self, Pca};
-use crate::learn::recipe::{LatentSpec, NetworkSpec, Recipe};
+use crate::learn::recipe::{LatentSpec, NetworkSpec};
 use crate::learn::samples::{Augmentation, IntegratorData};
 use crate::learn::sequences::{decoded_rms_error, encode_sequences, EncodedSequence};
 use crate::learn::stretch::EdgeStretch;
 use crate::learn::supervised::SupervisedObjective;
 use crate::learn::train::{self, AdamWConfig, Batch, BatchLoss, CheckpointConfig, TrainConfig};
-use crate::pipeline::assemble::build_artifact;
 use crate::progress::Reporter;
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::trajectory::Trajectory;
@@ -135,7 +135,7 @@ impl PcaFit {
     }
 
     /// The PCA truncated to `k` components (all of them if there are fewer).
-    fn truncated(&self, k: usize) -> TrainerResult<Pca> {
+    pub(crate) fn truncated(&self, k: usize) -> TrainerResult<Pca> {
         Ok(self.full.clone().truncated(k.min(self.full.num_components()))?)
     }
 }
@@ -192,14 +192,44 @@ pub(crate) struct SelectedAutoencoder {
     pub(crate) trials: Vec<SizeTrial>,
 }
 
-/// Stage 3: autoencoders for `sizes` in ascending order until one meets the tolerance (the
-/// last one tried is kept if none does); records each one's seconds in `times`.
+/// The decoder family an autoencoder stage trains: its shape for each latent size, and the
+/// tag of its stage names and checkpoints (empty for the residual MLP of `latent.autoencoder`).
+pub(crate) struct DecoderFamily {
+    /// Shape of the decoder for a latent size.
+    pub(crate) shape: Box<dyn Fn(usize) -> DecoderShape>,
+    /// Tag in stage and checkpoint names (`basis32-m6`), empty for the MLP.
+    pub(crate) tag: String,
+}
+
+impl DecoderFamily {
+    /// The residual MLP of `latent.autoencoder`.
+    pub(crate) fn mlp() -> Self {
+        DecoderFamily {
+            shape: Box::new(|_| DecoderShape::Mlp),
+            tag: String::new(),
+        }
+    }
+
+    /// Name of the autoencoder stage for latent `k` (`autoencoder k=6`,
+    /// `autoencoder basis32-m6 k=4`).
+    pub(crate) fn stage(&self, k: usize) -> String {
+        if self.tag.is_empty() {
+            format!("autoencoder k={k}")
+        } else {
+            format!("autoencoder {} k={k}", self.tag)
+        }
+    }
+}
+
+/// Stage 3: autoencoders of `family` for `sizes` in ascending order until one meets the
+/// tolerance (the last one tried is kept if none does); records each one's seconds in `times`.
 pub(crate) fn select_autoencoder(
     problem: &BuiltScene,
     spec: &LatentSpec,
     frames: &TrainingFrames,
     pca: &PcaFit,
     sizes: &[usize],
+    family: &DecoderFamily,
     work: &Workspace,
     times: &mut StageTimes,
     report: &dyn Reporter,
@@ -232,18 +262,24 @@ pub(crate) fn select_autoencoder(
             ));
             continue;
         }
-        report.stage(&format!("autoencoder k={k}"));
+        report.stage(&family.stage(k));
         let clock = Instant::now();
-        let pca_k = pca.truncated(k)?;
+        let shape = (family.shape)(k);
+        let components = match shape {
+            DecoderShape::Basis { modes, .. } => modes.max(k),
+            DecoderShape::Mlp => k,
+        };
+        let pca_k = pca.truncated(components)?;
         let ae_spec = AutoencoderSpec {
             input: encoding.encoded_len(),
             latent: k,
             hidden: spec.autoencoder.hidden,
             blocks: spec.autoencoder.blocks,
+            shape,
         };
         let mut basis = pca_k.basis.clone();
         // Fewer frames than components: pad with zero directions (never used by the data).
-        basis.resize(k, vec![0.0; encoding.encoded_len()]);
+        basis.resize(components, vec![0.0; encoding.encoded_len()]);
         let ae = Autoencoder::new_pca_init(ae_spec, &pca_k.mean, &basis, spec.seed)?;
         // Runs with the edge-stretch term get their own checkpoints.
         let stretched = if stretch.is_some() {
@@ -251,8 +287,13 @@ pub(crate) fn select_autoencoder(
         } else {
             String::new()
         };
+        let tag = if family.tag.is_empty() {
+            String::new()
+        } else {
+            format!("-{}", family.tag)
+        };
         let config = train_config(
-            &format!("autoencoder-k{k}{stretched}"),
+            &format!("autoencoder{tag}-k{k}{stretched}"),
             &spec.autoencoder,
             spec.seed,
             work,
@@ -299,7 +340,7 @@ pub(crate) fn select_autoencoder(
             ae = initial;
         }
         let error = rms(&ae)?;
-        times.record_resumed(format!("autoencoder k={k}"), clock, trained.earlier_seconds);
+        times.record_resumed(family.stage(k), clock, trained.earlier_seconds);
         trials.push(SizeTrial {
             size: k as u32,
             pca_error: pca.error(k),
@@ -330,7 +371,40 @@ pub(crate) fn select_autoencoder(
     })
 }
 
+/// Stage 3 for the linear family: the PCA with `m` components as a basis decoder, not trained
+/// (among linear decoders PCA is the least-squares optimum).
+pub(crate) fn pca_autoencoder(
+    spec: &LatentSpec,
+    frames: &TrainingFrames,
+    pca: &PcaFit,
+    m: usize,
+    family: &DecoderFamily,
+) -> TrainerResult<SelectedAutoencoder> {
+    let encoded = frames.encoding.encoded_len();
+    let pca_m = pca.truncated(m)?;
+    let mut basis = pca_m.basis.clone();
+    basis.resize(m, vec![0.0; encoded]);
+    let ae_spec = AutoencoderSpec {
+        input: encoded,
+        latent: m,
+        hidden: spec.autoencoder.hidden,
+        blocks: spec.autoencoder.blocks,
+        shape: (family.shape)(m),
+    };
+    Ok(SelectedAutoencoder {
+        autoencoder: Autoencoder::new_pca_init(ae_spec, &pca_m.mean, &basis, spec.seed)?,
+        losses: Vec::new(),
+        pca: pca_m,
+        trials: vec![SizeTrial {
+            size: m as u32,
+            pca_error: pca.error(m),
+            autoencoder_error: Some(pca.error(m)),
+        }],
+    })
+}
+
 /// A trained integrator.
+#[derive(Clone)]
 pub(crate) struct TrainedIntegrator {
     /// How it was trained.
     pub(crate) method: Method,
@@ -342,6 +416,15 @@ pub(crate) struct TrainedIntegrator {
     pub(crate) earlier_seconds: f64,
 }
 
+/// The width of an integrator and the tag of its checkpoints (empty for the scene's own
+/// `latent.integrator` on the MLP decoder; `-w64-linear` and the like for other candidates).
+pub(crate) struct IntegratorShape {
+    /// Hidden width.
+    pub(crate) width: usize,
+    /// Added to the checkpoint name.
+    pub(crate) tag: String,
+}
+
 /// Stage 4: the latent integrator on `data`, trained by `method`: self-supervised on the
 /// physics objective or supervised on ground-truth latents.
 pub(crate) fn train_integrator(
@@ -350,13 +433,14 @@ pub(crate) fn train_integrator(
     data: &IntegratorData<'_>,
     ae: &Autoencoder,
     method: Method,
+    shape: &IntegratorShape,
     work: &Workspace,
 ) -> TrainerResult<TrainedIntegrator> {
     let k = data.latent;
     let int_spec = IntegratorSpec {
         latent: k,
         bc: data.bc_len,
-        hidden: spec.integrator.hidden,
+        hidden: shape.width,
         blocks: spec.integrator.blocks,
     };
     let augmentation = Augmentation {
@@ -377,7 +461,7 @@ pub(crate) fn train_integrator(
         String::new()
     };
     let config = train_config(
-        &format!("integrator-{}-k{k}{rolled}", method.label()),
+        &format!("integrator-{}{}-k{k}{rolled}", method.label(), shape.tag),
         &spec.integrator,
         spec.seed + 1,
         work,
@@ -402,89 +486,6 @@ pub(crate) fn train_integrator(
         losses: trained.losses,
         earlier_seconds: trained.earlier_seconds,
     })
-}
-
-/// Everything the artifacts are made of.
-pub(crate) struct Trained<'a> {
-    /// The recipe trained.
-    pub(crate) recipe: &'a Recipe,
-    /// Its scene, built.
-    pub(crate) problem: &'a BuiltScene,
-    /// The encoded training split.
-    pub(crate) frames: &'a TrainingFrames,
-    /// The kept autoencoder.
-    pub(crate) autoencoder: &'a SelectedAutoencoder,
-    /// The integrator's training set.
-    pub(crate) data: &'a IntegratorData<'a>,
-}
-
-/// Stage 5: one artifact per trained integrator, each with the training summary (`times`
-/// so far), written into `out_dir` (the first as the model, the second as its supervised
-/// baseline); returns them in order.
-pub(crate) fn write_artifacts(
-    trained: &Trained<'_>,
-    integrators: &[TrainedIntegrator],
-    times: &StageTimes,
-    out_dir: &Path,
-) -> TrainerResult<Vec<Artifact>> {
-    let (problem, frames, selected) = (trained.problem, trained.frames, trained.autoencoder);
-    let per_vertex = frames.encoding.values_per_vertex();
-    let max_radius = frames
-        .f64s
-        .iter()
-        .flat_map(|q| {
-            q.chunks_exact(per_vertex)
-                .map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt())
-        })
-        .fold(0.0, f64::max);
-    let masses = problem.simulator.masses().to_vec();
-    let dim = problem.mesh.dim;
-    let max_kinetic_energy = frames
-        .sequences
-        .iter()
-        .flat_map(|s| {
-            s.trajectory
-                .positions
-                .windows(2)
-                .map(|w| mochi_sim::measure::kinetic_energy(&masses, &w[1], &w[0], problem.scene.dt, dim))
-        })
-        .fold(0.0, f64::max);
-    let mut artifacts = Vec::new();
-    for trained_integrator in integrators {
-        let summary = TrainingSummary {
-            tolerance: trained.recipe.latent.tolerance,
-            trials: selected.trials.clone(),
-            stage_seconds: times.0.clone(),
-            final_loss: trained_integrator.losses.last().copied().unwrap_or(f64::NAN),
-            samples: trained.data.inputs.len() as u64,
-            max_radius,
-            max_kinetic_energy,
-        };
-        artifacts.push(build_artifact(
-            trained.recipe,
-            problem,
-            &frames.encoding,
-            &selected.autoencoder,
-            &trained_integrator.integrator,
-            trained.data,
-            &selected.pca,
-            trained_integrator.method,
-            summary,
-        )?);
-    }
-    let (model_path, baseline_path) = artifact_paths(out_dir, &problem.scene.name);
-    for (artifact, path) in artifacts.iter().zip([model_path, baseline_path]) {
-        artifact.write(&path)?;
-    }
-    Ok(artifacts)
-}
-
-/// The artifact paths of a scene in `out_dir`: the model and its supervised baseline.
-pub fn artifact_paths(out_dir: &Path, scene: &str) -> (PathBuf, PathBuf) {
-    (
-        out_dir.join(format!("{scene}.mochi")),
-        out_dir.join(format!("{scene}.supervised.mochi")),
-    )
 }
 
 fn train_config(name: &str, net: &NetworkSpec, seed: u64, work: &Workspace) -> TrainConfig {
@@ -526,6 +527,7 @@ mod tests {
             latent: 1,
             hidden: 16,
             blocks: 1,
+            shape: DecoderShape::Mlp,
         };
         let stretch = EdgeStretch::new(&beam.problem.mesh, &beam.encoding).unwrap();
         let trained = |weight: f64| {

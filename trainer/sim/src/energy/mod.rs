@@ -21,7 +21,7 @@ pub mod tet;
 pub mod tri2d;
 
 #[cfg(test)]
-mod fd;
+pub(crate) mod fd;
 pub(crate) mod psd;
 
 use rayon::prelude::*;

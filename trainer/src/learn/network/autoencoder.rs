@@ -1,18 +1,20 @@
-//! The autoencoder (Sec. 3.2, Eq. 2): an encoder and a decoder [`ResMlp`], optionally
-//! initialised as the PCA of the data.
+//! The autoencoder (Sec. 3.2, Eq. 2): an encoder [`ResMlp`] and a [`Decoder`] (a residual MLP,
+//! or a linear basis after a small one), optionally initialised as the PCA of the data.
 
 use candle_core::{Tensor, Var};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use super::decoder::{Decoder, DecoderShape, FrozenDecoder};
 use super::error::{invalid, ModelResult};
 use super::exported::ExportedMlp;
 use super::layout::MlpSpec;
 use super::mlp::{random_values, Dense, ResMlp};
 
-/// Sizes of a symmetric autoencoder: the encoder is a [`ResMlp`] `input -> latent`, the
-/// decoder one `latent -> input`, both with the same `hidden` width and `blocks`.
+/// Sizes of an autoencoder: the encoder is a [`ResMlp`] `input -> latent`; the decoder one
+/// `latent -> input` with the same `hidden` width and `blocks` ([`DecoderShape::Mlp`]), or a
+/// basis after a smaller one ([`DecoderShape::Basis`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub(crate) struct AutoencoderSpec {
     /// Length of an encoded state (the full-space vector).
@@ -23,6 +25,9 @@ pub(crate) struct AutoencoderSpec {
     pub hidden: usize,
     /// Residual blocks in each of encoder and decoder.
     pub blocks: usize,
+    /// The decoder's shape.
+    #[serde(default)]
+    pub shape: DecoderShape,
 }
 
 impl AutoencoderSpec {
@@ -36,7 +41,7 @@ impl AutoencoderSpec {
         }
     }
 
-    /// Sizes of the decoder.
+    /// Sizes of the decoder when it is a residual MLP.
     pub fn decoder(&self) -> MlpSpec {
         MlpSpec {
             input: self.latent,
@@ -52,7 +57,7 @@ impl AutoencoderSpec {
 pub(crate) struct Autoencoder {
     spec: AutoencoderSpec,
     encoder: ResMlp,
-    decoder: ResMlp,
+    decoder: Decoder,
 }
 
 /// A frozen autoencoder.
@@ -61,7 +66,7 @@ pub(crate) struct ExportedAutoencoder {
     /// The encoder, `input -> latent`.
     pub encoder: ExportedMlp,
     /// The decoder, `latent -> input`.
-    pub decoder: ExportedMlp,
+    pub decoder: FrozenDecoder,
 }
 
 impl Autoencoder {
@@ -70,7 +75,7 @@ impl Autoencoder {
     pub fn new(spec: AutoencoderSpec, seed: u64) -> ModelResult<Self> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let encoder = ResMlp::new(spec.encoder(), &mut rng)?;
-        let decoder = ResMlp::new(spec.decoder(), &mut rng)?;
+        let decoder = Decoder::Mlp(ResMlp::new(spec.decoder(), &mut rng)?);
         Ok(Autoencoder { spec, encoder, decoder })
     }
 
@@ -88,6 +93,10 @@ impl Autoencoder {
     /// output layer has columns `B^T`, `-B^T`, zeros, and bias `mean`. So `D(E(x))` is the PCA
     /// reconstruction up to f32 round-off, while the random units give training room to bend
     /// the subspace; their output weights start at zero and receive gradient at once.
+    ///
+    /// A basis decoder ([`DecoderShape::Basis`]) is built by [`Decoder::basis_from_pca`]
+    /// instead, from the first `modes` components: it also starts as the PCA with `latent`
+    /// components.
     pub(crate) fn new_pca_init(
         spec: AutoencoderSpec,
         pca_mean: &[f64],
@@ -148,6 +157,10 @@ impl Autoencoder {
             Dense::from_values(k, hidden, w, vec![0.0; k])
         })?;
 
+        if let DecoderShape::Basis { .. } = spec.shape {
+            let decoder = Decoder::basis_from_pca(k, spec.shape, pca_mean, pca_basis, &mut rng)?;
+            return Ok(Autoencoder { spec, encoder, decoder });
+        }
         // Decoder input layer: rows +I, -I (zero bias), then random rows.
         let (mut w, mut b) = random_values(hidden, k, &mut rng);
         for r in 0..2 * k {
@@ -168,6 +181,7 @@ impl Autoencoder {
             let bias = pca_mean.iter().map(|&m| m as f32).collect();
             Dense::from_values(n, hidden, w, bias)
         })?;
+        let decoder = Decoder::Mlp(decoder);
         Ok(Autoencoder { spec, encoder, decoder })
     }
 
@@ -175,8 +189,15 @@ impl Autoencoder {
     /// network it was exported from unchanged).
     pub(crate) fn from_exported(spec: AutoencoderSpec, frozen: &ExportedAutoencoder) -> ModelResult<Self> {
         let encoder = ResMlp::from_exported(&frozen.encoder)?;
-        let decoder = ResMlp::from_exported(&frozen.decoder)?;
-        if frozen.encoder.spec() != spec.encoder() || frozen.decoder.spec() != spec.decoder() {
+        let decoder = Decoder::from_frozen(&frozen.decoder)?;
+        let decoder_fits = match (&frozen.decoder, spec.shape) {
+            (FrozenDecoder::Mlp(m), DecoderShape::Mlp) => m.spec() == spec.decoder(),
+            (FrozenDecoder::Basis { .. }, DecoderShape::Basis { .. }) => {
+                frozen.decoder.latent() == spec.latent && frozen.decoder.output() == spec.input
+            }
+            _ => false,
+        };
+        if frozen.encoder.spec() != spec.encoder() || !decoder_fits {
             return invalid(format!("the frozen networks do not have the sizes {spec:?}"));
         }
         Ok(Autoencoder { spec, encoder, decoder })
@@ -188,7 +209,7 @@ impl Autoencoder {
     }
 
     /// The decoder network.
-    pub fn decoder(&self) -> &ResMlp {
+    pub(crate) fn decoder(&self) -> &Decoder {
         &self.decoder
     }
 
@@ -227,7 +248,7 @@ impl Autoencoder {
     }
 
     /// Freezes the current weights.
-    pub fn export(&self) -> ModelResult<ExportedAutoencoder> {
+    pub(crate) fn export(&self) -> ModelResult<ExportedAutoencoder> {
         Ok(ExportedAutoencoder {
             encoder: self.encoder.export()?,
             decoder: self.decoder.export()?,
@@ -251,6 +272,7 @@ mod tests {
             latent: 3,
             hidden: 16,
             blocks: 2,
+            shape: DecoderShape::Mlp,
         };
         let ae = Autoencoder::new(spec, 3).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(4);
@@ -264,10 +286,7 @@ mod tests {
             .iter()
             .map(|x| forward_exported(&exported.encoder, x).unwrap())
             .collect();
-        let y_plain: Vec<Vec<f32>> = z
-            .iter()
-            .map(|z| forward_exported(&exported.decoder, z).unwrap())
-            .collect();
+        let y_plain: Vec<Vec<f32>> = z.iter().map(|z| exported.decoder.decode(z).unwrap()).collect();
         assert!(max_relative_difference(&z_plain, &z) < 1e-5);
         assert!(max_relative_difference(&y_plain, &y) < 1e-5);
     }
@@ -298,6 +317,7 @@ mod tests {
             latent: k,
             hidden: 16,
             blocks: 2,
+            shape: DecoderShape::Mlp,
         };
         let ae = Autoencoder::new_pca_init(spec, &mean, &basis, 9).unwrap();
         let x = as_tensor(&data);
@@ -344,6 +364,7 @@ mod tests {
             latent: 2,
             hidden: 4,
             blocks: 1,
+            shape: DecoderShape::Mlp,
         };
         let basis = vec![vec![1.0, 0.0, 0.0, 0.0], vec![0.0, 1.0, 0.0, 0.0]];
         let mean = vec![0.0; 4];

@@ -19,7 +19,7 @@ pub struct DenseLayer {
 }
 
 impl DenseLayer {
-    fn check(&self, what: &str) -> ModelResult<()> {
+    pub(super) fn check(&self, what: &str) -> ModelResult<()> {
         if self.rows == 0 || self.cols == 0 {
             return invalid(format!("{what}: empty layer {}x{}", self.rows, self.cols));
         }
@@ -36,7 +36,7 @@ impl DenseLayer {
     }
 
     /// Writes `W x + b` into `y` (`x.len() == cols`, `y.len() == rows`, checked by callers).
-    fn apply<T: Real>(&self, x: &[T], y: &mut [T]) {
+    pub(super) fn apply<T: Real>(&self, x: &[T], y: &mut [T]) {
         for (r, out) in y.iter_mut().enumerate() {
             let row = &self.weights[r * self.cols..(r + 1) * self.cols];
             *out = T::from_f32(self.bias[r]) + row.iter().zip(x).map(|(&w, &v)| T::from_f32(w) * v).sum::<T>();

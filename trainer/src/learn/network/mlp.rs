@@ -11,7 +11,7 @@ use super::layout::MlpSpec;
 
 /// A trainable dense layer `y = x W^T + b` on row-major batches `x: (batch, cols)`.
 #[derive(Debug, Clone)]
-pub(super) struct Dense {
+pub(crate) struct Dense {
     weight: Var,
     bias: Var,
 }
@@ -25,23 +25,23 @@ impl Dense {
     }
 
     /// PyTorch's default law: weights and biases uniform in `±1/sqrt(cols)`.
-    fn random(rows: usize, cols: usize, rng: &mut ChaCha8Rng) -> ModelResult<Self> {
+    pub(super) fn random(rows: usize, cols: usize, rng: &mut ChaCha8Rng) -> ModelResult<Self> {
         let (weights, bias) = random_values(rows, cols, rng);
         Self::from_values(rows, cols, weights, bias)
     }
 
-    fn zeros(rows: usize, cols: usize) -> ModelResult<Self> {
+    pub(super) fn zeros(rows: usize, cols: usize) -> ModelResult<Self> {
         Self::from_values(rows, cols, vec![0.0; rows * cols], vec![0.0; rows])
     }
 
-    fn forward(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+    pub(super) fn forward(&self, x: &Tensor) -> candle_core::Result<Tensor> {
         x.matmul(&self.weight.as_tensor().t()?)?
             .broadcast_add(self.bias.as_tensor())
     }
 
     /// As [`Dense::forward`], with the weights treated as constants: gradients still flow to
     /// `x` but none are computed for the weights.
-    fn forward_frozen(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+    pub(super) fn forward_frozen(&self, x: &Tensor) -> candle_core::Result<Tensor> {
         x.matmul(&self.weight.as_tensor().detach().t()?)?
             .broadcast_add(&self.bias.as_tensor().detach())
     }
@@ -56,7 +56,7 @@ impl Dense {
         self.bias.as_tensor()
     }
 
-    fn export(&self) -> ModelResult<DenseLayer> {
+    pub(super) fn export(&self) -> ModelResult<DenseLayer> {
         let (rows, cols) = self.weight.as_tensor().dims2()?;
         Ok(DenseLayer {
             rows,
@@ -66,7 +66,7 @@ impl Dense {
         })
     }
 
-    fn parameters(&self, prefix: &str, out: &mut Vec<(String, Var)>) {
+    pub(super) fn parameters(&self, prefix: &str, out: &mut Vec<(String, Var)>) {
         out.push((format!("{prefix}.weight"), self.weight.clone()));
         out.push((format!("{prefix}.bias"), self.bias.clone()));
     }

@@ -34,10 +34,12 @@
 //! `error`: what can go wrong; `layout`: the sizes of a residual MLP and its activation;
 //! `exported`: frozen networks and their plain-Rust forward pass; `mlp`: the trainable
 //! residual MLP in candle; `autoencoder` and `integrator`: the two networks built from it;
+//! `decoder`: a residual MLP or a linear basis after a small one, frozen and trainable;
 //! `tensor`: rows to and from candle tensors; `derivatives`: a frozen network in `f64` with exact
 //! Jacobians and second derivatives; `jet`: derivatives along directions inside candle's graph.
 
 mod autoencoder;
+mod decoder;
 pub mod derivatives;
 pub mod error;
 mod exported;
@@ -50,6 +52,8 @@ mod tensor;
 pub(crate) mod test_support;
 
 pub(crate) use autoencoder::{Autoencoder, AutoencoderSpec};
+pub(crate) use decoder::Decoder;
+pub use decoder::{DecoderShape, FrozenDecoder};
 pub use error::{ModelResult, NetworkError};
 pub use exported::{forward_exported, DenseLayer, ExportedBlock, ExportedMlp};
 pub use integrator::ExportedIntegrator;

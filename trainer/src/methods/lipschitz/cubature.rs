@@ -6,10 +6,12 @@
 //! `J_i^T grad P_e(f(z_i))` (`r` values), each sample's rows divided by the norm of their sum
 //! over all elements, so every sample counts alike.
 
-use mochi_sim::cubature::{fit_cubature, ColumnMatrix, Cubature, CubatureFit, CubatureSettings};
+use mochi_sim::cubature::{fit_cubature, ColumnMatrix, Cubature, CubatureEnergy, CubatureFit, CubatureSettings};
 use mochi_sim::energy::{gather, Local, StencilEnergy, Want, MAX_DOF};
+use mochi_sim::BuiltScene;
 
 use super::loss::LatentSample;
+use crate::artifact::reduced::CubatureData;
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 use crate::learn::network::ExportedMlp;
@@ -107,4 +109,28 @@ pub fn fit_subspace_cubature(
 ) -> TrainerResult<(Cubature, CubatureFit)> {
     let a = cubature_matrix(decoder, encoding, energy, samples)?;
     fit_cubature(&a, settings).map_err(|e| TrainerError::invalid(format!("cubature of `{}`: {e}", energy.name())))
+}
+
+/// The potential of the Lipschitz loss: each elastic term through its cubature.
+pub(crate) fn cubature_energies<'a>(
+    problem: &'a BuiltScene,
+    cubatures: &[CubatureData],
+) -> TrainerResult<Vec<CubatureEnergy<'a>>> {
+    cubatures
+        .iter()
+        .map(|c| {
+            let energy = problem
+                .simulator
+                .potentials()
+                .iter()
+                .find(|p| p.name() == c.term)
+                .ok_or_else(|| TrainerError::invalid(format!("the scene has no energy term `{}`", c.term)))?;
+            let rule = mochi_sim::cubature::Cubature {
+                elements: c.elements.clone(),
+                weights: c.weights.clone(),
+            };
+            CubatureEnergy::new(energy.as_ref(), rule)
+                .map_err(|e| TrainerError::invalid(format!("cubature of `{}`: {e}", c.term)))
+        })
+        .collect()
 }

@@ -59,9 +59,14 @@ fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
         diagonal: beam.problem.mesh.rest_diagonal(),
     };
     let batch = term
-        .batch(beam.ae.decoder(), None, &exported.decoder, &samples)
+        .batch(
+            beam.ae.decoder().as_mlp().unwrap(),
+            None,
+            exported.decoder.as_mlp().unwrap(),
+            &samples,
+        )
         .unwrap();
-    let hessians = term.hessians(&exported.decoder, &samples).unwrap();
+    let hessians = term.hessians(exported.decoder.as_mlp().unwrap(), &samples).unwrap();
     assert_eq!(batch.loss, lipschitz_loss(&hessians, &samples));
     assert!(batch.loss > 0.0);
     let grads = batch.surrogate.backward().unwrap();
@@ -77,7 +82,7 @@ fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
             .unwrap()[index] as f64;
         let delta = 1e-3f32;
         let loss_at = |d: f32| {
-            let mlp = nudged(&exported.decoder, layer, index, d);
+            let mlp = nudged(exported.decoder.as_mlp().unwrap(), layer, index, d);
             lipschitz_loss(&term.hessians(&mlp, &samples).unwrap(), &samples)
         };
         let fd = (loss_at(delta) - loss_at(-delta)) / (2.0 * delta as f64);
@@ -119,8 +124,14 @@ fn the_cubature_reproduces_energy_and_reduced_force_on_held_out_samples() {
         tolerance: 1e-4,
         ..CubatureSettings::default()
     };
-    let (cubature, fit) =
-        fit_subspace_cubature(&exported.decoder, &beam.encoding, elastic, &training, &settings).unwrap();
+    let (cubature, fit) = fit_subspace_cubature(
+        exported.decoder.as_mlp().unwrap(),
+        &beam.encoding,
+        elastic,
+        &training,
+        &settings,
+    )
+    .unwrap();
     assert!(
         cubature.elements.len() < elastic.len(),
         "{} of {}",
@@ -131,7 +142,8 @@ fn the_cubature_reproduces_energy_and_reduced_force_on_held_out_samples() {
     let approx = CubatureEnergy::new(elastic, cubature).unwrap();
     let full: [&dyn StencilEnergy; 1] = [elastic];
     let cub: [&dyn StencilEnergy; 1] = [&approx];
-    let mut subspace = DecoderSubspace::new(&exported.decoder, &beam.encoding, &held_out[0].targets).unwrap();
+    let mut subspace =
+        DecoderSubspace::new(exported.decoder.as_mlp().unwrap(), &beam.encoding, &held_out[0].targets).unwrap();
     let r = subspace.latent_len();
     let mut buffers = ObjectiveBuffers::new(subspace.state_len(), r);
     let (mut worst_energy, mut worst_force) = (0.0f64, 0.0f64);

@@ -107,8 +107,13 @@ pub(crate) fn optimise_supervised(
     let first: Vec<usize> = (0..data.len().min(config.batch_size)).collect();
     let exported = autoencoder.export().map_err(|e| TrainError::Invalid(e.to_string()))?;
     let start_samples = samples_of(&exported.encoder, &first)?;
+    let invalid = |e: crate::learn::network::NetworkError| TrainError::Invalid(e.to_string());
+    let (decoder, frozen) = (
+        autoencoder.decoder().as_mlp().map_err(invalid)?,
+        exported.decoder.as_mlp().map_err(invalid)?,
+    );
     let hessians = term
-        .hessians(&exported.decoder, &start_samples)
+        .hessians(frozen, &start_samples)
         .map_err(|e| TrainError::Invalid(e.to_string()))?;
     let ls0 = super::loss::lipschitz_loss(&hessians, &start_samples);
     let lc0 = train::mean_reconstruction_error(autoencoder, data, 256)?;
@@ -124,7 +129,7 @@ pub(crate) fn optimise_supervised(
         let exported = autoencoder.export().map_err(candle_err)?;
         let samples = samples_of(&exported.encoder, batch.indices)?;
         let lip = term
-            .batch(autoencoder.decoder(), None, &exported.decoder, &samples)
+            .batch(decoder, None, exported.decoder.as_mlp().map_err(candle_err)?, &samples)
             .map_err(candle_err)?;
         let value = reconstruction.to_scalar::<f32>()? as f64 + lambda * lip.loss;
         let objective = (reconstruction + lip.surrogate.affine(lambda, 0.0)?)?;

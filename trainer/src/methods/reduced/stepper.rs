@@ -11,6 +11,7 @@
 //! generalised force moves the body by a tolerance's fraction of its diagonal per step.
 
 use mochi_sim::energy::StencilEnergy;
+use mochi_sim::BuiltScene;
 
 use super::lbfgs::{lbfgs, LbfgsWorkspace};
 use super::newton::{newton, NewtonWorkspace};
@@ -227,4 +228,10 @@ impl ReducedStepper {
         }
         Ok(report)
     }
+}
+
+/// The reduced solver's objective scale for `problem`'s body.
+pub(crate) fn scene_objective_scale(problem: &BuiltScene) -> f64 {
+    let mass: f64 = problem.simulator.masses().iter().sum();
+    objective_scale(mass, problem.mesh.rest_diagonal(), problem.scene.dt)
 }

@@ -23,7 +23,7 @@ fn subspace_at(beam: &mut TinyBeam, frame: usize) -> (DecoderSubspace, Vec<f64>)
     randomise(&block, 0.3, &mut rng);
     let exported = beam.ae.export().unwrap();
     let targets = beam.sequences[0].targets[frame].clone();
-    let subspace = DecoderSubspace::new(&exported.decoder, &beam.encoding, &targets).unwrap();
+    let subspace = DecoderSubspace::new(exported.decoder.as_mlp().unwrap(), &beam.encoding, &targets).unwrap();
     let q: Vec<f32> = beam.sequences[0].encoded[frame].iter().map(|&v| v as f32).collect();
     let z = crate::learn::network::forward_exported(&exported.encoder, &q).unwrap();
     (subspace, z.iter().map(|&v| v as f64).collect())

@@ -1,0 +1,25 @@
+//! IPC-style contact primitives (Li et al. 2020; `docs/design.md`, decision 8): squared
+//! distances between points, edges and triangles with their exact derivatives and
+//! closest-feature classification, the edge-edge mollifier, the log barrier on squared
+//! distances with its adaptive stiffness, the building blocks of lagged smoothed friction,
+//! the contact surface of a mesh, the broad phase that finds candidate pairs, continuous
+//! collision detection that bounds every step, and an exact intersection check.
+//!
+//! Conventions follow IPC's toolkit (squared distances, `b(d^2, dhat^2)`, tangent bases and
+//! closest-point coordinates) so every quantity compares with it one to one
+//! (`scripts/check-ipctk.sh`). Local vectors are vertex-major as in [`crate::energy`].
+
+pub mod barrier;
+pub mod broad_phase;
+pub mod ccd;
+pub mod distance;
+pub mod friction;
+pub mod intersection;
+pub mod stiffness;
+pub mod surface;
+
+#[cfg(test)]
+mod tests;
+
+pub use barrier::{barrier, barrier_first_derivative, barrier_second_derivative};
+pub use surface::ContactSurface;
