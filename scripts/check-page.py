@@ -54,13 +54,13 @@ class Browser:
         os.close(from_browser)
         self.next_id = 0
         self.buffer = b""
-        self.session = None
+        self.attached_id = None
 
-    def call(self, method, params=None, session=True):
+    def call(self, method, params=None, to_target=True):
         self.next_id += 1
         message = {"id": self.next_id, "method": method, "params": params or {}}
-        if session and self.session:
-            message["sessionId"] = self.session
+        if to_target and self.attached_id:
+            message["sessionId"] = self.attached_id
         os.write(self.commands, json.dumps(message).encode() + b"\0")
         while True:
             while b"\0" not in self.buffer:
@@ -76,9 +76,9 @@ class Browser:
                 return reply.get("result", {})
 
     def open(self, url):
-        target = self.call("Target.createTarget", {"url": "about:blank"}, session=False)["targetId"]
-        self.session = self.call("Target.attachToTarget", {"targetId": target, "flatten": True},
-                                 session=False)["sessionId"]
+        target = self.call("Target.createTarget", {"url": "about:blank"}, to_target=False)["targetId"]
+        self.attached_id = self.call("Target.attachToTarget", {"targetId": target, "flatten": True},
+                                 to_target=False)["sessionId"]
         self.call("Page.enable")
         self.call("Page.navigate", {"url": url})
 
@@ -95,7 +95,7 @@ class Browser:
 
     def close(self):
         try:
-            self.call("Browser.close", session=False)
+            self.call("Browser.close", to_target=False)
         except (RuntimeError, OSError):
             pass
         try:
