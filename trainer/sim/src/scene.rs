@@ -494,6 +494,7 @@ impl Scene {
             scheme: self.integrator,
             settings: self.newton,
             length_scale: mesh.rest_diagonal(),
+            contact: None,
         });
         let warnings = self.region_warnings(&mesh);
         Ok(BuiltScene {
