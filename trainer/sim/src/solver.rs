@@ -8,12 +8,14 @@
 //! reused across iterations and steps.
 
 mod contact;
+#[cfg(test)]
+mod contact_tests;
 mod hessian;
 
-pub use contact::{ContactConfig, ContactObstacle, ContactSettings};
-use contact::Contact;
 use crate::energy::{self, inertia::Inertia, StencilEnergy};
 pub use crate::error::StepError;
+use contact::Contact;
+pub use contact::{ContactConfig, ContactObstacle, ContactSettings};
 use hessian::{HessianPattern, NO_SLOT};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -226,6 +228,17 @@ impl Simulator {
         &mut self.potentials
     }
 
+    /// The contact surface (body vertices first, then the obstacles') and its positions at
+    /// the current state, if the simulator has contact.
+    pub fn contact_state(&self) -> Option<(&crate::contact::ContactSurface, Vec<f64>)> {
+        self.contact.as_ref().map(|c| (c.surface(), c.extended(&self.x)))
+    }
+
+    /// The current barrier stiffness (0 without contact or before the first solve).
+    pub fn contact_stiffness(&self) -> f64 {
+        self.contact.as_ref().map_or(0.0, Contact::kappa)
+    }
+
     /// Resets the state to positions `x` at rest.
     pub fn reset(&mut self, x: &[f64]) {
         self.restart(x, x);
@@ -283,7 +296,9 @@ impl Simulator {
             ((0..self.x.len()).map(|k| self.x[k] + h * self.v[k]).collect(), h * h)
         };
         self.inertia.set_target(&xhat);
-        let mut x = xhat;
+        // With contact, Newton starts from the last positions (intersection-free, which the
+        // prediction need not be), as IPC does; CCD then keeps every iterate so.
+        let mut x = if self.contact.is_some() { self.x.clone() } else { xhat };
         self.place_fixed(&mut x, targets);
         let mut report = self.minimize(&mut x, 1.0, weight, h * self.length_scale, Some(h))?;
         let v_new: Vec<f64> = if bdf2 {
@@ -590,4 +605,3 @@ impl Simulator {
         }
     }
 }
-

@@ -67,7 +67,10 @@ impl ContactSettings {
             return Err(("dhat", format!("must be positive and finite, got {}", self.dhat)));
         }
         if !(self.friction.is_finite() && self.friction >= 0.0) {
-            return Err(("friction", format!("must be non-negative and finite, got {}", self.friction)));
+            return Err((
+                "friction",
+                format!("must be non-negative and finite, got {}", self.friction),
+            ));
         }
         if !(self.epsv.is_finite() && self.epsv > 0.0) {
             return Err(("epsv", format!("must be positive and finite, got {}", self.epsv)));
@@ -234,7 +237,13 @@ impl Contact {
         self.kappa = self.kappa.max(init.kappa).min(init.max);
         self.prev_min_d2 = self.barrier.min_squared_distance(&ext);
         self.friction = friction_dt.filter(|_| self.settings.friction > 0.0).map(|dt| {
-            FrictionPotential::lagged(&self.barrier, &ext, self.kappa, self.settings.friction, self.settings.epsv * dt)
+            FrictionPotential::lagged(
+                &self.barrier,
+                &ext,
+                self.kappa,
+                self.settings.friction,
+                self.settings.epsv * dt,
+            )
         });
     }
 
@@ -295,7 +304,10 @@ impl Contact {
     pub(super) fn add_gradient(&self, x: &[f64], grad: &mut [f64]) -> f64 {
         let ext = self.extended(x);
         let mut g = vec![0.0; ext.len()];
-        let e = self.terms().map(|(t, w)| energy::add_gradient(t, w, &ext, &mut g)).sum();
+        let e = self
+            .terms()
+            .map(|(t, w)| energy::add_gradient(t, w, &ext, &mut g))
+            .sum();
         grad.iter_mut().zip(&g).for_each(|(a, b)| *a += b);
         e
     }

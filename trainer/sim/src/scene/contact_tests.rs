@@ -1,0 +1,124 @@
+//! Scenes with IPC contact: the `[contact]` table's errors, the shipped drop scene, and a
+//! small drop that stays intersection-free, uninverted and converged, and comes to rest.
+
+use crate::contact::intersection::has_intersections;
+use crate::energy::tet::signed_volume;
+use crate::mesh::Elements;
+use crate::scene::Scene;
+use std::path::Path;
+
+/// The shipped `ball-drop` scene with the body shrunk to 2 x 2 x 2 cells.
+fn small_drop() -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/ball-drop.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut scene = Scene::parse(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    if let crate::scene::MeshSpec::Box { cells, .. } = &mut scene.mesh {
+        *cells = [2, 2, 2];
+    }
+    scene
+}
+
+#[test]
+fn a_small_drop_never_intersects_never_inverts_converges_and_comes_to_rest() {
+    let scene = small_drop();
+    let mut problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+    let Elements::Tets(tets) = problem.mesh.elements.clone() else {
+        panic!("a tet body")
+    };
+    let ground_top = match &scene.contact.as_ref().unwrap().obstacles[0] {
+        crate::scene::ObstacleMesh::Box { max, .. } => max[1],
+        other => panic!("{other:?}"),
+    };
+    let sim = &mut problem.simulator;
+    let frames = 90;
+    let mut speeds = Vec::new();
+    for frame in 1..=frames {
+        let report = sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        assert!(report.converged, "frame {frame}: Newton did not converge: {report:?}");
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
+        let x = sim.positions();
+        for t in &tets {
+            let p = t.map(|v| [x[3 * v], x[3 * v + 1], x[3 * v + 2]]);
+            assert!(signed_volume(p) > 0.0, "frame {frame}: inverted element {t:?}");
+        }
+        let lowest = x.chunks(3).map(|p| p[1]).fold(f64::INFINITY, f64::min);
+        assert!(lowest > ground_top, "frame {frame}: below the ground");
+        speeds.push(
+            sim.velocities()
+                .chunks(3)
+                .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+                .fold(0.0, f64::max),
+        );
+    }
+    // It reached the ground (the fall is 5 cm) and rests there.
+    let x = sim.positions();
+    let lowest = x.chunks(3).map(|p| p[1]).fold(f64::INFINITY, f64::min);
+    assert!(
+        lowest - ground_top < 2.0 * scene.contact.as_ref().unwrap().dhat,
+        "rests {lowest} above the ground"
+    );
+    let peak = speeds.iter().copied().fold(0.0, f64::max);
+    let last = speeds[frames - 10..].iter().copied().fold(0.0, f64::max);
+    assert!(peak > 0.5, "peak speed {peak}");
+    assert!(last < 1e-2, "still moving at {last} m/s over the last 10 frames");
+}
+
+#[test]
+fn the_shipped_drop_scene_builds_with_contact() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/ball-drop.toml");
+    let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let c = scene.contact.as_ref().expect("a [contact] table");
+    assert!(c.friction > 0.0 && !c.obstacles.is_empty());
+    let problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+    let (surface, ext) = problem.simulator.contact_state().unwrap();
+    assert!(!has_intersections(surface, &ext));
+    assert_eq!(
+        ext.len(),
+        problem.mesh.rest.len() + 3 * 8,
+        "the body and the ground's 8 corners"
+    );
+}
+
+#[test]
+fn contact_table_defaults_and_errors_name_the_file_and_field() {
+    let plain = r#"
+name = "plain"
+[mesh]
+type = "box"
+min = [0.0, 0.0, 0.0]
+max = [1.0, 1.0, 1.0]
+cells = [1, 1, 1]
+[material]
+youngs = 1e5
+poisson = 0.4
+density = 1000.0
+"#;
+    let with = |table: &str| format!("{plain}\n{table}\n");
+    let defaults = Scene::parse(&with("[contact]"), Path::new("d.toml")).unwrap();
+    let c = defaults.contact.unwrap();
+    assert_eq!((c.dhat, c.friction, c.epsv, c.self_contact), (1e-3, 0.0, 1e-3, false));
+    assert!(Scene::parse(plain, Path::new("d.toml")).unwrap().contact.is_none());
+    for (table, field) in [
+        ("[contact]\ndhat = -1.0", "contact.dhat"),
+        ("[contact]\nfriction = -0.5", "contact.friction"),
+        ("[contact]\nepsv = 0.0", "contact.epsv"),
+        (
+            "[contact]\n[[contact.obstacles]]\ntype = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, -1.0, 1.0]",
+            "contact.obstacles[0].max",
+        ),
+        (
+            "[contact]\n[[contact.obstacles]]\ntype = \"file\"\npath = \"g.obj\"\nscale = 0.0",
+            "contact.obstacles[0].scale",
+        ),
+    ] {
+        let err = Scene::parse(&with(table), Path::new("bad-contact.toml")).unwrap_err();
+        let msg = err.to_string();
+        assert!(
+            msg.contains("bad-contact.toml") && msg.contains(field),
+            "{table}: {msg}"
+        );
+    }
+    let err = Scene::parse(&with("[contact]\nself_contact = true"), Path::new("bad-contact.toml")).unwrap_err();
+    assert!(err.to_string().contains("bad-contact.toml"), "{err}");
+}
