@@ -54,7 +54,7 @@ impl FrictionPotential {
         for s in 0..barrier.len() {
             let n = gather(barrier, s, x, &mut xl);
             let d2 = barrier.squared_distance(s, &xl[..n]);
-            if !(d2 < dhat * dhat) {
+            if d2.is_nan() || d2 >= dhat * dhat {
                 continue;
             }
             let normal_force = barrier_force_magnitude(d2, dhat, kappa);
