@@ -12,6 +12,7 @@
 //! type = "box"       # a box's 12 outward triangles
 //! min = [-1.0, -0.1, -1.0]
 //! max = [1.0, 0.0, 1.0]
+//! rotation = [0.0, 0.0, 0.1]  # optional: rotation vector (rad) about the box's centre
 //!
 //! [[contact.obstacles]]
 //! type = "file"      # a triangle mesh (OBJ), moved by `offset` after `scale`
@@ -67,6 +68,10 @@ pub enum ObstacleMesh {
         min: [f64; 3],
         /// Upper corner.
         max: [f64; 3],
+        /// Rotation about the box's centre, as a rotation vector (axis times angle in
+        /// radians); default none.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        rotation: Option<[f64; 3]>,
     },
     /// A triangle mesh file (OBJ).
     File {
@@ -104,7 +109,10 @@ impl ContactSpec {
         for (k, o) in self.obstacles.iter().enumerate() {
             let field = |f: &str| format!("contact.obstacles[{k}].{f}");
             match o {
-                ObstacleMesh::Box { min, max } => {
+                ObstacleMesh::Box { min, max, rotation } => {
+                    if rotation.is_some_and(|r| !r.iter().all(|c| c.is_finite())) {
+                        return Err((field("rotation"), "must be finite".into()));
+                    }
                     if !min.iter().chain(max).all(|c| c.is_finite()) {
                         return Err((field("min"), "corners must be finite".into()));
                     }
@@ -152,7 +160,18 @@ impl ContactSpec {
 impl ObstacleMesh {
     fn build(&self, scene_file: &Path, field: &str) -> Result<ContactObstacle, InputError> {
         let (positions, faces) = match self {
-            ObstacleMesh::Box { min, max } => box_triangles(*min, *max),
+            ObstacleMesh::Box { min, max, rotation } => {
+                let (mut positions, faces) = box_triangles(*min, *max);
+                if let Some(r) = rotation {
+                    let rot = nalgebra::Rotation3::new(nalgebra::Vector3::from(*r));
+                    let c = nalgebra::Vector3::from([0, 1, 2].map(|i| 0.5 * (min[i] + max[i])));
+                    for p in positions.chunks_mut(3) {
+                        let q = rot * (nalgebra::Vector3::new(p[0], p[1], p[2]) - c) + c;
+                        p.copy_from_slice(q.as_slice());
+                    }
+                }
+                (positions, faces)
+            }
             ObstacleMesh::File { path, scale, offset } => {
                 let full = scene_file.parent().unwrap_or(Path::new(".")).join(path);
                 let mesh = mesh::io::load(&full, mesh::io::MeshKind::Cloth)?;

@@ -20,17 +20,28 @@ fn small_drop() -> Scene {
 
 #[test]
 fn a_small_drop_never_intersects_never_inverts_converges_and_comes_to_rest() {
-    let scene = small_drop();
+    check_drop(&small_drop(), 90);
+}
+
+/// The full shipped scene for `mochi simulate`'s 300 frames (seconds in an optimised build;
+/// `cargo test -p mochi-sim -- --ignored shipped_drop`).
+#[test]
+#[ignore]
+fn the_shipped_drop_runs_300_frames_intersection_free_and_comes_to_rest() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/ball-drop.toml");
+    check_drop(&Scene::load(&path).unwrap(), 300);
+}
+
+/// Drops the scene's body for `frames` frames: asserts every step converged, no frame
+/// intersects (exact check), no element inverts, the body stays above the ground and ends
+/// at rest on it.
+fn check_drop(scene: &Scene, frames: usize) {
     let mut problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
     let Elements::Tets(tets) = problem.mesh.elements.clone() else {
         panic!("a tet body")
     };
-    let ground_top = match &scene.contact.as_ref().unwrap().obstacles[0] {
-        crate::scene::ObstacleMesh::Box { max, .. } => max[1],
-        other => panic!("{other:?}"),
-    };
+    let height = ground_height(scene);
     let sim = &mut problem.simulator;
-    let frames = 90;
     let mut speeds = Vec::new();
     for frame in 1..=frames {
         let report = sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
@@ -42,8 +53,8 @@ fn a_small_drop_never_intersects_never_inverts_converges_and_comes_to_rest() {
             let p = t.map(|v| [x[3 * v], x[3 * v + 1], x[3 * v + 2]]);
             assert!(signed_volume(p) > 0.0, "frame {frame}: inverted element {t:?}");
         }
-        let lowest = x.chunks(3).map(|p| p[1]).fold(f64::INFINITY, f64::min);
-        assert!(lowest > ground_top, "frame {frame}: below the ground");
+        let lowest = x.chunks(3).map(&height).fold(f64::INFINITY, f64::min);
+        assert!(lowest > 0.0, "frame {frame}: below the ground");
         speeds.push(
             sim.velocities()
                 .chunks(3)
@@ -53,15 +64,42 @@ fn a_small_drop_never_intersects_never_inverts_converges_and_comes_to_rest() {
     }
     // It reached the ground (the fall is 5 cm) and rests there.
     let x = sim.positions();
-    let lowest = x.chunks(3).map(|p| p[1]).fold(f64::INFINITY, f64::min);
+    let lowest = x.chunks(3).map(&height).fold(f64::INFINITY, f64::min);
     assert!(
-        lowest - ground_top < 2.0 * scene.contact.as_ref().unwrap().dhat,
+        lowest < 2.0 * scene.contact.as_ref().unwrap().dhat,
         "rests {lowest} above the ground"
     );
     let peak = speeds.iter().copied().fold(0.0, f64::max);
     let last = speeds[frames - 10..].iter().copied().fold(0.0, f64::max);
     assert!(peak > 0.5, "peak speed {peak}");
     assert!(last < 1e-2, "still moving at {last} m/s over the last 10 frames");
+}
+
+/// The signed height of a point over the top face of the scene's first obstacle (a box).
+fn ground_height(scene: &Scene) -> impl Fn(&[f64]) -> f64 {
+    let crate::scene::ObstacleMesh::Box { min, max, rotation } = scene.contact.as_ref().unwrap().obstacles[0] else {
+        panic!("a box ground")
+    };
+    let rot = nalgebra::Rotation3::new(nalgebra::Vector3::from(rotation.unwrap_or_default()));
+    let centre = nalgebra::Vector3::from([0, 1, 2].map(|i| 0.5 * (min[i] + max[i])));
+    let normal = rot * nalgebra::Vector3::y();
+    let top = centre + normal * (0.5 * (max[1] - min[1]));
+    move |p: &[f64]| normal.dot(&(nalgebra::Vector3::new(p[0], p[1], p[2]) - top))
+}
+
+#[test]
+fn without_friction_the_body_slides_down_the_tilted_ground() {
+    let mut scene = small_drop();
+    scene.contact.as_mut().unwrap().friction = 0.0;
+    let mut problem = scene.build().unwrap();
+    let sim = &mut problem.simulator;
+    for frame in 1..=60 {
+        sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
+    }
+    let speed = sim.velocities().chunks(3).map(|v| v[0].hypot(v[1])).fold(0.0, f64::max);
+    assert!(speed > 0.3, "frictionless, it still moves at only {speed} m/s");
 }
 
 #[test]
