@@ -43,8 +43,14 @@ fn check_drop(scene: &Scene, frames: usize) {
     let height = ground_height(scene);
     let sim = &mut problem.simulator;
     let mut speeds = Vec::new();
+    let (mut iterations, mut most_iterations, mut seconds) = (0, 0, 0.0);
+    let centroid_x = |x: &[f64]| x.chunks(3).map(|p| p[0]).sum::<f64>() / (x.len() / 3) as f64;
+    let x_start = centroid_x(sim.positions());
     for frame in 1..=frames {
         let report = sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        iterations += report.iterations;
+        most_iterations = most_iterations.max(report.iterations);
+        seconds += report.seconds;
         assert!(report.converged, "frame {frame}: Newton did not converge: {report:?}");
         let (surface, ext) = sim.contact_state().unwrap();
         assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
@@ -71,6 +77,16 @@ fn check_drop(scene: &Scene, frames: usize) {
     );
     let peak = speeds.iter().copied().fold(0.0, f64::max);
     let last = speeds[frames - 10..].iter().copied().fold(0.0, f64::max);
+    println!(
+        "{}: {frames} frames, {:.2} ms/step, Newton iterations {:.2}/step (max {most_iterations}), \
+         peak speed {peak:.3} m/s, last 10 frames <= {last:.2e} m/s, rests {lowest:.2e} m over the ground, \
+         centroid moved {:.4} m along x, kappa {:.3e}",
+        scene.name,
+        1e3 * seconds / frames as f64,
+        iterations as f64 / frames as f64,
+        centroid_x(x) - x_start,
+        sim.contact_stiffness()
+    );
     assert!(peak > 0.5, "peak speed {peak}");
     assert!(last < 1e-2, "still moving at {last} m/s over the last 10 frames");
 }
