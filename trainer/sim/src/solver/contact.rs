@@ -295,7 +295,9 @@ impl Contact {
         self.terms().map(|(e, w)| w * energy::value(e, &ext)).sum()
     }
 
-    /// The barrier's share `kappa B(x)` alone (for energy reports).
+    /// The barrier's share `kappa B(x)` alone (for energy reports), over the pairs the last
+    /// solve loaded (which hold every pair within `dhat` of its result; none before the
+    /// first solve).
     pub(super) fn barrier_value(&self, x: &[f64]) -> f64 {
         self.kappa * energy::value(&self.barrier, &self.extended(x))
     }
