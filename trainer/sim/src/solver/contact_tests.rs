@@ -91,3 +91,103 @@ fn a_fast_body_never_tunnels_through_a_thin_obstacle() {
     assert!(touched, "the cube never reached the slab");
     assert!(sim.contact_stiffness() > 0.0);
 }
+
+/// Two 0.1 m cubes of one mesh, the upper one 2 cm above the lower, with self-contact.
+fn two_cubes() -> crate::solver::Simulator {
+    use crate::contact::ContactSurface;
+    use crate::mesh::{procedural::box_tets, Elements};
+    use crate::solver::{ContactConfig, ContactSettings, SimulatorConfig};
+    let scene = Scene::parse(
+        r#"
+name = "two-cubes"
+dt = 0.01
+[mesh]
+type = "box"
+min = [0.0, 0.0, 0.0]
+max = [0.1, 0.1, 0.1]
+cells = [1, 1, 1]
+[material]
+youngs = 1e5
+poisson = 0.4
+density = 1000.0
+"#,
+        Path::new("two-cubes.toml"),
+    )
+    .unwrap();
+    let mut mesh = box_tets([0.0; 3], [0.1; 3], [1, 1, 1]).unwrap();
+    let n = mesh.num_vertices();
+    let upper: Vec<f64> = mesh
+        .rest
+        .chunks(3)
+        .flat_map(|p| [p[0] + 0.03, p[1] + 0.12, p[2] + 0.02])
+        .collect();
+    mesh.rest.extend(upper);
+    if let Elements::Tets(tets) = &mut mesh.elements {
+        let copies: Vec<[usize; 4]> = tets.iter().map(|t| t.map(|v| v + n)).collect();
+        tets.extend(copies);
+    }
+    let energies = scene.build_energies(&mesh).unwrap();
+    crate::solver::Simulator::new(SimulatorConfig {
+        dim: 3,
+        x0: mesh.rest.clone(),
+        masses: energies.masses,
+        potentials: energies.potentials,
+        fixed_vertices: Vec::new(),
+        dt: scene.dt,
+        scheme: Default::default(),
+        settings: Default::default(),
+        length_scale: mesh.rest_diagonal(),
+        contact: Some(ContactConfig {
+            settings: ContactSettings {
+                self_contact: true,
+                ..Default::default()
+            },
+            surface: ContactSurface::of_mesh(&mesh),
+            obstacles: Vec::new(),
+        }),
+    })
+}
+
+#[test]
+fn self_contact_keeps_two_parts_of_one_mesh_apart_and_conserves_momentum() {
+    let mut sim = two_cubes();
+    let n = sim.positions().len() / 3;
+    let x = sim.positions().to_vec();
+    // The upper cube (second half of the vertices) moves down at 2 m/s.
+    let x_prev: Vec<f64> = x
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            if k / 3 >= n / 2 && k % 3 == 1 {
+                c + 2.0 * sim.dt()
+            } else {
+                *c
+            }
+        })
+        .collect();
+    sim.restart(&x, &x_prev);
+    let momentum = |sim: &crate::solver::Simulator| -> f64 {
+        sim.velocities()
+            .chunks(3)
+            .zip(sim.masses())
+            .map(|(v, m)| m * v[1])
+            .sum()
+    };
+    let p0 = momentum(&sim);
+    let mut touched = false;
+    for step in 0..30 {
+        let report = sim.step(&[]).unwrap_or_else(|e| panic!("step {step}: {e}"));
+        assert!(report.converged, "step {step}: {report:?}");
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "step {step} intersects");
+        touched |= report.contact_pairs > 0;
+    }
+    assert!(touched, "the cubes never met");
+    // Contact pairs couple vertices of the two cubes, which no element joins.
+    assert!(!sim.extra_couplings.is_empty());
+    // The lower cube was pushed down, and momentum is conserved (contact forces are internal).
+    let lower_vy: f64 = sim.velocities().chunks(3).take(n / 2).map(|v| v[1]).sum::<f64>() / (n / 2) as f64;
+    assert!(lower_vy < -0.1, "lower cube moves at {lower_vy} m/s");
+    let p1 = momentum(&sim);
+    assert!((p1 - p0).abs() < 1e-3 * p0.abs(), "momentum {p0} -> {p1}");
+}
