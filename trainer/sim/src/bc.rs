@@ -122,12 +122,14 @@ impl Track {
 pub struct BcSequence {
     /// Tracks, in the scene's handle order.
     pub tracks: Vec<Track>,
+    /// Number of frames after the initial one (also for scenes without handles).
+    pub frames: usize,
 }
 
 impl BcSequence {
     /// Number of frames after the initial one.
     pub fn frames(&self) -> usize {
-        self.tracks.first().map_or(0, |t| t.poses.len() - 1)
+        self.frames
     }
 
     /// Target positions of all handle vertices at `frame` (handles concatenated).
@@ -316,7 +318,11 @@ mod tests {
             reference: vec![[1.0, 0.0, 0.0]],
             pivot: [0.0; 3],
         };
-        let seq = BcSequence { tracks: vec![track] };
+        let frames = track.poses.len() - 1;
+        let seq = BcSequence {
+            tracks: vec![track],
+            frames,
+        };
         let t = seq.targets(&[h], 30, 3);
         assert!((t[0] - (0.3 + 1.2f64.cos())).abs() < 1e-12 && (t[1] - 1.2f64.sin()).abs() < 1e-12);
         assert_eq!(seq.signal(10).len(), SIGNAL_PER_HANDLE);

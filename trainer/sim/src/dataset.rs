@@ -201,7 +201,7 @@ impl BuiltScene {
                 Track::from_segments(&segments, frames, dt)
             })
             .collect();
-        BcSequence { tracks }
+        BcSequence { tracks, frames }
     }
 
     /// Simulates `seq` from the scene's initial state and records the trajectory.

@@ -17,7 +17,11 @@ use crate::solver::{NewtonSettings, Simulator, SimulatorConfig, TimeScheme};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+mod contact;
+#[cfg(test)]
+mod contact_tests;
 mod regions;
+pub use contact::{box_triangles, ContactSpec, ObstacleMesh};
 
 /// A scene as written in its TOML file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -50,6 +54,9 @@ pub struct Scene {
     /// Analytic obstacles.
     #[serde(default)]
     pub obstacles: Vec<Obstacle>,
+    /// IPC contact and its obstacle meshes (see [`ContactSpec`]); none when absent.
+    #[serde(default)]
+    pub contact: Option<ContactSpec>,
     /// Prescribed vertex sets and their motions.
     #[serde(default)]
     pub handles: Vec<HandleSpec>,
@@ -438,6 +445,9 @@ impl Scene {
         if !(positive(self.collision.stiffness) && self.collision.margin.is_finite() && self.collision.margin >= 0.0) {
             return Err(self.field_error("collision", "stiffness must be positive and margin non-negative"));
         }
+        if let Some(c) = &self.contact {
+            c.validate().map_err(|(f, msg)| self.field_error(f, msg))?;
+        }
         for (k, o) in self.obstacles.iter().enumerate() {
             o.validate()
                 .map_err(|msg| self.field_error(format!("obstacles[{k}]"), msg))?;
@@ -484,6 +494,10 @@ impl Scene {
         let Energies { masses, potentials } = self.build_energies(&mesh)?;
         let handles = self.build_handles(&mesh)?;
         let fixed: Vec<usize> = handles.iter().flat_map(|h| h.vertices.iter().copied()).collect();
+        let contact = match &self.contact {
+            Some(c) => Some(c.build(crate::contact::ContactSurface::of_mesh(&mesh), &self.source)?),
+            None => None,
+        };
         let simulator = Simulator::new(SimulatorConfig {
             dim: mesh.dim,
             x0: mesh.rest.clone(),
@@ -494,6 +508,7 @@ impl Scene {
             scheme: self.integrator,
             settings: self.newton,
             length_scale: mesh.rest_diagonal(),
+            contact,
         });
         let warnings = self.region_warnings(&mesh);
         Ok(BuiltScene {

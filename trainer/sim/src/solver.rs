@@ -7,12 +7,16 @@
 //! factorised with faer's sparse Cholesky, whose symbolic analysis is computed once and
 //! reused across iterations and steps.
 
-use crate::energy::{self, inertia::Inertia, StencilEnergy, MAX_DOF};
+mod contact;
+#[cfg(test)]
+mod contact_tests;
+mod hessian;
+
+use crate::energy::{self, inertia::Inertia, StencilEnergy};
 pub use crate::error::StepError;
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{MatMut, Side};
+use contact::Contact;
+pub use contact::{ContactConfig, ContactObstacle, ContactSettings};
+use hessian::{HessianPattern, NO_SLOT};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -81,6 +85,8 @@ pub struct StepReport {
     pub objective: f64,
     /// Wall-clock seconds of the solve.
     pub seconds: f64,
+    /// Contact pairs loaded at the end of the solve (0 without contact).
+    pub contact_pairs: usize,
 }
 
 /// A full-space simulator of one body.
@@ -96,6 +102,9 @@ pub struct Simulator {
     free_index: Vec<usize>,
     num_free: usize,
     hessian: HessianPattern,
+    /// Free-dof couplings beyond the energy terms' stencils (from self-contact pairs).
+    extra_couplings: Vec<[u32; 2]>,
+    contact: Option<Contact>,
     x: Vec<f64>,
     v: Vec<f64>,
     x_prev: Vec<f64>,
@@ -126,6 +135,8 @@ pub struct SimulatorConfig {
     /// Length that makes the convergence tolerance unit-free (the rest bounding-box
     /// diagonal).
     pub length_scale: f64,
+    /// IPC contact (barrier, friction, CCD-filtered line search), if any.
+    pub contact: Option<ContactConfig>,
 }
 
 impl Simulator {
@@ -141,6 +152,7 @@ impl Simulator {
             scheme: integrator,
             settings,
             length_scale,
+            contact,
         } = config;
         let n = x0.len();
         let mut fixed = vec![false; n];
@@ -155,11 +167,12 @@ impl Simulator {
                 num_free += 1;
             }
         }
+        let contact = contact.map(|c| Contact::new(c, &x0, &masses));
         let inertia = Inertia::new(dim, masses);
         let terms: Vec<&dyn StencilEnergy> = std::iter::once(&inertia as &dyn StencilEnergy)
             .chain(potentials.iter().map(|p| p.as_ref()))
             .collect();
-        let hessian = HessianPattern::new(&terms, &free_index, num_free);
+        let hessian = HessianPattern::new(&terms, &free_index, num_free, &[]);
         Simulator {
             dim,
             dt,
@@ -172,6 +185,8 @@ impl Simulator {
             free_index,
             num_free,
             hessian,
+            extra_couplings: Vec::new(),
+            contact,
             v: vec![0.0; n],
             x_prev: x0.clone(),
             v_prev: vec![0.0; n],
@@ -213,6 +228,17 @@ impl Simulator {
         &mut self.potentials
     }
 
+    /// The contact surface (body vertices first, then the obstacles') and its positions at
+    /// the current state, if the simulator has contact.
+    pub fn contact_state(&self) -> Option<(&crate::contact::ContactSurface, Vec<f64>)> {
+        self.contact.as_ref().map(|c| (c.surface(), c.extended(&self.x)))
+    }
+
+    /// The current barrier stiffness (0 without contact or before the first solve).
+    pub fn contact_stiffness(&self) -> f64 {
+        self.contact.as_ref().map_or(0.0, Contact::kappa)
+    }
+
     /// Resets the state to positions `x` at rest.
     pub fn reset(&mut self, x: &[f64]) {
         self.restart(x, x);
@@ -239,6 +265,9 @@ impl Simulator {
                 .iter()
                 .map(|p| (p.name(), energy::value(p.as_ref(), &self.x))),
         );
+        if let Some(c) = &self.contact {
+            out.push(("contact barrier", c.barrier_value(&self.x)));
+        }
         out
     }
 
@@ -267,9 +296,11 @@ impl Simulator {
             ((0..self.x.len()).map(|k| self.x[k] + h * self.v[k]).collect(), h * h)
         };
         self.inertia.set_target(&xhat);
-        let mut x = xhat;
+        // With contact, Newton starts from the last positions (intersection-free, which the
+        // prediction need not be), as IPC does; CCD then keeps every iterate so.
+        let mut x = if self.contact.is_some() { self.x.clone() } else { xhat };
         self.place_fixed(&mut x, targets);
-        let mut report = self.minimize(&mut x, 1.0, weight, h * self.length_scale)?;
+        let mut report = self.minimize(&mut x, 1.0, weight, h * self.length_scale, Some(h))?;
         let v_new: Vec<f64> = if bdf2 {
             (0..x.len())
                 .map(|k| (3.0 * x[k] - 4.0 * self.x[k] + self.x_prev[k]) / (2.0 * h))
@@ -291,7 +322,7 @@ impl Simulator {
         let start = Instant::now();
         let mut x = self.x.clone();
         self.place_fixed(&mut x, targets);
-        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale)?;
+        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale, None)?;
         self.reset(&x);
         report.seconds = start.elapsed().as_secs_f64();
         Ok(report)
@@ -301,7 +332,8 @@ impl Simulator {
         let start = Instant::now();
         let mut x = self.x.clone();
         self.place_fixed(&mut x, targets);
-        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale)?;
+        let dt = self.dt;
+        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale, Some(dt))?;
         let v_new: Vec<f64> = x.iter().zip(&self.x).map(|(a, b)| (a - b) / self.dt).collect();
         self.x_prev = std::mem::replace(&mut self.x, x);
         self.v_prev = std::mem::replace(&mut self.v, v_new);
@@ -339,8 +371,29 @@ impl Simulator {
         }
     }
 
-    /// Objective `w_inertia * inertia + w_potential * sum(potentials)` and its gradient.
+    /// Objective `w_inertia * inertia + w_potential * sum(potentials)`, plus contact's
+    /// `kappa B + D` when there is contact, and its gradient.
     fn objective(&self, x: &[f64], w_inertia: f64, w_potential: f64, grad: Option<&mut Vec<f64>>) -> f64 {
+        let Some(contact) = &self.contact else {
+            return self.objective_without_contact(x, w_inertia, w_potential, grad);
+        };
+        match grad {
+            None => self.objective_without_contact(x, w_inertia, w_potential, None) + contact.value(x),
+            Some(g) => {
+                let e = self.objective_without_contact(x, w_inertia, w_potential, Some(&mut *g));
+                e + contact.add_gradient(x, g)
+            }
+        }
+    }
+
+    /// The objective's inertia and potential terms and their gradient.
+    fn objective_without_contact(
+        &self,
+        x: &[f64],
+        w_inertia: f64,
+        w_potential: f64,
+        grad: Option<&mut Vec<f64>>,
+    ) -> f64 {
         match grad {
             None => {
                 let mut e = 0.0;
@@ -376,11 +429,19 @@ impl Simulator {
         w_inertia: f64,
         w_potential: f64,
         norm_scale: f64,
+        friction_dt: Option<f64>,
     ) -> Result<StepReport, StepError> {
         let mut report = StepReport::default();
         let mut grad = Vec::new();
         let mut rhs = vec![0.0; self.num_free];
         let mut trial = x.to_vec();
+        if self.contact.is_some() {
+            self.objective_without_contact(x, w_inertia, w_potential, Some(&mut grad));
+            let free: Vec<bool> = self.free_index.iter().map(|&f| f != NOT_FREE).collect();
+            if let Some(c) = &mut self.contact {
+                c.begin_solve(x, &grad, &free, friction_dt);
+            }
+        }
         for iteration in 0..self.settings.max_iterations {
             let e = self.objective(x, w_inertia, w_potential, Some(&mut grad));
             if !e.is_finite() {
@@ -428,8 +489,16 @@ impl Simulator {
                 report.converged = true;
                 break;
             }
+            // With contact, the step starts at the largest collision-free fraction (CCD), so
+            // no iterate the line search tries intersects.
             let mut alpha = 1.0;
-            loop {
+            if let Some(contact) = &mut self.contact {
+                for (k, &f) in self.free_index.iter().enumerate() {
+                    trial[k] = if f != NOT_FREE { x[k] + dir[f] } else { x[k] };
+                }
+                alpha = contact.line_search_bound(x, &trial);
+            }
+            while alpha > 0.0 {
                 for (k, &f) in self.free_index.iter().enumerate() {
                     if f != NOT_FREE {
                         trial[k] = x[k] + alpha * dir[f];
@@ -450,6 +519,9 @@ impl Simulator {
                     x[k] += alpha * dir[f];
                 }
             }
+            if let Some(c) = &mut self.contact {
+                c.end_iteration(x);
+            }
             if step_norm < self.settings.tolerance || alpha == 0.0 {
                 report.converged = step_norm < self.settings.tolerance;
                 report.objective = self.objective(x, w_inertia, w_potential, None);
@@ -461,12 +533,58 @@ impl Simulator {
                 iteration: report.iterations,
             });
         }
+        report.contact_pairs = self.contact.as_ref().map_or(0, Contact::pairs);
         Ok(report)
     }
 
     /// Assembles the free-free Hessian of the objective, optionally with every stencil
-    /// Hessian projected to PSD.
+    /// Hessian projected to PSD. Contact stencils that couple free dofs the pattern lacks
+    /// (self-contact) grow the pattern, which is then assembled anew.
     fn assemble(&mut self, x: &[f64], w_inertia: f64, w_potential: f64, project: bool) {
+        self.assemble_terms(x, w_inertia, w_potential, project);
+        let Some(contact) = &self.contact else {
+            return;
+        };
+        let (dim, body_len) = (self.dim, contact.body_len());
+        let free_index = &self.free_index;
+        let hessian = &mut self.hessian;
+        let mut missing = Vec::new();
+        let mut dofs = [NOT_FREE; energy::MAX_DOF];
+        contact.for_each_hessian(x, project, |verts, local, weight| {
+            let n = verts.len() * dim;
+            for (a, &v) in verts.iter().enumerate() {
+                for i in 0..dim {
+                    let k = v * dim + i;
+                    dofs[a * dim + i] = if k < body_len { free_index[k] } else { NOT_FREE };
+                }
+            }
+            for r in 0..n {
+                for c in 0..n {
+                    let (fr, fc) = (dofs[r], dofs[c]);
+                    if fr == NOT_FREE || fc == NOT_FREE || fr < fc {
+                        continue;
+                    }
+                    match hessian.slot(fr, fc) {
+                        Some(slot) => hessian.values[slot] += weight * local.hess[r * n + c],
+                        None => missing.push([fr as u32, fc as u32]),
+                    }
+                }
+            }
+        });
+        if !missing.is_empty() {
+            self.extra_couplings.extend(missing);
+            self.extra_couplings.sort_unstable();
+            self.extra_couplings.dedup();
+            let terms: Vec<&dyn StencilEnergy> = std::iter::once(&self.inertia as &dyn StencilEnergy)
+                .chain(self.potentials.iter().map(|p| p.as_ref()))
+                .collect();
+            self.hessian = HessianPattern::new(&terms, &self.free_index, self.num_free, &self.extra_couplings);
+            self.assemble(x, w_inertia, w_potential, project);
+        }
+    }
+
+    /// Assembles the energy terms' share of the free-free Hessian.
+    fn assemble_terms(&mut self, x: &[f64], w_inertia: f64, w_potential: f64, project: bool) {
         self.hessian.values.fill(0.0);
         let terms = std::iter::once((&self.inertia as &dyn StencilEnergy, w_inertia))
             .chain(self.potentials.iter().map(|p| (p.as_ref(), w_potential)));
@@ -484,145 +602,6 @@ impl Simulator {
                     }
                 }
             });
-        }
-    }
-}
-
-const NO_SLOT: u32 = u32::MAX;
-
-/// Where each entry of each stencil's local Hessian lands in the sparse matrix.
-struct StencilSlots {
-    /// `offsets[s]..offsets[s + 1]` indexes `slots` for stencil `s` (row-major `n x n`).
-    offsets: Vec<usize>,
-    /// Index into the CSC value array, or `NO_SLOT` for fixed DOF / upper triangle.
-    slots: Vec<u32>,
-}
-
-/// Lower-triangular CSC pattern of the free-free Hessian, its values, the slot maps of
-/// every energy term, and the cached symbolic Cholesky factorisation.
-struct HessianPattern {
-    n: usize,
-    col_ptr: Vec<u32>,
-    row_idx: Vec<u32>,
-    values: Vec<f64>,
-    slots: Vec<StencilSlots>,
-    symbolic: SymbolicLlt<u32>,
-}
-
-impl HessianPattern {
-    fn new(terms: &[&dyn StencilEnergy], free_index: &[usize], n: usize) -> Self {
-        let dofs = |e: &dyn StencilEnergy, s: usize| -> Vec<usize> {
-            let d = e.dim();
-            e.stencil(s)
-                .iter()
-                .flat_map(|&v| (0..d).map(move |i| free_index[v * d + i]))
-                .collect()
-        };
-        let mut columns: Vec<Vec<u32>> = vec![Vec::new(); n];
-        for term in terms {
-            for s in 0..term.len() {
-                let ds = dofs(*term, s);
-                for &r in &ds {
-                    for &c in &ds {
-                        if r != NOT_FREE && c != NOT_FREE && r >= c {
-                            columns[c].push(r as u32);
-                        }
-                    }
-                }
-            }
-        }
-        let mut col_ptr = vec![0u32];
-        let mut row_idx = Vec::new();
-        for col in &mut columns {
-            col.sort_unstable();
-            col.dedup();
-            row_idx.extend_from_slice(col);
-            col_ptr.push(row_idx.len() as u32);
-        }
-        let slots = terms
-            .iter()
-            .map(|term| {
-                let mut offsets = vec![0];
-                let mut slots = Vec::new();
-                for s in 0..term.len() {
-                    let ds = dofs(*term, s);
-                    debug_assert!(ds.len() <= MAX_DOF);
-                    for &r in &ds {
-                        for &c in &ds {
-                            slots.push(if r != NOT_FREE && c != NOT_FREE && r >= c {
-                                let col = &row_idx[col_ptr[c] as usize..col_ptr[c + 1] as usize];
-                                col_ptr[c]
-                                    + col
-                                        .binary_search(&(r as u32))
-                                        .expect("pattern holds every stencil entry")
-                                        as u32
-                            } else {
-                                NO_SLOT
-                            });
-                        }
-                    }
-                    offsets.push(slots.len());
-                }
-                StencilSlots { offsets, slots }
-            })
-            .collect();
-        let nnz = row_idx.len();
-        // The symbolic analysis (ordering, elimination tree, fill) depends only on the
-        // pattern: computed once here, reused by every numeric factorisation.
-        let symbolic = SymbolicLlt::try_new(
-            SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx),
-            Side::Lower,
-        )
-        .expect("symbolic Cholesky of a valid pattern");
-        HessianPattern {
-            n,
-            col_ptr,
-            row_idx,
-            values: vec![0.0; nnz],
-            slots,
-            symbolic,
-        }
-    }
-
-    /// Solves `H d = rhs` in place if the assembled `H` is positive definite; returns
-    /// false (leaving `rhs` untouched) if its Cholesky factorisation fails.
-    fn try_solve(&mut self, rhs: &mut [f64]) -> bool {
-        let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
-        let symbolic = self.symbolic.clone();
-        match Llt::try_new_with_symbolic(symbolic, SparseColMatRef::new(pattern, &self.values), Side::Lower) {
-            Ok(llt) => {
-                llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
-                true
-            }
-            Err(_) => false,
-        }
-    }
-
-    /// Solves `H d = rhs` in place with a sparse Cholesky factorisation of the assembled
-    /// values. If `H` is not numerically positive definite, a growing multiple of the
-    /// identity (relative to the largest diagonal entry) is added until it is.
-    fn solve(&mut self, rhs: &mut [f64]) {
-        if self.try_solve(rhs) {
-            return;
-        }
-        let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
-        let diag_max = (0..self.n)
-            .map(|c| self.values[self.col_ptr[c] as usize])
-            .fold(0.0f64, |m, v| m.max(v.abs()))
-            .max(f64::MIN_POSITIVE);
-        let mut shift = 1e-10 * diag_max;
-        let mut values = self.values.clone();
-        loop {
-            values.copy_from_slice(&self.values);
-            for c in 0..self.n {
-                values[self.col_ptr[c] as usize] += shift;
-            }
-            let matrix = SparseColMatRef::new(pattern, &values);
-            if let Ok(llt) = Llt::try_new_with_symbolic(self.symbolic.clone(), matrix, Side::Lower) {
-                llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
-                return;
-            }
-            shift *= 100.0;
         }
     }
 }

@@ -10,10 +10,12 @@
 //! (`scripts/check-ipctk.sh`). Local vectors are vertex-major as in [`crate::energy`].
 
 pub mod barrier;
+pub mod barrier_potential;
 pub mod broad_phase;
 pub mod ccd;
 pub mod distance;
 pub mod friction;
+pub mod friction_potential;
 pub mod intersection;
 pub mod stiffness;
 pub mod surface;

@@ -9,6 +9,7 @@ mod distance;
 mod friction;
 mod intersection;
 mod max_step;
+mod potentials;
 mod surface;
 
 use rand::{Rng, SeedableRng};

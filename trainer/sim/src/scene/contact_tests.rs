@@ -1,0 +1,178 @@
+//! Scenes with IPC contact: the `[contact]` table's errors, the shipped drop scene, and a
+//! small drop that stays intersection-free, uninverted and converged, and comes to rest.
+
+use crate::contact::intersection::has_intersections;
+use crate::energy::tet::signed_volume;
+use crate::mesh::Elements;
+use crate::scene::Scene;
+use std::path::Path;
+
+/// The shipped `ball-drop` scene with the body shrunk to 2 x 2 x 2 cells.
+fn small_drop() -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/ball-drop.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut scene = Scene::parse(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    if let crate::scene::MeshSpec::Box { cells, .. } = &mut scene.mesh {
+        *cells = [2, 2, 2];
+    }
+    scene
+}
+
+#[test]
+fn a_small_drop_never_intersects_never_inverts_converges_and_comes_to_rest() {
+    check_drop(&small_drop(), 90);
+}
+
+/// The full shipped scene for `mochi simulate`'s 300 frames (seconds in an optimised build;
+/// `cargo test -p mochi-sim -- --ignored shipped_drop`).
+#[test]
+#[ignore]
+fn the_shipped_drop_runs_300_frames_intersection_free_and_comes_to_rest() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/ball-drop.toml");
+    check_drop(&Scene::load(&path).unwrap(), 300);
+}
+
+/// Drops the scene's body for `frames` frames: asserts every step converged, no frame
+/// intersects (exact check), no element inverts, the body stays above the ground and ends
+/// at rest on it.
+fn check_drop(scene: &Scene, frames: usize) {
+    let mut problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+    let Elements::Tets(tets) = problem.mesh.elements.clone() else {
+        panic!("a tet body")
+    };
+    let height = ground_height(scene);
+    let sim = &mut problem.simulator;
+    let mut speeds = Vec::new();
+    let (mut iterations, mut most_iterations, mut seconds) = (0, 0, 0.0);
+    let centroid_x = |x: &[f64]| x.chunks(3).map(|p| p[0]).sum::<f64>() / (x.len() / 3) as f64;
+    let x_start = centroid_x(sim.positions());
+    for frame in 1..=frames {
+        let report = sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        iterations += report.iterations;
+        most_iterations = most_iterations.max(report.iterations);
+        seconds += report.seconds;
+        assert!(report.converged, "frame {frame}: Newton did not converge: {report:?}");
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
+        let x = sim.positions();
+        for t in &tets {
+            let p = t.map(|v| [x[3 * v], x[3 * v + 1], x[3 * v + 2]]);
+            assert!(signed_volume(p) > 0.0, "frame {frame}: inverted element {t:?}");
+        }
+        let lowest = x.chunks(3).map(&height).fold(f64::INFINITY, f64::min);
+        assert!(lowest > 0.0, "frame {frame}: below the ground");
+        speeds.push(
+            sim.velocities()
+                .chunks(3)
+                .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+                .fold(0.0, f64::max),
+        );
+    }
+    // It reached the ground (the fall is 5 cm) and rests there.
+    let x = sim.positions();
+    let lowest = x.chunks(3).map(&height).fold(f64::INFINITY, f64::min);
+    assert!(
+        lowest < 2.0 * scene.contact.as_ref().unwrap().dhat,
+        "rests {lowest} above the ground"
+    );
+    let peak = speeds.iter().copied().fold(0.0, f64::max);
+    let last = speeds[frames - 10..].iter().copied().fold(0.0, f64::max);
+    println!(
+        "{}: {frames} frames, {:.2} ms/step, Newton iterations {:.2}/step (max {most_iterations}), \
+         peak speed {peak:.3} m/s, last 10 frames <= {last:.2e} m/s, rests {lowest:.2e} m over the ground, \
+         centroid moved {:.4} m along x, kappa {:.3e}",
+        scene.name,
+        1e3 * seconds / frames as f64,
+        iterations as f64 / frames as f64,
+        centroid_x(x) - x_start,
+        sim.contact_stiffness()
+    );
+    assert!(peak > 0.5, "peak speed {peak}");
+    assert!(last < 1e-2, "still moving at {last} m/s over the last 10 frames");
+}
+
+/// The signed height of a point over the top face of the scene's first obstacle (a box).
+fn ground_height(scene: &Scene) -> impl Fn(&[f64]) -> f64 {
+    let crate::scene::ObstacleMesh::Box { min, max, rotation } = scene.contact.as_ref().unwrap().obstacles[0] else {
+        panic!("a box ground")
+    };
+    let rot = nalgebra::Rotation3::new(nalgebra::Vector3::from(rotation.unwrap_or_default()));
+    let centre = nalgebra::Vector3::from([0, 1, 2].map(|i| 0.5 * (min[i] + max[i])));
+    let normal = rot * nalgebra::Vector3::y();
+    let top = centre + normal * (0.5 * (max[1] - min[1]));
+    move |p: &[f64]| normal.dot(&(nalgebra::Vector3::new(p[0], p[1], p[2]) - top))
+}
+
+#[test]
+fn without_friction_the_body_slides_down_the_tilted_ground() {
+    let mut scene = small_drop();
+    scene.contact.as_mut().unwrap().friction = 0.0;
+    let mut problem = scene.build().unwrap();
+    let sim = &mut problem.simulator;
+    for frame in 1..=60 {
+        sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
+    }
+    let speed = sim.velocities().chunks(3).map(|v| v[0].hypot(v[1])).fold(0.0, f64::max);
+    assert!(speed > 0.3, "frictionless, it still moves at only {speed} m/s");
+}
+
+#[test]
+fn the_shipped_drop_scene_builds_with_contact() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/ball-drop.toml");
+    let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let c = scene.contact.as_ref().expect("a [contact] table");
+    assert!(c.friction > 0.0 && !c.obstacles.is_empty());
+    let problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+    let (surface, ext) = problem.simulator.contact_state().unwrap();
+    assert!(!has_intersections(surface, &ext));
+    assert_eq!(
+        ext.len(),
+        problem.mesh.rest.len() + 3 * 8,
+        "the body and the ground's 8 corners"
+    );
+}
+
+#[test]
+fn contact_table_defaults_and_errors_name_the_file_and_field() {
+    let plain = r#"
+name = "plain"
+[mesh]
+type = "box"
+min = [0.0, 0.0, 0.0]
+max = [1.0, 1.0, 1.0]
+cells = [1, 1, 1]
+[material]
+youngs = 1e5
+poisson = 0.4
+density = 1000.0
+"#;
+    let with = |table: &str| format!("{plain}\n{table}\n");
+    let defaults = Scene::parse(&with("[contact]"), Path::new("d.toml")).unwrap();
+    let c = defaults.contact.unwrap();
+    assert_eq!((c.dhat, c.friction, c.epsv, c.self_contact), (1e-3, 0.0, 1e-3, false));
+    assert!(Scene::parse(plain, Path::new("d.toml")).unwrap().contact.is_none());
+    for (table, field) in [
+        ("[contact]\ndhat = -1.0", "contact.dhat"),
+        ("[contact]\nfriction = -0.5", "contact.friction"),
+        ("[contact]\nepsv = 0.0", "contact.epsv"),
+        (
+            "[contact]\n[[contact.obstacles]]\ntype = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, -1.0, 1.0]",
+            "contact.obstacles[0].max",
+        ),
+        (
+            "[contact]\n[[contact.obstacles]]\ntype = \"file\"\npath = \"g.obj\"\nscale = 0.0",
+            "contact.obstacles[0].scale",
+        ),
+    ] {
+        let err = Scene::parse(&with(table), Path::new("bad-contact.toml")).unwrap_err();
+        let msg = err.to_string();
+        assert!(
+            msg.contains("bad-contact.toml") && msg.contains(field),
+            "{table}: {msg}"
+        );
+    }
+    let err = Scene::parse(&with("[contact]\nself_contact = true"), Path::new("bad-contact.toml")).unwrap_err();
+    assert!(err.to_string().contains("bad-contact.toml"), "{err}");
+}

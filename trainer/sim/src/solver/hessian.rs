@@ -1,0 +1,164 @@
+//! The free-free Hessian's sparse pattern: a lower-triangular CSC matrix covering every
+//! stencil of the fixed energy terms plus any extra couplings (contact pairs between
+//! vertices no element joins), its values, the slot map of every term, and the cached
+//! symbolic Cholesky factorisation.
+
+use super::NOT_FREE;
+use crate::energy::{StencilEnergy, MAX_DOF};
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{MatMut, Side};
+
+pub(super) const NO_SLOT: u32 = u32::MAX;
+
+/// Where each entry of each stencil's local Hessian lands in the sparse matrix.
+pub(super) struct StencilSlots {
+    /// `offsets[s]..offsets[s + 1]` indexes `slots` for stencil `s` (row-major `n x n`).
+    pub(super) offsets: Vec<usize>,
+    /// Index into the CSC value array, or `NO_SLOT` for fixed DOF / upper triangle.
+    pub(super) slots: Vec<u32>,
+}
+
+/// Lower-triangular CSC pattern of the free-free Hessian, its values, the slot maps of
+/// every energy term, and the cached symbolic Cholesky factorisation.
+pub(super) struct HessianPattern {
+    n: usize,
+    col_ptr: Vec<u32>,
+    row_idx: Vec<u32>,
+    pub(super) values: Vec<f64>,
+    pub(super) slots: Vec<StencilSlots>,
+    symbolic: SymbolicLlt<u32>,
+}
+
+impl HessianPattern {
+    /// The pattern of `terms` over the `n` free dofs (`free_index` maps global dofs to free
+    /// ones), plus the `extra` free-dof entries `[row, column]` (`row >= column`).
+    pub(super) fn new(terms: &[&dyn StencilEnergy], free_index: &[usize], n: usize, extra: &[[u32; 2]]) -> Self {
+        let dofs = |e: &dyn StencilEnergy, s: usize| -> Vec<usize> {
+            let d = e.dim();
+            e.stencil(s)
+                .iter()
+                .flat_map(|&v| (0..d).map(move |i| free_index[v * d + i]))
+                .collect()
+        };
+        let mut columns: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for term in terms {
+            for s in 0..term.len() {
+                let ds = dofs(*term, s);
+                for &r in &ds {
+                    for &c in &ds {
+                        if r != NOT_FREE && c != NOT_FREE && r >= c {
+                            columns[c].push(r as u32);
+                        }
+                    }
+                }
+            }
+        }
+        for &[r, c] in extra {
+            columns[c as usize].push(r);
+        }
+        let mut col_ptr = vec![0u32];
+        let mut row_idx = Vec::new();
+        for col in &mut columns {
+            col.sort_unstable();
+            col.dedup();
+            row_idx.extend_from_slice(col);
+            col_ptr.push(row_idx.len() as u32);
+        }
+        let slots = terms
+            .iter()
+            .map(|term| {
+                let mut offsets = vec![0];
+                let mut slots = Vec::new();
+                for s in 0..term.len() {
+                    let ds = dofs(*term, s);
+                    debug_assert!(ds.len() <= MAX_DOF);
+                    for &r in &ds {
+                        for &c in &ds {
+                            slots.push(if r != NOT_FREE && c != NOT_FREE && r >= c {
+                                let col = &row_idx[col_ptr[c] as usize..col_ptr[c + 1] as usize];
+                                col_ptr[c]
+                                    + col
+                                        .binary_search(&(r as u32))
+                                        .expect("pattern holds every stencil entry")
+                                        as u32
+                            } else {
+                                NO_SLOT
+                            });
+                        }
+                    }
+                    offsets.push(slots.len());
+                }
+                StencilSlots { offsets, slots }
+            })
+            .collect();
+        let nnz = row_idx.len();
+        // The symbolic analysis (ordering, elimination tree, fill) depends only on the
+        // pattern: computed once here, reused by every numeric factorisation.
+        let symbolic = SymbolicLlt::try_new(
+            SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx),
+            Side::Lower,
+        )
+        .expect("symbolic Cholesky of a valid pattern");
+        HessianPattern {
+            n,
+            col_ptr,
+            row_idx,
+            values: vec![0.0; nnz],
+            slots,
+            symbolic,
+        }
+    }
+
+    /// Index into the values of entry `(r, c)` (free dofs, `r >= c`), if the pattern has it.
+    pub(super) fn slot(&self, r: usize, c: usize) -> Option<usize> {
+        let (start, end) = (self.col_ptr[c] as usize, self.col_ptr[c + 1] as usize);
+        self.row_idx[start..end]
+            .binary_search(&(r as u32))
+            .ok()
+            .map(|k| start + k)
+    }
+
+    /// Solves `H d = rhs` in place if the assembled `H` is positive definite; returns
+    /// false (leaving `rhs` untouched) if its Cholesky factorisation fails.
+    pub(super) fn try_solve(&mut self, rhs: &mut [f64]) -> bool {
+        let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
+        let symbolic = self.symbolic.clone();
+        match Llt::try_new_with_symbolic(symbolic, SparseColMatRef::new(pattern, &self.values), Side::Lower) {
+            Ok(llt) => {
+                llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
+                true
+            }
+            Err(_) => false,
+        }
+    }
+
+    /// Solves `H d = rhs` in place with a sparse Cholesky factorisation of the assembled
+    /// values. If `H` is not numerically positive definite, a growing multiple of the
+    /// identity (relative to the largest diagonal entry) is added until it is.
+    pub(super) fn solve(&mut self, rhs: &mut [f64]) {
+        if self.try_solve(rhs) {
+            return;
+        }
+        let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
+        let diag_max = (0..self.n)
+            .map(|c| self.values[self.col_ptr[c] as usize])
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+            .max(f64::MIN_POSITIVE);
+        let mut shift = 1e-10 * diag_max;
+        let mut values = self.values.clone();
+        loop {
+            values.copy_from_slice(&self.values);
+            for c in 0..self.n {
+                values[self.col_ptr[c] as usize] += shift;
+            }
+            let matrix = SparseColMatRef::new(pattern, &values);
+            if let Ok(llt) = Llt::try_new_with_symbolic(self.symbolic.clone(), matrix, Side::Lower) {
+                llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
+                return;
+            }
+            shift *= 100.0;
+        }
+    }
+}
