@@ -480,13 +480,18 @@ fn bench_sim(scenes: Vec<String>, frames: usize) -> Result<()> {
         "{:10} {:>8} {:>10} {:>12} {:>10}",
         "scene", "DOF", "ms/step", "Newton it.", "max it."
     );
+    let mut contact_rows = Vec::new();
     for name in scenes {
         let scene = Recipe::load(&name)?.scene;
         let mut problem = scene.build()?;
         let seq = problem.sequence(&SpeedPlan::constant(0.5), frames, scene.dataset.seed);
+        let mut reports = Vec::new();
         let traj = problem
-            .run(&seq, &mochi_sim::Silent)
+            .run_reporting(&seq, &mochi_sim::Silent, &mut |r| reports.push(r.clone()))
             .with_context(|| format!("simulating `{name}`"))?;
+        if scene.contact.is_some() {
+            contact_rows.push(contact_row(&scene.name, &reports));
+        }
         let iters: Vec<f64> = traj.newton_iterations[1..].iter().map(|&i| i as f64).collect();
         println!(
             "{:10} {:>8} {:>10.2} {:>12.2} {:>10}",
@@ -497,7 +502,40 @@ fn bench_sim(scenes: Vec<String>, frames: usize) -> Result<()> {
             iters.iter().fold(0.0f64, |m, &i| m.max(i))
         );
     }
+    if !contact_rows.is_empty() {
+        println!(
+            "\ncontact scenes: pairs per step, and the share of each solve's time per phase\n\
+             {:10} {:>10} {:>10} {:>12} {:>8} {:>8} {:>9} {:>7} {:>7}",
+            "scene", "ms/step", "Newton it.", "pairs mean", "max", "broad %", "CCD %", "assem %", "solve %"
+        );
+        for row in contact_rows {
+            println!("{row}");
+        }
+    }
     Ok(())
+}
+
+/// One row of `mochi bench sim`'s contact table: mean time and iterations per step, contact
+/// pairs, and each phase's share of the solves' time.
+fn contact_row(scene: &str, reports: &[mochi_sim::solver::StepReport]) -> String {
+    let seconds: f64 = reports.iter().map(|r| r.seconds).sum::<f64>().max(f64::MIN_POSITIVE);
+    let share = |f: &dyn Fn(&mochi_sim::solver::SolvePhases) -> f64| {
+        100.0 * reports.iter().map(|r| f(&r.phases)).sum::<f64>() / seconds
+    };
+    let pairs: Vec<f64> = reports.iter().map(|r| r.contact_pairs as f64).collect();
+    let iterations: Vec<f64> = reports.iter().map(|r| r.iterations as f64).collect();
+    format!(
+        "{:10} {:>10.2} {:>10.2} {:>12.1} {:>8} {:>8.1} {:>9.1} {:>7.1} {:>7.1}",
+        scene,
+        1e3 * seconds / reports.len().max(1) as f64,
+        mean(&iterations),
+        mean(&pairs),
+        pairs.iter().fold(0.0f64, |m, &p| m.max(p)),
+        share(&|p| p.broad_phase),
+        share(&|p| p.ccd),
+        share(&|p| p.assembly),
+        share(&|p| p.linear_solve),
+    )
 }
 
 fn bench_runtime(

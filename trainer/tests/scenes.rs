@@ -18,6 +18,8 @@ fn every_shipped_scene_builds_at_its_documented_size() {
         "load3d",
         "rods",
         "twist-bar",
+        "ball-drop",
+        "two-cubes",
     ] {
         assert!(
             names.iter().any(|n| n == expected),
@@ -62,6 +64,10 @@ fn every_shipped_scene_builds_at_its_documented_size() {
                 assert_eq!(n, 25 * 6 * 6);
                 assert_eq!(problem.simulator.scheme(), mochi_sim::TimeScheme::QuasiStatic);
                 assert_eq!(problem.handles.len(), 2, "both ends held");
+            }
+            "two-cubes" => {
+                assert_eq!(n, 2 * 125, "two 4 x 4 x 4 cubes");
+                assert!(scene.contact.as_ref().is_some_and(|c| c.self_contact));
             }
             _ => {}
         }

@@ -206,6 +206,17 @@ impl BuiltScene {
 
     /// Simulates `seq` from the scene's initial state and records the trajectory.
     pub fn run(&mut self, seq: &BcSequence, progress: &dyn Progress) -> Result<Trajectory, StepError> {
+        self.run_reporting(seq, progress, &mut |_| {})
+    }
+
+    /// [`Self::run`], handing each step's solver report to `on_step` (benchmarks read
+    /// where the time went).
+    pub fn run_reporting(
+        &mut self,
+        seq: &BcSequence,
+        progress: &dyn Progress,
+        on_step: &mut dyn FnMut(&StepReport),
+    ) -> Result<Trajectory, StepError> {
         let dim = self.mesh.dim;
         self.simulator.reset(&self.mesh.rest.clone());
         let targets0 = seq.targets(&self.handles, 0, dim);
@@ -254,6 +265,7 @@ impl BuiltScene {
                 .push(self.simulator.energies().iter().map(|(_, e)| *e).collect());
             traj.newton_iterations.push(report.iterations as u32);
             traj.step_seconds.push(seconds);
+            on_step(&report);
             progress.advance(1);
         }
         Ok(traj)

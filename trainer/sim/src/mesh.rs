@@ -2,6 +2,7 @@
 //! (triangles in 3D) and rods (polylines).
 
 pub mod io;
+pub mod parts;
 pub mod procedural;
 
 use std::collections::HashMap;

@@ -136,6 +136,22 @@ pub enum MeshSpec {
         #[serde(default)]
         kind: Option<String>,
     },
+    /// Several bodies of one kind in one scene (`parts = [{ type = "box", ... }, ...]`),
+    /// never joined by an element; they meet through contact (`[contact] self = true`).
+    Parts {
+        /// The bodies, each any of the other mesh types.
+        parts: Vec<MeshSpec>,
+    },
+}
+
+impl MeshSpec {
+    /// Whether this mesh, or any of its parts, is of the kind `is` picks.
+    pub fn any(&self, is: &dyn Fn(&MeshSpec) -> bool) -> bool {
+        match self {
+            MeshSpec::Parts { parts } => parts.iter().any(|p| p.any(is)),
+            other => is(other),
+        }
+    }
 }
 
 fn default_cloth_axes() -> [[f64; 3]; 2] {
@@ -433,14 +449,11 @@ impl Scene {
             check_material(e.youngs, e.poisson, e.density)
                 .map_err(|(f, msg)| self.field_error(format!("material.regions[{k}].{f}"), msg))?;
         }
-        match &self.mesh {
-            MeshSpec::ClothGrid { .. } if !m.thickness.is_some_and(positive) => {
-                return Err(self.field_error("material.thickness", "cloth needs a positive thickness"));
-            }
-            MeshSpec::Rods { .. } if !m.radius.is_some_and(positive) => {
-                return Err(self.field_error("material.radius", "rods need a positive radius"));
-            }
-            _ => {}
+        if self.mesh.any(&|s| matches!(s, MeshSpec::ClothGrid { .. })) && !m.thickness.is_some_and(positive) {
+            return Err(self.field_error("material.thickness", "cloth needs a positive thickness"));
+        }
+        if self.mesh.any(&|s| matches!(s, MeshSpec::Rods { .. })) && !m.radius.is_some_and(positive) {
+            return Err(self.field_error("material.radius", "rods need a positive radius"));
         }
         if !(positive(self.collision.stiffness) && self.collision.margin.is_finite() && self.collision.margin >= 0.0) {
             return Err(self.field_error("collision", "stiffness must be positive and margin non-negative"));
@@ -485,7 +498,7 @@ impl Scene {
 
     /// Builds the mesh described by the scene.
     pub fn build_mesh(&self) -> Result<Mesh, InputError> {
-        build_mesh(&self.mesh, &self.source)
+        build_mesh(&self.mesh, &self.source, "mesh")
     }
 
     /// Builds the mesh, energies, handles and simulator.
@@ -670,7 +683,9 @@ fn check_material(youngs: f64, poisson: f64, density: f64) -> Result<(), (&'stat
     Ok(())
 }
 
-fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
+/// The mesh `spec` describes; errors name the field under `field` (`mesh`,
+/// `mesh.parts[1]`).
+fn build_mesh(spec: &MeshSpec, scene_file: &Path, field: &str) -> Result<Mesh, InputError> {
     match spec {
         MeshSpec::Box { min, max, cells } => mesh::procedural::box_tets(*min, *max, *cells),
         MeshSpec::ClothGrid {
@@ -723,7 +738,7 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
                 Some(other) => {
                     return Err(InputError::field(
                         scene_file,
-                        "mesh.kind",
+                        format!("{field}.kind"),
                         format!("unknown kind `{other}` (cloth or rods)"),
                     ));
                 }
@@ -736,13 +751,21 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
                 if s.len() != mesh.dim || !s.iter().all(|c| c.is_finite() && *c > 0.0) {
                     return Err(InputError::field(
                         scene_file,
-                        "mesh.scale",
+                        format!("{field}.scale"),
                         format!("needs {} positive factors", mesh.dim),
                     ));
                 }
                 mesh = mesh.scaled(s);
             }
             Ok(mesh)
+        }
+        MeshSpec::Parts { parts } => {
+            let meshes = parts
+                .iter()
+                .enumerate()
+                .map(|(k, p)| build_mesh(p, scene_file, &format!("{field}.parts[{k}]")))
+                .collect::<Result<Vec<_>, _>>()?;
+            mesh::parts::concat(meshes).map_err(|msg| InputError::field(scene_file, format!("{field}.parts"), msg))
         }
     }
 }

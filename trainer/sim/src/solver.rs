@@ -87,6 +87,22 @@ pub struct StepReport {
     pub seconds: f64,
     /// Contact pairs loaded at the end of the solve (0 without contact).
     pub contact_pairs: usize,
+    /// Where the solve's time went.
+    pub phases: SolvePhases,
+}
+
+/// Seconds a solve spent in each of its phases (the rest of [`StepReport::seconds`] is
+/// energy and gradient evaluation and the line search's objective values).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SolvePhases {
+    /// Contact broad phase: the pairs within `dhat`, and those a step's swept boxes bring together.
+    pub broad_phase: f64,
+    /// Continuous collision detection bounding each line-search step.
+    pub ccd: f64,
+    /// Hessian assembly (with contact stencils, and PSD projection where used).
+    pub assembly: f64,
+    /// Sparse Cholesky factorisation and solve.
+    pub linear_solve: f64,
 }
 
 /// A full-space simulator of one body.
@@ -255,6 +271,9 @@ impl Simulator {
         }
         self.v_prev.copy_from_slice(&self.v);
         self.steps = 0;
+        if let Some(c) = &mut self.contact {
+            c.place_obstacles_at(0.0);
+        }
     }
 
     /// Kinetic energy and the value of each potential at the current state.
@@ -300,6 +319,12 @@ impl Simulator {
         // prediction need not be), as IPC does; CCD then keeps every iterate so.
         let mut x = if self.contact.is_some() { self.x.clone() } else { xhat };
         self.place_fixed(&mut x, targets);
+        // Moving obstacles reach where their scripts put them at the end of the step
+        // during the solve, CCD-bounded like the body (see `minimize`).
+        let end_time = (self.steps + 1) as f64 * h;
+        if let Some(c) = &mut self.contact {
+            c.set_obstacle_goal(end_time);
+        }
         let mut report = self.minimize(&mut x, 1.0, weight, h * self.length_scale, Some(h))?;
         let v_new: Vec<f64> = if bdf2 {
             (0..x.len())
@@ -332,6 +357,10 @@ impl Simulator {
         let start = Instant::now();
         let mut x = self.x.clone();
         self.place_fixed(&mut x, targets);
+        let end_time = (self.steps + 1) as f64 * self.dt;
+        if let Some(c) = &mut self.contact {
+            c.set_obstacle_goal(end_time);
+        }
         let dt = self.dt;
         let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale, Some(dt))?;
         let v_new: Vec<f64> = x.iter().zip(&self.x).map(|(a, b)| (a - b) / self.dt).collect();
@@ -452,21 +481,38 @@ impl Simulator {
                 report.converged = true;
                 break;
             }
+            // A moving obstacle's remaining step `d_o` is part of this iteration's step; the
+            // body's Newton direction then answers `H_ff d_f = -g_f - H_fo d_o`.
+            let obstacle_step = self.contact.as_ref().and_then(Contact::obstacle_step);
+            let mut push = Vec::new();
+            if let (Some(c), Some(d_o)) = (&self.contact, &obstacle_step) {
+                push = vec![0.0; x.len()];
+                c.add_obstacle_coupling(x, d_o, &mut push);
+            }
             for (k, &f) in self.free_index.iter().enumerate() {
                 if f != NOT_FREE {
-                    rhs[f] = -grad[k];
+                    rhs[f] = -grad[k] - push.get(k).copied().unwrap_or(0.0);
                 }
             }
             // Exact Newton where the exact Hessian is positive definite (quadratic
             // convergence); otherwise per-stencil PSD projection (always a descent direction).
             let exact_first = self.settings.hessian == HessianMode::ExactIfDefinite;
+            let clock = Instant::now();
             self.assemble(x, w_inertia, w_potential, !exact_first);
-            if !(exact_first && self.hessian.try_solve(&mut rhs)) {
+            report.phases.assembly += clock.elapsed().as_secs_f64();
+            let clock = Instant::now();
+            let solved = exact_first && self.hessian.try_solve(&mut rhs);
+            report.phases.linear_solve += clock.elapsed().as_secs_f64();
+            if !solved {
                 if exact_first {
+                    let clock = Instant::now();
                     self.assemble(x, w_inertia, w_potential, true);
+                    report.phases.assembly += clock.elapsed().as_secs_f64();
                     report.projected_iterations += 1;
                 }
+                let clock = Instant::now();
                 self.hessian.solve(&mut rhs);
+                report.phases.linear_solve += clock.elapsed().as_secs_f64();
             }
             let dir = &rhs;
             let step_norm = dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) / norm_scale;
@@ -485,7 +531,7 @@ impl Simulator {
                 .sum();
             // At the round-off floor the predicted decrease is below what the objective can
             // resolve: the iterate cannot get better, so stop there.
-            if -slope <= 1e-14 * e.abs() {
+            if -slope <= 1e-14 * e.abs() && obstacle_step.is_none() {
                 report.converged = true;
                 break;
             }
@@ -498,14 +544,28 @@ impl Simulator {
                 }
                 alpha = contact.line_search_bound(x, &trial);
             }
+            // While obstacles move, the objective is not the one being minimised yet (it
+            // changes with them): any collision-free step with a finite objective is taken.
+            let obstacles_from = obstacle_step
+                .as_ref()
+                .and(self.contact.as_ref())
+                .map(|c| c.obstacle_positions().to_vec());
             while alpha > 0.0 {
                 for (k, &f) in self.free_index.iter().enumerate() {
                     if f != NOT_FREE {
                         trial[k] = x[k] + alpha * dir[f];
                     }
                 }
+                if let (Some(c), Some(from)) = (&mut self.contact, &obstacles_from) {
+                    c.move_obstacles(from, alpha);
+                }
                 let et = self.objective(&trial, w_inertia, w_potential, None);
-                if et.is_finite() && et <= e + 1e-4 * alpha * slope.min(0.0) {
+                let accept = if obstacles_from.is_some() {
+                    et.is_finite()
+                } else {
+                    et.is_finite() && et <= e + 1e-4 * alpha * slope.min(0.0)
+                };
+                if accept {
                     break;
                 }
                 alpha *= 0.5;
@@ -520,10 +580,15 @@ impl Simulator {
                 }
             }
             if let Some(c) = &mut self.contact {
+                if let Some(from) = &obstacles_from {
+                    c.move_obstacles(from, alpha);
+                    c.settle_obstacles();
+                }
                 c.end_iteration(x);
             }
-            if step_norm < self.settings.tolerance || alpha == 0.0 {
-                report.converged = step_norm < self.settings.tolerance;
+            let obstacles_moving = self.contact.as_ref().is_some_and(|c| c.obstacle_step().is_some());
+            if (step_norm < self.settings.tolerance && !obstacles_moving) || alpha == 0.0 {
+                report.converged = step_norm < self.settings.tolerance && !obstacles_moving;
                 report.objective = self.objective(x, w_inertia, w_potential, None);
                 break;
             }
@@ -533,7 +598,10 @@ impl Simulator {
                 iteration: report.iterations,
             });
         }
-        report.contact_pairs = self.contact.as_ref().map_or(0, Contact::pairs);
+        if let Some(c) = &self.contact {
+            report.contact_pairs = c.pairs();
+            (report.phases.broad_phase, report.phases.ccd) = c.phase_seconds();
+        }
         Ok(report)
     }
 

@@ -17,6 +17,9 @@
 //! [[contact.obstacles]]
 //! type = "file"      # a triangle mesh (OBJ), moved by `offset` after `scale`
 //! path = "ground.obj"
+//! # optional scripted motion, on any obstacle: [time (s), dx, dy, dz] translations,
+//! # linear in between, held before the first and after the last
+//! keyframes = [[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, -0.05, 0.0]]
 //! ```
 //!
 //! Without a `[contact]` table the body has no IPC contact (the analytic `obstacles` and
@@ -72,6 +75,9 @@ pub enum ObstacleMesh {
         /// radians); default none.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         rotation: Option<[f64; 3]>,
+        /// Scripted translation `[time, dx, dy, dz]` (default none: static).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        keyframes: Vec<[f64; 4]>,
     },
     /// A triangle mesh file (OBJ).
     File {
@@ -83,6 +89,9 @@ pub enum ObstacleMesh {
         /// Translation applied after the scale.
         #[serde(default)]
         offset: [f64; 3],
+        /// Scripted translation `[time, dx, dy, dz]` (default none: static).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        keyframes: Vec<[f64; 4]>,
     },
 }
 
@@ -108,8 +117,9 @@ impl ContactSpec {
             .map_err(|(f, msg)| (format!("contact.{f}"), msg))?;
         for (k, o) in self.obstacles.iter().enumerate() {
             let field = |f: &str| format!("contact.obstacles[{k}].{f}");
+            check_keyframes(o.keyframes()).map_err(|msg| (field("keyframes"), msg))?;
             match o {
-                ObstacleMesh::Box { min, max, rotation } => {
+                ObstacleMesh::Box { min, max, rotation, .. } => {
                     if rotation.is_some_and(|r| !r.iter().all(|c| c.is_finite())) {
                         return Err((field("rotation"), "must be finite".into()));
                     }
@@ -157,10 +167,28 @@ impl ContactSpec {
     }
 }
 
+/// Keyframe times must be finite and increasing, offsets finite.
+fn check_keyframes(keyframes: &[[f64; 4]]) -> Result<(), String> {
+    if let Some(k) = keyframes.iter().position(|f| !f.iter().all(|c| c.is_finite())) {
+        return Err(format!("keyframe {k} is not finite"));
+    }
+    if let Some(k) = keyframes.windows(2).position(|w| w[1][0] <= w[0][0]) {
+        return Err(format!("keyframe {} must come after keyframe {k} in time", k + 1));
+    }
+    Ok(())
+}
+
 impl ObstacleMesh {
+    /// The scripted motion (empty: static).
+    pub fn keyframes(&self) -> &[[f64; 4]] {
+        match self {
+            ObstacleMesh::Box { keyframes, .. } | ObstacleMesh::File { keyframes, .. } => keyframes,
+        }
+    }
+
     fn build(&self, scene_file: &Path, field: &str) -> Result<ContactObstacle, InputError> {
         let (positions, faces) = match self {
-            ObstacleMesh::Box { min, max, rotation } => {
+            ObstacleMesh::Box { min, max, rotation, .. } => {
                 let (mut positions, faces) = box_triangles(*min, *max);
                 if let Some(r) = rotation {
                     let rot = nalgebra::Rotation3::new(nalgebra::Vector3::from(*r));
@@ -172,7 +200,9 @@ impl ObstacleMesh {
                 }
                 (positions, faces)
             }
-            ObstacleMesh::File { path, scale, offset } => {
+            ObstacleMesh::File {
+                path, scale, offset, ..
+            } => {
                 let full = scene_file.parent().unwrap_or(Path::new(".")).join(path);
                 let mesh = mesh::io::load(&full, mesh::io::MeshKind::Cloth)?;
                 let Elements::Shell(tris) = mesh.elements else {
@@ -197,6 +227,7 @@ impl ObstacleMesh {
                 faces,
             },
             positions,
+            keyframes: self.keyframes().to_vec(),
         })
     }
 }

@@ -93,7 +93,8 @@ fn check_drop(scene: &Scene, frames: usize) {
 
 /// The signed height of a point over the top face of the scene's first obstacle (a box).
 fn ground_height(scene: &Scene) -> impl Fn(&[f64]) -> f64 {
-    let crate::scene::ObstacleMesh::Box { min, max, rotation } = scene.contact.as_ref().unwrap().obstacles[0] else {
+    let crate::scene::ObstacleMesh::Box { min, max, rotation, .. } = scene.contact.as_ref().unwrap().obstacles[0]
+    else {
         panic!("a box ground")
     };
     let rot = nalgebra::Rotation3::new(nalgebra::Vector3::from(rotation.unwrap_or_default()));
@@ -175,4 +176,176 @@ density = 1000.0
     }
     let err = Scene::parse(&with("[contact]\nself_contact = true"), Path::new("bad-contact.toml")).unwrap_err();
     assert!(err.to_string().contains("bad-contact.toml"), "{err}");
+}
+
+/// The shipped `two-cubes` scene with each cube shrunk to 2 x 2 x 2 cells.
+fn small_two_cubes() -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/two-cubes.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut scene = Scene::parse(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    let crate::scene::MeshSpec::Parts { parts } = &mut scene.mesh else {
+        panic!("two parts")
+    };
+    for part in parts {
+        if let crate::scene::MeshSpec::Box { cells, .. } = part {
+            *cells = [2, 2, 2];
+        }
+    }
+    scene
+}
+
+#[test]
+fn two_small_cubes_collide_and_stack_without_intersecting() {
+    check_stack(&small_two_cubes(), 60);
+}
+
+/// The full shipped scene for `mochi simulate`'s 300 frames (an optimised build:
+/// `cargo test -p mochi-sim --release -- --ignored shipped_two_cubes`).
+#[test]
+#[ignore]
+fn the_shipped_two_cubes_run_300_frames_intersection_free_and_stack() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/two-cubes.toml");
+    check_stack(&Scene::load(&path).unwrap(), 300);
+}
+
+/// Steps the two-body scene for `frames` frames: every step converges, no frame
+/// intersects, no element inverts; the upper cube lands on the lower one (it ends within a
+/// few `dhat` of it, having fallen) and the lower one stays on the ground.
+fn check_stack(scene: &Scene, frames: usize) {
+    let mut problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+    let Elements::Tets(tets) = problem.mesh.elements.clone() else {
+        panic!("a tet body")
+    };
+    let half = problem.mesh.num_vertices() / 2;
+    let dhat = scene.contact.as_ref().unwrap().dhat;
+    let sim = &mut problem.simulator;
+    let (mut iterations, mut seconds, mut most_pairs) = (0, 0.0, 0);
+    for frame in 1..=frames {
+        let report = sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        assert!(report.converged, "frame {frame}: Newton did not converge: {report:?}");
+        iterations += report.iterations;
+        seconds += report.seconds;
+        most_pairs = most_pairs.max(report.contact_pairs);
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
+        let x = sim.positions();
+        for t in &tets {
+            let p = t.map(|v| [x[3 * v], x[3 * v + 1], x[3 * v + 2]]);
+            assert!(signed_volume(p) > 0.0, "frame {frame}: inverted element {t:?}");
+        }
+    }
+    let x = sim.positions();
+    let heights = |range: std::ops::Range<usize>| {
+        let ys: Vec<f64> = range.map(|v| x[3 * v + 1]).collect();
+        let lo = ys.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = ys.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (lo, hi)
+    };
+    let (lower_bottom, lower_top) = heights(0..half);
+    let (upper_bottom, _) = heights(half..2 * half);
+    println!(
+        "{}: {frames} frames, {:.2} ms/step, Newton iterations {:.2}/step, up to {most_pairs} contact pairs, \
+         lower cube {lower_bottom:.2e}..{lower_top:.4} m, upper cube from {upper_bottom:.4} m",
+        scene.name,
+        1e3 * seconds / frames as f64,
+        iterations as f64 / frames as f64,
+    );
+    assert!(
+        lower_bottom > 0.0 && lower_bottom < 2.0 * dhat,
+        "lower cube over the ground: {lower_bottom}"
+    );
+    // The upper cube's lowest vertex sits on the lower cube's top (its corners may hang
+    // past the edge, so the gap is measured between the faces' heights).
+    let gap = upper_bottom - lower_top;
+    assert!(
+        gap > -0.02 && gap < 0.01,
+        "upper cube {upper_bottom} over the lower top {lower_top}"
+    );
+}
+
+/// The shipped `stomp` scene with the beam at 8 x 2 x 2 cells.
+fn small_stomp() -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/stomp.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut scene = Scene::parse(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    if let crate::scene::MeshSpec::Box { cells, .. } = &mut scene.mesh {
+        *cells = [8, 2, 2];
+    }
+    scene
+}
+
+#[test]
+fn a_descending_box_squashes_a_small_beam_without_intersecting() {
+    check_stomp(&small_stomp(), 100);
+}
+
+/// The full shipped scene for `mochi simulate`'s 300 frames (an optimised build:
+/// `cargo test -p mochi-sim --release -- --ignored shipped_stomp`).
+#[test]
+#[ignore]
+fn the_shipped_stomp_runs_300_frames_intersection_free_and_the_beam_recovers() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/stomp.toml");
+    check_stomp(&Scene::load(&path).unwrap(), 300);
+}
+
+/// Steps the stomp for `frames` frames: every step converges, no frame intersects (the
+/// moving box included), no element inverts, the beam stays on the ground; while the box is
+/// down (frames 90 to 150) the beam under it is squashed to the box's bottom, and once the
+/// box has lifted off (from frame 225) the beam springs back to most of its height.
+fn check_stomp(scene: &Scene, frames: usize) {
+    let mut problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+    let Elements::Tets(tets) = problem.mesh.elements.clone() else {
+        panic!("a tet body")
+    };
+    let rest_top = problem
+        .mesh
+        .rest
+        .chunks(3)
+        .map(|p| p[1])
+        .fold(f64::NEG_INFINITY, f64::max);
+    let dhat = scene.contact.as_ref().unwrap().dhat;
+    let box_bottom_down = 0.09 - 0.055;
+    let sim = &mut problem.simulator;
+    let (mut iterations, mut seconds, mut most_pairs, mut squashed) = (0, 0.0, 0, f64::INFINITY);
+    let under_box_top = |x: &[f64]| {
+        x.chunks(3)
+            .filter(|p| p[0].abs() < 0.05)
+            .map(|p| p[1])
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    for frame in 1..=frames {
+        let report = sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        assert!(report.converged, "frame {frame}: Newton did not converge: {report:?}");
+        iterations += report.iterations;
+        seconds += report.seconds;
+        most_pairs = most_pairs.max(report.contact_pairs);
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
+        let x = sim.positions();
+        for t in &tets {
+            let p = t.map(|v| [x[3 * v], x[3 * v + 1], x[3 * v + 2]]);
+            assert!(signed_volume(p) > 0.0, "frame {frame}: inverted element {t:?}");
+        }
+        let lowest = x.chunks(3).map(|p| p[1]).fold(f64::INFINITY, f64::min);
+        assert!(lowest > 0.0, "frame {frame}: below the ground");
+        if (90..=150).contains(&frame) {
+            let top = under_box_top(x);
+            assert!(
+                top < box_bottom_down + 2.0 * dhat,
+                "frame {frame}: the beam under the box reaches {top}"
+            );
+            squashed = squashed.min(top);
+        }
+    }
+    let top = under_box_top(sim.positions());
+    println!(
+        "{}: {frames} frames, {:.2} ms/step, Newton iterations {:.2}/step, up to {most_pairs} contact pairs, \
+         squashed to {squashed:.4} m (rest top {rest_top:.4} m), top at the end {top:.4} m",
+        scene.name,
+        1e3 * seconds / frames as f64,
+        iterations as f64 / frames as f64,
+    );
+    if frames >= 225 {
+        assert!(top > 0.9 * rest_top, "the beam stays squashed: {top} of {rest_top}");
+    }
 }

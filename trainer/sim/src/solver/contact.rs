@@ -33,6 +33,7 @@ use crate::contact::stiffness::{
 use crate::contact::ContactSurface;
 use crate::energy::{self, Local, StencilEnergy};
 use serde::{Deserialize, Serialize};
+use std::time::Instant;
 
 /// Contact parameters (the scene's `[contact]` table).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -79,13 +80,37 @@ impl ContactSettings {
     }
 }
 
-/// A static obstacle mesh: its surface (indices into its own vertices) and positions.
+/// An obstacle mesh: its surface (indices into its own vertices), positions and scripted
+/// motion.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ContactObstacle {
     /// The obstacle's contact surface.
     pub surface: ContactSurface,
-    /// Its vertex positions (`dim` per vertex).
+    /// Its vertex positions (`dim` per vertex) before any motion.
     pub positions: Vec<f64>,
+    /// Scripted translation: `[time (s), dx, dy, dz]`, increasing in time, linear in
+    /// between, held before the first and after the last; empty for a static obstacle.
+    pub keyframes: Vec<[f64; 4]>,
+}
+
+impl ContactObstacle {
+    /// The translation at `time` (seconds).
+    pub fn offset_at(&self, time: f64) -> [f64; 3] {
+        let k = &self.keyframes;
+        let (Some(first), Some(last)) = (k.first(), k.last()) else {
+            return [0.0; 3];
+        };
+        let lerp = |a: &[f64; 4], b: &[f64; 4], s: f64| [1, 2, 3].map(|i| a[i] + s * (b[i] - a[i]));
+        if time <= first[0] {
+            return lerp(first, first, 0.0);
+        }
+        if time >= last[0] {
+            return lerp(last, last, 0.0);
+        }
+        let j = k.partition_point(|f| f[0] <= time);
+        let (a, b) = (&k[j - 1], &k[j]);
+        lerp(a, b, (time - a[0]) / (b[0] - a[0]))
+    }
 }
 
 /// What contact is built from.
@@ -95,7 +120,7 @@ pub struct ContactConfig {
     pub settings: ContactSettings,
     /// The body's contact surface.
     pub surface: ContactSurface,
-    /// Static obstacle meshes.
+    /// Obstacle meshes, static or moved by a script.
     pub obstacles: Vec<ContactObstacle>,
 }
 
@@ -104,7 +129,13 @@ pub(super) struct Contact {
     settings: ContactSettings,
     dim: usize,
     body_len: usize,
+    /// The obstacles' current positions (after their motion so far).
     obstacle_positions: Vec<f64>,
+    /// The obstacles before any motion, and their scripts (empty if none moves).
+    obstacle_rest: Vec<f64>,
+    obstacle_scripts: Vec<ObstacleScript>,
+    /// Where moving obstacles must be at the end of the current solve, when they are not yet.
+    obstacle_goal: Option<Vec<f64>>,
     barrier: BarrierPotential,
     friction: Option<FrictionPotential>,
     kappa: f64,
@@ -112,6 +143,9 @@ pub(super) struct Contact {
     ccd: AdditiveCcd,
     average_mass: f64,
     bbox_diagonal: f64,
+    /// Seconds in the broad phase and in CCD since the solve began.
+    broad_phase_seconds: f64,
+    ccd_seconds: f64,
 }
 
 impl Contact {
@@ -125,10 +159,24 @@ impl Contact {
         let dim = surface.dim;
         let body_len = rest.len();
         let mut obstacle_positions = Vec::new();
+        let mut obstacle_scripts = Vec::new();
         for o in &obstacles {
             surface.append(&o.surface, (body_len + obstacle_positions.len()) / dim);
+            if !o.keyframes.is_empty() {
+                let start = obstacle_positions.len();
+                obstacle_scripts.push(ObstacleScript {
+                    range: start..start + o.positions.len(),
+                    obstacle: o.clone(),
+                });
+            }
             obstacle_positions.extend_from_slice(&o.positions);
         }
+        let obstacle_rest = obstacle_positions.clone();
+        let mut placed = obstacle_positions.clone();
+        for script in &obstacle_scripts {
+            script.place(&obstacle_rest, 0.0, &mut placed);
+        }
+        let obstacle_positions = placed;
         let ext: Vec<f64> = rest.iter().chain(&obstacle_positions).copied().collect();
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
@@ -145,6 +193,9 @@ impl Contact {
             dim,
             body_len,
             obstacle_positions,
+            obstacle_rest,
+            obstacle_scripts,
+            obstacle_goal: None,
             barrier: BarrierPotential::new(surface, ext, settings.dhat),
             friction: None,
             kappa: 0.0,
@@ -152,7 +203,85 @@ impl Contact {
             ccd: AdditiveCcd::default(),
             average_mass,
             bbox_diagonal,
+            broad_phase_seconds: 0.0,
+            ccd_seconds: 0.0,
         }
+    }
+
+    /// Asks the moving obstacles to be where their scripts put them at `time` by the end of
+    /// the next solve; false when none has to move.
+    pub(super) fn set_obstacle_goal(&mut self, time: f64) -> bool {
+        let mut goal = self.obstacle_positions.clone();
+        for script in &self.obstacle_scripts {
+            script.place(&self.obstacle_rest, time, &mut goal);
+        }
+        let moves = goal != self.obstacle_positions;
+        self.obstacle_goal = moves.then_some(goal);
+        moves
+    }
+
+    /// What is left of the moving obstacles' motion in this solve (`None` once they are
+    /// where they must be).
+    pub(super) fn obstacle_step(&self) -> Option<Vec<f64>> {
+        let goal = self.obstacle_goal.as_ref()?;
+        Some(goal.iter().zip(&self.obstacle_positions).map(|(g, p)| g - p).collect())
+    }
+
+    /// Places the moving obstacles `alpha` of the way from `from` to their goal; at
+    /// `alpha = 1` they are at the goal exactly, which is then reached.
+    pub(super) fn move_obstacles(&mut self, from: &[f64], alpha: f64) {
+        let Some(goal) = &self.obstacle_goal else { return };
+        if alpha >= 1.0 {
+            self.obstacle_positions.copy_from_slice(goal);
+        } else {
+            for ((p, f), g) in self.obstacle_positions.iter_mut().zip(from).zip(goal) {
+                *p = f + alpha * (g - f);
+            }
+        }
+    }
+
+    /// Marks the goal reached when the obstacles are there.
+    pub(super) fn settle_obstacles(&mut self) {
+        if self.obstacle_goal.as_ref() == Some(&self.obstacle_positions) {
+            self.obstacle_goal = None;
+        }
+    }
+
+    /// Places the obstacles where their scripts put them at `time`, at once (no solve).
+    pub(super) fn place_obstacles_at(&mut self, time: f64) {
+        for script in &self.obstacle_scripts {
+            script.place(&self.obstacle_rest, time, &mut self.obstacle_positions);
+        }
+        self.obstacle_goal = None;
+    }
+
+    /// The body's part of `H_bo d_o`: how the contact Hessian couples the body to the
+    /// obstacles' step `d_o` (the linearised push of a moving obstacle), added into `out`
+    /// (a body-length vector).
+    pub(super) fn add_obstacle_coupling(&self, x: &[f64], d_o: &[f64], out: &mut [f64]) {
+        let (dim, body) = (self.dim, self.body_len / self.dim);
+        self.for_each_hessian(x, true, |verts, local, weight| {
+            let n = verts.len() * dim;
+            for (a, &va) in verts.iter().enumerate().filter(|(_, &v)| v < body) {
+                for (b, &vb) in verts.iter().enumerate().filter(|(_, &v)| v >= body) {
+                    let o = (vb - body) * dim;
+                    for i in 0..dim {
+                        let row = &local.hess[(a * dim + i) * n + b * dim..][..dim];
+                        out[va * dim + i] += weight * row.iter().zip(&d_o[o..o + dim]).map(|(h, d)| h * d).sum::<f64>();
+                    }
+                }
+            }
+        });
+    }
+
+    /// The obstacles' current positions.
+    pub(super) fn obstacle_positions(&self) -> &[f64] {
+        &self.obstacle_positions
+    }
+
+    /// Seconds spent in the broad phase and in CCD since the current solve began.
+    pub(super) fn phase_seconds(&self) -> (f64, f64) {
+        (self.broad_phase_seconds, self.ccd_seconds)
     }
 
     /// The contact surface over the extended vertices.
@@ -205,7 +334,9 @@ impl Contact {
     /// Loads the pairs within `dhat` of positions `x`.
     fn load_pairs_at(&mut self, x: &[f64]) {
         let ext = self.extended(x);
+        let clock = Instant::now();
         let c = self.filtered(Candidates::within(self.surface(), &ext, self.settings.dhat));
+        self.broad_phase_seconds += clock.elapsed().as_secs_f64();
         self.barrier.set_candidates(&c);
     }
 
@@ -214,6 +345,7 @@ impl Contact {
     /// (both gradients taken over the dofs where `free` holds), and lags friction at `x`
     /// when `friction_dt` (the time step) is given.
     pub(super) fn begin_solve(&mut self, x: &[f64], rest_gradient: &[f64], free: &[bool], friction_dt: Option<f64>) {
+        (self.broad_phase_seconds, self.ccd_seconds) = (0.0, 0.0);
         self.load_pairs_at(x);
         let ext = self.extended(x);
         let mut gb = vec![0.0; ext.len()];
@@ -251,12 +383,18 @@ impl Contact {
     /// intersections (additive CCD over the pairs the swept boxes bring together), and loads
     /// the pairs that come within `dhat` anywhere along the step for the line search.
     pub(super) fn line_search_bound(&mut self, x0: &[f64], x1: &[f64]) -> f64 {
-        let (e0, e1) = (self.extended(x0), self.extended(x1));
+        let e0 = self.extended(x0);
+        let mut e1 = x1.to_vec();
+        e1.extend_from_slice(self.obstacle_goal.as_ref().unwrap_or(&self.obstacle_positions));
         if e1.iter().any(|v| !v.is_finite()) {
             return 0.0;
         }
+        let clock = Instant::now();
         let c = self.filtered(Candidates::swept(self.surface(), &e0, &e1, self.settings.dhat));
+        self.broad_phase_seconds += clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
         let t = max_step_over(&c, self.surface(), &e0, &e1, 0.0, &self.ccd);
+        self.ccd_seconds += clock.elapsed().as_secs_f64();
         self.barrier.set_candidates(&c);
         t
     }
@@ -326,5 +464,27 @@ impl Contact {
     /// Coordinates of the body (the extended vertices before the obstacles').
     pub(super) fn body_len(&self) -> usize {
         self.body_len
+    }
+}
+
+/// A moving obstacle's place among the stacked obstacle coordinates, and its script.
+struct ObstacleScript {
+    range: std::ops::Range<usize>,
+    obstacle: ContactObstacle,
+}
+
+impl ObstacleScript {
+    /// Writes the obstacle at `time` (its rest positions in `rest`, translated) into `out`.
+    fn place(&self, rest: &[f64], time: f64, out: &mut [f64]) {
+        let offset = self.obstacle.offset_at(time);
+        let dim = self.obstacle.surface.dim;
+        for (p, r) in out[self.range.clone()]
+            .chunks_mut(dim)
+            .zip(rest[self.range.clone()].chunks(dim))
+        {
+            for i in 0..dim {
+                p[i] = r[i] + offset[i];
+            }
+        }
     }
 }
