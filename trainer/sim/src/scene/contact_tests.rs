@@ -166,6 +166,16 @@ density = 1000.0
             "[contact]\n[[contact.obstacles]]\ntype = \"file\"\npath = \"g.obj\"\nscale = 0.0",
             "contact.obstacles[0].scale",
         ),
+        (
+            "[contact]\n[[contact.obstacles]]\ntype = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\n\
+             keyframes = [[1.0, 0.0, 0.0, 0.0], [0.5, 0.0, 1.0, 0.0]]",
+            "contact.obstacles[0].keyframes",
+        ),
+        (
+            "[contact]\n[[contact.obstacles]]\ntype = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\n\
+             keyframes = [[0.0, 0.0, nan, 0.0]]",
+            "contact.obstacles[0].keyframes",
+        ),
     ] {
         let err = Scene::parse(&with(table), Path::new("bad-contact.toml")).unwrap_err();
         let msg = err.to_string();
@@ -176,6 +186,17 @@ density = 1000.0
     }
     let err = Scene::parse(&with("[contact]\nself_contact = true"), Path::new("bad-contact.toml")).unwrap_err();
     assert!(err.to_string().contains("bad-contact.toml"), "{err}");
+    // A part's errors name the part.
+    let parts = plain.replace(
+        "type = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\ncells = [1, 1, 1]",
+        "type = \"parts\"\nparts = [{ type = \"box\", min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0], cells = [1, 1, 1] }, \
+         { type = \"file\", path = \"p.obj\", kind = \"hair\" }]",
+    );
+    assert!(parts.contains("parts = ["));
+    let err = Scene::parse(&parts, Path::new("parts.toml"))
+        .and_then(|s| s.build().map(|_| s))
+        .unwrap_err();
+    assert!(err.to_string().contains("mesh.parts[1].kind"), "{err}");
 }
 
 /// The shipped `two-cubes` scene with each cube shrunk to 2 x 2 x 2 cells.

@@ -191,3 +191,48 @@ fn self_contact_keeps_two_parts_of_one_mesh_apart_and_conserves_momentum() {
     let p1 = momentum(&sim);
     assert!((p1 - p0).abs() < 1e-3 * p0.abs(), "momentum {p0} -> {p1}");
 }
+
+#[test]
+fn a_scripted_obstacle_follows_its_keyframes_and_pushes_what_it_meets() {
+    // A box starting 5 cm over the cube's top, sent down by 10 cm over 0.5 s and held: it
+    // meets the cube on the way and presses it into the slab.
+    let mut problem = cube_over_slab(0.0);
+    let text = r#"
+[[obstacles]]
+type = "box"
+min = [-0.3, 0.3, -0.3]
+max = [0.3, 0.4, 0.3]
+keyframes = [[0.0, 0.0, 0.0, 0.0], [0.5, 0.0, -0.1, 0.0]]
+"#;
+    let mut scene = problem.scene.clone();
+    let extra: crate::scene::ContactSpec = toml::from_str(text).unwrap();
+    scene.contact.as_mut().unwrap().obstacles.extend(extra.obstacles);
+    problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+    let sim = &mut problem.simulator;
+    let body = sim.positions().len();
+    let (_, rest) = sim.contact_state().unwrap();
+    let lid = rest.len() - 24..rest.len();
+    let dt = sim.dt();
+    for frame in 1..=40 {
+        let report = sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        assert!(report.converged, "frame {frame}: {report:?}");
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
+        // Every solve ends with the moving box exactly where its script puts it.
+        let dy = -0.1 * (frame as f64 * dt / 0.5).min(1.0);
+        for (k, (now, at_rest)) in ext[lid.clone()].iter().zip(&rest[lid.clone()]).enumerate() {
+            let expected = at_rest + if k % 3 == 1 { dy } else { 0.0 };
+            assert!(
+                (now - expected).abs() < 1e-12,
+                "frame {frame}: lid coordinate {k} at {now}, not {expected}"
+            );
+        }
+        assert_eq!(ext.len() - body, rest.len() - body);
+    }
+    // The cube (0.2 m tall on the slab) now sits under the lid's bottom at 0.2 m minus the
+    // squash: its top is below where it started and above the slab.
+    let x = sim.positions();
+    let top = x.chunks(3).map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max);
+    assert!(top < 0.2 + 1e-3 && top > 0.1, "cube top {top}");
+    assert!(min_y(x) > 0.0, "through the slab: {}", min_y(x));
+}
