@@ -360,22 +360,32 @@ fn simulate(
         iters.iter().sum::<u32>() as f64 / iters.len().max(1) as f64,
         out.display()
     );
+    // With obstacle meshes, OBJ files and previews show them next to the body's surface.
+    let view = traj
+        .obstacles
+        .as_ref()
+        .and_then(|o| mochi_trainer::report::scene_view::with_obstacles(&problem.mesh, &traj.positions, o));
+    let (shown_mesh, shown_frames) = match &view {
+        Some((mesh, frames)) => (mesh, frames),
+        None => (&problem.mesh, &traj.positions),
+    };
     if let Some(dir) = obj {
-        render::write_obj_sequence(&dir, &scene.name, &problem.mesh, &traj.positions, obj_every.max(1))?;
+        render::write_obj_sequence(&dir, &scene.name, shown_mesh, shown_frames, obj_every.max(1))?;
         println!("OBJ sequence -> {}", dir.display());
     }
     if !png_frames.is_empty() {
         if let Some(&bad) = png_frames.iter().find(|&&f| f > frames) {
             bail!("--png-frames: frame {bad} is past the last frame {frames}");
         }
-        let shown: Vec<&[f64]> = png_frames.iter().map(|&f| traj.positions[f].as_slice()).collect();
+        let shown: Vec<&[f64]> = png_frames.iter().map(|&f| shown_frames[f].as_slice()).collect();
         let png = out.with_extension("png");
         let opts = render::RenderOptions {
             title: format!("{}: frames {:?}", scene.name, png_frames),
             highlight: problem.simulator.fixed_vertices().to_vec(),
+            framed_vertices: Some(problem.mesh.num_vertices()),
             ..Default::default()
         };
-        render::render_png(&png, &problem.mesh, &shown, &opts)?;
+        render::render_png(&png, shown_mesh, &shown, &opts)?;
         println!("preview -> {}", png.display());
     }
     Ok(())

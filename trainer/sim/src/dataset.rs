@@ -9,7 +9,7 @@ use crate::progress::Progress;
 pub use crate::scene::Split;
 use crate::scene::{BuiltScene, DatasetSpec, Start};
 use crate::solver::{StepError, StepReport};
-use crate::trajectory::Trajectory;
+use crate::trajectory::{ObstacleFrames, Trajectory};
 use rand::Rng;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -240,6 +240,10 @@ impl BuiltScene {
             energies: vec![energies.iter().map(|(_, e)| *e).collect()],
             newton_iterations: vec![0],
             step_seconds: vec![0.0],
+            obstacles: self.simulator.obstacle_mesh().map(|(faces, at)| ObstacleFrames {
+                faces,
+                positions: vec![at.to_vec()],
+            }),
             meta: vec![
                 (
                     "handles".into(),
@@ -265,6 +269,9 @@ impl BuiltScene {
                 .push(self.simulator.energies().iter().map(|(_, e)| *e).collect());
             traj.newton_iterations.push(report.iterations as u32);
             traj.step_seconds.push(seconds);
+            if let (Some(o), Some((_, at))) = (&mut traj.obstacles, self.simulator.obstacle_mesh()) {
+                o.positions.push(at.to_vec());
+            }
             on_step(&report);
             progress.advance(1);
         }

@@ -250,6 +250,25 @@ impl Simulator {
         self.contact.as_ref().map(|c| (c.surface(), c.extended(&self.x)))
     }
 
+    /// The contact obstacle meshes, if any: triangles over the obstacle vertices, and those
+    /// vertices' current positions (scripted obstacles move).
+    pub fn obstacle_mesh(&self) -> Option<(Vec<[u32; 3]>, &[f64])> {
+        let c = self.contact.as_ref()?;
+        let positions = c.obstacle_positions();
+        if positions.is_empty() {
+            return None;
+        }
+        let first = (c.body_len() / self.dim) as u32;
+        let faces = c
+            .surface()
+            .faces
+            .iter()
+            .filter(|f| f.iter().all(|&v| v as u32 >= first))
+            .map(|f| f.map(|v| v as u32 - first))
+            .collect();
+        Some((faces, positions))
+    }
+
     /// The current barrier stiffness (0 without contact or before the first solve).
     pub fn contact_stiffness(&self) -> f64 {
         self.contact.as_ref().map_or(0.0, Contact::kappa)

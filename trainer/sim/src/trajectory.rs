@@ -15,6 +15,8 @@
 //! | `newton_iterations` | uint32 | `(frames,)` |
 //! | `step_seconds` | float64 | `(frames,)` |
 //! | `meta` | unicode | `(m, 2)`: key, value rows |
+//! | `obstacle_faces` | uint32 | `(t, 3)`, only for scenes with obstacle meshes |
+//! | `obstacle_positions` | float64 | `(frames, o, 3)`, with `obstacle_faces` |
 //!
 //! Reading accepts compressed archives too (`numpy.savez_compressed`) and checks every
 //! array's presence, dtype and shape; errors name the file and the array.
@@ -55,6 +57,18 @@ pub struct Trajectory {
     pub step_seconds: Vec<f64>,
     /// Free-form metadata (seed, speeds, `split` = train/test, ...).
     pub meta: Vec<(String, String)>,
+    /// The contact obstacle meshes, frame by frame (scenes with `[[contact.obstacles]]`).
+    pub obstacles: Option<ObstacleFrames>,
+}
+
+/// Contact obstacle meshes over a sequence: their triangles, and their vertices at every
+/// frame (scripted obstacles move).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObstacleFrames {
+    /// Triangles over the obstacle vertices.
+    pub faces: Vec<[u32; 3]>,
+    /// Frames x (o * 3) obstacle vertex positions.
+    pub positions: Vec<Vec<f64>>,
 }
 
 impl Trajectory {
@@ -115,6 +129,22 @@ impl Trajectory {
                 format!("frame {i}: {} is not a finite, non-negative time", self.step_seconds[i]),
             ));
         }
+        if let Some(o) = &self.obstacles {
+            let width = o.positions.first().map_or(0, Vec::len);
+            check_table("obstacle_positions", &o.positions, frames, width)?;
+            if !width.is_multiple_of(3) {
+                return Err((
+                    "obstacle_positions",
+                    format!("{width} values per frame, not a multiple of 3"),
+                ));
+            }
+            if let Some(f) = o.faces.iter().find(|f| f.iter().any(|&v| v as usize >= width / 3)) {
+                return Err((
+                    "obstacle_faces",
+                    format!("face {f:?} refers past the {} vertices", width / 3),
+                ));
+            }
+        }
         check_text("scene", &self.scene)?;
         for name in &self.energy_names {
             check_text("energy_names", name)?;
@@ -163,6 +193,19 @@ impl Trajectory {
             &[self.meta.len() as u64, 2],
             self.meta.iter().flat_map(|(k, v)| [k.as_str(), v.as_str()]),
         )?;
+        if let Some(o) = &self.obstacles {
+            let count = o.positions.first().map_or(0, Vec::len) as u64 / 3;
+            npz.array(
+                "obstacle_faces",
+                &[o.faces.len() as u64, 3],
+                o.faces.iter().flatten().copied(),
+            )?;
+            npz.array(
+                "obstacle_positions",
+                &[frames, count, 3],
+                o.positions.iter().flatten().copied(),
+            )?;
+        }
         npz.finish()
     }
 
@@ -230,6 +273,28 @@ impl Trajectory {
             })
             .collect();
 
+        let obstacles = if npz.has("obstacle_faces") {
+            let faces = npz.array("obstacle_faces")?;
+            let [t, three] = faces.dims::<2>()?;
+            if three != 3 {
+                return Err(faces.error(format!("has {three} columns, not 3")));
+            }
+            let faces = faces.into_vec::<u32>("uint32")?;
+            let faces = (0..t)
+                .map(|k| [faces[3 * k], faces[3 * k + 1], faces[3 * k + 2]])
+                .collect();
+            let positions = npz.array("obstacle_positions")?;
+            let [o_frames, count, three] = positions.dims::<3>()?;
+            positions.expect_len("frames", o_frames, frames)?;
+            if three != 3 {
+                return Err(positions.error(format!("last axis is {three}, not 3")));
+            }
+            let positions = rows(positions.into_vec::<f64>("float64")?, frames, count * 3);
+            Some(ObstacleFrames { faces, positions })
+        } else {
+            None
+        };
+
         let trajectory = Trajectory {
             scene,
             dt,
@@ -241,6 +306,7 @@ impl Trajectory {
             newton_iterations,
             step_seconds,
             meta,
+            obstacles,
         };
         trajectory
             .check()
@@ -314,6 +380,11 @@ impl<'p> NpzFile<'p> {
         let file_len = file.metadata().map_err(|e| fail(&e))?.len();
         let zip = zip::ZipArchive::new(BufReader::new(file)).map_err(|e| fail(&e))?;
         Ok(NpzFile { path, zip, file_len })
+    }
+
+    /// Whether the archive holds array `name`.
+    fn has(&mut self, name: &str) -> bool {
+        self.zip.by_name(&format!("{name}.npy")).is_ok()
     }
 
     /// Reads the whole entry of array `name` (checksum verified) and parses its header.
@@ -519,6 +590,12 @@ mod tests {
                 ("split".into(), "train".into()),
                 ("note".into(), String::new()),
             ],
+            obstacles: Some(ObstacleFrames {
+                faces: vec![[0, 1, 2], [0, 2, 3]],
+                positions: (0..frames)
+                    .map(|f| (0..12).map(|i| i as f64 * 0.25 - 0.01 * f as f64).collect())
+                    .collect(),
+            }),
         }
     }
 
@@ -551,6 +628,7 @@ mod tests {
             newton_iterations: vec![0, 1],
             step_seconds: vec![0.0, 0.5],
             meta: vec![],
+            obstacles: None,
         };
         t.write_npz(&path).unwrap();
         assert_eq!(Trajectory::read_npz(&path).unwrap(), t);
@@ -570,6 +648,12 @@ mod tests {
         let mut t = sample();
         t.bc_signal[3].push(1.0);
         assert!(t.validate().unwrap_err().starts_with("bc_signal"));
+        let mut t = sample();
+        t.obstacles.as_mut().unwrap().faces.push([0, 1, 4]);
+        assert!(t.validate().unwrap_err().starts_with("obstacle_faces"));
+        let mut t = sample();
+        t.obstacles.as_mut().unwrap().positions.pop();
+        assert!(t.validate().unwrap_err().starts_with("obstacle_positions"));
         let mut t = sample();
         t.dim = 4;
         assert!(t.validate().is_err());

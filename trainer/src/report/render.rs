@@ -196,6 +196,9 @@ pub struct RenderOptions {
     pub highlight: Vec<usize>,
     /// Caption of each panel (e.g. `frame 30`); missing ones are left blank.
     pub panel_labels: Vec<String>,
+    /// The first this many vertices are what the view is framed on (e.g. the body, with
+    /// obstacle meshes after it drawn but cropped); default all.
+    pub framed_vertices: Option<usize>,
 }
 
 impl Default for RenderOptions {
@@ -208,6 +211,7 @@ impl Default for RenderOptions {
             up_axis: 1,
             highlight: Vec::new(),
             panel_labels: Vec::new(),
+            framed_vertices: None,
         }
     }
 }
@@ -360,7 +364,11 @@ fn draw_preview(path: &Path, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOption
     let panels = body.split_evenly((1, frames.len()));
     let (pw, ph) = panels[0].dim_in_pixel();
     let top = if opts.panel_labels.is_empty() { 8.0 } else { 26.0 };
-    let framing = frame_all(&camera, mesh.dim, frames, &shown, (pw as f64, ph as f64), top);
+    let framed: Vec<usize> = match opts.framed_vertices {
+        Some(n) => shown.iter().copied().filter(|&v| v < n).collect(),
+        None => shown.clone(),
+    };
+    let framing = frame_all(&camera, mesh.dim, frames, &framed, (pw as f64, ph as f64), top);
 
     for (i, (panel, x)) in panels.iter().zip(frames).enumerate() {
         let (pw, ph) = panel.dim_in_pixel();

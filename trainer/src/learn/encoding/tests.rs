@@ -376,6 +376,7 @@ fn encoding_bad_input_is_an_error() {
         newton_iterations: vec![0],
         step_seconds: vec![0.0],
         meta: vec![],
+        obstacles: None,
     };
     assert!(is_length(enc.encode_trajectory(&traj)));
     traj.dim = 3;
