@@ -370,3 +370,72 @@ fn check_stomp(scene: &Scene, frames: usize) {
         assert!(top > 0.9 * rest_top, "the beam stays squashed: {top} of {rest_top}");
     }
 }
+
+/// The shipped `twisted-strip` scene at `cells` cells.
+fn twisted_strip(cells: [usize; 3]) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/twisted-strip.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut scene = Scene::parse(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    if let crate::scene::MeshSpec::Box { cells: c, .. } = &mut scene.mesh {
+        *c = cells;
+    }
+    scene
+}
+
+#[test]
+fn a_coarse_twisted_strip_coils_into_self_contact_without_intersecting() {
+    check_coil(&twisted_strip([20, 2, 1]), 300);
+}
+
+/// The full shipped scene for `mochi simulate`'s 300 frames (an optimised build:
+/// `cargo test -p mochi-sim --release -- --ignored shipped_twisted_strip`).
+#[test]
+#[ignore]
+fn the_shipped_twisted_strip_coils_300_frames_intersection_free() {
+    check_coil(&twisted_strip([40, 4, 1]), 300);
+}
+
+/// Twists the strip for `frames` frames: every step converges, no frame intersects, no
+/// element inverts, and the strip comes within `dhat` of itself (the barrier turns
+/// positive) once the twist has coiled it.
+fn check_coil(scene: &Scene, frames: usize) {
+    let mut problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+    let Elements::Tets(tets) = problem.mesh.elements.clone() else {
+        panic!("a tet body")
+    };
+    let seq = problem.sequence(&crate::dataset::SpeedPlan::constant(1.0), frames, 1);
+    let (mut iterations, mut seconds, mut most_pairs, mut first_contact) = (0, 0.0, 0, None);
+    for frame in 1..=frames {
+        let targets = seq.targets(&problem.handles, frame, 3);
+        let sim = &mut problem.simulator;
+        let report = sim.step(&targets).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        assert!(report.converged, "frame {frame}: Newton did not converge: {report:?}");
+        iterations += report.iterations;
+        seconds += report.seconds;
+        most_pairs = most_pairs.max(report.contact_pairs);
+        // The barrier is positive only where two parts of the surface are within `dhat`.
+        let barrier = sim
+            .energies()
+            .iter()
+            .find(|(n, _)| *n == "contact barrier")
+            .map_or(0.0, |e| e.1);
+        if barrier > 0.0 && first_contact.is_none() {
+            first_contact = Some(frame);
+        }
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
+        let x = sim.positions();
+        for t in &tets {
+            let p = t.map(|v| [x[3 * v], x[3 * v + 1], x[3 * v + 2]]);
+            assert!(signed_volume(p) > 0.0, "frame {frame}: inverted element {t:?}");
+        }
+    }
+    println!(
+        "{}: {frames} frames, {:.2} ms/step, Newton iterations {:.2}/step, self-contact from frame {first_contact:?}, \
+         up to {most_pairs} candidate pairs",
+        scene.name,
+        1e3 * seconds / frames as f64,
+        iterations as f64 / frames as f64,
+    );
+    assert!(first_contact.is_some(), "the strip never came within dhat of itself");
+}
