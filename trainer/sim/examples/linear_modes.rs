@@ -35,14 +35,22 @@ fn main() -> Result<(), Box<dyn Error>> {
     )?;
     let total = start.elapsed().as_secs_f64();
     let dofs = set.modes.nrows();
-    println!("scene `{}`: {dofs} dofs, {} candidate modes in {} blocks", scene.name, set.modes.ncols(), set.blocks.len());
+    println!(
+        "scene `{}`: {dofs} dofs, {} candidate modes in {} blocks",
+        scene.name,
+        set.modes.ncols(),
+        set.blocks.len()
+    );
     if let Some(linear) = &set.linear {
         let t = linear.timings;
         println!(
             "linear modes: shift {:.3e}, {} restarts; assembly {:.3} s, factorisation {:.3} s, eigensolve {:.3} s; candidates in all {total:.3} s",
             linear.shift, linear.restarts, t.assembly, t.factorisation, t.eigensolve
         );
-        println!("{:>4} {:>14} {:>12} {:>12}", "mode", "lambda (1/s^2)", "freq (Hz)", "residual");
+        println!(
+            "{:>4} {:>14} {:>12} {:>12}",
+            "mode", "lambda (1/s^2)", "freq (Hz)", "residual"
+        );
         for (j, (l, f)) in linear.eigenvalues.iter().zip(linear.frequencies_hz()).enumerate() {
             println!("{j:>4} {l:>14.6e} {f:>12.5} {:>12.2e}", linear.residuals[j]);
         }

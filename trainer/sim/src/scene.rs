@@ -761,7 +761,8 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path) -> Result<Mesh, InputError> {
 pub struct Energies {
     /// Lumped vertex masses.
     pub masses: Vec<f64>,
-    /// Conservative terms: elastic, gravity, loads, collision.
+    /// Conservative terms: the elastic ones, then (from [`Scene::build_energies`]) gravity,
+    /// loads and collision.
     pub potentials: Vec<Box<dyn StencilEnergy>>,
 }
 

@@ -80,7 +80,9 @@ impl Body<'_> {
         }
         for (v, &m) in self.masses.iter().enumerate() {
             if !(m.is_finite() && m >= 0.0) || (m == 0.0 && !fixed[v]) {
-                return bad(format!("mass of vertex {v} is {m}, must be positive (or zero on a fixed vertex)"));
+                return bad(format!(
+                    "mass of vertex {v} is {m}, must be positive (or zero on a fixed vertex)"
+                ));
             }
         }
         Ok(())

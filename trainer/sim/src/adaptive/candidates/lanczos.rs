@@ -133,7 +133,7 @@ pub(crate) fn lowest_eigenpairs(
     let n = pencil.dim();
     let available = n - deflate.len();
     debug_assert!(count <= available);
-    if !(settings.tolerance > 0.0) || settings.steps == 0 {
+    if settings.tolerance.is_nan() || settings.tolerance <= 0.0 || settings.steps == 0 {
         return Err(CandidateError::InvalidSetting(format!(
             "tolerance {} must be positive and steps {} at least 1",
             settings.tolerance, settings.steps

@@ -127,7 +127,8 @@ impl<'a> Generators<'a> {
     fn orthonormal(&self, raw: &[Vec<f64>]) -> Mat<f64> {
         let d = self.body.dim;
         let mass = |k: usize| self.body.masses[k / d];
-        let dot = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).enumerate().map(|(k, (x, y))| mass(k) * x * y).sum() };
+        let dot =
+            |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).enumerate().map(|(k, (x, y))| mass(k) * x * y).sum() };
         let mut kept: Vec<Vec<f64>> = Vec::new();
         for w in raw {
             let mut w = w.clone();

@@ -27,8 +27,17 @@ struct Solid {
 
 fn solid(hi: [f64; 3], cells: [usize; 3], material: ElementMaterial) -> Solid {
     let mesh = box_tets([0.0; 3], hi, cells).unwrap();
-    let Elements::Tets(tets) = &mesh.elements else { unreachable!() };
-    let elastic = TetElastic::new(MaterialLaw::StableNeoHookean, &mesh.rest, tets, &[material], Path::new("test")).unwrap();
+    let Elements::Tets(tets) = &mesh.elements else {
+        unreachable!()
+    };
+    let elastic = TetElastic::new(
+        MaterialLaw::StableNeoHookean,
+        &mesh.rest,
+        tets,
+        &[material],
+        Path::new("test"),
+    )
+    .unwrap();
     let masses = lumped_masses(&mesh, &[material.density], 1.0, 1.0);
     Solid { mesh, masses, elastic }
 }
@@ -44,16 +53,27 @@ impl Solid {
     }
     /// The vertices on the plane `x = 0`.
     fn clamped_end(&self) -> Vec<usize> {
-        (0..self.mesh.num_vertices()).filter(|&v| self.mesh.rest[3 * v] == 0.0).collect()
+        (0..self.mesh.num_vertices())
+            .filter(|&v| self.mesh.rest[3 * v] == 0.0)
+            .collect()
     }
 }
 
 /// A 2D rectangle of `nx x ny` squares, each split into two counter-clockwise triangles.
 fn rectangle(nx: usize, ny: usize) -> (Vec<f64>, Vec<[usize; 3]>) {
     let id = |i: usize, j: usize| i + (nx + 1) * j;
-    let rest = (0..=ny).flat_map(|j| (0..=nx).flat_map(move |i| [i as f64 * 0.1, j as f64 * 0.1])).collect();
+    let rest = (0..=ny)
+        .flat_map(|j| (0..=nx).flat_map(move |i| [i as f64 * 0.1, j as f64 * 0.1]))
+        .collect();
     let tris = (0..ny)
-        .flat_map(|j| (0..nx).flat_map(move |i| [[id(i, j), id(i + 1, j), id(i + 1, j + 1)], [id(i, j), id(i + 1, j + 1), id(i, j + 1)]]))
+        .flat_map(|j| {
+            (0..nx).flat_map(move |i| {
+                [
+                    [id(i, j), id(i + 1, j), id(i + 1, j + 1)],
+                    [id(i, j), id(i + 1, j + 1), id(i, j + 1)],
+                ]
+            })
+        })
         .collect();
     (rest, tris)
 }
@@ -83,7 +103,9 @@ fn dense_eigenvalues(k: &Mat<f64>, m: &[f64]) -> Vec<f64> {
 /// `U^T M V` for full-dof columns.
 fn mass_products(body: &Body, u: faer::MatRef<'_, f64>, v: faer::MatRef<'_, f64>) -> Mat<f64> {
     Mat::from_fn(u.ncols(), v.ncols(), |i, j| {
-        (0..u.nrows()).map(|k| body.masses[k / body.dim] * u[(k, i)] * v[(k, j)]).sum()
+        (0..u.nrows())
+            .map(|k| body.masses[k / body.dim] * u[(k, i)] * v[(k, j)])
+            .sum()
     })
 }
 
@@ -101,7 +123,9 @@ fn assert_mass_orthonormal(body: &Body, u: faer::MatRef<'_, f64>, tol: f64) {
 fn relative_stiffness_norm(k: &Mat<f64>, u: &[f64]) -> f64 {
     let n = u.len();
     let kmax = (0..n).map(|i| k[(i, i)].abs()).fold(0.0, f64::max);
-    let ku: f64 = (0..n).map(|i| (0..n).map(|j| k[(i, j)] * u[j]).sum::<f64>().powi(2)).sum();
+    let ku: f64 = (0..n)
+        .map(|i| (0..n).map(|j| k[(i, j)] * u[j]).sum::<f64>().powi(2))
+        .sum();
     let un: f64 = u.iter().map(|x| x * x).sum();
     ku.sqrt() / (kmax * un.sqrt())
 }
@@ -121,7 +145,12 @@ fn clamped_modes_match_a_dense_generalised_eigensolve() {
     assert!(modes.restarts >= 1, "{} restarts", modes.restarts);
     for j in 0..count {
         let rel = (modes.eigenvalues[j] - dense[j]).abs() / dense[j];
-        assert!(rel < 1e-9, "lambda_{j}: {} vs dense {} (relative {rel:e})", modes.eigenvalues[j], dense[j]);
+        assert!(
+            rel < 1e-9,
+            "lambda_{j}: {} vs dense {} (relative {rel:e})",
+            modes.eigenvalues[j],
+            dense[j]
+        );
     }
     // Residuals from the dense K, on the free dofs.
     let (free_index, _) = body.free_dofs();
@@ -130,12 +159,20 @@ fn clamped_modes_match_a_dense_generalised_eigensolve() {
             .filter(|&d| free_index[d] != crate::solver::NOT_FREE)
             .map(|d| modes.modes[(d, j)])
             .collect();
-        let ku: Vec<f64> = (0..u.len()).map(|i| (0..u.len()).map(|c| k[(i, c)] * u[c]).sum()).collect();
-        let r: f64 = (0..u.len()).map(|i| (ku[i] - modes.eigenvalues[j] * m[i] * u[i]).powi(2)).sum();
+        let ku: Vec<f64> = (0..u.len())
+            .map(|i| (0..u.len()).map(|c| k[(i, c)] * u[c]).sum())
+            .collect();
+        let r: f64 = (0..u.len())
+            .map(|i| (ku[i] - modes.eigenvalues[j] * m[i] * u[i]).powi(2))
+            .sum();
         let kn: f64 = ku.iter().map(|x| x * x).sum();
         let rel = (r / kn).sqrt();
         assert!(rel < 1e-8, "residual of mode {j}: {rel:e}");
-        assert!((rel - modes.residuals[j]).abs() < 1e-8, "reported {:e}, measured {rel:e}", modes.residuals[j]);
+        assert!(
+            (rel - modes.residuals[j]).abs() < 1e-8,
+            "reported {:e}, measured {rel:e}",
+            modes.residuals[j]
+        );
     }
     assert_mass_orthonormal(&body, modes.modes.as_ref(), 1e-10);
     for &v in &fixed {
@@ -170,7 +207,12 @@ fn a_floating_body_has_its_rigid_modes_as_null_space() {
     let modes = linear_modes(&body, &elastic, count, &LinearModeSettings::default()).unwrap();
     for j in 0..count {
         let rel = (modes.eigenvalues[j] - dense[6 + j]).abs() / dense[6 + j];
-        assert!(rel < 1e-9, "lambda_{j}: {} vs dense {}", modes.eigenvalues[j], dense[6 + j]);
+        assert!(
+            rel < 1e-9,
+            "lambda_{j}: {} vs dense {}",
+            modes.eigenvalues[j],
+            dense[6 + j]
+        );
     }
     let cross = mass_products(&body, rigid.as_ref(), modes.modes.as_ref());
     let worst = (0..6)
@@ -183,7 +225,14 @@ fn a_floating_body_has_its_rigid_modes_as_null_space() {
 #[test]
 fn planar_bodies_have_three_rigid_and_six_affine_modes() {
     let (rest, tris) = rectangle(4, 2);
-    let elastic = Tri2dElastic::new(MaterialLaw::StableNeoHookean, &rest, &tris, &[RUBBER], Path::new("test")).unwrap();
+    let elastic = Tri2dElastic::new(
+        MaterialLaw::StableNeoHookean,
+        &rest,
+        &tris,
+        &[RUBBER],
+        Path::new("test"),
+    )
+    .unwrap();
     let mesh = Mesh {
         dim: 2,
         rest,
@@ -217,7 +266,12 @@ fn planar_bodies_have_three_rigid_and_six_affine_modes() {
     let modes = linear_modes(&body, &terms, 4, &LinearModeSettings::default()).unwrap();
     for j in 0..4 {
         let rel = (modes.eigenvalues[j] - dense[3 + j]).abs() / dense[3 + j];
-        assert!(rel < 1e-9, "lambda_{j}: {} vs dense {}", modes.eigenvalues[j], dense[3 + j]);
+        assert!(
+            rel < 1e-9,
+            "lambda_{j}: {} vs dense {}",
+            modes.eigenvalues[j],
+            dense[3 + j]
+        );
     }
 }
 
@@ -248,7 +302,10 @@ fn degenerate_vertex_sets_lose_the_modes_they_cannot_have() {
     assert_eq!(affine.as_ref().subrows(12, 3).norm_l2(), 0.0);
     // Every vertex prescribed: nothing moves.
     let all: Vec<usize> = (0..9).collect();
-    let pinned = Body { fixed_vertices: &all, ..body };
+    let pinned = Body {
+        fixed_vertices: &all,
+        ..body
+    };
     assert_eq!(affine_modes(&pinned).unwrap().ncols(), 0);
 }
 
@@ -281,11 +338,21 @@ fn cantilever_bending_matches_euler_bernoulli() {
     let (coarse, fine) = (bending(4), bending(8));
     for j in 0..2 {
         let (e_coarse, e_fine) = (coarse[j] / theory - 1.0, fine[j] / theory - 1.0);
-        assert!(e_fine > 0.0 && e_fine < 0.03, "mode {j}: {:.4} rad/s vs {theory:.4} (8 across)", fine[j]);
-        assert!(e_coarse > 3.0 * e_fine, "mode {j}: error {e_coarse:.4} with 4 across, {e_fine:.4} with 8");
+        assert!(
+            e_fine > 0.0 && e_fine < 0.03,
+            "mode {j}: {:.4} rad/s vs {theory:.4} (8 across)",
+            fine[j]
+        );
+        assert!(
+            e_coarse > 3.0 * e_fine,
+            "mode {j}: error {e_coarse:.4} with 4 across, {e_fine:.4} with 8"
+        );
         let extrapolated = (4.0 * fine[j] - coarse[j]) / 3.0;
         let e = extrapolated / theory - 1.0;
-        assert!(e.abs() < 0.01, "mode {j}: extrapolated {extrapolated:.4} rad/s vs {theory:.4}");
+        assert!(
+            e.abs() < 0.01,
+            "mode {j}: extrapolated {extrapolated:.4} rad/s vs {theory:.4}"
+        );
     }
 }
 
@@ -298,7 +365,15 @@ fn impossible_requests_are_errors() {
     let body = s.body(&[]);
     let err = linear_modes(&body, &elastic, 31, &settings).unwrap_err();
     assert!(
-        matches!(err, CandidateError::TooManyModes { requested: 31, available: 30, free_dofs: 36, deflated: 6 }),
+        matches!(
+            err,
+            CandidateError::TooManyModes {
+                requested: 31,
+                available: 30,
+                free_dofs: 36,
+                deflated: 6
+            }
+        ),
         "{err}"
     );
     assert!(err.to_string().contains("asked for 31 linear modes"), "{err}");
@@ -318,7 +393,10 @@ fn impossible_requests_are_errors() {
         masses: &s.masses[1..],
         ..body
     };
-    assert!(matches!(linear_modes(&short, &elastic, 1, &settings), Err(CandidateError::InvalidBody(_))));
+    assert!(matches!(
+        linear_modes(&short, &elastic, 1, &settings),
+        Err(CandidateError::InvalidBody(_))
+    ));
     let out_of_range = s.body(&[99]);
     let err = rigid_modes(&out_of_range).unwrap_err();
     assert!(err.to_string().contains("fixed vertex 99 out of range"), "{err}");
@@ -326,11 +404,17 @@ fn impossible_requests_are_errors() {
         relative_shift: -1.0,
         ..settings
     };
-    assert!(matches!(linear_modes(&body, &elastic, 1, &bad), Err(CandidateError::InvalidSetting(_))));
+    assert!(matches!(
+        linear_modes(&body, &elastic, 1, &bad),
+        Err(CandidateError::InvalidSetting(_))
+    ));
     // An energy over another mesh's vertices.
     let big = solid([1.0, 0.5, 0.5], [3, 1, 1], RUBBER);
     let foreign: [&dyn StencilEnergy; 1] = [&big.elastic];
-    assert!(matches!(linear_modes(&body, &foreign, 1, &settings), Err(CandidateError::InvalidBody(_))));
+    assert!(matches!(
+        linear_modes(&body, &foreign, 1, &settings),
+        Err(CandidateError::InvalidBody(_))
+    ));
 }
 
 #[test]
@@ -347,7 +431,13 @@ fn candidate_sets_group_modes_into_blocks() {
     let kinds: Vec<BlockKind> = set.blocks.iter().map(|b| b.kind).collect();
     assert_eq!(
         kinds,
-        [BlockKind::Rigid, BlockKind::Affine, BlockKind::LinearMode(0), BlockKind::LinearMode(1), BlockKind::LinearMode(2)]
+        [
+            BlockKind::Rigid,
+            BlockKind::Affine,
+            BlockKind::LinearMode(0),
+            BlockKind::LinearMode(1),
+            BlockKind::LinearMode(2)
+        ]
     );
     assert_eq!(set.blocks[0].columns, 0..6);
     assert_eq!(set.blocks[1].columns, 6..12);
@@ -357,6 +447,8 @@ fn candidate_sets_group_modes_into_blocks() {
         assert_mass_orthonormal(&body, set.block(b), 1e-10);
     }
     let linear = set.linear.as_ref().unwrap();
-    let diff = (0..set.modes.nrows()).fold(0.0f64, |w, d| w.max((set.block(3)[(d, 0)] - linear.modes[(d, 1)]).abs()));
+    let diff = (0..set.modes.nrows()).fold(0.0f64, |w, d| {
+        w.max((set.block(3)[(d, 0)] - linear.modes[(d, 1)]).abs())
+    });
     assert_eq!(diff, 0.0);
 }
