@@ -149,11 +149,14 @@ pub(crate) fn lowest_eigenpairs(
     }
     let width = (count + settings.oversampling).min(available);
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
-    let mut start: Vec<Vec<f64>> = (0..width)
-        .map(|_| (0..n).map(|_| rng.random_range(-1.0..1.0)).collect())
-        .collect();
+    let mut start: Vec<Vec<f64>> = Vec::with_capacity(width);
     let mut worst = f64::INFINITY;
     for restart in 0..=settings.max_restarts {
+        // Random vectors fill the start block (all of the first, and whatever the Ritz
+        // vectors leave short of its width after a cycle that lost vectors).
+        while start.len() < width {
+            start.push((0..n).map(|_| rng.random_range(-1.0..1.0)).collect());
+        }
         let basis = krylov_basis(pencil, deflate, start, settings.steps, available);
         let ritz = rayleigh_ritz(pencil, &basis)?;
         let wanted = count.min(ritz.values.len());

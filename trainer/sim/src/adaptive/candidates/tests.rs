@@ -9,6 +9,7 @@ use crate::energy::tri2d::Tri2dElastic;
 use crate::material::{ElementMaterial, MaterialLaw};
 use crate::mesh::procedural::box_tets;
 use crate::mesh::{Elements, Mesh};
+use crate::scene::Scene;
 use faer::{Mat, Side};
 use std::path::Path;
 
@@ -408,6 +409,20 @@ fn impossible_requests_are_errors() {
         linear_modes(&body, &elastic, 1, &bad),
         Err(CandidateError::InvalidSetting(_))
     ));
+    // A tolerance no cycle can meet, with no restart allowed.
+    let strict = LinearModeSettings {
+        lanczos: LanczosSettings {
+            tolerance: 1e-300,
+            max_restarts: 0,
+            ..LanczosSettings::default()
+        },
+        ..settings
+    };
+    let big_enough = solid([1.0, 0.3, 0.3], [6, 2, 2], RUBBER);
+    let clamped_big = big_enough.clamped_end();
+    let terms: [&dyn StencilEnergy; 1] = [&big_enough.elastic];
+    let err = linear_modes(&big_enough.body(&clamped_big), &terms, 2, &strict).unwrap_err();
+    assert!(matches!(err, CandidateError::NotConverged { restarts: 0, .. }), "{err}");
     // An energy over another mesh's vertices.
     let big = solid([1.0, 0.5, 0.5], [3, 1, 1], RUBBER);
     let foreign: [&dyn StencilEnergy; 1] = [&big.elastic];
@@ -451,4 +466,53 @@ fn candidate_sets_group_modes_into_blocks() {
         w.max((set.block(3)[(d, 0)] - linear.modes[(d, 1)]).abs())
     });
     assert_eq!(diff, 0.0);
+}
+
+#[test]
+fn a_scene_clamps_its_handles_vertices() {
+    let text = r#"
+name = "bar"
+[mesh]
+type = "box"
+min = [0.0, 0.0, 0.0]
+max = [1.0, 0.2, 0.2]
+cells = [5, 1, 1]
+[material]
+youngs = 1e6
+poisson = 0.3
+density = 1000.0
+[[handles]]
+name = "clamp"
+select = { side = { axis = 0, end = "min" } }
+"#;
+    let scene = Scene::parse(text, Path::new("bar.toml")).unwrap();
+    let spec = CandidateSpec {
+        linear_modes: 4,
+        ..CandidateSpec::default()
+    };
+    let set = CandidateSet::from_scene(&scene, &spec).unwrap();
+    let s = solid([1.0, 0.2, 0.2], [5, 1, 1], RUBBER);
+    let fixed = s.clamped_end();
+    assert_eq!(fixed.len(), 4);
+    let elastic: [&dyn StencilEnergy; 1] = [&s.elastic];
+    let direct = linear_modes(&s.body(&fixed), &elastic, 4, &LinearModeSettings::default()).unwrap();
+    let from_scene = set.linear.as_ref().unwrap();
+    for j in 0..4 {
+        let rel = (from_scene.eigenvalues[j] - direct.eigenvalues[j]).abs() / direct.eigenvalues[j];
+        assert!(
+            rel < 1e-9,
+            "lambda_{j}: {} from the scene, {} direct",
+            from_scene.eigenvalues[j],
+            direct.eigenvalues[j]
+        );
+    }
+    for &v in &fixed {
+        assert_eq!(set.modes.as_ref().subrows(3 * v, 3).norm_l2(), 0.0, "vertex {v} moves");
+    }
+    // A handle over vertices the mesh lacks: the error names the field.
+    let bad_text = text.replace("{ side = { axis = 0, end = \"min\" } }", "{ indices = [999] }");
+    let bad = Scene::parse(&bad_text, Path::new("bar.toml")).unwrap();
+    let err = CandidateSet::from_scene(&bad, &spec).unwrap_err();
+    assert!(matches!(err, CandidateError::Input(_)), "{err}");
+    assert!(err.to_string().contains("handles[0].select"), "{err}");
 }
