@@ -71,8 +71,8 @@ impl<'a> Generators<'a> {
         Generators { body, free, centre }
     }
 
-    /// A vector over all dofs with `f(vertex, relative position)` (`dim` numbers) on the
-    /// free vertices and zero on the prescribed ones.
+    /// A vector over all dofs: the first `dim` numbers of `f(position relative to the
+    /// centre)` on each free vertex, zero on the prescribed ones.
     fn field(&self, f: impl Fn(&[f64; 3]) -> [f64; 3]) -> Vec<f64> {
         let d = self.body.dim;
         let mut out = vec![0.0; self.body.num_dofs()];
