@@ -537,26 +537,7 @@ impl Scene {
     /// for its element kind, gravity, loads and obstacle collision. The solver and the
     /// training losses both build their energies here, so there is one definition.
     pub fn build_energies(&self, mesh: &Mesh) -> Result<Energies, InputError> {
-        let materials = self.element_materials(mesh)?;
-        let densities: Vec<f64> = materials.iter().map(|m| m.density).collect();
-        let thickness = self.material.thickness.unwrap_or(1.0);
-        let radius = self.material.radius.unwrap_or(1.0);
-        let masses = lumped_masses(mesh, &densities, thickness, radius);
-        let src = &self.source;
-        let model = self.material.model;
-        let rest = &mesh.rest;
-        let mut potentials: Vec<Box<dyn StencilEnergy>> = match &mesh.elements {
-            Elements::Tets(t) => vec![Box::new(TetElastic::new(model, rest, t, &materials, src)?)],
-            Elements::Triangles(t) => vec![Box::new(Tri2dElastic::new(model, rest, t, &materials, src)?)],
-            Elements::Shell(t) => vec![
-                Box::new(ShellMembrane::new(rest, t, &materials, thickness, src)?),
-                Box::new(ShellBending::new(rest, t, &materials, thickness, src)?),
-            ],
-            Elements::Rods(s) => vec![
-                Box::new(RodStretch::new(rest, s, &materials, radius, src)?),
-                Box::new(RodBend::new(rest, s, &materials, radius, src)?),
-            ],
-        };
+        let Energies { masses, mut potentials } = self.build_elastic_energies(mesh)?;
         let dim = mesh.dim;
         if self.gravity.iter().any(|g| *g != 0.0) {
             potentials.push(Box::new(ConstantForce::gravity(dim, &masses, self.gravity)));
@@ -574,6 +555,33 @@ impl Scene {
                 self.collision.margin,
             )));
         }
+        Ok(Energies { masses, potentials })
+    }
+
+    /// Lumped vertex masses and the elastic terms alone of the scene's body (what
+    /// [`Scene::build_energies`] starts from): the terms whose rest-shape Hessian is the
+    /// body's stiffness.
+    pub fn build_elastic_energies(&self, mesh: &Mesh) -> Result<Energies, InputError> {
+        let materials = self.element_materials(mesh)?;
+        let densities: Vec<f64> = materials.iter().map(|m| m.density).collect();
+        let thickness = self.material.thickness.unwrap_or(1.0);
+        let radius = self.material.radius.unwrap_or(1.0);
+        let masses = lumped_masses(mesh, &densities, thickness, radius);
+        let src = &self.source;
+        let model = self.material.model;
+        let rest = &mesh.rest;
+        let potentials: Vec<Box<dyn StencilEnergy>> = match &mesh.elements {
+            Elements::Tets(t) => vec![Box::new(TetElastic::new(model, rest, t, &materials, src)?)],
+            Elements::Triangles(t) => vec![Box::new(Tri2dElastic::new(model, rest, t, &materials, src)?)],
+            Elements::Shell(t) => vec![
+                Box::new(ShellMembrane::new(rest, t, &materials, thickness, src)?),
+                Box::new(ShellBending::new(rest, t, &materials, thickness, src)?),
+            ],
+            Elements::Rods(s) => vec![
+                Box::new(RodStretch::new(rest, s, &materials, radius, src)?),
+                Box::new(RodBend::new(rest, s, &materials, radius, src)?),
+            ],
+        };
         Ok(Energies { masses, potentials })
     }
 
@@ -625,7 +633,9 @@ impl Scene {
         Ok(verts)
     }
 
-    fn build_handles(&self, mesh: &Mesh) -> Result<Vec<Handle>, InputError> {
+    /// The scene's prescribed vertex sets on `mesh`, in the simulator's fixed-vertex order
+    /// (a vertex in two handles is an error).
+    pub fn build_handles(&self, mesh: &Mesh) -> Result<Vec<Handle>, InputError> {
         let mut taken = vec![false; mesh.num_vertices()];
         let mut handles = Vec::new();
         for (k, spec) in self.handles.iter().enumerate() {
@@ -774,7 +784,8 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path, field: &str) -> Result<Mesh, I
 pub struct Energies {
     /// Lumped vertex masses.
     pub masses: Vec<f64>,
-    /// Conservative terms: elastic, gravity, loads, collision.
+    /// Conservative terms: the elastic ones, then (from [`Scene::build_energies`]) gravity,
+    /// loads and collision.
     pub potentials: Vec<Box<dyn StencilEnergy>>,
 }
 

@@ -10,13 +10,13 @@
 mod contact;
 #[cfg(test)]
 mod contact_tests;
-mod hessian;
+pub(crate) mod hessian;
 
 use crate::energy::{self, inertia::Inertia, StencilEnergy};
 pub use crate::error::StepError;
 use contact::Contact;
 pub use contact::{ContactConfig, ContactObstacle, ContactSettings};
-use hessian::{HessianPattern, NO_SLOT};
+use hessian::HessianPattern;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -128,7 +128,28 @@ pub struct Simulator {
     steps: usize,
 }
 
-const NOT_FREE: usize = usize::MAX;
+/// `free_index` entry of a prescribed degree of freedom.
+pub(crate) const NOT_FREE: usize = usize::MAX;
+
+/// How Dirichlet conditions eliminate degrees of freedom: every coordinate of a fixed vertex
+/// is prescribed, the others are numbered in order. Returns the map from each of the
+/// `num_dofs` global dofs (`dim` per vertex) to its free index (`NOT_FREE` if prescribed)
+/// and the number of free dofs.
+pub(crate) fn free_dof_index(dim: usize, num_dofs: usize, fixed_vertices: &[usize]) -> (Vec<usize>, usize) {
+    let mut fixed = vec![false; num_dofs];
+    for &v in fixed_vertices {
+        fixed[v * dim..(v + 1) * dim].fill(true);
+    }
+    let mut free_index = vec![NOT_FREE; num_dofs];
+    let mut num_free = 0;
+    for (k, f) in fixed.iter().enumerate() {
+        if !f {
+            free_index[k] = num_free;
+            num_free += 1;
+        }
+    }
+    (free_index, num_free)
+}
 
 /// What a [`Simulator`] is built from.
 pub struct SimulatorConfig {
@@ -171,18 +192,7 @@ impl Simulator {
             contact,
         } = config;
         let n = x0.len();
-        let mut fixed = vec![false; n];
-        for &v in &fixed_vertices {
-            fixed[v * dim..(v + 1) * dim].fill(true);
-        }
-        let mut free_index = vec![NOT_FREE; n];
-        let mut num_free = 0;
-        for (k, f) in fixed.iter().enumerate() {
-            if !f {
-                free_index[k] = num_free;
-                num_free += 1;
-            }
-        }
+        let (free_index, num_free) = free_dof_index(dim, n, &fixed_vertices);
         let contact = contact.map(|c| Contact::new(c, &x0, &masses));
         let inertia = Inertia::new(dim, masses);
         let terms: Vec<&dyn StencilEnergy> = std::iter::once(&inertia as &dyn StencilEnergy)
@@ -672,23 +682,8 @@ impl Simulator {
 
     /// Assembles the energy terms' share of the free-free Hessian.
     fn assemble_terms(&mut self, x: &[f64], w_inertia: f64, w_potential: f64, project: bool) {
-        self.hessian.values.fill(0.0);
         let terms = std::iter::once((&self.inertia as &dyn StencilEnergy, w_inertia))
             .chain(self.potentials.iter().map(|p| (p.as_ref(), w_potential)));
-        for (term, (energy, weight)) in terms.enumerate() {
-            if weight == 0.0 {
-                continue;
-            }
-            let slots = &self.hessian.slots[term];
-            let values = &mut self.hessian.values;
-            energy::for_each_hessian(energy, x, project, |s, _, local| {
-                let range = slots.offsets[s]..slots.offsets[s + 1];
-                for (slot, h) in slots.slots[range].iter().zip(&local.hess) {
-                    if *slot != NO_SLOT {
-                        values[*slot as usize] += weight * h;
-                    }
-                }
-            });
-        }
+        self.hessian.assemble(terms, x, project);
     }
 }

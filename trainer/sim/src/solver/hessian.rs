@@ -1,40 +1,42 @@
 //! The free-free Hessian's sparse pattern: a lower-triangular CSC matrix covering every
 //! stencil of the fixed energy terms plus any extra couplings (contact pairs between
 //! vertices no element joins), its values, the slot map of every term, and the cached
-//! symbolic Cholesky factorisation.
+//! symbolic Cholesky factorisation. The Newton solver assembles its objective's Hessian here,
+//! and so does anything else that needs the Hessian of the same energy terms (the linear
+//! modes of `adaptive::candidates`).
 
 use super::NOT_FREE;
-use crate::energy::{StencilEnergy, MAX_DOF};
+use crate::energy::{self, StencilEnergy, MAX_DOF};
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, Side};
 
-pub(super) const NO_SLOT: u32 = u32::MAX;
+const NO_SLOT: u32 = u32::MAX;
 
 /// Where each entry of each stencil's local Hessian lands in the sparse matrix.
-pub(super) struct StencilSlots {
+struct StencilSlots {
     /// `offsets[s]..offsets[s + 1]` indexes `slots` for stencil `s` (row-major `n x n`).
-    pub(super) offsets: Vec<usize>,
+    offsets: Vec<usize>,
     /// Index into the CSC value array, or `NO_SLOT` for fixed DOF / upper triangle.
-    pub(super) slots: Vec<u32>,
+    slots: Vec<u32>,
 }
 
 /// Lower-triangular CSC pattern of the free-free Hessian, its values, the slot maps of
 /// every energy term, and the cached symbolic Cholesky factorisation.
-pub(super) struct HessianPattern {
+pub(crate) struct HessianPattern {
     n: usize,
     col_ptr: Vec<u32>,
     row_idx: Vec<u32>,
     pub(super) values: Vec<f64>,
-    pub(super) slots: Vec<StencilSlots>,
+    slots: Vec<StencilSlots>,
     symbolic: SymbolicLlt<u32>,
 }
 
 impl HessianPattern {
     /// The pattern of `terms` over the `n` free dofs (`free_index` maps global dofs to free
     /// ones), plus the `extra` free-dof entries `[row, column]` (`row >= column`).
-    pub(super) fn new(terms: &[&dyn StencilEnergy], free_index: &[usize], n: usize, extra: &[[u32; 2]]) -> Self {
+    pub(crate) fn new(terms: &[&dyn StencilEnergy], free_index: &[usize], n: usize, extra: &[[u32; 2]]) -> Self {
         let dofs = |e: &dyn StencilEnergy, s: usize| -> Vec<usize> {
             let d = e.dim();
             e.stencil(s)
@@ -111,6 +113,45 @@ impl HessianPattern {
         }
     }
 
+    /// Assembles `sum_t w_t H_t(x)`, the free-free block of the weighted Hessians of `terms`
+    /// (the terms the pattern was built from, in that order, each with its weight; a zero
+    /// weight skips the term), optionally with every stencil Hessian projected to PSD.
+    pub(crate) fn assemble<'a>(
+        &mut self,
+        terms: impl Iterator<Item = (&'a dyn StencilEnergy, f64)>,
+        x: &[f64],
+        project: bool,
+    ) {
+        self.values.fill(0.0);
+        for (term, (energy, weight)) in terms.enumerate() {
+            if weight == 0.0 {
+                continue;
+            }
+            let slots = &self.slots[term];
+            let values = &mut self.values;
+            energy::for_each_hessian(energy, x, project, |s, _, local| {
+                let range = slots.offsets[s]..slots.offsets[s + 1];
+                for (slot, h) in slots.slots[range].iter().zip(&local.hess) {
+                    if *slot != NO_SLOT {
+                        values[*slot as usize] += weight * h;
+                    }
+                }
+            });
+        }
+    }
+
+    /// The assembled matrix's lower triangle (CSC, sorted row indices per column).
+    pub(crate) fn lower(&self) -> SparseColMatRef<'_, u32, f64> {
+        let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
+        SparseColMatRef::new(pattern, &self.values)
+    }
+
+    /// Numeric Cholesky factorisation of the assembled values, reusing the cached symbolic
+    /// analysis; `None` if the matrix is not numerically positive definite.
+    pub(crate) fn factor(&self) -> Option<Llt<u32, f64>> {
+        Llt::try_new_with_symbolic(self.symbolic.clone(), self.lower(), Side::Lower).ok()
+    }
+
     /// Index into the values of entry `(r, c)` (free dofs, `r >= c`), if the pattern has it.
     pub(super) fn slot(&self, r: usize, c: usize) -> Option<usize> {
         let (start, end) = (self.col_ptr[c] as usize, self.col_ptr[c + 1] as usize);
@@ -123,14 +164,12 @@ impl HessianPattern {
     /// Solves `H d = rhs` in place if the assembled `H` is positive definite; returns
     /// false (leaving `rhs` untouched) if its Cholesky factorisation fails.
     pub(super) fn try_solve(&mut self, rhs: &mut [f64]) -> bool {
-        let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
-        let symbolic = self.symbolic.clone();
-        match Llt::try_new_with_symbolic(symbolic, SparseColMatRef::new(pattern, &self.values), Side::Lower) {
-            Ok(llt) => {
+        match self.factor() {
+            Some(llt) => {
                 llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
                 true
             }
-            Err(_) => false,
+            None => false,
         }
     }
 
