@@ -7,6 +7,7 @@
 //! solver gets only that. The layers above (the trainer's learning, evaluation and CLI)
 //! build on it; nothing here reaches up to them.
 
+pub mod adaptive;
 pub mod bc;
 pub mod contact;
 pub mod cubature;
