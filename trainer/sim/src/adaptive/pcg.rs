@@ -85,7 +85,7 @@ impl BlockJacobi {
 
 /// Checks that a system of size `n` splits into blocks of `settings.block`.
 pub(crate) fn check_blocks(what: &'static str, n: usize, settings: &PcgSettings) -> Result<(), SolveError> {
-    if settings.block == 0 || n % settings.block != 0 {
+    if settings.block == 0 || !n.is_multiple_of(settings.block) {
         return Err(dimension(
             what,
             format!("a size divisible by the block size {}", settings.block),

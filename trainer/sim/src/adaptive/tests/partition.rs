@@ -22,9 +22,16 @@ fn connected(members: &[usize], linked: impl Fn(usize, usize) -> bool) -> bool {
     reached.iter().all(|&r| r)
 }
 
-/// Checks coverage, balance (largest part at most `factor` times the mean, for vertices and
-/// elements), connectivity and the weights of a partition of `mesh` into `parts`.
-fn check_partition(mesh: &Mesh, parts: usize, factor: f64) -> Partition {
+/// Largest subdomain over the mean allowed for vertices: METIS's default imbalance
+/// tolerance is 1.03.
+const VERTEX_BALANCE: f64 = 1.05;
+/// The same for elements, assigned by majority after the vertices are split (measured up
+/// to 1.15 on these meshes).
+const ELEMENT_BALANCE: f64 = 1.3;
+
+/// Checks coverage, balance (largest part over the mean within [`VERTEX_BALANCE`] and
+/// [`ELEMENT_BALANCE`]), connectivity and the weights of a partition of `mesh` into `parts`.
+fn check_partition(mesh: &Mesh, parts: usize) -> Partition {
     let partition = Partition::new(mesh, parts).expect("partition");
     let n = mesh.num_vertices();
     let elements = element_vertices(&mesh.elements);
@@ -56,7 +63,7 @@ fn check_partition(mesh: &Mesh, parts: usize, factor: f64) -> Partition {
         elements.len(),
     );
     assert!(
-        v_ratio <= factor && e_ratio <= factor,
+        v_ratio <= VERTEX_BALANCE && e_ratio <= ELEMENT_BALANCE,
         "imbalance: vertices {v_ratio}, elements {e_ratio}"
     );
 
@@ -117,14 +124,14 @@ fn check_partition(mesh: &Mesh, parts: usize, factor: f64) -> Partition {
 fn beam_partition_is_complete_balanced_connected_and_weighted() {
     let mesh = beam([16, 4, 4]);
     for parts in [2, 5, 8] {
-        check_partition(&mesh, parts, 1.3);
+        check_partition(&mesh, parts);
     }
 }
 
 #[test]
 fn cloth_partition_is_complete_balanced_connected_and_weighted() {
     let mesh = cloth_grid([2.0, 1.0], [21, 11], [0.0; 3], ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0])).expect("cloth");
-    check_partition(&mesh, 6, 1.3);
+    check_partition(&mesh, 6);
 }
 
 #[test]
@@ -134,7 +141,7 @@ fn partition_is_reproducible_and_one_part_takes_everything() {
     let b = Partition::new(&mesh, 4).expect("partition");
     assert_eq!(a.vertex_subdomains(), b.vertex_subdomains());
     assert_eq!(a.element_subdomains(), b.element_subdomains());
-    let one = check_partition(&mesh, 1, 1.0);
+    let one = check_partition(&mesh, 1);
     assert!(one.selection(0).weights.iter().all(|&w| w == 1.0));
 }
 

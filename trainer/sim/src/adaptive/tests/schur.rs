@@ -213,6 +213,9 @@ fn an_indefinite_subspace_hessian_is_an_error() {
     }
 }
 
+/// Whether an error is the one expected.
+type ErrorCheck = fn(&SolveError) -> bool;
+
 #[test]
 fn an_indefinite_vertex_block_and_bad_shapes_are_errors() {
     let s = random_system(4, 10, 14);
@@ -226,7 +229,7 @@ fn an_indefinite_vertex_block_and_bad_shapes_are_errors() {
     let upper = full_csc(&s.h_x);
     let short_g = vec![0.0; 29];
     let wrong_c = DMatrix::zeros(4, 27);
-    let cases: [(_, &DMatrix<f64>, &[f64], fn(&SolveError) -> bool); 4] = [
+    let cases: [(_, &DMatrix<f64>, &[f64], ErrorCheck); 4] = [
         (bad.as_ref(), &s.c, &s.g_x, |e| {
             matches!(
                 e,
