@@ -26,6 +26,11 @@ use crate::mesh::{Elements, Mesh};
 /// METIS's random seed: a fixed one keeps the decomposition reproducible.
 const METIS_SEED: i32 = 1;
 
+/// METIS keeps its random generator's state in a process-wide global (GKlib's Mersenne
+/// twister), so concurrent calls would race on it and give different partitions: calls
+/// are made one at a time.
+static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Why a mesh could not be decomposed.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum PartitionError {
@@ -229,6 +234,8 @@ fn metis_vertex_parts(n: usize, elements: &[Vec<usize>], parts: usize) -> Result
     }
     let nparts = i32::try_from(parts).map_err(|_| PartitionError::Parts { parts, vertices: n })?;
     let mut part = vec![0i32; n];
+    // A panic elsewhere while holding the lock leaves METIS's state as valid as any call.
+    let _one_at_a_time = METIS_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     metis::Graph::new(1, nparts, &xadj, &adjncy)
         .map_err(|e| PartitionError::Metis(format!("{e:?}")))?
         .set_option(metis::option::Contig(is_connected(&neighbours)))

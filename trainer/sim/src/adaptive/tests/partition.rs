@@ -146,6 +146,33 @@ fn partition_is_reproducible_and_one_part_takes_everything() {
 }
 
 #[test]
+fn concurrent_partitions_are_identical() {
+    let mesh = beam([12, 3, 3]);
+    let reference = Partition::new(&mesh, 6).expect("partition");
+    std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..4)
+            .map(|_| {
+                scope.spawn(|| {
+                    (0..5)
+                        .map(|_| {
+                            Partition::new(&mesh, 6)
+                                .expect("partition")
+                                .vertex_subdomains()
+                                .to_vec()
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        for worker in workers {
+            for parts in worker.join().expect("worker") {
+                assert_eq!(parts, reference.vertex_subdomains());
+            }
+        }
+    });
+}
+
+#[test]
 fn bad_part_counts_and_vertex_indices_are_errors() {
     let mesh = beam([2, 1, 1]);
     let n = mesh.num_vertices();
