@@ -14,7 +14,8 @@
 //! Why METIS, through the `metis` crate: it is the partitioner the method was designed
 //! with (edge-cut minimising, contiguous, balanced parts, deterministic for a fixed seed),
 //! and `metis-sys` builds the METIS 5 sources it vendors with the C compiler, needing no
-//! system library and no bindgen (`metis-sys` and `metis` compile in about 17 s at `-j1`).
+//! system library and no bindgen (`metis-sys` and `metis` with their build dependencies
+//! compiled in about 17 s at `-j1` on a busy two-core machine).
 //! The pure-Rust `coupe` 0.1 was set aside: its only release pulls a second nalgebra
 //! (0.29), ndarray, sprs and rand 0.8 into the build and offers geometric and topological
 //! pieces to compose rather than a ready multilevel k-way partitioner. A geometric method
