@@ -1,9 +1,27 @@
-//! Adaptive subspace simulation (Trusty et al., "adaptive subspace simulation"): each
-//! time-step solve runs in a small reduced model that adapts inside the step, built from a
-//! larger set of candidate modes (and nodal enrichment) and updated or downdated by
-//! error and progress measures, while the full positions stay the primary state.
+//! Adaptive subspace simulation (Trusty, Fei, Levin and Kaufman): each time-step solve runs
+//! in a small reduced model that adapts inside the step, made of subspace modes drawn from
+//! a larger candidate set and of enriched vertices, updated and downdated by error and
+//! progress measures, while the full positions stay the primary state.
 //!
+//! Built so far (the oracle and the time-step solver are not):
 //! - [`candidates`]: the candidate bases of a body (rigid, affine and linear modes of the
-//!   rest shape) grouped into the blocks the adaptivity queries one at a time.
+//!   rest shape) grouped into the blocks the adaptivity queries one at a time;
+//! - [`partition`]: the fixed decomposition of the mesh into subdomains (nodal groups and
+//!   BFGS integration domains);
+//! - [`bfgs`]: the per-subdomain BFGS approximations of the elastic subspace Hessian;
+//! - [`schur`]: the Schur-complement solver of the Newton-iterate system (on conjugate
+//!   gradients in [`pcg`]), and [`full_space`], the baselines it is compared with.
 
+pub mod bfgs;
 pub mod candidates;
+pub mod full_space;
+mod lower_csc;
+pub mod partition;
+pub mod pcg;
+pub mod schur;
+pub mod solve_error;
+
+pub use solve_error::SolveError;
+
+#[cfg(test)]
+mod tests;

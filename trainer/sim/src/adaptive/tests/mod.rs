@@ -1,0 +1,6 @@
+//! Tests of the adaptive solver's linear algebra and fixed decomposition.
+
+mod bfgs;
+mod fixtures;
+mod partition;
+mod schur;
