@@ -241,9 +241,10 @@ fn run_for_sizes(k: usize, s: usize, run: &Run) -> Result<Measured> {
     macro_rules! sizes {
         ($($k:literal)*) => {
             match (k, s) {
+                $(($k, 0) => measure::<$k, 0>(run),)*
                 $(($k, 12) => measure::<$k, 12>(run),)*
                 $(($k, 24) => measure::<$k, 24>(run),)*
-                _ => bail!("the benchmark runs latent sizes 1-16 with one or two handles, not latent {k} with {s} signal numbers"),
+                _ => bail!("the benchmark runs latent sizes 1-16 with no, one or two handles, not latent {k} with {s} signal numbers"),
             }
         };
     }
