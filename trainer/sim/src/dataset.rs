@@ -227,7 +227,15 @@ impl BuiltScene {
             for (i, &v) in self.simulator.fixed_vertices().iter().enumerate() {
                 x0[v * dim..(v + 1) * dim].copy_from_slice(&targets0[i * dim..(i + 1) * dim]);
             }
-            self.simulator.reset(&x0);
+            match self.scene.initial_velocity {
+                // Thrown: positions one step back along the velocity give it.
+                Some(v) => {
+                    let dt = self.simulator.dt();
+                    let back: Vec<f64> = x0.iter().enumerate().map(|(k, c)| c - dt * v[k % dim]).collect();
+                    self.simulator.restart(&x0, &back);
+                }
+                None => self.simulator.reset(&x0),
+            }
         }
         let energies = self.simulator.energies();
         let mut traj = Trajectory {

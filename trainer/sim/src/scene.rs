@@ -66,6 +66,9 @@ pub struct Scene {
     /// Initial state: at rest in the rest shape, or in static equilibrium.
     #[serde(default)]
     pub start: Start,
+    /// The body's velocity at frame 0 (m/s; default at rest), e.g. to throw a ball.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_velocity: Option<[f64; 3]>,
     /// Dataset sampling.
     #[serde(default)]
     pub dataset: DatasetSpec,
@@ -91,6 +94,16 @@ pub enum MeshSpec {
         max: [f64; 3],
         /// Cells per axis (6 tets per cell).
         cells: [usize; 3],
+    },
+    /// Tet mesh of a ball.
+    Ball {
+        /// Centre.
+        center: [f64; 3],
+        /// Radius.
+        radius: f64,
+        /// Grid cells across the diameter (default 6).
+        #[serde(default = "default_ball_cells")]
+        cells: usize,
     },
     /// Triangulated cloth grid.
     ClothGrid {
@@ -154,6 +167,9 @@ impl MeshSpec {
     }
 }
 
+fn default_ball_cells() -> usize {
+    6
+}
 fn default_cloth_axes() -> [[f64; 3]; 2] {
     [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
 }
@@ -461,6 +477,9 @@ impl Scene {
         if let Some(c) = &self.contact {
             c.validate().map_err(|(f, msg)| self.field_error(f, msg))?;
         }
+        if self.initial_velocity.is_some_and(|v| !v.iter().all(|c| c.is_finite())) {
+            return Err(self.field_error("initial_velocity", "must be finite"));
+        }
         for (k, o) in self.obstacles.iter().enumerate() {
             o.validate()
                 .map_err(|msg| self.field_error(format!("obstacles[{k}]"), msg))?;
@@ -698,6 +717,7 @@ fn check_material(youngs: f64, poisson: f64, density: f64) -> Result<(), (&'stat
 fn build_mesh(spec: &MeshSpec, scene_file: &Path, field: &str) -> Result<Mesh, InputError> {
     match spec {
         MeshSpec::Box { min, max, cells } => mesh::procedural::box_tets(*min, *max, *cells),
+        MeshSpec::Ball { center, radius, cells } => mesh::procedural::ball_tets(*center, *radius, *cells),
         MeshSpec::ClothGrid {
             size,
             verts,

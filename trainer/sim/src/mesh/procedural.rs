@@ -1,4 +1,5 @@
-//! Procedural meshes: a tetrahedralised box, a triangulated cloth sheet, a group of straight rods.
+//! Procedural meshes: a tetrahedralised box or ball, a triangulated cloth sheet, a group of
+//! straight rods.
 //!
 //! Bad parameters are reported as [`InputError`]s at a named field of a pseudo-file such as
 //! `<procedural box>`, and every result is checked with [`Mesh::validate`].
@@ -9,6 +10,9 @@ use nalgebra::Vector3;
 
 use super::{Elements, Mesh};
 use crate::error::InputError;
+
+mod ball;
+pub use ball::ball_tets;
 
 /// Source name of [`box_tets`] errors.
 const BOX: &str = "<procedural box>";

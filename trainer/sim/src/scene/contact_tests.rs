@@ -439,3 +439,82 @@ fn check_coil(scene: &Scene, frames: usize) {
     );
     assert!(first_contact.is_some(), "the strip never came within dhat of itself");
 }
+
+#[test]
+fn the_shipped_ball_bounces_rolls_and_comes_to_rest_without_intersecting() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/ball-bounce.toml");
+    check_bounce(&Scene::load(&path).unwrap(), 300);
+}
+
+/// Throws the ball for `frames` frames: every step converges, no frame intersects, no
+/// element inverts, no vertex goes below the ground; after landing the ball bounces (its
+/// centre rises), rolls (a surface vertex turns about the centre by more than half a
+/// turn), and comes to rest: its kinetic energy over the last 10 frames is below 1e-6 of the
+/// peak.
+fn check_bounce(scene: &Scene, frames: usize) {
+    let mut problem = scene.build().unwrap_or_else(|e| panic!("{e}"));
+    let Elements::Tets(tets) = problem.mesh.elements.clone() else {
+        panic!("a tet body")
+    };
+    let dt = scene.dt;
+    let v0 = scene.initial_velocity.expect("thrown");
+    let sim = &mut problem.simulator;
+    let rest = problem.mesh.rest.clone();
+    let back: Vec<f64> = rest.iter().enumerate().map(|(k, c)| c - dt * v0[k % 3]).collect();
+    sim.restart(&rest, &back);
+    let masses = sim.masses().to_vec();
+    let centre = |x: &[f64]| {
+        let n = (x.len() / 3) as f64;
+        [0, 1, 2].map(|i| x.chunks(3).map(|p| p[i]).sum::<f64>() / n)
+    };
+    // A surface vertex's angle about the centre in the x-y plane (the ball rolls along x).
+    let marker = problem.mesh.surface_vertices()[0];
+    let angle = |x: &[f64]| {
+        let c = centre(x);
+        (x[3 * marker + 1] - c[1]).atan2(x[3 * marker] - c[0])
+    };
+    let (mut landed, mut rose, mut turned, mut kinetic) = (None, 0.0f64, 0.0, Vec::new());
+    for frame in 1..=frames {
+        let before = sim.positions().to_vec();
+        let report = sim.step(&[]).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        assert!(report.converged, "frame {frame}: Newton did not converge: {report:?}");
+        let (surface, ext) = sim.contact_state().unwrap();
+        assert!(!has_intersections(surface, &ext), "frame {frame} intersects");
+        let x = sim.positions();
+        for t in &tets {
+            let p = t.map(|v| [x[3 * v], x[3 * v + 1], x[3 * v + 2]]);
+            assert!(signed_volume(p) > 0.0, "frame {frame}: inverted element {t:?}");
+        }
+        let lowest = x.chunks(3).map(|p| p[1]).fold(f64::INFINITY, f64::min);
+        assert!(lowest > 0.0, "frame {frame}: below the ground");
+        if landed.is_none() && lowest < 2.0 * scene.contact.as_ref().unwrap().dhat {
+            landed = Some(frame);
+        }
+        if landed.is_some() {
+            rose = rose.max((centre(x)[1] - centre(&before)[1]) / dt);
+        }
+        let d = angle(x) - angle(&before);
+        turned += (d + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI;
+        kinetic.push(
+            0.5 * x
+                .iter()
+                .zip(&before)
+                .enumerate()
+                .map(|(k, (a, b))| masses[k / 3] * ((a - b) / dt).powi(2))
+                .sum::<f64>(),
+        );
+    }
+    let peak = kinetic.iter().copied().fold(0.0, f64::max);
+    let last = kinetic[frames - 10..].iter().copied().fold(0.0, f64::max);
+    println!(
+        "{}: landed at frame {landed:?}, centre rose at up to {rose:.3} m/s after landing, turned {turned:.2} rad, \
+         travelled {:.3} m, kinetic energy over the last 10 frames <= {:.2e} of the peak",
+        scene.name,
+        centre(sim.positions())[0] - centre(&rest)[0],
+        last / peak
+    );
+    assert!(landed.is_some(), "never reached the ground");
+    assert!(rose > 0.05, "no bounce: the centre rose at {rose} m/s at most");
+    assert!(turned.abs() > std::f64::consts::PI, "rolled only {turned} rad");
+    assert!(last < 1e-6 * peak, "still moving: {last} of {peak}");
+}
