@@ -146,7 +146,9 @@ impl Oracle {
         let mut free = vec![true; n];
         for &v in fixed_vertices {
             if v >= n {
-                return Err(OracleError::Input(format!("fixed vertex {v} out of range ({n} vertices)")));
+                return Err(OracleError::Input(format!(
+                    "fixed vertex {v} out of range ({n} vertices)"
+                )));
             }
             free[v] = false;
         }
@@ -236,7 +238,15 @@ impl Oracle {
             .filter(|&b| !active_blocks[b])
             .map(|b| {
                 let u = candidates.block(b);
-                modal::block_score(b, u, &gradient, &nodal.energy_change, &self.scales, query.dt, &self.free)
+                modal::block_score(
+                    b,
+                    u,
+                    &gradient,
+                    &nodal.energy_change,
+                    &self.scales,
+                    query.dt,
+                    &self.free,
+                )
             })
             .collect();
         let activate_blocks = blocks
@@ -272,14 +282,20 @@ impl Oracle {
         let len = self.scales.num_vertices() * self.scales.dim;
         for (name, v) in [("x", q.x), ("gradient", q.gradient), ("step", q.step)] {
             if v.len() != len {
-                return Err(OracleError::Input(format!("{name} has {} entries, expected {len}", v.len())));
+                return Err(OracleError::Input(format!(
+                    "{name} has {} entries, expected {len}",
+                    v.len()
+                )));
             }
             if let Some(k) = v.iter().position(|c| !c.is_finite()) {
                 return Err(OracleError::Input(format!("{name}[{k}] is not finite ({})", v[k])));
             }
         }
         if !(q.dt.is_finite() && q.dt > 0.0) {
-            return Err(OracleError::Input(format!("dt must be positive and finite, got {}", q.dt)));
+            return Err(OracleError::Input(format!(
+                "dt must be positive and finite, got {}",
+                q.dt
+            )));
         }
         nodal::check_terms(self.scales.dim, self.scales.num_vertices(), q.terms)
     }

@@ -28,7 +28,11 @@ pub struct BlockScore {
 /// `dim` coordinates, `ΔE^m = Σ_k ū_k (ū_kᵀ ΔE) / (ū_kᵀ ū_k)` and
 /// `E_j = Σ_i ΔE^m_i / (h² V_i H̄_i)` over the free vertices. A mode whose averaged vector
 /// is zero (its coordinates cancel at every vertex) distributes no energy change and adds
-/// nothing, where the formula would divide zero by zero.
+/// nothing, where the formula would divide zero by zero. As the paper writes it, the
+/// progress of a mode whose averaged vector changes sign cancels between its positive and
+/// negative parts: on a centrally symmetric body, where `h² V_i H̄_i` is symmetric too, a
+/// mode odd under the symmetry (the affine stretches about the centre, odd linear modes)
+/// scores zero progress whatever the step does, so only its error decides.
 pub(super) fn block_score(
     block: usize,
     u: MatRef<'_, f64>,
@@ -70,7 +74,11 @@ pub(super) fn block_score(
     let mut error = 0.0f64;
     let mut progress = 0.0;
     for i in (0..n).filter(|&i| free[i]) {
-        let norm = projected[i * dim..(i + 1) * dim].iter().map(|g| g * g).sum::<f64>().sqrt();
+        let norm = projected[i * dim..(i + 1) * dim]
+            .iter()
+            .map(|g| g * g)
+            .sum::<f64>()
+            .sqrt();
         error = error.max(norm / scales.error_scale(i, h));
         progress += distributed[i] / scales.progress_scale(i, h);
     }

@@ -65,7 +65,11 @@ pub(super) fn check_terms(dim: usize, n: usize, terms: &[WeightedTerm<'_>]) -> R
             )));
         }
         if !t.weight.is_finite() {
-            return Err(OracleError::Input(format!("term `{}` has weight {}", e.name(), t.weight)));
+            return Err(OracleError::Input(format!(
+                "term `{}` has weight {}",
+                e.name(),
+                t.weight
+            )));
         }
         for s in 0..e.len() {
             if let Some(&v) = e.stencil(s).iter().find(|&&v| v >= n) {

@@ -186,7 +186,10 @@ fn density_hessian_norm(dim: usize, edges: &[f64; 9], k: &[f64], measure: f64) -
 /// The measure of the facet opposite to local vertex `a` of the simplex `p`: a triangle's
 /// area in 3D, an edge's length in 2D.
 fn opposite_facet_measure(dim: usize, p: &[f64], a: usize) -> f64 {
-    let others: Vec<&[f64]> = (0..=dim).filter(|&b| b != a).map(|b| &p[b * dim..(b + 1) * dim]).collect();
+    let others: Vec<&[f64]> = (0..=dim)
+        .filter(|&b| b != a)
+        .map(|b| &p[b * dim..(b + 1) * dim])
+        .collect();
     let e = |u: &[f64], v: &[f64]| -> [f64; 3] {
         let mut d = [0.0; 3];
         for k in 0..dim {
@@ -199,6 +202,10 @@ fn opposite_facet_measure(dim: usize, p: &[f64], a: usize) -> f64 {
         return (d[0] * d[0] + d[1] * d[1]).sqrt();
     }
     let (u, v) = (e(others[0], others[1]), e(others[0], others[2]));
-    let c = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+    let c = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
     0.5 * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
 }

@@ -49,7 +49,11 @@ fn single_tet_scales_are_opposite_face_areas_and_quarter_volumes() {
     }
     assert!(s.volume.iter().all(|v| close(*v, 0.25, 1e-14)), "{:?}", s.volume);
     let h = stvk_rest_norm(RUBBER, 3);
-    assert!(s.hessian_norm.iter().all(|v| close(*v, h, 1e-12)), "{:?} vs {h}", s.hessian_norm);
+    assert!(
+        s.hessian_norm.iter().all(|v| close(*v, h, 1e-12)),
+        "{:?} vs {h}",
+        s.hessian_norm
+    );
     assert!(close(s.error_scale(0, 0.1), 0.01 * 3.5 * h, 1e-12));
     assert!(close(s.progress_scale(2, 0.1), 0.01 * 0.25 * h, 1e-12));
 }
@@ -64,14 +68,20 @@ fn single_triangle_scales_are_opposite_edges_and_third_areas() {
     }
     assert!(s.volume.iter().all(|v| close(*v, 2.0, 1e-14)), "{:?}", s.volume);
     let h = stvk_rest_norm(RUBBER, 2);
-    assert!(s.hessian_norm.iter().all(|v| close(*v, h, 1e-12)), "{:?} vs {h}", s.hessian_norm);
+    assert!(
+        s.hessian_norm.iter().all(|v| close(*v, h, 1e-12)),
+        "{:?} vs {h}",
+        s.hessian_norm
+    );
 }
 
 #[test]
 fn box_scales_match_the_kuhn_split_by_hand() {
     // Two unit cubes along x, 6 tets each around the diagonal (0,0,0)-(1,1,1) of each cube.
     let mesh = box_tets([0.0; 3], [2.0, 1.0, 1.0], [2, 1, 1]).unwrap();
-    let Elements::Tets(t) = &mesh.elements else { unreachable!() };
+    let Elements::Tets(t) = &mesh.elements else {
+        unreachable!()
+    };
     let neo = tets(&mesh.rest, t, MaterialLaw::StableNeoHookean, RUBBER);
     let s = NodeScales::new(3, &mesh.rest, &[&neo]).unwrap();
     let id = |i: usize, j: usize, k: usize| i + 3 * (j + 2 * k);
@@ -86,7 +96,11 @@ fn box_scales_match_the_kuhn_split_by_hand() {
         (id(0, 1, 0), v(2.0)),
     ];
     for (vertex, want) in want_volume {
-        assert!(close(s.volume[vertex], want, 1e-14), "V of {vertex}: {} vs {want}", s.volume[vertex]);
+        assert!(
+            close(s.volume[vertex], want, 1e-14),
+            "V of {vertex}: {} vs {want}",
+            s.volume[vertex]
+        );
     }
     assert!(close(s.volume.iter().sum(), 2.0, 1e-14));
     // The faces opposite a diagonal corner tile the cube's three far faces (area 3); the
@@ -98,11 +112,19 @@ fn box_scales_match_the_kuhn_split_by_hand() {
         (id(2, 1, 1), 3.0),
         (id(1, 0, 0), 2.0 * half_diagonal + 3.0),
     ] {
-        assert!(close(s.area[vertex], want, 1e-14), "A of {vertex}: {} vs {want}", s.area[vertex]);
+        assert!(
+            close(s.area[vertex], want, 1e-14),
+            "A of {vertex}: {} vs {want}",
+            s.area[vertex]
+        );
     }
     // The density Hessian at rest depends on the material only, not on the tet's shape.
     let first = s.hessian_norm[0];
-    assert!(s.hessian_norm.iter().all(|h| close(*h, first, 1e-10)), "{:?}", s.hessian_norm);
+    assert!(
+        s.hessian_norm.iter().all(|h| close(*h, first, 1e-10)),
+        "{:?}",
+        s.hessian_norm
+    );
     let stiffer = tets(
         &mesh.rest,
         t,
@@ -118,7 +140,9 @@ fn box_scales_match_the_kuhn_split_by_hand() {
 
 #[test]
 fn scales_reject_non_simplex_stencils_and_uncovered_vertices() {
-    let rest = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 5.0, 5.0, 5.0];
+    let rest = [
+        0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 5.0, 5.0, 5.0,
+    ];
     let e = tets(&rest, &[[0, 1, 2, 3]], MaterialLaw::Stvk, RUBBER);
     let err = NodeScales::new(3, &rest, &[&e]).unwrap_err();
     assert!(err.to_string().contains("vertex 4"), "{err}");
@@ -139,7 +163,9 @@ struct Solid {
 impl Solid {
     fn new(hi: [f64; 3], cells: [usize; 3], m: ElementMaterial, dt: f64) -> Solid {
         let mesh = box_tets([0.0; 3], hi, cells).unwrap();
-        let Elements::Tets(t) = &mesh.elements else { unreachable!() };
+        let Elements::Tets(t) = &mesh.elements else {
+            unreachable!()
+        };
         let elastic = tets(&mesh.rest, t, MaterialLaw::StableNeoHookean, m);
         let masses = lumped_masses(&mesh, &[m.density], 1.0, 1.0);
         let inertia = Inertia::new(3, masses.clone());
@@ -250,7 +276,11 @@ fn deformed(rest: &[f64], size: f64, a: f64) -> Vec<f64> {
 /// deformed state, with the predicted positions elsewhere, for the invariance tests.
 fn measures(solid: &mut Solid, size: f64, zero_inertia: bool, linear_modes: usize) -> (NodalMeasures, Vec<BlockScore>) {
     let x = deformed(&solid.mesh.rest, size, 0.2);
-    let xhat = if zero_inertia { x.clone() } else { deformed(&solid.mesh.rest, size, 0.1) };
+    let xhat = if zero_inertia {
+        x.clone()
+    } else {
+        deformed(&solid.mesh.rest, size, 0.1)
+    };
     solid.inertia.set_target(&xhat);
     let step = deformed(&solid.mesh.rest, size, 0.05)
         .iter()
@@ -279,20 +309,22 @@ fn measures(solid: &mut Solid, size: f64, zero_inertia: bool, linear_modes: usiz
 }
 
 fn assert_same(a: &(NodalMeasures, Vec<BlockScore>), b: &(NodalMeasures, Vec<BlockScore>), progress: bool) {
-    let tol = 1e-9;
-    for (x, y) in a.0.error.iter().zip(&b.0.error) {
-        assert!(close(*x, *y, tol), "nodal error {x} vs {y}");
-    }
-    for (x, y) in a.1.iter().zip(&b.1) {
-        assert!(close(x.error, y.error, tol), "block error {x:?} vs {y:?}");
-    }
+    // Relative to the largest value of each kind: some block progresses cancel to
+    // round-off (see `a_one_mode_block_scores_as_the_per_mode_formulas`).
+    let same = |what: &str, x: &[f64], y: &[f64]| {
+        let scale = x.iter().chain(y).fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(scale > 0.0, "{what} all zero");
+        for (p, q) in x.iter().zip(y) {
+            assert!((p - q).abs() <= 1e-9 * scale, "{what}: {p} vs {q} (largest {scale})");
+        }
+    };
+    let errors = |m: &(NodalMeasures, Vec<BlockScore>)| m.1.iter().map(|s| s.error).collect::<Vec<_>>();
+    let progresses = |m: &(NodalMeasures, Vec<BlockScore>)| m.1.iter().map(|s| s.progress).collect::<Vec<_>>();
+    same("nodal error", &a.0.error, &b.0.error);
+    same("block error", &errors(a), &errors(b));
     if progress {
-        for (x, y) in a.0.progress.iter().zip(&b.0.progress) {
-            assert!(close(*x, *y, tol), "nodal progress {x} vs {y}");
-        }
-        for (x, y) in a.1.iter().zip(&b.1) {
-            assert!(close(x.progress, y.progress, tol), "block progress {x:?} vs {y:?}");
-        }
+        same("nodal progress", &a.0.progress, &b.0.progress);
+        same("block progress", &progresses(a), &progresses(b));
     }
 }
 
@@ -308,7 +340,13 @@ fn measures_are_invariant_under_scaling_the_mesh_with_the_time_step() {
     assert_same(&base, &scaled, true);
     // Without the time step the inertia part no longer keeps pace: the measure changes.
     let unscaled_dt = measures(&mut Solid::new([1.5 * s, s, s], cells, RUBBER, dt), s, false, 0);
-    assert!(!close(base.0.error[0], unscaled_dt.0.error[0], 1e-3));
+    let moved = base
+        .0
+        .error
+        .iter()
+        .zip(&unscaled_dt.0.error)
+        .filter(|(a, b)| !close(**a, **b, 1e-3));
+    assert!(moved.count() > 0);
 }
 
 #[test]
@@ -342,7 +380,9 @@ fn grid(cells: [usize; 3], i: usize, j: usize, k: usize) -> usize {
 
 /// The vertices that share an element with `v` (itself included).
 fn one_ring(mesh: &Mesh, v: usize) -> Vec<bool> {
-    let Elements::Tets(t) = &mesh.elements else { unreachable!() };
+    let Elements::Tets(t) = &mesh.elements else {
+        unreachable!()
+    };
     let mut ring = vec![false; mesh.num_vertices()];
     for tet in t.iter().filter(|t| t.contains(&v)) {
         tet.iter().for_each(|&w| ring[w] = true);
@@ -350,65 +390,103 @@ fn one_ring(mesh: &Mesh, v: usize) -> Vec<bool> {
     ring
 }
 
-#[test]
-fn a_poked_vertex_enriches_its_subdomain_and_not_the_far_ones() {
-    // A bar of 8 x 2 x 2 cells with one end-face vertex pulled out by most of a cell, the
-    // rest of the bar undeformed and at its predicted positions: the only forces are the
-    // elastic ones of the poked vertex's tets, which rigid modes cannot relieve.
+/// The oracle's decision on a free bar of 8 x 2 x 2 cells, undeformed and at rest but for
+/// one end-face vertex `v`, pulled out by most of a cell and loaded by a point force of
+/// twice its error scale over `h²`, with a subspace of the rigid modes: the line-searched
+/// rigid Newton step, the decision, and `v`.
+fn point_load(dt: f64) -> (Solid, Partition, Decision, usize) {
     let cells = [8, 2, 2];
-    let mut solid = Solid::new([4.0, 1.0, 1.0], cells, RUBBER, 0.01);
+    let mut solid = Solid::new([4.0, 1.0, 1.0], cells, RUBBER, dt);
     let v = grid(cells, 0, 1, 1);
     let mut x = solid.mesh.rest.clone();
     x[3 * v] -= 0.4;
     x[3 * v + 1] += 0.1;
     solid.inertia.set_target(&x);
-    let terms = solid.terms(&[]);
+    let f = 2.0 * solid.scales().error_scale(v, 1.0);
+    let load = ConstantForce::load(3, vec![v], [-0.8 * f, 0.6 * f, 0.0]);
+    let extra: [&dyn StencilEnergy; 1] = [&load];
+    let terms = solid.terms(&extra);
     let g = gradient(&terms, &x);
     let step = subspace_step(&terms, &x, &rigid_basis(&solid));
     let partition = Partition::new(&solid.mesh, 4).unwrap();
-    let oracle = Oracle::new(solid.scales(), &[], partition.vertex_subdomains(), Thresholds::default()).unwrap();
-    let candidates = CandidateSet::new(
-        &solid.body(),
-        &[&solid.elastic],
-        &CandidateSpec {
-            linear_modes: 0,
-            ..CandidateSpec::default()
-        },
+    let oracle = Oracle::new(
+        solid.scales(),
+        &[],
+        partition.vertex_subdomains(),
+        Thresholds::default(),
     )
     .unwrap();
+    let spec = CandidateSpec {
+        linear_modes: 0,
+        ..CandidateSpec::default()
+    };
+    let candidates = CandidateSet::new(&solid.body(), &[&solid.elastic], &spec).unwrap();
     let query = Query {
         terms: &terms,
         x: &x,
         gradient: &g,
         step: &step,
-        dt: solid.dt,
+        dt,
     };
-    let active = [true, false];
-    let d = oracle.decide(&query, &candidates, &active, &[false; 4]).unwrap();
+    let decision = oracle.decide(&query, &candidates, &[true, false], &[false; 4]).unwrap();
+    drop(terms);
+    (solid, partition, decision, v)
+}
+
+#[test]
+fn a_point_load_enriches_the_subdomain_around_it_and_not_the_far_ones() {
+    // At a step much shorter than a wave's time to cross the bar, the rigid step barely
+    // moves it, so the load's vertex keeps its error and makes no progress.
+    let (solid, partition, d, v) = point_load(2e-5);
+    let th = Thresholds::default();
     let ring = one_ring(&solid.mesh, v);
     let err = &d.nodal.error;
     let top = (0..err.len()).max_by(|&a, &b| err[a].total_cmp(&err[b])).unwrap();
-    assert_eq!(top, v, "largest error at {top}, {} there, {} at the poked vertex", err[top], err[v]);
+    assert_eq!(
+        top, v,
+        "largest error at {top}, {} there, {} at the loaded vertex",
+        err[top], err[v]
+    );
     for w in 0..err.len() {
         if ring[w] {
-            assert!(err[w] > 1e-3 * err[v], "neighbour {w}: error {} vs {}", err[w], err[v]);
+            assert!(err[w] > 1e-2 * err[v], "neighbour {w}: error {} vs {}", err[w], err[v]);
         } else {
-            assert!(err[w] < 1e-9 * err[v], "far vertex {w}: error {}", err[w]);
+            assert!(err[w] < 1e-6 * err[v], "far vertex {w}: error {}", err[w]);
         }
     }
-    assert!(err[v] > oracle.thresholds().nodal_error, "poked vertex error {}", err[v]);
-    assert!(d.nodal.progress[v] < oracle.thresholds().progress, "progress {}", d.nodal.progress[v]);
-    let near: Vec<usize> = (0..err.len()).filter(|&w| ring[w]).map(|w| partition.vertex_subdomains()[w]).collect();
+    assert!(
+        err[v] > th.nodal_error && d.nodal.progress[v] < th.progress,
+        "{} {}",
+        err[v],
+        d.nodal.progress[v]
+    );
+    let subdomain = partition.vertex_subdomains();
+    let near: Vec<usize> = (0..err.len()).filter(|&w| ring[w]).map(|w| subdomain[w]).collect();
     let enriched: Vec<usize> = d.enrich_subdomains.iter().map(|s| s.subdomain).collect();
-    assert!(enriched.contains(&partition.vertex_subdomains()[v]), "{enriched:?}");
-    assert!(enriched.iter().all(|l| near.contains(l)), "{enriched:?} vs near {near:?}");
-    let far = (0..4).filter(|l| !near.contains(l)).count();
-    assert!(far >= 2, "the bar's far subdomains {far}");
-    // The same query with the poked vertex's subdomain already enriched adds nothing there.
-    let mut done = [false; 4];
-    done[partition.vertex_subdomains()[v]] = true;
-    let again = oracle.decide(&query, &candidates, &active, &done).unwrap();
-    assert!(again.enrich_subdomains.iter().all(|s| !done[s.subdomain]));
+    assert!(enriched.contains(&subdomain[v]), "{enriched:?}");
+    assert!(
+        enriched.iter().all(|l| near.contains(l)),
+        "{enriched:?} vs near {near:?}"
+    );
+    assert!((0..4).filter(|l| !near.contains(l)).count() >= 2, "near {near:?}");
+    let by_v = d
+        .enrich_subdomains
+        .iter()
+        .find(|s| s.subdomain == subdomain[v])
+        .unwrap();
+    assert_eq!((by_v.vertex, by_v.error), (v, err[v]));
+}
+
+#[test]
+fn a_point_load_that_one_rigid_step_absorbs_shows_as_progress() {
+    // At a 500 times longer step the rigid step moves the bar far enough that the load's
+    // work on it (Eq. 7 counts the load's own stencil at its vertex) is progress there:
+    // the same error no longer enriches.
+    let (_, _, d, v) = point_load(1e-2);
+    let th = Thresholds::default();
+    assert!(d.nodal.error[v] > th.nodal_error, "{}", d.nodal.error[v]);
+    assert!(d.nodal.progress[v] > th.progress, "{}", d.nodal.progress[v]);
+    assert!(d.enrich_subdomains.is_empty(), "{:?}", d.enrich_subdomains);
 }
 
 #[test]
@@ -416,10 +494,14 @@ fn a_translation_the_subspace_holds_makes_progress_and_enriches_nothing() {
     // Fig. 5: the body is predicted to slide by t along x; the translation mode moves it
     // there exactly, so every vertex's large error comes with large progress.
     let cells = [4, 2, 2];
-    let mut solid = Solid::new([2.0, 1.0, 1.0], cells, RUBBER, 0.01);
+    let mut solid = Solid::new([2.0, 1.0, 1.0], cells, RUBBER, 0.003);
     let t = 0.1;
     let x = solid.mesh.rest.clone();
-    let xhat: Vec<f64> = x.iter().enumerate().map(|(k, p)| p + if k % 3 == 0 { t } else { 0.0 }).collect();
+    let xhat: Vec<f64> = x
+        .iter()
+        .enumerate()
+        .map(|(k, p)| p + if k % 3 == 0 { t } else { 0.0 })
+        .collect();
     solid.inertia.set_target(&xhat);
     let terms = solid.terms(&[]);
     let g = gradient(&terms, &x);
@@ -429,7 +511,13 @@ fn a_translation_the_subspace_holds_makes_progress_and_enriches_nothing() {
         assert!((s - want).abs() < 1e-9 * t, "step[{k}] = {s}");
     }
     let partition = Partition::new(&solid.mesh, 3).unwrap();
-    let oracle = Oracle::new(solid.scales(), &[], partition.vertex_subdomains(), Thresholds::default()).unwrap();
+    let oracle = Oracle::new(
+        solid.scales(),
+        &[],
+        partition.vertex_subdomains(),
+        Thresholds::default(),
+    )
+    .unwrap();
     let spec = CandidateSpec {
         linear_modes: 2,
         ..CandidateSpec::default()
@@ -447,12 +535,18 @@ fn a_translation_the_subspace_holds_makes_progress_and_enriches_nothing() {
     let th = oracle.thresholds();
     let d = oracle.decide(&query, &candidates, &active, &[false; 3]).unwrap();
     assert!(d.nodal.error.iter().all(|e| *e > th.nodal_error), "{:?}", d.nodal.error);
-    assert!(d.nodal.progress.iter().all(|p| *p > th.progress), "{:?}", d.nodal.progress);
+    assert!(
+        d.nodal.progress.iter().all(|p| *p > th.progress),
+        "{:?}",
+        d.nodal.progress
+    );
     assert!(d.enrich_subdomains.is_empty(), "{:?}", d.enrich_subdomains);
     assert!(d.activate_blocks.is_empty(), "{:?}", d.blocks);
     // Without the active step the same error enriches every subdomain.
     let still = vec![0.0; x.len()];
-    let d = oracle.decide(&Query { step: &still, ..query }, &candidates, &active, &[false; 3]).unwrap();
+    let d = oracle
+        .decide(&Query { step: &still, ..query }, &candidates, &active, &[false; 3])
+        .unwrap();
     assert_eq!(d.enrich_subdomains.len(), 3, "{:?}", d.enrich_subdomains);
 }
 
@@ -489,7 +583,11 @@ fn a_one_mode_block_scores_as_the_per_mode_formulas() {
         let got = &blocks[b];
         assert_eq!(got.block, b);
         assert!(close(got.error, error, 1e-12), "block {b}: {} vs {error}", got.error);
-        assert!(close(got.progress, progress, 1e-10), "block {b}: {} vs {progress}", got.progress);
+        assert!(
+            close(got.progress, progress, 1e-10),
+            "block {b}: {} vs {progress}",
+            got.progress
+        );
         assert!(error > 0.0 && progress.abs() > 0.0);
         checked += 1;
     }
@@ -505,7 +603,9 @@ fn gradient_without_a_stencil_form_counts_at_its_vertex() {
     let x = deformed(&solid.mesh.rest, 1.0, 0.1);
     solid.inertia.set_target(&solid.mesh.rest.clone());
     let v = grid(cells, 3, 2, 1);
-    let load = ConstantForce::load(3, vec![v], [3e3, -1e3, 2e3]);
+    // A force of the size of the vertex's error scale over h² (error about 1).
+    let f = solid.scales().error_scale(v, 1.0);
+    let load = ConstantForce::load(3, vec![v], [0.8 * f, -0.6 * f, 0.0]);
     let extra: [&dyn StencilEnergy; 1] = [&load];
     let with_load = solid.terms(&extra);
     let g = gradient(&with_load, &x);
@@ -521,12 +621,17 @@ fn gradient_without_a_stencil_form_counts_at_its_vertex() {
     let stencil = oracle.nodal(&q).unwrap();
     let without = solid.terms(&[]);
     let remainder = oracle.nodal(&Query { terms: &without, ..q }).unwrap();
-    for (a, b) in stencil.error.iter().zip(&remainder.error) {
-        assert!(close(*a, *b, 1e-12), "{a} vs {b}");
+    for (w, (a, b)) in stencil.error.iter().zip(&remainder.error).enumerate() {
+        assert!(close(*a, *b, 1e-12), "vertex {w} (load at {v}): {a} vs {b}");
     }
     let bare = gradient(&without, &x);
     let unloaded = oracle.nodal(&Query { gradient: &bare, ..q }).unwrap();
-    assert!(stencil.error[v] > 2.0 * unloaded.error[v], "{} vs {}", stencil.error[v], unloaded.error[v]);
+    assert!(
+        stencil.error[v] > 2.0 * unloaded.error[v],
+        "{} vs {}",
+        stencil.error[v],
+        unloaded.error[v]
+    );
 }
 
 #[test]
@@ -534,7 +639,13 @@ fn prescribed_vertices_are_not_candidates_and_bad_input_is_named() {
     let cells = [2, 1, 1];
     let solid = Solid::new([1.0, 0.5, 0.5], cells, RUBBER, 0.01);
     let fixed = [grid(cells, 0, 0, 0)];
-    let oracle = Oracle::new(solid.scales(), &fixed, &vec![0; solid.masses.len()], Thresholds::default()).unwrap();
+    let oracle = Oracle::new(
+        solid.scales(),
+        &fixed,
+        &vec![0; solid.masses.len()],
+        Thresholds::default(),
+    )
+    .unwrap();
     let terms = solid.terms(&[]);
     let x = deformed(&solid.mesh.rest, 1.0, 0.3);
     let g = gradient(&terms, &x);
@@ -553,6 +664,12 @@ fn prescribed_vertices_are_not_candidates_and_bad_input_is_named() {
     assert!(err.to_string().contains("dt"), "{err}");
     let err = oracle.nodal(&Query { step: &step[1..], ..q }).unwrap_err();
     assert!(err.to_string().contains("step has"), "{err}");
-    let err = Oracle::new(solid.scales(), &[99], &vec![0; solid.masses.len()], Thresholds::default()).unwrap_err();
+    let err = Oracle::new(
+        solid.scales(),
+        &[99],
+        &vec![0; solid.masses.len()],
+        Thresholds::default(),
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("fixed vertex 99"), "{err}");
 }
