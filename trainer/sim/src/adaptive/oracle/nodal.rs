@@ -116,7 +116,7 @@ pub(super) fn nodal_measures(
     let mut own = vec![0.0; n * dim];
     let mut energy_change = vec![0.0; n];
     let x_step: Vec<f64> = x.iter().zip(d).map(|(a, b)| a + b).collect();
-    let mut out = Local::default();
+    let (mut out, mut scratch) = (Local::default(), Local::default());
     let (mut xl, mut xl_step) = ([0.0; MAX_DOF], [0.0; MAX_DOF]);
     for t in terms {
         let e = t.energy;
@@ -124,7 +124,7 @@ pub(super) fn nodal_measures(
             let len = gather(e, s, x, &mut xl);
             gather(e, s, &x_step, &mut xl_step);
             let before = e.eval(s, &xl[..len], Want::Gradient, &mut out);
-            let after = e.eval(s, &xl_step[..len], Want::Value, &mut Local::default());
+            let after = e.eval(s, &xl_step[..len], Want::Value, &mut scratch);
             let change = t.weight * (before - after);
             let verts = e.stencil(s);
             for (a, &i) in verts.iter().enumerate() {

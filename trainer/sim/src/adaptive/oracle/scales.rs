@@ -44,7 +44,7 @@ impl NodeScales {
         if dim != 2 && dim != 3 {
             return Err(OracleError::Input(format!("dim is {dim}, must be 2 or 3")));
         }
-        if rest.len() % dim != 0 {
+        if !rest.len().is_multiple_of(dim) {
             return Err(OracleError::Input(format!(
                 "rest has {} coordinates, not a multiple of dim {dim}",
                 rest.len()
