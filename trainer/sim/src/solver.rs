@@ -11,99 +11,17 @@ mod contact;
 #[cfg(test)]
 mod contact_tests;
 pub(crate) mod hessian;
+mod report;
+mod settings;
 
 use crate::energy::{self, inertia::Inertia, StencilEnergy};
 pub use crate::error::StepError;
 use contact::Contact;
 pub use contact::{ContactConfig, ContactObstacle, ContactSettings};
 use hessian::HessianPattern;
-use serde::{Deserialize, Serialize};
+pub use report::{SolvePhases, StepReport};
+pub use settings::{HessianMode, NewtonSettings, TimeScheme};
 use std::time::Instant;
-
-/// Time integration scheme.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum TimeScheme {
-    /// First-order implicit (backward) Euler.
-    #[default]
-    ImplicitEuler,
-    /// Second-order backward differentiation formula (first step uses implicit Euler).
-    Bdf2,
-    /// No inertia: every step is the static equilibrium with the handles at that frame's
-    /// targets, starting from the last one (velocities are the differences of consecutive
-    /// equilibria over `dt`).
-    QuasiStatic,
-}
-
-/// Newton solver settings.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct NewtonSettings {
-    /// Converged when `max |dx| / (dt * L)` falls below this, with `dx` the Newton step and
-    /// `L` the rest bounding-box diagonal (for static solves, `max |dx| / L`).
-    pub tolerance: f64,
-    /// Newton iterations per step before giving up (the step is still taken).
-    pub max_iterations: usize,
-    /// Which Hessian Newton uses.
-    pub hessian: HessianMode,
-}
-
-/// Which Hessian Newton uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum HessianMode {
-    /// The exact Hessian when it is positive definite (checked by its Cholesky
-    /// factorisation), the per-stencil PSD projection otherwise.
-    #[default]
-    ExactIfDefinite,
-    /// Always project every stencil Hessian to PSD (eigenvalue clamping).
-    Projected,
-}
-
-impl Default for NewtonSettings {
-    fn default() -> Self {
-        NewtonSettings {
-            tolerance: 1e-4,
-            max_iterations: 50,
-            hessian: HessianMode::default(),
-        }
-    }
-}
-
-/// What one solve did.
-#[derive(Clone, Debug, Default)]
-pub struct StepReport {
-    /// Newton iterations taken.
-    pub iterations: usize,
-    /// Scaled Newton step norm of each iteration (the convergence measure).
-    pub step_norms: Vec<f64>,
-    /// Whether the tolerance was met.
-    pub converged: bool,
-    /// Iterations whose exact Hessian was indefinite, so the projected one was used.
-    pub projected_iterations: usize,
-    /// Objective value at the solution.
-    pub objective: f64,
-    /// Wall-clock seconds of the solve.
-    pub seconds: f64,
-    /// Contact pairs loaded at the end of the solve (0 without contact).
-    pub contact_pairs: usize,
-    /// Where the solve's time went.
-    pub phases: SolvePhases,
-}
-
-/// Seconds a solve spent in each of its phases (the rest of [`StepReport::seconds`] is
-/// energy and gradient evaluation and the line search's objective values).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct SolvePhases {
-    /// Contact broad phase: the pairs within `dhat`, and those a step's swept boxes bring together.
-    pub broad_phase: f64,
-    /// Continuous collision detection bounding each line-search step.
-    pub ccd: f64,
-    /// Hessian assembly (with contact stencils, and PSD projection where used).
-    pub assembly: f64,
-    /// Sparse Cholesky factorisation and solve.
-    pub linear_solve: f64,
-}
 
 /// A full-space simulator of one body.
 pub struct Simulator {
