@@ -372,7 +372,9 @@ impl AdaptiveStepper {
         }
         let h_x = SparseColMat::<u32, f64>::try_new_from_triplets(nx, nx, &triplets)
             .map_err(|_| SolveError::NonFinite("H_x"))?;
-        let g_q: Vec<f64> = (0..a).map(|j| u.column(j).iter().zip(g).map(|(a, b)| a * b).sum()).collect();
+        let g_q: Vec<f64> = (0..a)
+            .map(|j| u.column(j).iter().zip(g).map(|(a, b)| a * b).sum())
+            .collect();
         let g_x: Vec<f64> = model.enriched.iter().map(|&f| g[f]).collect();
         let system = AdaptiveSystem {
             h_q: &h_q,

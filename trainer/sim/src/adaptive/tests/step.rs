@@ -88,7 +88,10 @@ fn with_every_vertex_enriched_the_step_is_full_space_newton() {
         assert!(report.converged && reference.converged, "step {step}");
         assert_eq!(report.iterations, reference.iterations, "step {step}");
         for (a, b) in report.step_norms.iter().zip(&reference.step_norms) {
-            assert!((a - b).abs() <= 1e-6 * b.max(1e-3), "step {step}: step norms {a} and {b}");
+            assert!(
+                (a - b).abs() <= 1e-6 * b.max(1e-3),
+                "step {step}: step norms {a} and {b}"
+            );
         }
         let gap = max_abs_diff(stepper.positions(), full.simulator.positions()) / scale;
         assert!(
@@ -118,7 +121,9 @@ fn dense_subspace_minimum(e: impl Fn(&[f64]) -> f64, x0: &[f64], u: &DMatrix<f64
             p[j] += sj * eps;
             e(&at(&p))
         };
-        let g = DVector::from_fn(a, |i, _| (shifted(i, 1.0, i, 0.0) - shifted(i, -1.0, i, 0.0)) / (2.0 * eps));
+        let g = DVector::from_fn(a, |i, _| {
+            (shifted(i, 1.0, i, 0.0) - shifted(i, -1.0, i, 0.0)) / (2.0 * eps)
+        });
         let mut h = DMatrix::zeros(a, a);
         for i in 0..a {
             h[(i, i)] = (shifted(i, 1.0, i, 0.0) - 2.0 * e0 + shifted(i, -1.0, i, 0.0)) / (eps * eps);
@@ -156,7 +161,11 @@ fn with_rigid_and_affine_modes_only_the_step_finds_the_subspace_minimum() {
     assert!(report.converged, "{report:?}");
     for w in report.objectives.windows(2) {
         // (Up to round-off: E with and without its gradient sums in different orders.)
-        assert!(w[1] <= w[0] + 1e-14 * w[0].abs(), "E increased: {:?}", report.objectives);
+        assert!(
+            w[1] <= w[0] + 1e-14 * w[0].abs(),
+            "E increased: {:?}",
+            report.objectives
+        );
     }
     assert!(report.objectives.last() < report.objectives.first());
     let u = DMatrix::from_fn(start.len(), 12, |r, c| candidates.modes[(r, c)]);
@@ -192,7 +201,11 @@ fn mixed_model_decreases_e_and_lands_between_subspace_and_full_space() {
         assert!(report.converged, "{report:?}");
         for w in report.objectives.windows(2) {
             // (Up to round-off: E with and without its gradient sums in different orders.)
-        assert!(w[1] <= w[0] + 1e-14 * w[0].abs(), "E increased: {:?}", report.objectives);
+            assert!(
+                w[1] <= w[0] + 1e-14 * w[0].abs(),
+                "E increased: {:?}",
+                report.objectives
+            );
         }
         // Exact Newton in the model: quadratic convergence (measured here: each scaled
         // step norm below 0.02 times the square of the one before; a model without the
