@@ -4,3 +4,4 @@ mod bfgs;
 mod fixtures;
 mod partition;
 mod schur;
+mod step;
