@@ -11,6 +11,7 @@ mod contact;
 #[cfg(test)]
 mod contact_tests;
 pub(crate) mod hessian;
+mod prescribed;
 mod report;
 mod settings;
 
@@ -19,6 +20,7 @@ pub use crate::error::StepError;
 use contact::Contact;
 pub use contact::{ContactConfig, ContactObstacle, ContactSettings};
 use hessian::HessianPattern;
+pub(crate) use prescribed::{check_targets, place_fixed};
 pub use report::{SolvePhases, StepReport};
 pub use settings::{HessianMode, NewtonSettings, TimeScheme};
 use std::time::Instant;
@@ -245,7 +247,7 @@ impl Simulator {
     /// Advances one time step with the prescribed vertices moved to `targets`
     /// (`dim` numbers per vertex of [`Simulator::fixed_vertices`]).
     pub fn step(&mut self, targets: &[f64]) -> Result<StepReport, StepError> {
-        self.check_targets(targets)?;
+        check_targets(&self.fixed_vertices, self.dim, targets)?;
         if self.integrator == TimeScheme::QuasiStatic {
             return self.step_quasi_static(targets);
         }
@@ -265,7 +267,7 @@ impl Simulator {
         // With contact, Newton starts from the last positions (intersection-free, which the
         // prediction need not be), as IPC does; CCD then keeps every iterate so.
         let mut x = if self.contact.is_some() { self.x.clone() } else { xhat };
-        self.place_fixed(&mut x, targets);
+        place_fixed(&self.fixed_vertices, self.dim, &mut x, targets);
         // Moving obstacles reach where their scripts put them at the end of the step
         // during the solve, CCD-bounded like the body (see `minimize`).
         let end_time = (self.steps + 1) as f64 * h;
@@ -290,10 +292,10 @@ impl Simulator {
     /// Finds a static equilibrium of the potentials (no inertia) with the prescribed
     /// vertices at `targets`, starting from the current positions; velocities are zeroed.
     pub fn solve_static(&mut self, targets: &[f64]) -> Result<StepReport, StepError> {
-        self.check_targets(targets)?;
+        check_targets(&self.fixed_vertices, self.dim, targets)?;
         let start = Instant::now();
         let mut x = self.x.clone();
-        self.place_fixed(&mut x, targets);
+        place_fixed(&self.fixed_vertices, self.dim, &mut x, targets);
         let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale, None)?;
         self.reset(&x);
         report.seconds = start.elapsed().as_secs_f64();
@@ -303,7 +305,7 @@ impl Simulator {
     fn step_quasi_static(&mut self, targets: &[f64]) -> Result<StepReport, StepError> {
         let start = Instant::now();
         let mut x = self.x.clone();
-        self.place_fixed(&mut x, targets);
+        place_fixed(&self.fixed_vertices, self.dim, &mut x, targets);
         let end_time = (self.steps + 1) as f64 * self.dt;
         if let Some(c) = &mut self.contact {
             c.set_obstacle_goal(end_time);
@@ -321,30 +323,6 @@ impl Simulator {
     /// The time integration scheme.
     pub fn scheme(&self) -> TimeScheme {
         self.integrator
-    }
-
-    fn check_targets(&self, targets: &[f64]) -> Result<(), StepError> {
-        let expected = self.fixed_vertices.len() * self.dim;
-        if targets.len() != expected {
-            return Err(StepError::BoundaryLength {
-                expected,
-                got: targets.len(),
-            });
-        }
-        if let Some(k) = targets.iter().position(|t| !t.is_finite()) {
-            return Err(StepError::NonFiniteBoundary {
-                vertex: self.fixed_vertices[k / self.dim],
-                value: targets[k],
-            });
-        }
-        Ok(())
-    }
-
-    fn place_fixed(&self, x: &mut [f64], targets: &[f64]) {
-        let d = self.dim;
-        for (i, &v) in self.fixed_vertices.iter().enumerate() {
-            x[v * d..(v + 1) * d].copy_from_slice(&targets[i * d..(i + 1) * d]);
-        }
     }
 
     /// Objective `w_inertia * inertia + w_potential * sum(potentials)`, plus contact's
@@ -370,32 +348,7 @@ impl Simulator {
         w_potential: f64,
         grad: Option<&mut Vec<f64>>,
     ) -> f64 {
-        match grad {
-            None => {
-                let mut e = 0.0;
-                if w_inertia != 0.0 {
-                    e += w_inertia * energy::value(&self.inertia, x);
-                }
-                e + w_potential
-                    * self
-                        .potentials
-                        .iter()
-                        .map(|p| energy::value(p.as_ref(), x))
-                        .sum::<f64>()
-            }
-            Some(g) => {
-                g.clear();
-                g.resize(x.len(), 0.0);
-                let mut e = 0.0;
-                if w_inertia != 0.0 {
-                    e += energy::add_gradient(&self.inertia, w_inertia, x, g);
-                }
-                for p in &self.potentials {
-                    e += energy::add_gradient(p.as_ref(), w_potential, x, g);
-                }
-                e
-            }
-        }
+        incremental_potential(&self.inertia, &self.potentials, w_inertia, w_potential, x, grad)
     }
 
     /// Newton with backtracking line search over the free DOF of `x`.
@@ -603,5 +556,39 @@ impl Simulator {
         let terms = std::iter::once((&self.inertia as &dyn StencilEnergy, w_inertia))
             .chain(self.potentials.iter().map(|p| (p.as_ref(), w_potential)));
         self.hessian.assemble(terms, x, project);
+    }
+}
+
+/// The incremental potential without contact, `w_inertia * inertia + w_potential *
+/// sum(potentials)` at `x`, and its gradient over all dofs into `grad` when asked (the
+/// inertia term is skipped where its weight is 0, as in static solves).
+pub(crate) fn incremental_potential(
+    inertia: &Inertia,
+    potentials: &[Box<dyn StencilEnergy>],
+    w_inertia: f64,
+    w_potential: f64,
+    x: &[f64],
+    grad: Option<&mut Vec<f64>>,
+) -> f64 {
+    match grad {
+        None => {
+            let mut e = 0.0;
+            if w_inertia != 0.0 {
+                e += w_inertia * energy::value(inertia, x);
+            }
+            e + w_potential * potentials.iter().map(|p| energy::value(p.as_ref(), x)).sum::<f64>()
+        }
+        Some(g) => {
+            g.clear();
+            g.resize(x.len(), 0.0);
+            let mut e = 0.0;
+            if w_inertia != 0.0 {
+                e += energy::add_gradient(inertia, w_inertia, x, g);
+            }
+            for p in potentials {
+                e += energy::add_gradient(p.as_ref(), w_potential, x, g);
+            }
+            e
+        }
     }
 }

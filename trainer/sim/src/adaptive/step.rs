@@ -31,11 +31,14 @@ use super::lower_csc::symmetric_product;
 use super::pcg::PcgSettings;
 use super::schur::{AdaptiveSystem, Coupling};
 use super::SolveError;
-use crate::energy::{self, inertia::Inertia, StencilEnergy};
+use crate::energy::{inertia::Inertia, StencilEnergy};
 use crate::error::{InputError, StepError};
 use crate::scene::{Energies, Scene};
 use crate::solver::hessian::HessianPattern;
-use crate::solver::{free_dof_index, HessianMode, NewtonSettings, SimulatorConfig, TimeScheme, NOT_FREE};
+use crate::solver::{
+    check_targets, free_dof_index, incremental_potential, place_fixed, HessianMode, NewtonSettings, SimulatorConfig,
+    TimeScheme, NOT_FREE,
+};
 
 /// Relative eigenvalue of the masked basis' Gram matrix below which a direction counts as
 /// annihilated by the masking (and is dropped).
@@ -225,37 +228,17 @@ impl AdaptiveStepper {
         candidates: &CandidateSet,
         model: &ActiveModel,
     ) -> Result<AdaptiveStepReport, AdaptiveStepError> {
-        self.check_targets(targets)?;
+        check_targets(&self.fixed_vertices, self.dim, targets)?;
         let iterate = self.iterate_model(candidates, model)?;
         let h = self.dt;
         let xhat: Vec<f64> = self.x.iter().zip(&self.v).map(|(x, v)| x + h * v).collect();
         self.inertia.set_target(&xhat);
         let mut x = xhat;
-        let d = self.dim;
-        for (i, &v) in self.fixed_vertices.iter().enumerate() {
-            x[v * d..(v + 1) * d].copy_from_slice(&targets[i * d..(i + 1) * d]);
-        }
+        place_fixed(&self.fixed_vertices, self.dim, &mut x, targets);
         let report = self.minimize(&mut x, &iterate)?;
         self.v = x.iter().zip(&self.x).map(|(a, b)| (a - b) / h).collect();
         self.x = x;
         Ok(report)
-    }
-
-    fn check_targets(&self, targets: &[f64]) -> Result<(), StepError> {
-        let expected = self.fixed_vertices.len() * self.dim;
-        if targets.len() != expected {
-            return Err(StepError::BoundaryLength {
-                expected,
-                got: targets.len(),
-            });
-        }
-        if let Some(k) = targets.iter().position(|t| !t.is_finite()) {
-            return Err(StepError::NonFiniteBoundary {
-                vertex: self.fixed_vertices[k / self.dim],
-                value: targets[k],
-            });
-        }
-        Ok(())
     }
 
     /// `U_a` (masked on enriched vertices, restricted to the free dofs, re-orthonormalised)
@@ -316,26 +299,7 @@ impl AdaptiveStepper {
 
     /// `E(x)` and, if asked, its gradient over all dofs.
     fn objective(&self, x: &[f64], grad: Option<&mut Vec<f64>>) -> f64 {
-        let w = self.dt * self.dt;
-        match grad {
-            None => {
-                energy::value(&self.inertia, x)
-                    + w * self
-                        .potentials
-                        .iter()
-                        .map(|p| energy::value(p.as_ref(), x))
-                        .sum::<f64>()
-            }
-            Some(g) => {
-                g.clear();
-                g.resize(x.len(), 0.0);
-                let mut e = energy::add_gradient(&self.inertia, 1.0, x, g);
-                for p in &self.potentials {
-                    e += energy::add_gradient(p.as_ref(), w, x, g);
-                }
-                e
-            }
-        }
+        incremental_potential(&self.inertia, &self.potentials, 1.0, self.dt * self.dt, x, grad)
     }
 
     /// Assembles the free-free Hessian of `E` at `x`.
