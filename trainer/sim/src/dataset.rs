@@ -248,9 +248,9 @@ impl BuiltScene {
             energies: vec![energies.iter().map(|(_, e)| *e).collect()],
             newton_iterations: vec![0],
             step_seconds: vec![0.0],
-            obstacles: self.simulator.obstacle_mesh().map(|(faces, at)| ObstacleFrames {
+            obstacles: self.simulator.obstacle_faces().map(|faces| ObstacleFrames {
                 faces,
-                positions: vec![at.to_vec()],
+                positions: vec![self.simulator.obstacle_positions().unwrap_or_default().to_vec()],
             }),
             meta: vec![
                 (
@@ -277,7 +277,7 @@ impl BuiltScene {
                 .push(self.simulator.energies().iter().map(|(_, e)| *e).collect());
             traj.newton_iterations.push(report.iterations as u32);
             traj.step_seconds.push(seconds);
-            if let (Some(o), Some((_, at))) = (&mut traj.obstacles, self.simulator.obstacle_mesh()) {
+            if let (Some(o), Some(at)) = (&mut traj.obstacles, self.simulator.obstacle_positions()) {
                 o.positions.push(at.to_vec());
             }
             on_step(&report);

@@ -180,14 +180,10 @@ impl Simulator {
         self.contact.as_ref().map(|c| (c.surface(), c.extended(&self.x)))
     }
 
-    /// The contact obstacle meshes, if any: triangles over the obstacle vertices, and those
-    /// vertices' current positions (scripted obstacles move).
-    pub fn obstacle_mesh(&self) -> Option<(Vec<[u32; 3]>, &[f64])> {
+    /// The contact obstacle meshes' triangles over the obstacle vertices, if there are any.
+    pub fn obstacle_faces(&self) -> Option<Vec<[u32; 3]>> {
+        self.obstacle_positions()?;
         let c = self.contact.as_ref()?;
-        let positions = c.obstacle_positions();
-        if positions.is_empty() {
-            return None;
-        }
         let first = (c.body_len() / self.dim) as u32;
         let faces = c
             .surface()
@@ -196,7 +192,13 @@ impl Simulator {
             .filter(|f| f.iter().all(|&v| v as u32 >= first))
             .map(|f| f.map(|v| v as u32 - first))
             .collect();
-        Some((faces, positions))
+        Some(faces)
+    }
+
+    /// The obstacle vertices' current positions (scripted obstacles move), if there are any.
+    pub fn obstacle_positions(&self) -> Option<&[f64]> {
+        let positions = self.contact.as_ref()?.obstacle_positions();
+        (!positions.is_empty()).then_some(positions)
     }
 
     /// The current barrier stiffness (0 without contact or before the first solve).
