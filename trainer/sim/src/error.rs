@@ -120,4 +120,12 @@ pub enum StepError {
         /// Iteration at which it happened.
         iteration: usize,
     },
+    /// The adaptive model could not be updated or its system solved.
+    #[error("adaptive solver, Newton iteration {iteration}: {message}")]
+    Adaptive {
+        /// Iteration at which it happened.
+        iteration: usize,
+        /// What went wrong.
+        message: String,
+    },
 }

@@ -21,7 +21,9 @@ mod contact;
 #[cfg(test)]
 mod contact_tests;
 mod regions;
+mod solver;
 pub use contact::{box_triangles, ContactSpec, ObstacleMesh};
+pub use solver::SolverSpec;
 
 /// A scene as written in its TOML file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -44,6 +46,10 @@ pub struct Scene {
     /// Newton settings.
     #[serde(default)]
     pub newton: NewtonSettings,
+    /// Which solver steps the scene (`[solver]`, `kind = "full-space"` by default, or
+    /// `"adaptive"` with its settings).
+    #[serde(default)]
+    pub solver: SolverSpec,
     /// Geometry.
     pub mesh: MeshSpec,
     /// Material.
@@ -452,6 +458,9 @@ impl Scene {
         if !positive(self.newton.tolerance) || self.newton.max_iterations == 0 {
             return Err(self.field_error("newton", "tolerance must be positive and max_iterations at least 1"));
         }
+        if let Some((f, msg)) = self.solver.invalid() {
+            return Err(self.field_error(f, msg));
+        }
         let m = &self.material;
         check_material(m.youngs, m.poisson, m.density)
             .map_err(|(f, msg)| self.field_error(format!("material.{f}"), msg))?;
@@ -535,13 +544,17 @@ impl Scene {
             x0: mesh.rest.clone(),
             masses,
             potentials,
-            fixed_vertices: fixed,
+            fixed_vertices: fixed.clone(),
             dt: self.dt,
             scheme: self.integrator,
             settings: self.newton,
             length_scale: mesh.rest_diagonal(),
             contact,
         });
+        let simulator = match &self.solver {
+            SolverSpec::FullSpace => simulator,
+            SolverSpec::Adaptive(settings) => simulator.with_adaptive(self.build_adaptive(settings, &mesh, &fixed)?),
+        };
         let warnings = self.region_warnings(&mesh);
         Ok(BuiltScene {
             scene: self.clone(),

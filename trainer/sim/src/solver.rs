@@ -10,6 +10,7 @@
 mod contact;
 #[cfg(test)]
 mod contact_tests;
+mod direction;
 pub(crate) mod hessian;
 mod prescribed;
 mod report;
@@ -41,6 +42,8 @@ pub struct Simulator {
     /// Free-dof couplings beyond the energy terms' stencils (from self-contact pairs).
     extra_couplings: Vec<[u32; 2]>,
     contact: Option<Contact>,
+    /// The adaptive model that gives each Newton direction, if attached.
+    adaptive: Option<crate::adaptive::solver::AdaptiveSolver>,
     x: Vec<f64>,
     v: Vec<f64>,
     x_prev: Vec<f64>,
@@ -133,6 +136,7 @@ impl Simulator {
             hessian,
             extra_couplings: Vec::new(),
             contact,
+            adaptive: None,
             v: vec![0.0; n],
             x_prev: x0.clone(),
             v_prev: vec![0.0; n],
@@ -268,7 +272,13 @@ impl Simulator {
         self.inertia.set_target(&xhat);
         // With contact, Newton starts from the last positions (intersection-free, which the
         // prediction need not be), as IPC does; CCD then keeps every iterate so.
-        let mut x = if self.contact.is_some() { self.x.clone() } else { xhat };
+        // The adaptive model starts there too (its Algorithm 1): its modal step is then the
+        // step's whole motion, which downdating measures.
+        let mut x = if self.contact.is_some() || self.adaptive.is_some() {
+            self.x.clone()
+        } else {
+            xhat
+        };
         place_fixed(&self.fixed_vertices, self.dim, &mut x, targets);
         // Moving obstacles reach where their scripts put them at the end of the step
         // during the solve, CCD-bounded like the body (see `minimize`).
@@ -276,7 +286,12 @@ impl Simulator {
         if let Some(c) = &mut self.contact {
             c.set_obstacle_goal(end_time);
         }
+        let x_start = x.clone();
+        if let Some(a) = &mut self.adaptive {
+            a.begin_step();
+        }
         let mut report = self.minimize(&mut x, 1.0, weight, h * self.length_scale, Some(h))?;
+        report.adaptive = self.adaptive.as_mut().map(|a| a.end_step(&x_start, &x, h));
         let v_new: Vec<f64> = if bdf2 {
             (0..x.len())
                 .map(|k| (3.0 * x[k] - 4.0 * self.x[k] + self.x_prev[k]) / (2.0 * h))
@@ -313,7 +328,12 @@ impl Simulator {
             c.set_obstacle_goal(end_time);
         }
         let dt = self.dt;
+        let x_start = x.clone();
+        if let Some(a) = &mut self.adaptive {
+            a.begin_step();
+        }
         let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale, Some(dt))?;
+        report.adaptive = self.adaptive.as_mut().map(|a| a.end_step(&x_start, &x, dt));
         let v_new: Vec<f64> = x.iter().zip(&self.x).map(|(a, b)| (a - b) / self.dt).collect();
         self.x_prev = std::mem::replace(&mut self.x, x);
         self.v_prev = std::mem::replace(&mut self.v, v_new);
@@ -396,26 +416,7 @@ impl Simulator {
                     rhs[f] = -grad[k] - push.get(k).copied().unwrap_or(0.0);
                 }
             }
-            // Exact Newton where the exact Hessian is positive definite (quadratic
-            // convergence); otherwise per-stencil PSD projection (always a descent direction).
-            let exact_first = self.settings.hessian == HessianMode::ExactIfDefinite;
-            let clock = Instant::now();
-            self.assemble(x, w_inertia, w_potential, !exact_first);
-            report.phases.assembly += clock.elapsed().as_secs_f64();
-            let clock = Instant::now();
-            let solved = exact_first && self.hessian.try_solve(&mut rhs);
-            report.phases.linear_solve += clock.elapsed().as_secs_f64();
-            if !solved {
-                if exact_first {
-                    let clock = Instant::now();
-                    self.assemble(x, w_inertia, w_potential, true);
-                    report.phases.assembly += clock.elapsed().as_secs_f64();
-                    report.projected_iterations += 1;
-                }
-                let clock = Instant::now();
-                self.hessian.solve(&mut rhs);
-                report.phases.linear_solve += clock.elapsed().as_secs_f64();
-            }
+            self.newton_direction(x, &grad, &mut rhs, (w_inertia, w_potential), iteration, &mut report)?;
             let dir = &rhs;
             let step_norm = dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) / norm_scale;
             if !step_norm.is_finite() {
@@ -480,6 +481,9 @@ impl Simulator {
                 if f != NOT_FREE {
                     x[k] += alpha * dir[f];
                 }
+            }
+            if let Some(a) = &mut self.adaptive {
+                a.accept(alpha);
             }
             if let Some(c) = &mut self.contact {
                 if let Some(from) = &obstacles_from {

@@ -13,21 +13,29 @@
 //! - [`bfgs`]: the per-subdomain BFGS approximations of the elastic subspace Hessian;
 //! - [`schur`]: the Schur-complement solver of the Newton-iterate system (on conjugate
 //!   gradients in [`pcg`]), and [`full_space`], the baselines it is compared with;
-//! - [`step`]: one implicit-Euler step in a given active model (Newton with the exact
-//!   subspace Hessian, no BFGS, no contact, no activation inside the step).
+//! - [`model`]: the active model and the bases it spans;
+//! - [`solver`]: the model inside the full-space simulator's Newton loop: the oracle's
+//!   update at each iterate, the model's system, downdating after each step
+//!   ([`crate::solver::Simulator::with_adaptive`]);
+//! - [`settings`]: the thresholds and sizes a scene's `[solver]` table sets.
 
 pub mod bfgs;
 pub mod candidates;
 pub mod full_space;
 mod lower_csc;
+pub mod model;
 pub mod oracle;
 pub mod partition;
 pub mod pcg;
 pub mod schur;
+pub mod settings;
 pub mod solve_error;
-pub mod step;
+pub mod solver;
 
+pub use model::ActiveModel;
+pub use settings::AdaptiveSettings;
 pub use solve_error::SolveError;
+pub use solver::{AdaptiveSolver, AdaptiveStepStats};
 
 #[cfg(test)]
 mod tests;

@@ -19,6 +19,8 @@ pub struct StepReport {
     pub contact_pairs: usize,
     /// Where the solve's time went.
     pub phases: SolvePhases,
+    /// What the adaptive model did (with an adaptive model attached).
+    pub adaptive: Option<crate::adaptive::solver::AdaptiveStepStats>,
 }
 
 /// Seconds a solve spent in each of its phases (the rest of [`StepReport::seconds`] is

@@ -4,4 +4,4 @@ mod bfgs;
 mod fixtures;
 mod partition;
 mod schur;
-mod step;
+mod solver;

@@ -1,0 +1,98 @@
+//! The adaptive solver's settings, as a scene's `[solver]` table gives them
+//! (`kind = "adaptive"`).
+
+use serde::{Deserialize, Serialize};
+
+use super::oracle::Thresholds;
+use super::pcg::PcgSettings;
+
+/// Settings of the adaptive subspace solver (Trusty et al.); every field has the default
+/// named in its documentation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AdaptiveSettings {
+    /// `ε_G` of modal candidates: a block whose error exceeds it may be activated
+    /// (default 0.5, the paper's usual value; lower is more accurate and costlier).
+    pub modal_error: f64,
+    /// `ε_G` of nodal candidates: a vertex whose error exceeds it may enrich its subdomain
+    /// (default 0.5).
+    pub nodal_error: f64,
+    /// `ε_E`: a candidate is activated only where the active model's progress is below it
+    /// (default 1e-4).
+    pub progress: f64,
+    /// `ε_d` of downdating (Sec. 3.11): after a step, an active block whose displacement,
+    /// or an enriched subdomain whose vertices' displacement beyond what the modes give, is
+    /// below `ε_d` times the rest diagonal times `dt` is dropped (default 0.1; 0 turns
+    /// downdating off).
+    pub downdate: f64,
+    /// Vertices per subdomain of the fixed decomposition (nodal enrichment groups), so a
+    /// mesh of `n` vertices gets `ceil(n / subdomain_vertices)` subdomains (default 64).
+    pub subdomain_vertices: usize,
+    /// Linear modes of the rest shape among the candidates, each its own block (default 20).
+    pub linear_modes: usize,
+    /// Linear modes active at the start, next to the rigid and affine blocks (default 6).
+    pub initial_linear_modes: usize,
+    /// Relative tolerance of the Schur complement's conjugate gradients (default 1e-5, the
+    /// paper's).
+    pub pcg_tolerance: f64,
+    /// Whether the oracle updates the model inside each step and downdating runs after it
+    /// (default true; false keeps the initial model, for checks).
+    pub adapt: bool,
+}
+
+impl Default for AdaptiveSettings {
+    fn default() -> Self {
+        let t = Thresholds::default();
+        AdaptiveSettings {
+            modal_error: t.modal_error,
+            nodal_error: t.nodal_error,
+            progress: t.progress,
+            downdate: 0.1,
+            subdomain_vertices: 64,
+            linear_modes: 20,
+            initial_linear_modes: 6,
+            pcg_tolerance: PcgSettings::default().tolerance,
+            adapt: true,
+        }
+    }
+}
+
+impl AdaptiveSettings {
+    /// The oracle's thresholds.
+    pub fn thresholds(&self) -> Thresholds {
+        Thresholds {
+            modal_error: self.modal_error,
+            nodal_error: self.nodal_error,
+            progress: self.progress,
+        }
+    }
+
+    /// The first value out of range, as `(field, message)`.
+    pub fn invalid(&self) -> Option<(&'static str, String)> {
+        let positive = [
+            ("modal_error", self.modal_error),
+            ("nodal_error", self.nodal_error),
+            ("progress", self.progress),
+            ("pcg_tolerance", self.pcg_tolerance),
+        ];
+        if let Some((name, v)) = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
+            return Some((name, format!("must be positive and finite, got {v}")));
+        }
+        if !(self.downdate.is_finite() && self.downdate >= 0.0) {
+            return Some(("downdate", format!("must be >= 0 and finite, got {}", self.downdate)));
+        }
+        if self.subdomain_vertices == 0 {
+            return Some(("subdomain_vertices", "must be at least 1".into()));
+        }
+        if self.initial_linear_modes > self.linear_modes {
+            return Some((
+                "initial_linear_modes",
+                format!(
+                    "{} is more than linear_modes = {}",
+                    self.initial_linear_modes, self.linear_modes
+                ),
+            ));
+        }
+        None
+    }
+}

@@ -1,0 +1,81 @@
+//! Which solver steps a scene (`[solver]`): the full-space Newton solver, or the same
+//! Newton loop with each direction from the adaptive subspace model.
+
+use serde::{Deserialize, Serialize};
+
+use super::{Energies, Scene};
+use crate::adaptive::candidates::{Body, CandidateSet, CandidateSpec, LinearModeSettings};
+use crate::adaptive::oracle::{NodeScales, Oracle};
+use crate::adaptive::partition::Partition;
+use crate::adaptive::{AdaptiveSettings, AdaptiveSolver};
+use crate::energy::StencilEnergy;
+use crate::error::InputError;
+use crate::mesh::Mesh;
+
+/// The solver of a scene (default: full space).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum SolverSpec {
+    /// Newton's method with a sparse Cholesky solve of the full system.
+    #[default]
+    FullSpace,
+    /// The adaptive subspace model of Trusty et al. (its settings, every one optional).
+    Adaptive(AdaptiveSettings),
+}
+
+impl SolverSpec {
+    /// The first setting out of range, as `(field, message)`.
+    pub fn invalid(&self) -> Option<(String, String)> {
+        match self {
+            SolverSpec::FullSpace => None,
+            SolverSpec::Adaptive(s) => s.invalid().map(|(f, m)| (format!("solver.{f}"), m)),
+        }
+    }
+}
+
+impl Scene {
+    /// The adaptive model of the scene's body, with its prescribed vertices `fixed`: the
+    /// candidate bases (rigid, affine and the linear modes of the rest shape), the fixed
+    /// decomposition into subdomains and the oracle. The whole mesh is one body.
+    pub fn build_adaptive(
+        &self,
+        settings: &AdaptiveSettings,
+        mesh: &Mesh,
+        fixed: &[usize],
+    ) -> Result<AdaptiveSolver, InputError> {
+        let error = |message: String| InputError::field(&self.source, "solver", message);
+        let Energies { masses, potentials } = self.build_elastic_energies(mesh)?;
+        let elastic: Vec<&dyn StencilEnergy> = potentials.iter().map(|p| p.as_ref()).collect();
+        let body = Body {
+            dim: mesh.dim,
+            rest: &mesh.rest,
+            masses: &masses,
+            fixed_vertices: fixed,
+        };
+        let spec = CandidateSpec {
+            rigid: true,
+            affine: true,
+            linear_modes: settings.linear_modes,
+            settings: LinearModeSettings::default(),
+        };
+        let candidates =
+            CandidateSet::new(&body, &elastic, &spec).map_err(|e| error(format!("candidate modes: {e}")))?;
+        let n = mesh.num_vertices();
+        let parts = n.div_ceil(settings.subdomain_vertices).max(1);
+        let partition = Partition::new(mesh, parts).map_err(|e| error(format!("subdomains: {e}")))?;
+        let scales = NodeScales::new(mesh.dim, &mesh.rest, &elastic).map_err(|e| error(format!("oracle: {e}")))?;
+        let oracle = Oracle::new(scales, fixed, partition.vertex_subdomains(), settings.thresholds())
+            .map_err(|e| error(format!("oracle: {e}")))?;
+        let subdomains = (0..partition.num_subdomains())
+            .map(|l| partition.vertices(l).to_vec())
+            .collect();
+        Ok(AdaptiveSolver::new(
+            *settings,
+            candidates,
+            oracle,
+            subdomains,
+            fixed,
+            mesh.rest_diagonal(),
+        ))
+    }
+}

@@ -1,0 +1,184 @@
+//! Newton's direction of each iterate: the full-space system by sparse Cholesky, or, with an
+//! [`AdaptiveSolver`] attached, the adaptive model's system (the oracle first updates the
+//! model, then the Schur complement solves it; see [`crate::adaptive::solver`]).
+
+use std::time::Instant;
+
+use super::{HessianMode, Simulator, StepReport, NOT_FREE};
+use crate::adaptive::oracle::WeightedTerm;
+use crate::adaptive::solver::{AdaptiveSolver, Iterate};
+use crate::adaptive::SolveError;
+use crate::energy::StencilEnergy;
+use crate::error::StepError;
+
+/// Halvings the oracle's line search tries before it takes no step.
+const ORACLE_HALVINGS: usize = 30;
+
+impl Simulator {
+    /// Makes every Newton iterate's direction come from `solver`'s adaptive model; the
+    /// time integration, energies, contact, line search and convergence test stay.
+    pub fn with_adaptive(mut self, solver: AdaptiveSolver) -> Self {
+        self.adaptive = Some(solver);
+        self
+    }
+
+    /// The attached adaptive model, if any.
+    pub fn adaptive(&self) -> Option<&AdaptiveSolver> {
+        self.adaptive.as_ref()
+    }
+
+    /// The attached adaptive model, if any, to change its model.
+    pub fn adaptive_mut(&mut self) -> Option<&mut AdaptiveSolver> {
+        self.adaptive.as_mut()
+    }
+
+    /// Replaces `rhs` (the free dofs' `-g`, and a moving obstacle's push) by Newton's
+    /// direction at `x`, whose full gradient is `grad`.
+    pub(super) fn newton_direction(
+        &mut self,
+        x: &[f64],
+        grad: &[f64],
+        rhs: &mut [f64],
+        weights: (f64, f64),
+        iteration: usize,
+        report: &mut StepReport,
+    ) -> Result<(), StepError> {
+        let (w_inertia, w_potential) = weights;
+        // Exact Newton where the exact Hessian is positive definite (quadratic
+        // convergence); otherwise per-stencil PSD projection (always a descent direction).
+        let exact_first = self.settings.hessian == HessianMode::ExactIfDefinite;
+        let clock = Instant::now();
+        self.assemble(x, w_inertia, w_potential, !exact_first);
+        report.phases.assembly += clock.elapsed().as_secs_f64();
+        if self.adaptive.is_some() {
+            return self.adaptive_direction(x, grad, rhs, weights, exact_first, iteration, report);
+        }
+        let clock = Instant::now();
+        let solved = exact_first && self.hessian.try_solve(rhs);
+        report.phases.linear_solve += clock.elapsed().as_secs_f64();
+        if !solved {
+            if exact_first {
+                let clock = Instant::now();
+                self.assemble(x, w_inertia, w_potential, true);
+                report.phases.assembly += clock.elapsed().as_secs_f64();
+                report.projected_iterations += 1;
+            }
+            let clock = Instant::now();
+            self.hessian.solve(rhs);
+            report.phases.linear_solve += clock.elapsed().as_secs_f64();
+        }
+        Ok(())
+    }
+
+    /// The adaptive model's direction (the Hessian is assembled, exact or projected as
+    /// `exact_first` says).
+    #[allow(clippy::too_many_arguments)]
+    fn adaptive_direction(
+        &mut self,
+        x: &[f64],
+        grad: &[f64],
+        rhs: &mut [f64],
+        weights: (f64, f64),
+        exact_first: bool,
+        iteration: usize,
+        report: &mut StepReport,
+    ) -> Result<(), StepError> {
+        let mut solver = self
+            .adaptive
+            .take()
+            .unwrap_or_else(|| unreachable!("checked by the caller"));
+        let negative_gradient = rhs.to_vec();
+        let found = self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, true);
+        let found = match found {
+            Err(Failure::Solve(
+                SolveError::NotPositiveDefinite(_)
+                | SolveError::PreconditionerBlock { .. }
+                | SolveError::Indefinite { .. },
+            )) if exact_first => {
+                let clock = Instant::now();
+                self.assemble(x, weights.0, weights.1, true);
+                report.phases.assembly += clock.elapsed().as_secs_f64();
+                report.projected_iterations += 1;
+                self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, false)
+            }
+            other => other,
+        };
+        self.adaptive = Some(solver);
+        let dir = found.map_err(|f| StepError::Adaptive {
+            iteration,
+            message: f.to_string(),
+        })?;
+        rhs.copy_from_slice(&dir);
+        Ok(())
+    }
+
+    /// Updates the model when `update` says so, then solves its system with the assembled
+    /// Hessian.
+    fn adaptive_solve(
+        &mut self,
+        solver: &mut AdaptiveSolver,
+        x: &[f64],
+        grad: &[f64],
+        rhs: &[f64],
+        (w_inertia, w_potential): (f64, f64),
+        update: bool,
+    ) -> Result<Vec<f64>, Failure> {
+        let terms: Vec<WeightedTerm<'_>> = std::iter::once(WeightedTerm {
+            energy: &self.inertia as &dyn StencilEnergy,
+            weight: w_inertia,
+        })
+        .chain(self.potentials.iter().map(|p| WeightedTerm {
+            energy: p.as_ref(),
+            weight: w_potential,
+        }))
+        .filter(|t| t.weight != 0.0)
+        .collect();
+        let it = Iterate {
+            hessian: self.hessian.lower(),
+            x,
+            gradient: grad,
+            rhs,
+            terms: &terms,
+            dt: self.dt,
+        };
+        if update {
+            let (inertia, potentials, contact) = (&self.inertia, &self.potentials, &mut self.contact);
+            let free_index = &self.free_index;
+            let mut along = |step: &[f64]| {
+                let objective = |y: &[f64], contact: &Option<super::Contact>| {
+                    let e = super::incremental_potential(inertia, potentials, w_inertia, w_potential, y, None);
+                    e + contact.as_ref().map_or(0.0, |c| c.value(y))
+                };
+                let trial: Vec<f64> = x.iter().zip(step).map(|(a, s)| a + s).collect();
+                let mut alpha = contact.as_mut().map_or(1.0, |c| c.line_search_bound(x, &trial));
+                let e0 = objective(x, contact);
+                let slope: f64 = free_index
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, &f)| f != NOT_FREE)
+                    .map(|(k, _)| grad[k] * step[k])
+                    .sum();
+                for _ in 0..ORACLE_HALVINGS {
+                    let y: Vec<f64> = x.iter().zip(step).map(|(a, s)| a + alpha * s).collect();
+                    let e = objective(&y, contact);
+                    if e.is_finite() && e <= e0 + 1e-4 * alpha * slope.min(0.0) {
+                        return alpha;
+                    }
+                    alpha *= 0.5;
+                }
+                0.0
+            };
+            solver.update_model(&it, &mut along).map_err(Failure::Oracle)?;
+        }
+        solver.solve(&it).map_err(Failure::Solve)
+    }
+}
+
+/// Why the adaptive model gave no direction.
+#[derive(Debug, thiserror::Error)]
+enum Failure {
+    #[error("oracle: {0}")]
+    Oracle(String),
+    #[error(transparent)]
+    Solve(SolveError),
+}
