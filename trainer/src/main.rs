@@ -154,6 +154,20 @@ enum Bench {
         /// Frames per scene.
         #[arg(long, default_value_t = 60)]
         frames: usize,
+        /// For adaptive scenes: also step full space from each adaptive state and report
+        /// the per-step difference.
+        #[arg(long)]
+        per_step: bool,
+        /// For adaptive scenes: run the comparison for each of `--values` of this setting
+        /// (error, youngs, downdate) and chart it.
+        #[arg(long)]
+        sweep: Option<String>,
+        /// The swept values, comma-separated.
+        #[arg(long, value_delimiter = ',')]
+        values: Vec<f64>,
+        /// Directory for the adaptive tables and sweep charts.
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// The no_std runtime (one thread) against candle's batch-1 forward of the same weights.
     Runtime {
@@ -287,8 +301,16 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Bench {
-            what: Bench::Sim { scenes, frames },
-        } => bench_sim(scenes, frames),
+            what:
+                Bench::Sim {
+                    scenes,
+                    frames,
+                    per_step,
+                    sweep,
+                    values,
+                    out,
+                },
+        } => bench_sim(scenes, frames, per_step, sweep, values, out),
         Command::Bench {
             what:
                 Bench::Runtime {
@@ -480,72 +502,36 @@ fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
 
-fn bench_sim(scenes: Vec<String>, frames: usize) -> Result<()> {
+fn bench_sim(
+    scenes: Vec<String>,
+    frames: usize,
+    per_step: bool,
+    sweep: Option<String>,
+    values: Vec<f64>,
+    out: Option<PathBuf>,
+) -> Result<()> {
     let scenes = if scenes.is_empty() {
         shipped_scene_names()
     } else {
         scenes
     };
-    println!(
-        "{:10} {:>8} {:>10} {:>12} {:>10}",
-        "scene", "DOF", "ms/step", "Newton it.", "max it."
-    );
-    let mut contact_rows = Vec::new();
-    for name in scenes {
-        let scene = Recipe::load(&name)?.scene;
-        let mut problem = scene.build()?;
-        let seq = problem.sequence(&SpeedPlan::constant(0.5), frames, scene.dataset.seed);
-        let mut reports = Vec::new();
-        let traj = problem
-            .run_reporting(&seq, &mochi_sim::Silent, &mut |r| reports.push(r.clone()))
-            .with_context(|| format!("simulating `{name}`"))?;
-        if scene.contact.is_some() {
-            contact_rows.push(contact_row(&scene.name, &reports));
-        }
-        let iters: Vec<f64> = traj.newton_iterations[1..].iter().map(|&i| i as f64).collect();
-        println!(
-            "{:10} {:>8} {:>10.2} {:>12.2} {:>10}",
-            scene.name,
-            problem.simulator.num_free_dofs(),
-            1e3 * mean(&traj.step_seconds[1..]),
-            mean(&iters),
-            iters.iter().fold(0.0f64, |m, &i| m.max(i))
-        );
-    }
-    if !contact_rows.is_empty() {
-        println!(
-            "\ncontact scenes: pairs per step, and the share of each solve's time per phase\n\
-             {:10} {:>10} {:>10} {:>12} {:>8} {:>8} {:>9} {:>7} {:>7}",
-            "scene", "ms/step", "Newton it.", "pairs mean", "max", "broad %", "CCD %", "assem %", "solve %"
-        );
-        for row in contact_rows {
-            println!("{row}");
-        }
-    }
-    Ok(())
-}
-
-/// One row of `mochi bench sim`'s contact table: mean time and iterations per step, contact
-/// pairs, and each phase's share of the solves' time.
-fn contact_row(scene: &str, reports: &[mochi_sim::solver::StepReport]) -> String {
-    let seconds: f64 = reports.iter().map(|r| r.seconds).sum::<f64>().max(f64::MIN_POSITIVE);
-    let share = |f: &dyn Fn(&mochi_sim::solver::SolvePhases) -> f64| {
-        100.0 * reports.iter().map(|r| f(&r.phases)).sum::<f64>() / seconds
+    let scenes = scenes
+        .iter()
+        .map(|name| Ok(Recipe::load(name)?.scene))
+        .collect::<Result<Vec<_>>>()?;
+    let options = eval::sim_bench::SimBenchOptions {
+        frames,
+        per_step,
+        sweep: sweep
+            .as_deref()
+            .map(eval::adaptive_bench::SweepKey::parse)
+            .transpose()
+            .map_err(anyhow::Error::msg)?,
+        values,
+        out,
     };
-    let pairs: Vec<f64> = reports.iter().map(|r| r.contact_pairs as f64).collect();
-    let iterations: Vec<f64> = reports.iter().map(|r| r.iterations as f64).collect();
-    format!(
-        "{:10} {:>10.2} {:>10.2} {:>12.1} {:>8} {:>8.1} {:>9.1} {:>7.1} {:>7.1}",
-        scene,
-        1e3 * seconds / reports.len().max(1) as f64,
-        mean(&iterations),
-        mean(&pairs),
-        pairs.iter().fold(0.0f64, |m, &p| m.max(p)),
-        share(&|p| p.broad_phase),
-        share(&|p| p.ccd),
-        share(&|p| p.assembly),
-        share(&|p| p.linear_solve),
-    )
+    eval::sim_bench::bench(&scenes, &options, &mut |line| eprintln!("{line}"))?;
+    Ok(())
 }
 
 fn bench_runtime(

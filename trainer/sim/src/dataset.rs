@@ -217,6 +217,18 @@ impl BuiltScene {
         progress: &dyn Progress,
         on_step: &mut dyn FnMut(&StepReport),
     ) -> Result<Trajectory, StepError> {
+        let mut traj = self.start(seq)?;
+        for frame in 1..=seq.frames() {
+            let report = self.advance(seq, frame, &mut traj)?;
+            on_step(&report);
+            progress.advance(1);
+        }
+        Ok(traj)
+    }
+
+    /// Puts the simulator in the scene's initial state for `seq` (at rest, thrown, or in
+    /// static equilibrium) and returns the trajectory's first frame.
+    pub fn start(&mut self, seq: &BcSequence) -> Result<Trajectory, StepError> {
         let dim = self.mesh.dim;
         self.simulator.reset(&self.mesh.rest.clone());
         let targets0 = seq.targets(&self.handles, 0, dim);
@@ -238,7 +250,7 @@ impl BuiltScene {
             }
         }
         let energies = self.simulator.energies();
-        let mut traj = Trajectory {
+        Ok(Trajectory {
             scene: self.scene.name.clone(),
             dt: self.scene.dt,
             dim,
@@ -266,24 +278,25 @@ impl BuiltScene {
                     "per handle: velocity(3), angular_velocity(3), translation(3), rotation_vector(3)".into(),
                 ),
             ],
-        };
-        for frame in 1..=seq.frames() {
-            let start = Instant::now();
-            let report: StepReport = self.simulator.step(&seq.targets(&self.handles, frame, dim))?;
-            let seconds = start.elapsed().as_secs_f64();
-            traj.positions.push(self.simulator.positions().to_vec());
-            traj.bc_signal.push(seq.signal(frame));
-            traj.energies
-                .push(self.simulator.energies().iter().map(|(_, e)| *e).collect());
-            traj.newton_iterations.push(report.iterations as u32);
-            traj.step_seconds.push(seconds);
-            if let (Some(o), Some(at)) = (&mut traj.obstacles, self.simulator.obstacle_positions()) {
-                o.positions.push(at.to_vec());
-            }
-            on_step(&report);
-            progress.advance(1);
+        })
+    }
+
+    /// Steps to `frame` of `seq` and appends it to `traj`.
+    pub fn advance(&mut self, seq: &BcSequence, frame: usize, traj: &mut Trajectory) -> Result<StepReport, StepError> {
+        let dim = self.mesh.dim;
+        let start = Instant::now();
+        let report: StepReport = self.simulator.step(&seq.targets(&self.handles, frame, dim))?;
+        let seconds = start.elapsed().as_secs_f64();
+        traj.positions.push(self.simulator.positions().to_vec());
+        traj.bc_signal.push(seq.signal(frame));
+        traj.energies
+            .push(self.simulator.energies().iter().map(|(_, e)| *e).collect());
+        traj.newton_iterations.push(report.iterations as u32);
+        traj.step_seconds.push(seconds);
+        if let (Some(o), Some(at)) = (&mut traj.obstacles, self.simulator.obstacle_positions()) {
+            o.positions.push(at.to_vec());
         }
-        Ok(traj)
+        Ok(report)
     }
 }
 

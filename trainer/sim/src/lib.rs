@@ -23,6 +23,7 @@ pub mod scene;
 pub mod solver;
 pub mod trajectory;
 
+pub use adaptive::AdaptiveSettings;
 pub use bc::Handle;
 pub use dataset::{SpeedPlan, Split};
 pub use energy::StencilEnergy;
@@ -31,6 +32,6 @@ pub use material::{ElementMaterial, MaterialLaw};
 pub use mesh::io::MeshKind;
 pub use mesh::{Elements, Mesh};
 pub use progress::{Progress, Silent};
-pub use scene::{BuiltScene, Scene, SceneDocument};
+pub use scene::{BuiltScene, Scene, SceneDocument, SolverSpec};
 pub use solver::{Simulator, SimulatorConfig, TimeScheme};
 pub use trajectory::Trajectory;

@@ -15,6 +15,7 @@ pub(crate) mod hessian;
 mod prescribed;
 mod report;
 mod settings;
+mod state;
 
 use crate::energy::{self, inertia::Inertia, StencilEnergy};
 pub use crate::error::StepError;
@@ -24,6 +25,7 @@ use hessian::HessianPattern;
 pub(crate) use prescribed::{check_targets, place_fixed};
 pub use report::{SolvePhases, StepReport};
 pub use settings::{HessianMode, NewtonSettings, TimeScheme};
+pub use state::SimState;
 use std::time::Instant;
 
 /// A full-space simulator of one body.

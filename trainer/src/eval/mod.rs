@@ -30,11 +30,13 @@ use crate::learn::encoding::Encoding;
 use crate::progress::Reporter;
 use crate::report::chart::{self, LabelledPoint, Series};
 
+pub mod adaptive_bench;
 pub mod network_export;
 pub mod reduced;
 pub mod reduced_bench;
 pub mod rollout;
 pub mod runtime_bench;
+pub mod sim_bench;
 pub(crate) mod storage;
 
 pub use rollout::{

@@ -22,6 +22,7 @@ use std::time::Instant;
 
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use rayon::prelude::*;
 
 use super::candidates::{BlockKind, CandidateSet};
 use super::lower_csc::symmetric_product;
@@ -424,13 +425,19 @@ impl AdaptiveSolver {
     }
 }
 
-/// `H U` for the symmetric `H` stored as its lower triangle.
+/// `H U` for the symmetric `H` stored as its lower triangle, a column per task.
 fn hessian_times(h: SparseColMatRef<'_, u32, f64>, u: &DMatrix<f64>) -> DMatrix<f64> {
+    let columns: Vec<Vec<f64>> = (0..u.ncols())
+        .into_par_iter()
+        .map(|j| {
+            let mut out = vec![0.0; u.nrows()];
+            symmetric_product(h, u.column(j).as_slice(), &mut out);
+            out
+        })
+        .collect();
     let mut hu = DMatrix::zeros(u.nrows(), u.ncols());
-    let mut out = vec![0.0; u.nrows()];
-    for j in 0..u.ncols() {
-        symmetric_product(h, u.column(j).as_slice(), &mut out);
-        hu.column_mut(j).copy_from_slice(&out);
+    for (j, c) in columns.iter().enumerate() {
+        hu.column_mut(j).copy_from_slice(c);
     }
     hu
 }

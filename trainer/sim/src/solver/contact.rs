@@ -208,6 +208,27 @@ impl Contact {
         }
     }
 
+    /// What carries from one solve to the next: obstacle positions, barrier stiffness and
+    /// the last minimum squared distance.
+    pub(super) fn carried(&self) -> (Vec<f64>, f64, f64) {
+        (self.obstacle_positions.clone(), self.kappa, self.prev_min_d2)
+    }
+
+    /// A lower bound of the distance between any two contact primitives at the last
+    /// iterate: the smallest distance of the pairs within `dhat`, or `dhat` when none is.
+    pub(super) fn min_distance(&self) -> f64 {
+        self.prev_min_d2.sqrt().min(self.settings.dhat)
+    }
+
+    /// Restores what [`Contact::carried`] returned.
+    pub(super) fn restore(&mut self, (positions, kappa, prev_min_d2): (Vec<f64>, f64, f64)) {
+        if positions.len() == self.obstacle_positions.len() {
+            self.obstacle_positions = positions;
+        }
+        self.kappa = kappa;
+        self.prev_min_d2 = prev_min_d2;
+    }
+
     /// Asks the moving obstacles to be where their scripts put them at `time` by the end of
     /// the next solve; false when none has to move.
     pub(super) fn set_obstacle_goal(&mut self, time: f64) -> bool {

@@ -131,7 +131,6 @@ impl Simulator {
             energy: p.as_ref(),
             weight: w_potential,
         }))
-        .filter(|t| t.weight != 0.0)
         .collect();
         let it = Iterate {
             hessian: self.hessian.lower(),
@@ -149,8 +148,14 @@ impl Simulator {
                     let e = super::incremental_potential(inertia, potentials, w_inertia, w_potential, y, None);
                     e + contact.as_ref().map_or(0.0, |c| c.value(y))
                 };
-                let trial: Vec<f64> = x.iter().zip(step).map(|(a, s)| a + s).collect();
-                let mut alpha = contact.as_mut().map_or(1.0, |c| c.line_search_bound(x, &trial));
+                // The oracle's step is only measured, never taken: instead of CCD (a broad
+                // phase over the swept surface), it is bounded so that no vertex moves more
+                // than half the smallest primitive distance, which no pair can close.
+                let largest = step.iter().fold(0.0f64, |m, s| m.abs().max(s.abs()));
+                let mut alpha = match contact.as_ref() {
+                    Some(c) if largest > 0.0 => (0.5 * c.min_distance() / largest).min(1.0),
+                    _ => 1.0,
+                };
                 let e0 = objective(x, contact);
                 let slope: f64 = free_index
                     .iter()

@@ -121,6 +121,9 @@ pub struct Decision {
 #[derive(Clone, Debug)]
 pub struct Oracle {
     scales: NodeScales,
+    /// The one-rings of the terms of the first query (checked then), reused while the
+    /// terms are the same.
+    rings: std::sync::OnceLock<nodal::RingCache>,
     free: Vec<bool>,
     vertex_subdomain: Vec<usize>,
     num_subdomains: usize,
@@ -157,6 +160,7 @@ impl Oracle {
             return Err(OracleError::Input(format!("thresholds must be finite, got {t:?}")));
         }
         Ok(Oracle {
+            rings: std::sync::OnceLock::new(),
             num_subdomains: vertex_subdomains.iter().max().map_or(0, |m| m + 1),
             vertex_subdomain: vertex_subdomains.to_vec(),
             scales,
@@ -178,8 +182,23 @@ impl Oracle {
     /// The nodal measures of `query` (Eqs. 7, 9-11).
     pub fn nodal(&self, query: &Query<'_>) -> Result<NodalMeasures, OracleError> {
         self.check(query)?;
+        let n = self.scales.num_vertices();
+        let fresh;
+        let cache = match self.rings.get() {
+            Some(c) if c.fits(query.terms) => c,
+            Some(_) => {
+                nodal::check_terms(self.scales.dim, n, query.terms)?;
+                fresh = nodal::RingCache::new(n, query.terms);
+                &fresh
+            }
+            None => {
+                nodal::check_terms(self.scales.dim, n, query.terms)?;
+                self.rings.get_or_init(|| nodal::RingCache::new(n, query.terms))
+            }
+        };
         Ok(nodal::nodal_measures(
             &self.scales,
+            cache,
             query.terms,
             query.x,
             query.gradient,
@@ -297,6 +316,18 @@ impl Oracle {
                 q.dt
             )));
         }
-        nodal::check_terms(self.scales.dim, self.scales.num_vertices(), q.terms)
+        // The terms' stencils are checked when their one-rings are built (once).
+        for t in q.terms {
+            if t.energy.dim() != self.scales.dim || !t.weight.is_finite() {
+                return Err(OracleError::Input(format!(
+                    "term `{}` has dim {} and weight {}, the body dim {}",
+                    t.energy.name(),
+                    t.energy.dim(),
+                    t.weight,
+                    self.scales.dim
+                )));
+            }
+        }
+        Ok(())
     }
 }

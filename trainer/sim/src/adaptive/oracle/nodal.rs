@@ -3,6 +3,7 @@
 
 use super::{NodeScales, OracleError, WeightedTerm};
 use crate::energy::{gather, Local, StencilEnergy, Want, MAX_DOF};
+use rayon::prelude::*;
 
 /// Per-vertex measures of one oracle query.
 #[derive(Clone, Debug, PartialEq)]
@@ -18,6 +19,7 @@ pub struct NodalMeasures {
 
 /// For every vertex, the sorted vertices that share a stencil of `terms` with it (itself
 /// included), as offsets into one flat list.
+#[derive(Clone, Debug)]
 struct OneRings {
     offsets: Vec<usize>,
     vertices: Vec<usize>,
@@ -51,6 +53,60 @@ impl OneRings {
         let ring = &self.vertices[self.offsets[i]..self.offsets[i + 1]];
         self.offsets[i] + ring.binary_search(&j).expect("ring holds every stencil neighbour")
     }
+}
+
+/// The one-rings of a body's terms and, per term and stencil, the ring slot of every
+/// vertex pair `(a, b)` of the stencil (row-major), built once per oracle: the terms of a
+/// simulator do not change between queries.
+#[derive(Clone, Debug)]
+pub(super) struct RingCache {
+    /// Each term's stencil count, to tell whether a query's terms are those it was built for.
+    signature: Vec<usize>,
+    rings: OneRings,
+    /// Per term, `offsets[s]..offsets[s + 1]` into `pairs` for stencil `s`.
+    offsets: Vec<Vec<usize>>,
+    pairs: Vec<Vec<usize>>,
+}
+
+impl RingCache {
+    /// The cache of `terms` on a body of `n` vertices (the terms must be checked).
+    pub(super) fn new(n: usize, terms: &[WeightedTerm<'_>]) -> Self {
+        let rings = OneRings::new(n, terms);
+        let mut offsets = Vec::with_capacity(terms.len());
+        let mut pairs = Vec::with_capacity(terms.len());
+        for t in terms {
+            let e = t.energy;
+            let mut off = Vec::with_capacity(e.len() + 1);
+            let mut list = Vec::new();
+            off.push(0);
+            for s in 0..e.len() {
+                let verts = e.stencil(s);
+                for &i in verts {
+                    for &j in verts {
+                        list.push(rings.slot(i, j));
+                    }
+                }
+                off.push(list.len());
+            }
+            offsets.push(off);
+            pairs.push(list);
+        }
+        RingCache {
+            signature: signature(terms),
+            rings,
+            offsets,
+            pairs,
+        }
+    }
+
+    /// Whether it was built for `terms`.
+    pub(super) fn fits(&self, terms: &[WeightedTerm<'_>]) -> bool {
+        self.signature == signature(terms)
+    }
+}
+
+fn signature(terms: &[WeightedTerm<'_>]) -> Vec<usize> {
+    terms.iter().map(|t| t.energy.len()).collect()
 }
 
 /// Checks that every term has the body's dimension and names only its vertices.
@@ -100,8 +156,10 @@ pub(super) fn check_terms(dim: usize, n: usize, terms: &[WeightedTerm<'_>]) -> R
 /// square: a squared norm over `h² A_i H̄_i` would keep units of M L and grow with the
 /// scene's size and stiffness. Likewise `ΔE_i` is in M L² and `h² V_i H̄_i` in
 /// T² · L³ · M L⁻¹ T⁻² = M L² (footnote 3).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn nodal_measures(
     scales: &NodeScales,
+    cache: &RingCache,
     terms: &[WeightedTerm<'_>],
     x: &[f64],
     gradient: &[f64],
@@ -111,31 +169,41 @@ pub(super) fn nodal_measures(
 ) -> NodalMeasures {
     let dim = scales.dim;
     let n = scales.num_vertices();
-    let rings = OneRings::new(n, terms);
+    let rings = &cache.rings;
     let mut ring_grad = vec![0.0; rings.vertices.len() * dim];
     let mut own = vec![0.0; n * dim];
     let mut energy_change = vec![0.0; n];
     let x_step: Vec<f64> = x.iter().zip(d).map(|(a, b)| a + b).collect();
-    let (mut out, mut scratch) = (Local::default(), Local::default());
-    let (mut xl, mut xl_step) = ([0.0; MAX_DOF], [0.0; MAX_DOF]);
-    for t in terms {
+    for (t, (offsets, pairs)) in terms.iter().zip(cache.offsets.iter().zip(&cache.pairs)) {
         let e = t.energy;
-        for s in 0..e.len() {
-            let len = gather(e, s, x, &mut xl);
-            gather(e, s, &x_step, &mut xl_step);
-            let before = e.eval(s, &xl[..len], Want::Gradient, &mut out);
-            let after = e.eval(s, &xl_step[..len], Want::Value, &mut scratch);
-            let change = t.weight * (before - after);
+        // The stencils' gradients and energy changes, in parallel; their sums below in
+        // stencil order, so the measures do not depend on the thread count.
+        let local: Vec<(f64, [f64; MAX_DOF])> = (0..e.len())
+            .into_par_iter()
+            .map_init(
+                || (Local::default(), Local::default(), [0.0; MAX_DOF], [0.0; MAX_DOF]),
+                |(out, scratch, xl, xl_step), s| {
+                    let len = gather(e, s, x, xl);
+                    gather(e, s, &x_step, xl_step);
+                    let before = e.eval(s, &xl[..len], Want::Gradient, out);
+                    let after = e.eval(s, &xl_step[..len], Want::Value, scratch);
+                    (t.weight * (before - after), out.grad)
+                },
+            )
+            .collect();
+        for (s, (change, grad)) in local.iter().enumerate() {
             let verts = e.stencil(s);
+            let slots = &pairs[offsets[s]..offsets[s + 1]];
+            let len = verts.len();
             for (a, &i) in verts.iter().enumerate() {
                 energy_change[i] += change;
                 for k in 0..dim {
-                    own[i * dim + k] += t.weight * out.grad[a * dim + k];
+                    own[i * dim + k] += t.weight * grad[a * dim + k];
                 }
-                for (b, &j) in verts.iter().enumerate() {
-                    let at = rings.slot(i, j) * dim;
+                for b in 0..len {
+                    let at = slots[a * len + b] * dim;
                     for k in 0..dim {
-                        ring_grad[at + k] += t.weight * out.grad[b * dim + k];
+                        ring_grad[at + k] += t.weight * grad[b * dim + k];
                     }
                 }
             }
