@@ -362,8 +362,12 @@ fn simulate(
     let seq = problem.sequence(&SpeedPlan::constant(level), frames, seed.unwrap_or(scene.dataset.seed));
     let bar = FramesBar::new(&format!("simulate {}", scene.name), true);
     bar.start(frames as u64);
+    // The adaptive solver's enriched vertices per frame, which previews mark.
+    let mut enriched = vec![Vec::new()];
     let traj = problem
-        .run(&seq, &bar)
+        .run_reporting(&seq, &bar, &mut |r| {
+            enriched.push(r.adaptive.as_ref().map(|a| a.enriched.clone()).unwrap_or_default())
+        })
         .with_context(|| format!("simulating scene `{}`", scene.name))?;
     bar.finish();
     let out = out.unwrap_or_else(|| default_out(&scene, "simulate.npz"));
@@ -404,6 +408,7 @@ fn simulate(
         let opts = render::RenderOptions {
             title: format!("{}: frames {:?}", scene.name, png_frames),
             highlight: problem.simulator.fixed_vertices().to_vec(),
+            marked: png_frames.iter().map(|&f| enriched[f].clone()).collect(),
             framed_vertices: Some(problem.mesh.num_vertices()),
             ..Default::default()
         };

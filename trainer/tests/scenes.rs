@@ -186,3 +186,30 @@ fn the_latent_table_is_the_recipes_and_its_errors_keep_their_lines() {
     assert_eq!(again.latent, recipe.latent);
     assert_eq!(again.scene.handles, recipe.scene.handles);
 }
+
+#[test]
+fn the_adaptive_solver_scenes_load_and_the_small_ones_simulate_adaptively() {
+    use mochi_sim::dataset::SpeedPlan;
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/adaptive");
+    for name in ["beam", "stomp", "stomp-fine"] {
+        let path = dir.join(format!("{name}.toml"));
+        let scene = Recipe::load(path.to_str().unwrap())
+            .unwrap_or_else(|e| panic!("{e}"))
+            .scene;
+        assert!(matches!(scene.solver, mochi_sim::SolverSpec::Adaptive(_)), "{name}");
+        if name == "stomp-fine" {
+            // 50,400 tets: built by `mochi bench sim`, too slow for a debug test.
+            continue;
+        }
+        let mut problem = scene.build().unwrap_or_else(|e| panic!("{name}: {e}"));
+        let seq = problem.sequence(&SpeedPlan::constant(1.0), 2, scene.dataset.seed);
+        let mut stats = Vec::new();
+        problem
+            .run_reporting(&seq, &mochi_sim::Silent, &mut |r| stats.push(r.adaptive.clone()))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(
+            stats.iter().all(|s| s.as_ref().is_some_and(|s| s.active_modes >= 12)),
+            "{name}: {stats:?}"
+        );
+    }
+}

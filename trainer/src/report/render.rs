@@ -194,6 +194,9 @@ pub struct RenderOptions {
     pub up_axis: usize,
     /// Vertices drawn as red dots on top (e.g. pinned vertices).
     pub highlight: Vec<usize>,
+    /// Per panel, vertices drawn as green dots (e.g. the adaptive solver's enriched ones);
+    /// none by default.
+    pub marked: Vec<Vec<usize>>,
     /// Caption of each panel (e.g. `frame 30`); missing ones are left blank.
     pub panel_labels: Vec<String>,
     /// The first this many vertices are what the view is framed on (e.g. the body, with
@@ -210,6 +213,7 @@ impl Default for RenderOptions {
             view: View::ThreeQuarter,
             up_axis: 1,
             highlight: Vec::new(),
+            marked: Vec::new(),
             panel_labels: Vec::new(),
             framed_vertices: None,
         }
@@ -223,6 +227,8 @@ const FLAT_FILL: RGBColor = RGBColor(160, 190, 232);
 const EDGE: RGBColor = RGBColor(40, 60, 100);
 const ROD: RGBColor = RGBColor(30, 70, 140);
 const HIGHLIGHT: RGBColor = RGBColor(220, 30, 30);
+/// Colour of marked vertices (the adaptive solver's enriched ones).
+const MARKED: RGBColor = RGBColor(20, 170, 60);
 const PANEL_BORDER: RGBColor = RGBColor(205, 205, 205);
 /// Above this many triangles, edges are not outlined (they would only darken the image).
 const MAX_OUTLINED_TRIANGLES: usize = 3000;
@@ -344,7 +350,12 @@ fn draw_preview(path: &Path, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOption
         check_frame(mesh, x).with_context(|| format!("frame {f}"))?;
     }
     let n = mesh.num_vertices();
-    if let Some(&v) = opts.highlight.iter().find(|&&v| v >= n) {
+    if let Some(&v) = opts
+        .highlight
+        .iter()
+        .chain(opts.marked.iter().flatten())
+        .find(|&&v| v >= n)
+    {
         bail!("highlighted vertex {v} is beyond the {n} of the mesh");
     }
     register_font()?;
@@ -383,6 +394,10 @@ fn draw_preview(path: &Path, mesh: &Mesh, frames: &[&[f64]], opts: &RenderOption
             Elements::Rods(rods) => draw_rods(panel, &camera, &framing, mesh.dim, x, rods)?,
             Elements::Triangles(_) => draw_flat(panel, &camera, &framing, x, &triangles)?,
             Elements::Tets(_) | Elements::Shell(_) => draw_shaded(panel, &camera, &framing, x, &triangles)?,
+        }
+        for &v in opts.marked.get(i).into_iter().flatten() {
+            let (s, t, _) = camera.project(point(x, mesh.dim, v));
+            panel.draw(&Circle::new(framing.to_pixel(s, t), 2, MARKED.filled()))?;
         }
         for &v in &opts.highlight {
             let (s, t, _) = camera.project(point(x, mesh.dim, v));

@@ -56,6 +56,8 @@ pub struct Iterate<'a> {
 pub struct AdaptiveStepStats {
     /// Enriched free vertices at the end of the solve (before downdating).
     pub enriched_vertices: usize,
+    /// Those vertices, ascending (previews mark them).
+    pub enriched: Vec<usize>,
     /// Free vertices of the body.
     pub free_vertices: usize,
     /// Active candidate columns at the end of the solve (before downdating).
@@ -338,7 +340,10 @@ impl AdaptiveSolver {
     /// the step's statistics.
     pub fn end_step(&mut self, x_start: &[f64], x_end: &[f64], dt: f64) -> AdaptiveStepStats {
         let enriched = self.enriched_vertices();
-        self.stats.enriched_vertices = enriched.iter().zip(&self.free_vertex).filter(|(&e, &f)| e && f).count();
+        self.stats.enriched = (0..enriched.len())
+            .filter(|&i| enriched[i] && self.free_vertex[i])
+            .collect();
+        self.stats.enriched_vertices = self.stats.enriched.len();
         self.stats.active_modes = self.model().columns(&self.candidates).len();
         if self.settings.adapt && self.settings.downdate > 0.0 {
             self.downdate(x_start, x_end, dt, &enriched);

@@ -103,6 +103,7 @@ fn with_every_vertex_enriched_the_step_is_full_space_newton() {
         let report = built.simulator.step(&targets).unwrap();
         let stats = report.adaptive.as_ref().unwrap();
         assert_eq!(stats.enriched_vertices, stats.free_vertices);
+        assert_eq!(stats.enriched.len(), stats.enriched_vertices);
         assert!(report.converged && reference.converged, "step {step}");
         // Both converge to the Newton tolerance from different starts (the adaptive solve
         // from the last positions, the full-space one from the prediction).
