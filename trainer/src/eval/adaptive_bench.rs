@@ -16,6 +16,7 @@
 
 use std::path::Path;
 
+use mochi_sim::adaptive::LinearSolverTimings;
 use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::SpeedPlan;
 use mochi_sim::solver::StepReport;
@@ -128,6 +129,9 @@ pub struct Comparison {
     /// Shares of the adaptive solves' time: Hessian assembly, the oracle, the model's
     /// systems (the rest: energies, gradients, line search, contact).
     pub shares: [f64; 3],
+    /// The three linear solvers timed on the system of the iterate with the most enriched
+    /// coordinates (the paper's Table 3), or why they could not be.
+    pub linear_solvers: Option<Result<LinearSolverTimings, String>>,
 }
 
 fn mean(v: &[f64]) -> f64 {
@@ -170,6 +174,9 @@ pub fn compare(scene: &Scene, frames: usize, per_step: bool, log: &mut dyn FnMut
             .map(|&i| i as f64)
             .collect::<Vec<_>>(),
     );
+    if let Some(a) = adaptive.simulator.adaptive_mut() {
+        a.keep_largest_system();
+    }
     let mut reports: Vec<StepReport> = Vec::new();
     let mut step_gaps = Vec::new();
     let mut trajectory = adaptive.start(&seq)?;
@@ -218,6 +225,11 @@ pub fn compare(scene: &Scene, frames: usize, per_step: bool, log: &mut dyn FnMut
         adaptive_iterations: mean(&reports.iter().map(|r| r.iterations as f64).collect::<Vec<_>>()),
         full_iterations,
         unconverged: reports.iter().filter(|r| !r.converged).count(),
+        linear_solvers: adaptive
+            .simulator
+            .adaptive()
+            .and_then(|a| a.time_linear_solvers())
+            .map(|r| r.map_err(|e| e.to_string())),
         shares: {
             let total = reports.iter().map(|r| r.seconds).sum::<f64>().max(f64::MIN_POSITIVE);
             [
@@ -338,5 +350,30 @@ pub fn adaptive_settings(scene: &Scene) -> Option<&AdaptiveSettings> {
     match &scene.solver {
         SolverSpec::Adaptive(s) => Some(s),
         SolverSpec::FullSpace => None,
+    }
+}
+
+/// The linear-solver table of one comparison (the paper's Table 3), markdown.
+pub fn linear_solver_table(scene: &str, comparison: &Comparison) -> String {
+    match &comparison.linear_solvers {
+        None => format!("{scene}: no vertex was enriched, so no system was kept for the linear-solver table\n"),
+        Some(Err(e)) => format!("{scene}: the linear solvers could not be timed: {e}\n"),
+        Some(Ok(t)) => format!(
+            "| {scene}: one Newton system, {} free coordinates, {} enriched, {} modes | ms | iterations | relative residual |\n\
+             |---|---|---|---|\n\
+             | adaptive model, Schur-complement PCG | {:.2} | {} | (its own system) |\n\
+             | full system, faer sparse Cholesky | {:.2} | - | {:.1e} |\n\
+             | full system, block-Jacobi PCG | {:.2} | {} | {:.1e} |\n",
+            t.free_dofs,
+            t.enriched_dofs,
+            t.modes,
+            1e3 * t.schur_seconds,
+            t.schur_iterations,
+            1e3 * t.cholesky_seconds,
+            t.full_residuals[0],
+            1e3 * t.pcg_seconds,
+            t.pcg_iterations,
+            t.full_residuals[1],
+        ),
     }
 }

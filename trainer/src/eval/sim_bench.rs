@@ -76,7 +76,11 @@ pub fn bench(scenes: &[Scene], options: &SimBenchOptions, log: &mut dyn FnMut(St
             Some(key) => adaptive_bench::sweep(scene, key, &options.values, frames, options.per_step, log)?,
             None => vec![adaptive_bench::compare(scene, frames, options.per_step, log)?],
         };
-        let table = adaptive_bench::table(&scene.name, options.sweep, &rows);
+        let mut table = adaptive_bench::table(&scene.name, options.sweep, &rows);
+        if options.sweep.is_none() {
+            table.push('\n');
+            table.push_str(&adaptive_bench::linear_solver_table(&scene.name, &rows[0]));
+        }
         println!(
             "\n{}: adaptive solver against full space, {frames} frames\n{table}",
             scene.name

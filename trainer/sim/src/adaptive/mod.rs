@@ -17,6 +17,7 @@
 //! - [`solver`]: the model inside the full-space simulator's Newton loop: the oracle's
 //!   update at each iterate, the model's system, downdating after each step
 //!   ([`crate::solver::Simulator::with_adaptive`]);
+//! - [`system`]: the model's Newton system and the timing of its three solvers;
 //! - [`settings`]: the thresholds and sizes a scene's `[solver]` table sets.
 
 pub mod bfgs;
@@ -31,11 +32,13 @@ pub mod schur;
 pub mod settings;
 pub mod solve_error;
 pub mod solver;
+pub mod system;
 
 pub use model::ActiveModel;
 pub use settings::AdaptiveSettings;
 pub use solve_error::SolveError;
 pub use solver::{AdaptiveSolver, AdaptiveStepStats};
+pub use system::LinearSolverTimings;
 
 #[cfg(test)]
 mod tests;

@@ -20,17 +20,15 @@
 
 use std::time::Instant;
 
-use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
+use faer::sparse::{SparseColMat, SparseColMatRef};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
-use rayon::prelude::*;
 
 use super::candidates::{BlockKind, CandidateSet};
-use super::lower_csc::symmetric_product;
 use super::model::{ActiveModel, EnrichedDofs, ModalBasis};
 use super::oracle::{Oracle, Query, WeightedTerm};
 use super::pcg::PcgSettings;
-use super::schur::{AdaptiveSystem, Coupling};
 use super::settings::AdaptiveSettings;
+use super::system::{hessian_times, model_direction, time_solvers, KeptSystem, LinearSolverTimings};
 use super::SolveError;
 use crate::solver::{free_dof_index, NOT_FREE};
 
@@ -81,6 +79,7 @@ pub struct AdaptiveStepStats {
 }
 
 /// The model's bases, rebuilt when the model changes.
+#[derive(Clone)]
 struct Bases {
     unmasked: ModalBasis,
     masked: ModalBasis,
@@ -106,6 +105,8 @@ pub struct AdaptiveSolver {
     /// The step's accumulated modal displacement, as coefficients of the candidate columns.
     step_coefficients: Vec<f64>,
     stats: AdaptiveStepStats,
+    /// The largest system met, when asked to keep it.
+    kept: Option<KeptSystem>,
 }
 
 impl AdaptiveSolver {
@@ -150,6 +151,7 @@ impl AdaptiveSolver {
             last_coefficients: vec![0.0; columns],
             step_coefficients: vec![0.0; columns],
             stats: AdaptiveStepStats::default(),
+            kept: None,
             candidates,
         }
     }
@@ -269,63 +271,65 @@ impl AdaptiveSolver {
     /// The Newton direction over the free dofs in the current model (module docs, step 2).
     pub fn solve(&mut self, it: &Iterate<'_>) -> Result<Vec<f64>, SolveError> {
         let clock = Instant::now();
-        let pcg = PcgSettings {
+        let pcg = self.pcg();
+        let num_free = self.num_free;
+        self.bases();
+        let bases = self.bases.take().unwrap_or_else(|| unreachable!("built above"));
+        let (b, enriched) = (&bases.masked, &bases.enriched);
+        let found = model_direction(b, enriched, num_free, it.hessian, it.rhs, &pcg);
+        let columns = b.columns.clone();
+        let keep = self
+            .kept
+            .as_ref()
+            .is_some_and(|k| k.hessian.nrows() == 0 || k.enriched.dofs.len() < enriched.dofs.len());
+        if keep && found.is_ok() {
+            if let Ok(symbolic) = it.hessian.symbolic().to_owned() {
+                self.kept = Some(KeptSystem {
+                    hessian: SparseColMat::new(symbolic, it.hessian.val().to_vec()),
+                    rhs: it.rhs.to_vec(),
+                    masked: b.clone(),
+                    enriched: enriched.clone(),
+                });
+            }
+        }
+        self.bases = Some(bases);
+        let found = found?;
+        self.last_coefficients.fill(0.0);
+        for (&c, v) in columns.iter().zip(found.candidate_step.iter()) {
+            self.last_coefficients[c] = *v;
+        }
+        self.stats.pcg_iterations += found.pcg_iterations;
+        self.stats.system_seconds += clock.elapsed().as_secs_f64();
+        Ok(found.direction)
+    }
+
+    /// The Schur complement's conjugate-gradient settings.
+    fn pcg(&self) -> PcgSettings {
+        PcgSettings {
             tolerance: self.settings.pcg_tolerance,
             block: self.dim,
             ..PcgSettings::default()
-        };
-        let num_free = self.num_free;
-        let bases = self.bases();
-        let (b, enriched) = (&bases.masked, &bases.enriched);
-        let h = it.hessian;
-        let (a, nx) = (b.len(), enriched.dofs.len());
-        let hb = hessian_times(h, &b.basis);
-        let h_q = b.basis.transpose() * &hb;
-        // C = B^T H S: the enriched rows of H B, transposed.
-        let coupling = DMatrix::from_fn(a, nx, |r, c| hb[(enriched.dofs[c], r)]);
-        let mut triplets = Vec::new();
-        for (c, &fc) in enriched.dofs.iter().enumerate() {
-            for (fr, &v) in h.symbolic().row_idx_of_col(fc).zip(h.val_of_col(fc)) {
-                if let Some(r) = enriched.position[fr] {
-                    triplets.push(Triplet::new(r as u32, c as u32, v));
-                }
-            }
         }
-        let h_x = SparseColMat::<u32, f64>::try_new_from_triplets(nx, nx, &triplets)
-            .map_err(|_| SolveError::NonFinite("H_x"))?;
-        let rhs = DVector::from_column_slice(it.rhs);
-        let g_q: Vec<f64> = (b.basis.transpose() * &rhs).iter().map(|v| -v).collect();
-        let g_x: Vec<f64> = enriched.dofs.iter().map(|&f| -it.rhs[f]).collect();
-        let system = AdaptiveSystem {
-            h_q: &h_q,
-            coupling: Coupling::Dense(&coupling),
-            h_x: h_x.as_ref(),
-            g_q: &g_q,
-            g_x: &g_x,
-        };
-        let solution = system.solve(&pcg)?;
-        let d_q = DVector::from_column_slice(&solution.d_q);
-        let mut dir = vec![0.0; num_free];
-        if a > 0 {
-            let modal = &b.basis * &d_q;
-            dir.copy_from_slice(modal.as_slice());
+    }
+
+    /// From now on, keeps the system of the iterate with the most enriched coordinates, for
+    /// [`AdaptiveSolver::time_linear_solvers`].
+    pub fn keep_largest_system(&mut self) {
+        if self.kept.is_none() {
+            self.kept = Some(KeptSystem {
+                hessian: SparseColMat::try_new_from_triplets(0, 0, &[]).unwrap_or_else(|_| unreachable!("empty")),
+                rhs: Vec::new(),
+                masked: ModalBasis::new(&self.candidates, Vec::new(), &self.free_index, 0, None),
+                enriched: EnrichedDofs::new(&[], self.dim, &[], 0),
+            });
         }
-        for (&f, dx) in enriched.dofs.iter().zip(&solution.d_x) {
-            dir[f] += dx;
-        }
-        let candidate_step = if a > 0 {
-            &b.coefficients * &d_q
-        } else {
-            DVector::zeros(0)
-        };
-        let columns = b.columns.clone();
-        self.last_coefficients.fill(0.0);
-        for (&c, v) in columns.iter().zip(candidate_step.iter()) {
-            self.last_coefficients[c] = *v;
-        }
-        self.stats.pcg_iterations += solution.report.iterations;
-        self.stats.system_seconds += clock.elapsed().as_secs_f64();
-        Ok(dir)
+    }
+
+    /// Times the three solvers of the kept system (the paper's Table 3): the model's Schur
+    /// complement PCG, and on the full system faer's sparse Cholesky and block-Jacobi PCG.
+    pub fn time_linear_solvers(&self) -> Option<Result<LinearSolverTimings, SolveError>> {
+        let kept = self.kept.as_ref().filter(|k| k.hessian.nrows() > 0)?;
+        Some(time_solvers(kept, self.num_free, &self.pcg()))
     }
 
     /// Adds `alpha` times the last solve's modal step to the step's modal displacement.
@@ -428,23 +432,6 @@ impl AdaptiveSolver {
         }
         self.bases.as_ref().unwrap_or_else(|| unreachable!("built above"))
     }
-}
-
-/// `H U` for the symmetric `H` stored as its lower triangle, a column per task.
-fn hessian_times(h: SparseColMatRef<'_, u32, f64>, u: &DMatrix<f64>) -> DMatrix<f64> {
-    let columns: Vec<Vec<f64>> = (0..u.ncols())
-        .into_par_iter()
-        .map(|j| {
-            let mut out = vec![0.0; u.nrows()];
-            symmetric_product(h, u.column(j).as_slice(), &mut out);
-            out
-        })
-        .collect();
-    let mut hu = DMatrix::zeros(u.nrows(), u.ncols());
-    for (j, c) in columns.iter().enumerate() {
-        hu.column_mut(j).copy_from_slice(c);
-    }
-    hu
 }
 
 /// `H_q⁻¹ r` with `H_q` projected to positive definite (eigenvalues clamped to a small
