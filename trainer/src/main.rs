@@ -101,6 +101,10 @@ enum Command {
         /// Frames of accuracy measurement at the start of each test sequence.
         #[arg(long, default_value_t = eval::ACCURACY_FRAMES)]
         accuracy_frames: usize,
+        /// Also step the test sequences with the adaptive subspace solver (always for
+        /// scenes whose `[solver]` is adaptive).
+        #[arg(long)]
+        adaptive: bool,
     },
     /// Freeze an artifact into a Rust module of static arrays for the runtime.
     Codegen {
@@ -260,7 +264,8 @@ fn run(cli: Cli) -> Result<()> {
             out,
             frames,
             accuracy_frames,
-        } => eval_models(&artifacts, out, frames, accuracy_frames),
+            adaptive,
+        } => eval_models(&artifacts, out, frames, accuracy_frames, adaptive),
         Command::Codegen { artifact, out, weights } => {
             mochi_codegen::generate_file_with(&artifact, &out, &mochi_codegen::Options::weights(weights))?;
             println!(
@@ -487,7 +492,13 @@ fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, latent_size: Opti
     Ok(())
 }
 
-fn eval_models(artifacts: &[PathBuf], out: Option<PathBuf>, frames: usize, accuracy_frames: usize) -> Result<()> {
+fn eval_models(
+    artifacts: &[PathBuf],
+    out: Option<PathBuf>,
+    frames: usize,
+    accuracy_frames: usize,
+    adaptive: bool,
+) -> Result<()> {
     if frames == 0 || accuracy_frames == 0 {
         bail!("--frames and --accuracy-frames must be at least 1");
     }
@@ -496,6 +507,7 @@ fn eval_models(artifacts: &[PathBuf], out: Option<PathBuf>, frames: usize, accur
         out_dir: out_dir.clone(),
         stability_frames: frames,
         accuracy_frames,
+        adaptive,
     };
     mochi_trainer::evaluate(artifacts, &options, &Terminal)?;
     let report = std::fs::read_to_string(out_dir.join("report.md"))?;

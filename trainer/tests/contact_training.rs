@@ -69,10 +69,24 @@ fn a_contact_scene_without_handles_trains_and_evaluates() {
             out_dir: dir.path().join("eval"),
             stability_frames: 60,
             accuracy_frames: 30,
+            adaptive: true,
         },
         &Quiet,
     )
     .unwrap_or_else(|e| panic!("{e:#}"));
     let report = std::fs::read_to_string(dir.path().join("eval/report.md")).unwrap();
     assert!(report.contains("tiny-drop"), "{report}");
+    // The adaptive solver stepped every test sequence, against the same reference.
+    let section = &report[report.find("## Adaptive subspace solver").expect("adaptive section")..];
+    let rows: Vec<Vec<f64>> = section
+        .lines()
+        .filter(|l| l.starts_with("| test-"))
+        .map(|l| l.split('|').skip(2).filter_map(|c| c.trim().parse().ok()).collect())
+        .collect();
+    assert!(!rows.is_empty(), "{section}");
+    for row in &rows {
+        // mean and max error (% of the diagonal), ms per step: finite, the error bounded.
+        assert!(row.len() == 5 && row.iter().all(|v| v.is_finite()), "{section}");
+        assert!(row[0] < 10.0 && row[2] > 0.0, "{section}");
+    }
 }

@@ -27,6 +27,7 @@ fn eval_options(dir: &Path, out: &str) -> EvalOptions {
         out_dir: dir.join(out),
         stability_frames: 300,
         accuracy_frames: 60,
+        adaptive: false,
     }
 }
 

@@ -46,6 +46,7 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         out_dir: dir.path().join("eval"),
         stability_frames: 100,
         accuracy_frames: 60,
+        adaptive: false,
     };
     evaluate(std::slice::from_ref(&model_path), &eval, &Quiet).unwrap();
     let report = std::fs::read_to_string(dir.path().join("eval/report.md")).unwrap();

@@ -30,6 +30,7 @@ use crate::learn::encoding::Encoding;
 use crate::progress::Reporter;
 use crate::report::chart::{self, LabelledPoint, Series};
 
+pub mod adaptive;
 pub mod adaptive_bench;
 pub mod network_export;
 pub mod reduced;
@@ -110,6 +111,9 @@ pub struct EvalOptions {
     pub stability_frames: usize,
     /// Frames of accuracy measurement.
     pub accuracy_frames: usize,
+    /// Also step the test sequences with the adaptive subspace solver (always when the
+    /// scene's `[solver]` is adaptive).
+    pub adaptive: bool,
 }
 
 /// The whole evaluation: every artifact (and its supervised sibling when present) on the
@@ -218,18 +222,46 @@ pub fn evaluate(
     } else {
         Vec::new()
     };
+    // The adaptive subspace solver, when asked or when the scene uses it.
+    let adaptive_rows = if options.adaptive || matches!(problem.scene.solver, mochi_sim::SolverSpec::Adaptive(_)) {
+        Some(adaptive::evaluate_adaptive(
+            &problem,
+            &tests,
+            &plans,
+            options.accuracy_frames,
+            report,
+        )?)
+    } else {
+        None
+    };
     fs::create_dir_all(&options.out_dir)?;
+    let adaptive_points: Vec<LabelledPoint> = adaptive_rows
+        .iter()
+        .map(|(_, rows)| {
+            let n = rows.len().max(1) as f64;
+            LabelledPoint {
+                group: "adaptive solver".into(),
+                label: String::new(),
+                x: 1e3 * rows.iter().map(|(_, m)| m.step_seconds).sum::<f64>() / n,
+                y: 100.0 * rows.iter().map(|(_, m)| m.mean_error).sum::<f64>() / n,
+            }
+        })
+        .collect();
     write_charts(
         &options.out_dir,
         &first.scene,
         &reports,
         &reduced_reports,
+        &adaptive_points,
         reference_seconds,
     )?;
     let mut text = report_markdown(&first.scene, &reports, reference_seconds, options);
     if !reduced_reports.is_empty() {
         reduced::write_convergence_chart(&options.out_dir, &first.scene, &reduced_reports)?;
         text += &reduced::markdown(&problem, &reduced_reports, reference_seconds, options.accuracy_frames);
+    }
+    if let Some((settings, rows)) = &adaptive_rows {
+        text += &adaptive::markdown(settings, rows, options.accuracy_frames, reference_seconds);
     }
     // What each weight storage costs, for the first artifact (the runtime's own rollout).
     let first_path = &all[0].0;
@@ -290,6 +322,7 @@ fn write_charts(
     scene: &str,
     reports: &[ModelReport],
     reduced: &[reduced::ReducedReport],
+    adaptive: &[LabelledPoint],
     reference_seconds: f64,
 ) -> TrainerResult<()> {
     let count = reports.first().map_or(0, |r| r.sequences.len());
@@ -342,6 +375,7 @@ fn write_charts(
         x: 1e3 * r.mean_of(|m| m.step_seconds),
         y: 100.0 * r.mean_of(|m| m.error_curve.iter().sum::<f64>() / m.error_curve.len().max(1) as f64),
     }));
+    points.extend(adaptive.iter().cloned());
     points.push(LabelledPoint {
         group: "full space".into(),
         label: "reference".into(),
