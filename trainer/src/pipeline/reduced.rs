@@ -1,5 +1,6 @@
 //! `mochi train`'s reduced-method stage (scenes with a `[reduced]` table; Lyu et al. 2024):
-//! the vanilla subspace (the kept autoencoder's decoder, or a data-free decoder), a cubature
+//! the vanilla subspace (the kept autoencoder's decoder, the plain autoencoder of
+//! [`super::plain_vanilla`], or a data-free decoder), a cubature
 //! of every elastic term fitted on it, the Lipschitz-optimised subspace (Eq. 10), and the
 //! `.reduced` file that `mochi eval` steps both in.
 
@@ -10,6 +11,7 @@ use mochi_sim::StencilEnergy;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use super::plain_vanilla::{plain_tag, train_plain_vanilla};
 use super::stages::{SelectedAutoencoder, StageTimes, TrainingFrames, Workspace};
 use crate::artifact::reduced::{reduced_path, CubatureData, ReducedArtifact, SubspaceData};
 use crate::error::{TrainerError, TrainerResult};
@@ -17,8 +19,8 @@ use crate::learn::datafree::{normal_latents, train_data_free_model, DataFreeObje
 use crate::learn::encoding::Encoding;
 use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, ExportedMlp};
 use crate::learn::recipe::Recipe;
-use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource};
-use crate::learn::train::{AdamWConfig, CheckpointConfig, TrainConfig};
+use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource, VanillaNetwork};
+use crate::learn::train::{self, AdamWConfig, CheckpointConfig, TrainConfig};
 use crate::methods::lipschitz::cubature::{cubature_energies, fit_subspace_cubature, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::lipschitz::train::{optimise_data_free, optimise_supervised, LipschitzSettings};
@@ -133,15 +135,48 @@ fn encoded_samples(frames: &TrainingFrames, encoder: &ExportedMlp, step: usize) 
 fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult<ReducedArtifact> {
     let (problem, frames, spec) = (inputs.problem, inputs.frames, inputs.spec);
     let encoding = &frames.encoding;
-    let vanilla_ae = inputs.autoencoder.autoencoder.export()?;
+    let net = &inputs.recipe.latent.autoencoder;
+    let kept = &inputs.autoencoder.autoencoder;
+    let k = kept.spec().latent;
+    let plain = match spec.vanilla {
+        VanillaNetwork::Autoencoder => None,
+        VanillaNetwork::PlainMlp => {
+            report.stage(&format!("reduced: plain vanilla k={k}"));
+            let seed = inputs.recipe.latent.seed;
+            let trained = train_plain_vanilla(spec, &frames.f32s, k, net.batch, seed, inputs.work)?;
+            let error = train::mean_reconstruction_error(&trained.autoencoder, &frames.f32s, 256)?;
+            report.message(&format!(
+                "plain vanilla: RMS vertex error / diagonal {:.2e} after {} epochs ({:.0} s)",
+                (error * encoding.values_per_vertex() as f64).sqrt() / problem.mesh.rest_diagonal(),
+                spec.plain_epochs,
+                trained.seconds
+            ));
+            Some(trained)
+        }
+    };
+    let (vanilla_model, vanilla_losses, vanilla_seconds, lipschitz_lr, tag) = match &plain {
+        None => (
+            kept,
+            inputs.autoencoder.losses.clone(),
+            inputs
+                .times
+                .0
+                .iter()
+                .find(|(name, _)| name == &format!("autoencoder k={k}"))
+                .map_or(0.0, |(_, s)| *s),
+            net.final_learning_rate,
+            String::new(),
+        ),
+        Some(p) => (
+            &p.autoencoder,
+            p.losses.clone(),
+            p.seconds,
+            spec.plain_final_learning_rate,
+            format!("plain-{}-", plain_tag(spec)),
+        ),
+    };
+    let vanilla_ae = vanilla_model.export()?;
     let vanilla_decoder = vanilla_ae.decoder.as_mlp()?;
-    let k = vanilla_decoder.spec().input;
-    let vanilla_seconds = inputs
-        .times
-        .0
-        .iter()
-        .find(|(name, _)| name == &format!("autoencoder k={k}"))
-        .map_or(0.0, |(_, s)| *s);
 
     report.stage("reduced: cubature");
     let step = (frames.f32s.len() / CUBATURE_SAMPLES).max(1);
@@ -153,8 +188,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
 
     report.stage("reduced: Lipschitz optimisation");
     let clock = Instant::now();
-    let optimised = Autoencoder::from_exported(inputs.autoencoder.autoencoder.spec(), &vanilla_ae)?;
-    let net = &inputs.recipe.latent.autoencoder;
+    let optimised = Autoencoder::from_exported(vanilla_model.spec(), &vanilla_ae)?;
     let targets: Vec<Vec<f64>> = frames
         .sequences
         .iter()
@@ -164,14 +198,18 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     // a checkpoint's identity).
     let config = TrainConfig {
         name: format!(
-            "lipschitz-k{k}-w{:?}-s{}-c{}",
-            spec.lipschitz, spec.samples, spec.cubature
+            "lipschitz-{tag}k{k}-w{:?}-s{}-c{}{}",
+            spec.lipschitz,
+            spec.samples,
+            spec.cubature,
+            spec.lipschitz_learning_rate
+                .map_or(String::new(), |lr| format!("-lr{lr:?}"))
         ),
         epochs: spec.lipschitz_epochs,
         batch_size: net.batch.max(spec.samples),
         seed: 7,
         optimizer: AdamWConfig {
-            lr: net.final_learning_rate.max(1e-5),
+            lr: spec.lipschitz_learning_rate.unwrap_or(lipschitz_lr.max(1e-5)),
             ..AdamWConfig::default()
         },
         final_lr: None,
@@ -229,7 +267,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
             initial_latent: initial(&vanilla_ae.encoder)?,
             training_seconds: vanilla_seconds,
             lipschitz_estimate: lip(vanilla_decoder, &vanilla_samples)?,
-            losses: inputs.autoencoder.losses.clone(),
+            losses: vanilla_losses,
         },
         lipschitz: SubspaceData {
             decoder: ours.decoder.layers().into_iter().cloned().collect(),
