@@ -73,6 +73,15 @@ pub struct ReducedSpec {
     /// final learning rate, at least 1e-5).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lipschitz_learning_rate: Option<f64>,
+    /// Times a supervised Lipschitz optimisation refits its cubature on the current
+    /// decoder (default 0: the cubature fitted on the vanilla subspace throughout). With
+    /// `n` refits the epochs run in `n + 1` rounds, each with a cubature fitted on the
+    /// decoder it starts from and its own AdamW state, all at the first round's `lambda`.
+    pub cubature_refits: usize,
+    /// Supervised only: when positive, half of each minibatch's Lipschitz samples are the
+    /// other half's latents moved by this fraction of their spread, so Eq. 9 also sees
+    /// nearby pairs (default 0: every sample an encoded frame, the paper's).
+    pub lipschitz_local: f64,
     /// Latent samples of the Lipschitz loss per step (default 8).
     pub samples: usize,
     /// Largest cubature of the elastic energy used for the Lipschitz loss (default 300, the
@@ -103,6 +112,8 @@ impl Default for ReducedSpec {
             lipschitz: 1.0,
             lipschitz_epochs: 200,
             lipschitz_learning_rate: None,
+            cubature_refits: 0,
+            lipschitz_local: 0.0,
             samples: 8,
             cubature: 300,
             solver: SolverChoice::Lbfgs,
@@ -149,6 +160,29 @@ impl ReducedSpec {
             if !(value.is_finite() && value > 0.0) {
                 return Err((field, format!("must be positive, got {value}")));
             }
+        }
+        if !(self.lipschitz_local.is_finite() && self.lipschitz_local >= 0.0) {
+            return Err((
+                "lipschitz_local",
+                format!("must be finite and non-negative, got {}", self.lipschitz_local),
+            ));
+        }
+        if self.cubature_refits > 0 && self.subspace != SubspaceSource::Supervised {
+            return Err((
+                "cubature_refits",
+                "refits apply to a supervised Lipschitz optimisation: it needs subspace = \"supervised\"".into(),
+            ));
+        }
+        if self.cubature_refits >= self.lipschitz_epochs {
+            return Err((
+                "cubature_refits",
+                format!(
+                    "{} refits need at least {} Lipschitz epochs (one per round), got {}",
+                    self.cubature_refits,
+                    self.cubature_refits + 1,
+                    self.lipschitz_epochs
+                ),
+            ));
         }
         if self.vanilla == VanillaNetwork::PlainMlp && self.subspace != SubspaceSource::Supervised {
             return Err((
@@ -230,6 +264,28 @@ mod tests {
                     ..Default::default()
                 },
                 "plain_final_learning_rate",
+            ),
+            (
+                ReducedSpec {
+                    lipschitz_local: -0.5,
+                    ..Default::default()
+                },
+                "lipschitz_local",
+            ),
+            (
+                ReducedSpec {
+                    cubature_refits: 200,
+                    ..Default::default()
+                },
+                "cubature_refits",
+            ),
+            (
+                ReducedSpec {
+                    cubature_refits: 1,
+                    subspace: SubspaceSource::DataFree,
+                    ..Default::default()
+                },
+                "cubature_refits",
             ),
             (
                 ReducedSpec {

@@ -182,9 +182,6 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     let step = (frames.f32s.len() / CUBATURE_SAMPLES).max(1);
     let samples = encoded_samples(frames, &vanilla_ae.encoder, step)?;
     let cubatures = fit_cubatures(problem, encoding, vanilla_decoder, &samples, spec.cubature)?;
-    let energies = cubature_energies(problem, &cubatures)?;
-    let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
-    let term = lipschitz_term(problem, encoding, &potentials);
 
     report.stage("reduced: Lipschitz optimisation");
     let clock = Instant::now();
@@ -196,50 +193,84 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         .collect();
     // Runs with other Lipschitz settings get their own checkpoints (the loss is not part of
     // a checkpoint's identity).
-    let config = TrainConfig {
-        name: format!(
-            "lipschitz-{tag}k{k}-w{:?}-s{}-c{}{}",
-            spec.lipschitz,
-            spec.samples,
-            spec.cubature,
-            spec.lipschitz_learning_rate
-                .map_or(String::new(), |lr| format!("-lr{lr:?}"))
-        ),
-        epochs: spec.lipschitz_epochs,
-        batch_size: net.batch.max(spec.samples),
-        seed: 7,
-        optimizer: AdamWConfig {
-            lr: spec.lipschitz_learning_rate.unwrap_or(lipschitz_lr.max(1e-5)),
-            ..AdamWConfig::default()
-        },
-        final_lr: None,
-        checkpoint: Some(CheckpointConfig {
-            dir: inputs.work.checkpoints.clone(),
-            every: 5,
-        }),
-        progress: inputs.work.bars,
-    };
+    let name = format!(
+        "lipschitz-{tag}k{k}-w{:?}-s{}-c{}{}{}",
+        spec.lipschitz,
+        spec.samples,
+        spec.cubature,
+        spec.lipschitz_learning_rate
+            .map_or(String::new(), |lr| format!("-lr{lr:?}")),
+        if spec.lipschitz_local > 0.0 {
+            format!("-local{:?}", spec.lipschitz_local)
+        } else {
+            String::new()
+        }
+    );
     let tolerance = inputs.recipe.latent.tolerance * problem.mesh.rest_diagonal();
-    let settings = LipschitzSettings {
+    let mut settings = LipschitzSettings {
         weight: spec.lipschitz,
         samples: spec.samples,
         // The per-coordinate mean square of a reconstruction at the tolerance.
         floor: tolerance * tolerance / problem.mesh.dim as f64,
+        lambda: None,
+        local: spec.lipschitz_local,
     };
-    let run = optimise_supervised(
-        &optimised,
-        &frames.f32s,
-        &targets,
-        &term,
-        &settings,
-        &config,
-        inputs.work.resume,
-    )?;
-    let lipschitz_seconds = clock.elapsed().as_secs_f64() + run.train.earlier_seconds;
+    let rounds = spec.cubature_refits + 1;
+    let (mut losses, mut earlier_seconds, mut start) = (Vec::new(), 0.0, None);
+    let mut round_cubatures = cubatures.clone();
+    for round in 0..rounds {
+        if round > 0 {
+            let current = optimised.export()?;
+            let samples = encoded_samples(frames, &current.encoder, step)?;
+            round_cubatures = fit_cubatures(problem, encoding, current.decoder.as_mlp()?, &samples, spec.cubature)?;
+        }
+        let energies = cubature_energies(problem, &round_cubatures)?;
+        let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
+        let config = TrainConfig {
+            name: if rounds > 1 {
+                format!("{name}-round{round}of{rounds}")
+            } else {
+                name.clone()
+            },
+            // The epochs spread over the rounds, the first ones taking the remainder.
+            epochs: spec.lipschitz_epochs / rounds + usize::from(round < spec.lipschitz_epochs % rounds),
+            batch_size: net.batch.max(spec.samples),
+            seed: 7,
+            optimizer: AdamWConfig {
+                lr: spec.lipschitz_learning_rate.unwrap_or(lipschitz_lr.max(1e-5)),
+                ..AdamWConfig::default()
+            },
+            final_lr: None,
+            checkpoint: Some(CheckpointConfig {
+                dir: inputs.work.checkpoints.clone(),
+                every: 5,
+            }),
+            progress: inputs.work.bars,
+        };
+        let run = optimise_supervised(
+            &optimised,
+            &frames.f32s,
+            &targets,
+            &lipschitz_term(problem, encoding, &potentials),
+            &settings,
+            &config,
+            inputs.work.resume,
+        )?;
+        settings.lambda = Some(run.lambda);
+        start.get_or_insert(run.start);
+        losses.extend(run.train.losses);
+        earlier_seconds += run.train.earlier_seconds;
+    }
+    let lambda = settings.lambda.unwrap_or(0.0);
+    let start = start.unwrap_or((0.0, 0.0));
+    let lipschitz_seconds = clock.elapsed().as_secs_f64() + earlier_seconds;
     report.message(&format!(
         "Lipschitz optimisation: reconstruction {:.3e} and Lipschitz loss {:.3e} at the vanilla start, lambda {:.3e}",
-        run.start.0, run.start.1, run.lambda
+        start.0, start.1, lambda
     ));
+    let energies = cubature_energies(problem, &cubatures)?;
+    let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
+    let term = lipschitz_term(problem, encoding, &potentials);
     let ours = optimised.export()?;
 
     // Lip on every third training frame (the evaluation measures it on the test split).
@@ -274,10 +305,10 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
             initial_latent: initial(&ours.encoder)?,
             training_seconds: vanilla_seconds + lipschitz_seconds,
             lipschitz_estimate: lip(ours.decoder.as_mlp()?, &our_samples)?,
-            losses: run.train.losses,
+            losses,
         },
         cubature: cubatures,
-        lambda: run.lambda,
+        lambda,
     })
 }
 
@@ -317,6 +348,8 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
         weight: spec.lipschitz,
         samples: spec.samples,
         floor: 0.0,
+        lambda: None,
+        local: 0.0,
     };
     let (losses, lambda) = optimise_data_free(
         &objective,
