@@ -15,6 +15,20 @@ pub enum SubspaceSource {
     DataFree,
 }
 
+/// Which network of a supervised scene is the vanilla subspace.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum VanillaNetwork {
+    /// The autoencoder `mochi train` keeps for the latent model: a residual MLP initialised
+    /// as the PCA of the data.
+    #[default]
+    Autoencoder,
+    /// An autoencoder of its own, as the paper's baseline: an encoder and a decoder that are
+    /// plain one-hidden-layer MLPs (`W_o swish(W_i x + b_i) + b_o`), randomly initialised
+    /// and trained on the reconstruction loss (Eq. 3) alone for `plain_epochs` epochs.
+    PlainMlp,
+}
+
 /// The optimiser of each reduced step.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -32,6 +46,18 @@ pub enum SolverChoice {
 pub struct ReducedSpec {
     /// Where the vanilla subspace comes from (default `"supervised"`).
     pub subspace: SubspaceSource,
+    /// Which network is the vanilla subspace of a supervised scene (default
+    /// `"autoencoder"`; `"plain-mlp"` trains the paper's baseline, with the `plain_*` fields).
+    pub vanilla: VanillaNetwork,
+    /// Hidden width of the plain MLPs of `vanilla = "plain-mlp"` (default 128).
+    pub plain_hidden: usize,
+    /// Training epochs of `vanilla = "plain-mlp"` (default 2000).
+    pub plain_epochs: usize,
+    /// Initial learning rate of `vanilla = "plain-mlp"` (default 1e-3; cosine decay to
+    /// `plain_final_learning_rate`, which is also the Lipschitz optimisation's rate).
+    pub plain_learning_rate: f64,
+    /// Learning rate at the last epoch of `vanilla = "plain-mlp"` (default 1e-5).
+    pub plain_final_learning_rate: f64,
     /// Latent size of a data-free subspace (default 8, the paper's); a supervised one uses
     /// the autoencoder's.
     pub latent: usize,
@@ -43,6 +69,19 @@ pub struct ReducedSpec {
     /// Epochs (supervised) or iterations (data-free) of the Lipschitz optimisation (default
     /// 200).
     pub lipschitz_epochs: usize,
+    /// Learning rate of a supervised Lipschitz optimisation (default: the vanilla network's
+    /// final learning rate, at least 1e-5).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lipschitz_learning_rate: Option<f64>,
+    /// Times a supervised Lipschitz optimisation refits its cubature on the current
+    /// decoder (default 0: the cubature fitted on the vanilla subspace throughout). With
+    /// `n` refits the epochs run in `n + 1` rounds, each with a cubature fitted on the
+    /// decoder it starts from and its own AdamW state, all at the first round's `lambda`.
+    pub cubature_refits: usize,
+    /// Supervised only: when positive, half of each minibatch's Lipschitz samples are the
+    /// other half's latents moved by this fraction of their spread, so Eq. 9 also sees
+    /// nearby pairs (default 0: every sample an encoded frame, the paper's).
+    pub lipschitz_local: f64,
     /// Latent samples of the Lipschitz loss per step (default 8).
     pub samples: usize,
     /// Largest cubature of the elastic energy used for the Lipschitz loss (default 300, the
@@ -63,10 +102,18 @@ impl Default for ReducedSpec {
     fn default() -> Self {
         ReducedSpec {
             subspace: SubspaceSource::Supervised,
+            vanilla: VanillaNetwork::Autoencoder,
+            plain_hidden: 128,
+            plain_epochs: 2000,
+            plain_learning_rate: 1e-3,
+            plain_final_learning_rate: 1e-5,
             latent: 8,
             data_free_iterations: 4000,
             lipschitz: 1.0,
             lipschitz_epochs: 200,
+            lipschitz_learning_rate: None,
+            cubature_refits: 0,
+            lipschitz_local: 0.0,
             samples: 8,
             cubature: 300,
             solver: SolverChoice::Lbfgs,
@@ -85,6 +132,8 @@ impl ReducedSpec {
             ("data_free_iterations", self.data_free_iterations),
             ("cubature", self.cubature),
             ("max_iterations", self.max_iterations),
+            ("plain_hidden", self.plain_hidden),
+            ("plain_epochs", self.plain_epochs),
         ];
         for (field, value) in positive {
             if value == 0 {
@@ -102,6 +151,44 @@ impl ReducedSpec {
         }
         if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
             return Err(("tolerance", format!("must be positive, got {}", self.tolerance)));
+        }
+        for (field, value) in [
+            ("plain_learning_rate", self.plain_learning_rate),
+            ("plain_final_learning_rate", self.plain_final_learning_rate),
+            ("lipschitz_learning_rate", self.lipschitz_learning_rate.unwrap_or(1.0)),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err((field, format!("must be positive, got {value}")));
+            }
+        }
+        if !(self.lipschitz_local.is_finite() && self.lipschitz_local >= 0.0) {
+            return Err((
+                "lipschitz_local",
+                format!("must be finite and non-negative, got {}", self.lipschitz_local),
+            ));
+        }
+        if self.cubature_refits > 0 && self.subspace != SubspaceSource::Supervised {
+            return Err((
+                "cubature_refits",
+                "refits apply to a supervised Lipschitz optimisation: it needs subspace = \"supervised\"".into(),
+            ));
+        }
+        if self.cubature_refits >= self.lipschitz_epochs {
+            return Err((
+                "cubature_refits",
+                format!(
+                    "{} refits need at least {} Lipschitz epochs (one per round), got {}",
+                    self.cubature_refits,
+                    self.cubature_refits + 1,
+                    self.lipschitz_epochs
+                ),
+            ));
+        }
+        if self.vanilla == VanillaNetwork::PlainMlp && self.subspace != SubspaceSource::Supervised {
+            return Err((
+                "vanilla",
+                "\"plain-mlp\" is an autoencoder trained on the dataset: it needs subspace = \"supervised\"".into(),
+            ));
         }
         Ok(())
     }
@@ -150,9 +237,83 @@ mod tests {
                 },
                 "cubature",
             ),
+            (
+                ReducedSpec {
+                    plain_hidden: 0,
+                    ..Default::default()
+                },
+                "plain_hidden",
+            ),
+            (
+                ReducedSpec {
+                    plain_epochs: 0,
+                    ..Default::default()
+                },
+                "plain_epochs",
+            ),
+            (
+                ReducedSpec {
+                    plain_learning_rate: f64::NAN,
+                    ..Default::default()
+                },
+                "plain_learning_rate",
+            ),
+            (
+                ReducedSpec {
+                    plain_final_learning_rate: 0.0,
+                    ..Default::default()
+                },
+                "plain_final_learning_rate",
+            ),
+            (
+                ReducedSpec {
+                    lipschitz_local: -0.5,
+                    ..Default::default()
+                },
+                "lipschitz_local",
+            ),
+            (
+                ReducedSpec {
+                    cubature_refits: 200,
+                    ..Default::default()
+                },
+                "cubature_refits",
+            ),
+            (
+                ReducedSpec {
+                    cubature_refits: 1,
+                    subspace: SubspaceSource::DataFree,
+                    ..Default::default()
+                },
+                "cubature_refits",
+            ),
+            (
+                ReducedSpec {
+                    lipschitz_learning_rate: Some(-1e-3),
+                    ..Default::default()
+                },
+                "lipschitz_learning_rate",
+            ),
+            (
+                ReducedSpec {
+                    vanilla: VanillaNetwork::PlainMlp,
+                    subspace: SubspaceSource::DataFree,
+                    ..Default::default()
+                },
+                "vanilla",
+            ),
         ];
         for (spec, field) in cases {
             assert_eq!(spec.validate().unwrap_err().0, field);
         }
+    }
+
+    #[test]
+    fn the_vanilla_network_is_read_from_the_table() {
+        let spec: ReducedSpec = toml::from_str("vanilla = \"plain-mlp\"\nplain_hidden = 64").unwrap();
+        assert_eq!(spec.vanilla, VanillaNetwork::PlainMlp);
+        assert_eq!(spec.plain_hidden, 64);
+        assert_eq!(spec.plain_epochs, 2000);
+        assert!(toml::from_str::<ReducedSpec>("vanilla = \"plain\"").is_err());
     }
 }

@@ -1,5 +1,6 @@
 //! `mochi train`'s reduced-method stage (scenes with a `[reduced]` table; Lyu et al. 2024):
-//! the vanilla subspace (the kept autoencoder's decoder, or a data-free decoder), a cubature
+//! the vanilla subspace (the kept autoencoder's decoder, the plain autoencoder of
+//! [`super::plain_vanilla`], or a data-free decoder), a cubature
 //! of every elastic term fitted on it, the Lipschitz-optimised subspace (Eq. 10), and the
 //! `.reduced` file that `mochi eval` steps both in.
 
@@ -10,6 +11,7 @@ use mochi_sim::StencilEnergy;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use super::plain_vanilla::{plain_tag, train_plain_vanilla};
 use super::stages::{SelectedAutoencoder, StageTimes, TrainingFrames, Workspace};
 use crate::artifact::reduced::{reduced_path, CubatureData, ReducedArtifact, SubspaceData};
 use crate::error::{TrainerError, TrainerResult};
@@ -17,8 +19,8 @@ use crate::learn::datafree::{normal_latents, train_data_free_model, DataFreeObje
 use crate::learn::encoding::Encoding;
 use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, ExportedMlp};
 use crate::learn::recipe::Recipe;
-use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource};
-use crate::learn::train::{AdamWConfig, CheckpointConfig, TrainConfig};
+use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource, VanillaNetwork};
+use crate::learn::train::{self, AdamWConfig, CheckpointConfig, TrainConfig};
 use crate::methods::lipschitz::cubature::{cubature_energies, fit_subspace_cubature, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::lipschitz::train::{optimise_data_free, optimise_supervised, LipschitzSettings};
@@ -133,28 +135,57 @@ fn encoded_samples(frames: &TrainingFrames, encoder: &ExportedMlp, step: usize) 
 fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult<ReducedArtifact> {
     let (problem, frames, spec) = (inputs.problem, inputs.frames, inputs.spec);
     let encoding = &frames.encoding;
-    let vanilla_ae = inputs.autoencoder.autoencoder.export()?;
+    let net = &inputs.recipe.latent.autoencoder;
+    let kept = &inputs.autoencoder.autoencoder;
+    let k = kept.spec().latent;
+    let plain = match spec.vanilla {
+        VanillaNetwork::Autoencoder => None,
+        VanillaNetwork::PlainMlp => {
+            report.stage(&format!("reduced: plain vanilla k={k}"));
+            let seed = inputs.recipe.latent.seed;
+            let trained = train_plain_vanilla(spec, &frames.f32s, k, net.batch, seed, inputs.work)?;
+            let error = train::mean_reconstruction_error(&trained.autoencoder, &frames.f32s, 256)?;
+            report.message(&format!(
+                "plain vanilla: RMS vertex error / diagonal {:.2e} after {} epochs ({:.0} s)",
+                (error * encoding.values_per_vertex() as f64).sqrt() / problem.mesh.rest_diagonal(),
+                spec.plain_epochs,
+                trained.seconds
+            ));
+            Some(trained)
+        }
+    };
+    let (vanilla_model, vanilla_losses, vanilla_seconds, lipschitz_lr, tag) = match &plain {
+        None => (
+            kept,
+            inputs.autoencoder.losses.clone(),
+            inputs
+                .times
+                .0
+                .iter()
+                .find(|(name, _)| name == &format!("autoencoder k={k}"))
+                .map_or(0.0, |(_, s)| *s),
+            net.final_learning_rate,
+            String::new(),
+        ),
+        Some(p) => (
+            &p.autoencoder,
+            p.losses.clone(),
+            p.seconds,
+            spec.plain_final_learning_rate,
+            format!("plain-{}-", plain_tag(spec)),
+        ),
+    };
+    let vanilla_ae = vanilla_model.export()?;
     let vanilla_decoder = vanilla_ae.decoder.as_mlp()?;
-    let k = vanilla_decoder.spec().input;
-    let vanilla_seconds = inputs
-        .times
-        .0
-        .iter()
-        .find(|(name, _)| name == &format!("autoencoder k={k}"))
-        .map_or(0.0, |(_, s)| *s);
 
     report.stage("reduced: cubature");
     let step = (frames.f32s.len() / CUBATURE_SAMPLES).max(1);
     let samples = encoded_samples(frames, &vanilla_ae.encoder, step)?;
     let cubatures = fit_cubatures(problem, encoding, vanilla_decoder, &samples, spec.cubature)?;
-    let energies = cubature_energies(problem, &cubatures)?;
-    let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
-    let term = lipschitz_term(problem, encoding, &potentials);
 
     report.stage("reduced: Lipschitz optimisation");
     let clock = Instant::now();
-    let optimised = Autoencoder::from_exported(inputs.autoencoder.autoencoder.spec(), &vanilla_ae)?;
-    let net = &inputs.recipe.latent.autoencoder;
+    let optimised = Autoencoder::from_exported(vanilla_model.spec(), &vanilla_ae)?;
     let targets: Vec<Vec<f64>> = frames
         .sequences
         .iter()
@@ -162,46 +193,84 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         .collect();
     // Runs with other Lipschitz settings get their own checkpoints (the loss is not part of
     // a checkpoint's identity).
-    let config = TrainConfig {
-        name: format!(
-            "lipschitz-k{k}-w{:?}-s{}-c{}",
-            spec.lipschitz, spec.samples, spec.cubature
-        ),
-        epochs: spec.lipschitz_epochs,
-        batch_size: net.batch.max(spec.samples),
-        seed: 7,
-        optimizer: AdamWConfig {
-            lr: net.final_learning_rate.max(1e-5),
-            ..AdamWConfig::default()
-        },
-        final_lr: None,
-        checkpoint: Some(CheckpointConfig {
-            dir: inputs.work.checkpoints.clone(),
-            every: 5,
-        }),
-        progress: inputs.work.bars,
-    };
+    let name = format!(
+        "lipschitz-{tag}k{k}-w{:?}-s{}-c{}{}{}",
+        spec.lipschitz,
+        spec.samples,
+        spec.cubature,
+        spec.lipschitz_learning_rate
+            .map_or(String::new(), |lr| format!("-lr{lr:?}")),
+        if spec.lipschitz_local > 0.0 {
+            format!("-local{:?}", spec.lipschitz_local)
+        } else {
+            String::new()
+        }
+    );
     let tolerance = inputs.recipe.latent.tolerance * problem.mesh.rest_diagonal();
-    let settings = LipschitzSettings {
+    let mut settings = LipschitzSettings {
         weight: spec.lipschitz,
         samples: spec.samples,
         // The per-coordinate mean square of a reconstruction at the tolerance.
         floor: tolerance * tolerance / problem.mesh.dim as f64,
+        lambda: None,
+        local: spec.lipschitz_local,
     };
-    let run = optimise_supervised(
-        &optimised,
-        &frames.f32s,
-        &targets,
-        &term,
-        &settings,
-        &config,
-        inputs.work.resume,
-    )?;
-    let lipschitz_seconds = clock.elapsed().as_secs_f64() + run.train.earlier_seconds;
+    let rounds = spec.cubature_refits + 1;
+    let (mut losses, mut earlier_seconds, mut start) = (Vec::new(), 0.0, None);
+    let mut round_cubatures = cubatures.clone();
+    for round in 0..rounds {
+        if round > 0 {
+            let current = optimised.export()?;
+            let samples = encoded_samples(frames, &current.encoder, step)?;
+            round_cubatures = fit_cubatures(problem, encoding, current.decoder.as_mlp()?, &samples, spec.cubature)?;
+        }
+        let energies = cubature_energies(problem, &round_cubatures)?;
+        let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
+        let config = TrainConfig {
+            name: if rounds > 1 {
+                format!("{name}-round{round}of{rounds}")
+            } else {
+                name.clone()
+            },
+            // The epochs spread over the rounds, the first ones taking the remainder.
+            epochs: spec.lipschitz_epochs / rounds + usize::from(round < spec.lipschitz_epochs % rounds),
+            batch_size: net.batch.max(spec.samples),
+            seed: 7,
+            optimizer: AdamWConfig {
+                lr: spec.lipschitz_learning_rate.unwrap_or(lipschitz_lr.max(1e-5)),
+                ..AdamWConfig::default()
+            },
+            final_lr: None,
+            checkpoint: Some(CheckpointConfig {
+                dir: inputs.work.checkpoints.clone(),
+                every: 5,
+            }),
+            progress: inputs.work.bars,
+        };
+        let run = optimise_supervised(
+            &optimised,
+            &frames.f32s,
+            &targets,
+            &lipschitz_term(problem, encoding, &potentials),
+            &settings,
+            &config,
+            inputs.work.resume,
+        )?;
+        settings.lambda = Some(run.lambda);
+        start.get_or_insert(run.start);
+        losses.extend(run.train.losses);
+        earlier_seconds += run.train.earlier_seconds;
+    }
+    let lambda = settings.lambda.unwrap_or(0.0);
+    let start = start.unwrap_or((0.0, 0.0));
+    let lipschitz_seconds = clock.elapsed().as_secs_f64() + earlier_seconds;
     report.message(&format!(
         "Lipschitz optimisation: reconstruction {:.3e} and Lipschitz loss {:.3e} at the vanilla start, lambda {:.3e}",
-        run.start.0, run.start.1, run.lambda
+        start.0, start.1, lambda
     ));
+    let energies = cubature_energies(problem, &cubatures)?;
+    let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
+    let term = lipschitz_term(problem, encoding, &potentials);
     let ours = optimised.export()?;
 
     // Lip on every third training frame (the evaluation measures it on the test split).
@@ -229,17 +298,17 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
             initial_latent: initial(&vanilla_ae.encoder)?,
             training_seconds: vanilla_seconds,
             lipschitz_estimate: lip(vanilla_decoder, &vanilla_samples)?,
-            losses: inputs.autoencoder.losses.clone(),
+            losses: vanilla_losses,
         },
         lipschitz: SubspaceData {
             decoder: ours.decoder.layers().into_iter().cloned().collect(),
             initial_latent: initial(&ours.encoder)?,
             training_seconds: vanilla_seconds + lipschitz_seconds,
             lipschitz_estimate: lip(ours.decoder.as_mlp()?, &our_samples)?,
-            losses: run.train.losses,
+            losses,
         },
         cubature: cubatures,
-        lambda: run.lambda,
+        lambda,
     })
 }
 
@@ -279,6 +348,8 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
         weight: spec.lipschitz,
         samples: spec.samples,
         floor: 0.0,
+        lambda: None,
+        local: 0.0,
     };
     let (losses, lambda) = optimise_data_free(
         &objective,

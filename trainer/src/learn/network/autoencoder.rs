@@ -71,8 +71,7 @@ pub(crate) struct ExportedAutoencoder {
 
 impl Autoencoder {
     /// A randomly initialised autoencoder (encoder drawn first, then decoder, from `seed`).
-    #[cfg(test)]
-    pub fn new(spec: AutoencoderSpec, seed: u64) -> ModelResult<Self> {
+    pub(crate) fn new(spec: AutoencoderSpec, seed: u64) -> ModelResult<Self> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let encoder = ResMlp::new(spec.encoder(), &mut rng)?;
         let decoder = Decoder::Mlp(ResMlp::new(spec.decoder(), &mut rng)?);

@@ -206,6 +206,8 @@ fn a_tiny_data_free_lipschitz_optimisation_lowers_the_lipschitz_loss() {
         weight: 1.0,
         samples: 8,
         floor: 0.0,
+        lambda: None,
+        local: 0.0,
     };
     let (losses, lambda) = optimise_data_free(&objective, &model, &settings, &term, &lip, 60, &Quiet).unwrap();
     assert_eq!(losses.len(), 60);

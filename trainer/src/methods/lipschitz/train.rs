@@ -36,6 +36,14 @@ pub struct LipschitzSettings {
     /// The construction loss below which `lambda` stops growing (module documentation;
     /// default 0).
     pub floor: f64,
+    /// An absolute `lambda` in place of the one derived from `weight` (a supervised
+    /// optimisation continued in rounds keeps its first round's; default none).
+    pub lambda: Option<f64>,
+    /// Supervised only: when positive, half of each minibatch's samples are encoded frames
+    /// and the other half those latents moved by `local` times the samples' RMS spread in a
+    /// random direction, so Eq. 9 also sees pairs of nearby latents (the local roughness a
+    /// step's solve meets); default 0, every sample an encoded frame (the paper's).
+    pub local: f64,
 }
 
 impl Default for LipschitzSettings {
@@ -44,6 +52,8 @@ impl Default for LipschitzSettings {
             weight: 1.0,
             samples: 8,
             floor: 0.0,
+            lambda: None,
+            local: 0.0,
         }
     }
 }
@@ -90,10 +100,15 @@ pub(crate) fn optimise_supervised(
         )));
     }
     // The latents of the first `settings.samples` frames of `indices` under `encoder`.
-    let samples_of = |encoder: &ExportedMlp, indices: &[usize]| -> candle_core::Result<Vec<LatentSample>> {
+    let frames_per_batch = if settings.local > 0.0 {
+        settings.samples.div_ceil(2)
+    } else {
+        settings.samples
+    };
+    let encoded_of = |encoder: &ExportedMlp, indices: &[usize]| -> candle_core::Result<Vec<LatentSample>> {
         indices
             .iter()
-            .take(settings.samples)
+            .take(frames_per_batch)
             .map(|&i| {
                 let z = forward_exported(encoder, &data[i]).map_err(candle_err)?;
                 Ok(LatentSample {
@@ -102,6 +117,15 @@ pub(crate) fn optimise_supervised(
                 })
             })
             .collect()
+    };
+    let samples_of = |encoder: &ExportedMlp, indices: &[usize]| -> candle_core::Result<Vec<LatentSample>> {
+        let mut samples = encoded_of(encoder, indices)?;
+        if settings.local > 0.0 {
+            let mut rng = ChaCha8Rng::seed_from_u64(indices.first().map_or(0, |&i| i as u64));
+            let nearby = local_neighbours(&samples, settings.local, settings.samples - samples.len(), &mut rng);
+            samples.extend(nearby);
+        }
+        Ok(samples)
     };
     // The two losses at the start, on the first minibatch's worth of frames.
     let first: Vec<usize> = (0..data.len().min(config.batch_size)).collect();
@@ -117,10 +141,10 @@ pub(crate) fn optimise_supervised(
         .map_err(|e| TrainError::Invalid(e.to_string()))?;
     let ls0 = super::loss::lipschitz_loss(&hessians, &start_samples);
     let lc0 = train::mean_reconstruction_error(autoencoder, data, 256)?;
-    let lambda = if ls0 > 0.0 {
-        settings.weight * lc0.max(settings.floor).max(1e-30) / ls0
-    } else {
-        0.0
+    let lambda = match settings.lambda {
+        Some(lambda) => lambda,
+        None if ls0 > 0.0 => settings.weight * lc0.max(settings.floor).max(1e-30) / ls0,
+        None => 0.0,
     };
 
     let report = train::train(&autoencoder.parameters(), data, config, resume, |batch, _| {
@@ -140,6 +164,48 @@ pub(crate) fn optimise_supervised(
         start: (lc0, ls0),
         lambda,
     })
+}
+
+/// `count` samples near the first of `samples` (cycling): each latent moved by `local`
+/// times the samples' RMS spread about their mean, in a uniformly random direction.
+fn local_neighbours(samples: &[LatentSample], local: f64, count: usize, rng: &mut ChaCha8Rng) -> Vec<LatentSample> {
+    use rand::Rng;
+    let Some(first) = samples.first() else {
+        return Vec::new();
+    };
+    let r = first.z.len();
+    let mean: Vec<f64> = (0..r)
+        .map(|c| samples.iter().map(|s| s.z[c]).sum::<f64>() / samples.len() as f64)
+        .collect();
+    let spread = (samples
+        .iter()
+        .map(|s| s.z.iter().zip(&mean).map(|(z, m)| (z - m).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / samples.len() as f64)
+        .sqrt()
+        .max(1e-12);
+    (0..count)
+        .map(|i| {
+            let base = &samples[i % samples.len()];
+            // Box-Muller normals: their direction is uniform on the sphere.
+            let dir: Vec<f64> = (0..r)
+                .map(|_| {
+                    let (u, v): (f64, f64) = (rng.random(), rng.random());
+                    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+                })
+                .collect();
+            let norm = dir.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-12);
+            LatentSample {
+                z: base
+                    .z
+                    .iter()
+                    .zip(&dir)
+                    .map(|(z, d)| z + local * spread * d / norm)
+                    .collect(),
+                targets: base.targets.clone(),
+            }
+        })
+        .collect()
 }
 
 /// Lipschitz optimisation of a data-free subspace (Eq. 10 with the construction loss of
@@ -211,4 +277,37 @@ pub(crate) fn optimise_data_free(
     }
     bar.finish();
     Ok((losses, lambda.unwrap_or(0.0)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each neighbour sits `local` times the samples' RMS spread from the sample it was
+    /// moved from, with that sample's handle targets.
+    #[test]
+    fn local_neighbours_sit_at_the_asked_distance() {
+        let samples: Vec<LatentSample> = (0..3)
+            .map(|i| LatentSample {
+                z: vec![i as f64, 2.0 * i as f64, -1.0],
+                targets: vec![i as f64],
+            })
+            .collect();
+        // Mean (1, 2, -1); squared distances 5, 0, 5: RMS spread sqrt(10 / 3).
+        let spread = (10.0f64 / 3.0).sqrt();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let near = local_neighbours(&samples, 0.1, 5, &mut rng);
+        assert_eq!(near.len(), 5);
+        for (i, n) in near.iter().enumerate() {
+            let base = &samples[i % 3];
+            let d = squared(&n.z, &base.z).sqrt();
+            assert!((d - 0.1 * spread).abs() < 1e-12, "neighbour {i} at {d}");
+            assert_eq!(n.targets, base.targets);
+        }
+        assert_ne!(near[0].z, near[3].z, "two neighbours of one sample share a direction");
+    }
+
+    fn squared(a: &[f64], b: &[f64]) -> f64 {
+        a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum()
+    }
 }
