@@ -7,7 +7,7 @@ use std::error::Error;
 use std::path::Path;
 use std::time::Instant;
 
-use mochi_sim::adaptive::candidates::{CandidateSet, CandidateSpec};
+use mochi_sim::adaptive::candidates::CandidateSpec;
 use mochi_sim::scene::read_text;
 use mochi_sim::SceneDocument;
 
@@ -26,13 +26,10 @@ fn main() -> Result<(), Box<dyn Error>> {
     }
     let scene = document.into_scene()?;
     let start = Instant::now();
-    let set = CandidateSet::from_scene(
-        &scene,
-        &CandidateSpec {
-            linear_modes: count,
-            ..CandidateSpec::default()
-        },
-    )?;
+    let set = scene.candidate_set(&CandidateSpec {
+        linear_modes: count,
+        ..CandidateSpec::default()
+    })?;
     let total = start.elapsed().as_secs_f64();
     let dofs = set.modes.nrows();
     println!(

@@ -11,7 +11,7 @@
 use nalgebra::{DMatrix, SymmetricEigen};
 
 use super::candidates::CandidateSet;
-use crate::solver::NOT_FREE;
+use crate::dofs::NOT_FREE;
 
 /// Relative eigenvalue of a basis' Gram matrix below which a direction counts as
 /// annihilated by the masking (and is dropped).

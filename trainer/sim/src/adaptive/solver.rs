@@ -30,7 +30,7 @@ use super::pcg::PcgSettings;
 use super::settings::AdaptiveSettings;
 use super::system::{hessian_times, model_direction, time_solvers, KeptSystem, LinearSolverTimings};
 use super::SolveError;
-use crate::solver::{free_dof_index, NOT_FREE};
+use crate::dofs::{free_dof_index, NOT_FREE};
 
 /// One Newton iterate as the simulator sees it.
 pub struct Iterate<'a> {

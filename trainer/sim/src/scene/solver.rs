@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::{Energies, Scene};
-use crate::adaptive::candidates::{Body, CandidateSet, CandidateSpec, LinearModeSettings};
+use crate::adaptive::candidates::{Body, CandidateError, CandidateSet, CandidateSpec, LinearModeSettings};
 use crate::adaptive::oracle::{NodeScales, Oracle};
 use crate::adaptive::partition::Partition;
 use crate::adaptive::{AdaptiveSettings, AdaptiveSolver};
@@ -34,6 +34,26 @@ impl SolverSpec {
 }
 
 impl Scene {
+    /// The candidates of a scene's body: its mesh, elastic terms and lumped masses as
+    /// [`Scene::build_elastic_energies`] makes them, its handles' vertices prescribed.
+    pub fn candidate_set(&self, spec: &CandidateSpec) -> Result<CandidateSet, CandidateError> {
+        let mesh = self.build_mesh()?;
+        let Energies { masses, potentials } = self.build_elastic_energies(&mesh)?;
+        let fixed: Vec<usize> = self
+            .build_handles(&mesh)?
+            .iter()
+            .flat_map(|h| h.vertices.iter().copied())
+            .collect();
+        let body = Body {
+            dim: mesh.dim,
+            rest: &mesh.rest,
+            masses: &masses,
+            fixed_vertices: &fixed,
+        };
+        let elastic: Vec<&dyn StencilEnergy> = potentials.iter().map(|p| p.as_ref()).collect();
+        CandidateSet::new(&body, &elastic, spec)
+    }
+
     /// The adaptive model of the scene's body, with its prescribed vertices `fixed`: the
     /// candidate bases (rigid, affine and the linear modes of the rest shape), the fixed
     /// decomposition into subdomains and the oracle. The whole mesh is one body.

@@ -1,7 +1,7 @@
 //! A body as the candidate bases see it: rest shape, lumped masses and Dirichlet vertices.
 
 use super::CandidateError;
-use crate::solver::free_dof_index;
+use crate::dofs::free_dof_index;
 
 /// A body as the candidate bases see it. Every candidate mode is a vector over all of its
 /// degrees of freedom (`dim` per vertex, vertex-major as positions are) and is zero on the
@@ -45,7 +45,7 @@ impl Body<'_> {
     pub(crate) fn free_masses(&self, free_index: &[usize], num_free: usize) -> Vec<f64> {
         let mut m = vec![0.0; num_free];
         for (k, &f) in free_index.iter().enumerate() {
-            if f != crate::solver::NOT_FREE {
+            if f != crate::dofs::NOT_FREE {
                 m[f] = self.masses[k / self.dim];
             }
         }

@@ -15,10 +15,10 @@
 
 use super::lanczos::{lowest_eigenpairs, LanczosSettings, Pencil};
 use super::{rigid_modes, Body, CandidateError};
+use crate::dofs::NOT_FREE;
 use crate::energy::inertia::Inertia;
 use crate::energy::StencilEnergy;
-use crate::solver::hessian::HessianPattern;
-use crate::solver::NOT_FREE;
+use crate::hessian::HessianPattern;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::Mat;
 use std::time::Instant;

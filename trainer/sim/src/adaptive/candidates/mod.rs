@@ -27,7 +27,6 @@ pub use linear_modes::{linear_modes, LinearModeSettings, LinearModes};
 pub use rigid::{affine_modes, rigid_modes};
 
 use crate::energy::StencilEnergy;
-use crate::scene::{Energies, Scene};
 use faer::{Mat, MatRef};
 use std::ops::Range;
 
@@ -142,26 +141,6 @@ impl CandidateSet {
             blocks,
             linear,
         })
-    }
-
-    /// The candidates of a scene's body: its mesh, elastic terms and lumped masses as
-    /// [`Scene::build_elastic_energies`] makes them, its handles' vertices prescribed.
-    pub fn from_scene(scene: &Scene, spec: &CandidateSpec) -> Result<Self, CandidateError> {
-        let mesh = scene.build_mesh()?;
-        let Energies { masses, potentials } = scene.build_elastic_energies(&mesh)?;
-        let fixed: Vec<usize> = scene
-            .build_handles(&mesh)?
-            .iter()
-            .flat_map(|h| h.vertices.iter().copied())
-            .collect();
-        let body = Body {
-            dim: mesh.dim,
-            rest: &mesh.rest,
-            masses: &masses,
-            fixed_vertices: &fixed,
-        };
-        let elastic: Vec<&dyn StencilEnergy> = potentials.iter().map(|p| p.as_ref()).collect();
-        Self::new(&body, &elastic, spec)
     }
 
     /// The columns of block `b`.

@@ -157,7 +157,7 @@ fn clamped_modes_match_a_dense_generalised_eigensolve() {
     let (free_index, _) = body.free_dofs();
     for j in 0..count {
         let u: Vec<f64> = (0..body.num_dofs())
-            .filter(|&d| free_index[d] != crate::solver::NOT_FREE)
+            .filter(|&d| free_index[d] != crate::dofs::NOT_FREE)
             .map(|d| modes.modes[(d, j)])
             .collect();
         let ku: Vec<f64> = (0..u.len())
@@ -490,7 +490,7 @@ select = { side = { axis = 0, end = "min" } }
         linear_modes: 4,
         ..CandidateSpec::default()
     };
-    let set = CandidateSet::from_scene(&scene, &spec).unwrap();
+    let set = scene.candidate_set(&spec).unwrap();
     let s = solid([1.0, 0.2, 0.2], [5, 1, 1], RUBBER);
     let fixed = s.clamped_end();
     assert_eq!(fixed.len(), 4);
@@ -512,7 +512,7 @@ select = { side = { axis = 0, end = "min" } }
     // A handle over vertices the mesh lacks: the error names the field.
     let bad_text = text.replace("{ side = { axis = 0, end = \"min\" } }", "{ indices = [999] }");
     let bad = Scene::parse(&bad_text, Path::new("bar.toml")).unwrap();
-    let err = CandidateSet::from_scene(&bad, &spec).unwrap_err();
+    let err = bad.candidate_set(&spec).unwrap_err();
     assert!(matches!(err, CandidateError::Input(_)), "{err}");
     assert!(err.to_string().contains("handles[0].select"), "{err}");
 }

@@ -5,7 +5,7 @@
 //! and so does anything else that needs the Hessian of the same energy terms (the linear
 //! modes of `adaptive::candidates`).
 
-use super::NOT_FREE;
+use crate::dofs::NOT_FREE;
 use crate::energy::{self, StencilEnergy, MAX_DOF};
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
@@ -28,7 +28,7 @@ pub(crate) struct HessianPattern {
     n: usize,
     col_ptr: Vec<u32>,
     row_idx: Vec<u32>,
-    pub(super) values: Vec<f64>,
+    pub(crate) values: Vec<f64>,
     slots: Vec<StencilSlots>,
     symbolic: SymbolicLlt<u32>,
 }
@@ -153,7 +153,7 @@ impl HessianPattern {
     }
 
     /// Index into the values of entry `(r, c)` (free dofs, `r >= c`), if the pattern has it.
-    pub(super) fn slot(&self, r: usize, c: usize) -> Option<usize> {
+    pub(crate) fn slot(&self, r: usize, c: usize) -> Option<usize> {
         let (start, end) = (self.col_ptr[c] as usize, self.col_ptr[c + 1] as usize);
         self.row_idx[start..end]
             .binary_search(&(r as u32))
@@ -163,7 +163,7 @@ impl HessianPattern {
 
     /// Solves `H d = rhs` in place if the assembled `H` is positive definite; returns
     /// false (leaving `rhs` untouched) if its Cholesky factorisation fails.
-    pub(super) fn try_solve(&mut self, rhs: &mut [f64]) -> bool {
+    pub(crate) fn try_solve(&mut self, rhs: &mut [f64]) -> bool {
         match self.factor() {
             Some(llt) => {
                 llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
@@ -176,7 +176,7 @@ impl HessianPattern {
     /// Solves `H d = rhs` in place with a sparse Cholesky factorisation of the assembled
     /// values. If `H` is not numerically positive definite, a growing multiple of the
     /// identity (relative to the largest diagonal entry) is added until it is.
-    pub(super) fn solve(&mut self, rhs: &mut [f64]) {
+    pub(crate) fn solve(&mut self, rhs: &mut [f64]) {
         if self.try_solve(rhs) {
             return;
         }
