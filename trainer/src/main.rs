@@ -162,6 +162,11 @@ enum Bench {
         /// the per-step difference.
         #[arg(long)]
         per_step: bool,
+        /// For adaptive scenes: time the model's Schur-complement PCG, faer's sparse
+        /// Cholesky and block-Jacobi PCG on the largest Newton system met (its checks cost
+        /// time inside the timed steps).
+        #[arg(long)]
+        linear_solvers: bool,
         /// For adaptive scenes: run the comparison for each of `--values` of this setting
         /// (error, youngs, downdate) and chart it.
         #[arg(long)]
@@ -311,11 +316,12 @@ fn run(cli: Cli) -> Result<()> {
                     scenes,
                     frames,
                     per_step,
+                    linear_solvers,
                     sweep,
                     values,
                     out,
                 },
-        } => bench_sim(scenes, frames, per_step, sweep, values, out),
+        } => bench_sim(scenes, frames, per_step, linear_solvers, sweep, values, out),
         Command::Bench {
             what:
                 Bench::Runtime {
@@ -523,6 +529,7 @@ fn bench_sim(
     scenes: Vec<String>,
     frames: usize,
     per_step: bool,
+    linear_solvers: bool,
     sweep: Option<String>,
     values: Vec<f64>,
     out: Option<PathBuf>,
@@ -539,6 +546,7 @@ fn bench_sim(
     let options = eval::sim_bench::SimBenchOptions {
         frames,
         per_step,
+        linear_solvers,
         sweep: sweep
             .as_deref()
             .map(eval::adaptive_bench::SweepKey::parse)

@@ -18,6 +18,8 @@ pub struct SimBenchOptions {
     pub frames: usize,
     /// Adaptive scenes: also the per-step difference to full space.
     pub per_step: bool,
+    /// Adaptive scenes: also time the three linear solvers on the largest system.
+    pub linear_solvers: bool,
     /// Adaptive scenes: the setting to sweep, over `values`.
     pub sweep: Option<SweepKey>,
     /// The swept values.
@@ -74,10 +76,16 @@ pub fn bench(scenes: &[Scene], options: &SimBenchOptions, log: &mut dyn FnMut(St
         let frames = options.frames;
         let rows = match options.sweep {
             Some(key) => adaptive_bench::sweep(scene, key, &options.values, frames, options.per_step, log)?,
-            None => vec![adaptive_bench::compare(scene, frames, options.per_step, log)?],
+            None => vec![adaptive_bench::compare(
+                scene,
+                frames,
+                options.per_step,
+                options.linear_solvers,
+                log,
+            )?],
         };
         let mut table = adaptive_bench::table(&scene.name, options.sweep, &rows);
-        if options.sweep.is_none() {
+        if options.sweep.is_none() && options.linear_solvers {
             table.push('\n');
             table.push_str(&adaptive_bench::linear_solver_table(&scene.name, &rows[0]));
         }

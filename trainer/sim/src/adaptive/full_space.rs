@@ -37,6 +37,12 @@ pub fn cholesky_direction<I: faer::Index>(h: SparseColMatRef<'_, I, f64>, g: &[f
     Ok(d)
 }
 
+/// Whether faer's sparse Cholesky factorisation of `H` succeeds (`H` positive definite).
+pub fn factors<I: faer::Index>(h: SparseColMatRef<'_, I, f64>) -> bool {
+    SymbolicLlt::try_new(h.symbolic(), Side::Lower)
+        .is_ok_and(|symbolic| Llt::try_new_with_symbolic(symbolic, h, Side::Lower).is_ok())
+}
+
 /// `d = -H^{-1} g` by conjugate gradients preconditioned with the inverses of `H`'s
 /// `settings.block`-sized diagonal blocks.
 pub fn pcg_direction<I: faer::Index>(

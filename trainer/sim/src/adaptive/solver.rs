@@ -282,7 +282,8 @@ impl AdaptiveSolver {
             .kept
             .as_ref()
             .is_some_and(|k| k.hessian.nrows() == 0 || k.enriched.dofs.len() < enriched.dofs.len());
-        if keep && found.is_ok() {
+        // Only a system all three solvers can take: the full Hessian positive definite.
+        if keep && found.is_ok() && super::full_space::factors(it.hessian) {
             if let Ok(symbolic) = it.hessian.symbolic().to_owned() {
                 self.kept = Some(KeptSystem {
                     hessian: SparseColMat::new(symbolic, it.hessian.val().to_vec()),
@@ -312,8 +313,8 @@ impl AdaptiveSolver {
         }
     }
 
-    /// From now on, keeps the system of the iterate with the most enriched coordinates, for
-    /// [`AdaptiveSolver::time_linear_solvers`].
+    /// From now on, keeps the system of the iterate with the most enriched coordinates whose
+    /// full Hessian is positive definite, for [`AdaptiveSolver::time_linear_solvers`].
     pub fn keep_largest_system(&mut self) {
         if self.kept.is_none() {
             self.kept = Some(KeptSystem {
