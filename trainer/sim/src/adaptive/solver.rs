@@ -100,6 +100,9 @@ pub struct AdaptiveSolver {
     active_blocks: Vec<bool>,
     enriched_subdomains: Vec<bool>,
     bases: Option<Bases>,
+    /// `H U_a` of the oracle's step at this iterate, handed to the model's solve when the
+    /// model kept its blocks and enriches nothing (its masked basis is then `U_a` itself).
+    unmasked_product: Option<DMatrix<f64>>,
     /// The last solve's modal step, as coefficients of the candidate columns.
     last_coefficients: Vec<f64>,
     /// The step's accumulated modal displacement, as coefficients of the candidate columns.
@@ -148,6 +151,7 @@ impl AdaptiveSolver {
             free_vertex,
             active_blocks,
             bases: None,
+            unmasked_product: None,
             last_coefficients: vec![0.0; columns],
             step_coefficients: vec![0.0; columns],
             stats: AdaptiveStepStats::default(),
@@ -228,9 +232,12 @@ impl AdaptiveSolver {
         let clock = Instant::now();
         let unmasked = &self.bases().unmasked;
         let mut step = vec![0.0; it.x.len()];
+        let mut product = None;
         if !unmasked.is_empty() {
             let u = &unmasked.basis;
-            let h_q = u.transpose() * hessian_times(it.hessian, u);
+            let hu = hessian_times(it.hessian, u);
+            let h_q = u.transpose() * &hu;
+            product = Some(hu);
             let g_q = u.transpose() * DVector::from_column_slice(it.rhs);
             let p = projected_solve(h_q, &g_q);
             let free_step = u * p;
@@ -264,6 +271,8 @@ impl AdaptiveSolver {
         if !decision.activate_blocks.is_empty() || !decision.enrich_subdomains.is_empty() {
             self.bases = None;
         }
+        let unmasked_is_masked = self.bases.as_ref().is_some_and(|b| b.enriched.dofs.is_empty());
+        self.unmasked_product = product.filter(|_| unmasked_is_masked);
         self.stats.oracle_seconds += clock.elapsed().as_secs_f64();
         Ok(())
     }
@@ -276,7 +285,10 @@ impl AdaptiveSolver {
         self.bases();
         let bases = self.bases.take().unwrap_or_else(|| unreachable!("built above"));
         let (b, enriched) = (&bases.masked, &bases.enriched);
-        let found = model_direction(b, enriched, num_free, it.hessian, it.rhs, &pcg);
+        // The oracle's product serves this solve only (a retry with the projected Hessian
+        // computes its own).
+        let product = self.unmasked_product.take();
+        let found = model_direction(b, enriched, num_free, it.hessian, product, it.rhs, &pcg);
         let columns = b.columns.clone();
         let keep = self
             .kept

@@ -27,17 +27,18 @@ pub(super) struct ModelDirection {
 }
 
 /// The direction of the model `(b, enriched)` for the Hessian `h` (lower triangle, free
-/// dofs) and right-hand side `rhs = -g`.
+/// dofs) and right-hand side `rhs = -g`; `hb` is `H B` when already computed.
 pub(super) fn model_direction(
     b: &ModalBasis,
     enriched: &EnrichedDofs,
     num_free: usize,
     h: SparseColMatRef<'_, u32, f64>,
+    hb: Option<DMatrix<f64>>,
     rhs: &[f64],
     pcg: &PcgSettings,
 ) -> Result<ModelDirection, SolveError> {
     let (a, nx) = (b.len(), enriched.dofs.len());
-    let hb = hessian_times(h, &b.basis);
+    let hb = hb.unwrap_or_else(|| hessian_times(h, &b.basis));
     let h_q = b.basis.transpose() * &hb;
     // C = B^T H S: the enriched rows of H B, transposed.
     let coupling = DMatrix::from_fn(a, nx, |r, c| hb[(enriched.dofs[c], r)]);
@@ -142,7 +143,7 @@ pub(super) fn time_solvers(
     let h = kept.hessian.as_ref();
     let g: Vec<f64> = kept.rhs.iter().map(|v| -v).collect();
     let clock = Instant::now();
-    let model = model_direction(&kept.masked, &kept.enriched, num_free, h, &kept.rhs, pcg)?;
+    let model = model_direction(&kept.masked, &kept.enriched, num_free, h, None, &kept.rhs, pcg)?;
     let schur_seconds = clock.elapsed().as_secs_f64();
     let clock = Instant::now();
     let cholesky = cholesky_direction(h, &g)?;
