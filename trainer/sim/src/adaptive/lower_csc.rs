@@ -51,6 +51,36 @@ pub(crate) fn symmetric_product<I: faer::Index>(m: SparseColMatRef<'_, I, f64>, 
     }
 }
 
+/// `Y = M X` for the symmetric `M` whose lower triangle `m` stores and `k` columns `X`, both
+/// row-major (`x[r * k + j]`): one pass over `m` serves every column, where `k` calls of
+/// [`symmetric_product`] would read it `k` times.
+pub(crate) fn symmetric_block_product<I: faer::Index>(
+    m: SparseColMatRef<'_, I, f64>,
+    x: &[f64],
+    k: usize,
+    y: &mut [f64],
+) {
+    y.fill(0.0);
+    let mut acc = vec![0.0; k];
+    for c in 0..m.ncols() {
+        let xc = &x[c * k..(c + 1) * k];
+        acc.fill(0.0);
+        for (r, &v) in m.symbolic().row_idx_of_col(c).zip(m.val_of_col(c)) {
+            for (yr, xj) in y[r * k..(r + 1) * k].iter_mut().zip(xc) {
+                *yr += v * xj;
+            }
+            if r != c {
+                for (a, xr) in acc.iter_mut().zip(&x[r * k..(r + 1) * k]) {
+                    *a += v * xr;
+                }
+            }
+        }
+        for (yc, a) in y[c * k..(c + 1) * k].iter_mut().zip(&acc) {
+            *yc += a;
+        }
+    }
+}
+
 /// The dense `block x block` diagonal blocks of the symmetric matrix `m` stores (size a
 /// multiple of `block`), each row-major, one after the other.
 pub(crate) fn diagonal_blocks<I: faer::Index>(m: SparseColMatRef<'_, I, f64>, block: usize) -> Vec<f64> {

@@ -10,7 +10,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::full_space::{cholesky_direction, pcg_direction};
-use super::lower_csc::symmetric_product;
+use super::lower_csc::{symmetric_block_product, symmetric_product};
 use super::model::{EnrichedDofs, ModalBasis};
 use super::pcg::PcgSettings;
 use super::schur::{AdaptiveSystem, Coupling};
@@ -83,19 +83,39 @@ pub(super) fn model_direction(
     })
 }
 
-/// `H U` for the symmetric `H` stored as its lower triangle, a column per task.
+/// `H U` for the symmetric `H` stored as its lower triangle: the columns split into one
+/// group per thread, each group by one pass over `H`.
 pub(super) fn hessian_times(h: SparseColMatRef<'_, u32, f64>, u: &DMatrix<f64>) -> DMatrix<f64> {
-    let columns: Vec<Vec<f64>> = (0..u.ncols())
+    let (n, k) = u.shape();
+    let mut hu = DMatrix::zeros(n, k);
+    if k == 0 {
+        return hu;
+    }
+    let group = k.div_ceil(rayon::current_num_threads().max(1));
+    let groups: Vec<(usize, Vec<f64>)> = (0..k)
+        .step_by(group)
+        .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|j| {
-            let mut out = vec![0.0; u.nrows()];
-            symmetric_product(h, u.column(j).as_slice(), &mut out);
-            out
+        .map(|start| {
+            let width = group.min(k - start);
+            let mut x = vec![0.0; n * width];
+            for j in 0..width {
+                for (r, v) in u.column(start + j).iter().enumerate() {
+                    x[r * width + j] = *v;
+                }
+            }
+            let mut y = vec![0.0; n * width];
+            symmetric_block_product(h, &x, width, &mut y);
+            (start, y)
         })
         .collect();
-    let mut hu = DMatrix::zeros(u.nrows(), u.ncols());
-    for (j, c) in columns.iter().enumerate() {
-        hu.column_mut(j).copy_from_slice(c);
+    for (start, y) in groups {
+        let width = group.min(k - start);
+        for j in 0..width {
+            for (r, out) in hu.column_mut(start + j).iter_mut().enumerate() {
+                *out = y[r * width + j];
+            }
+        }
     }
     hu
 }

@@ -2,6 +2,7 @@
 
 mod bfgs;
 mod fixtures;
+mod lower_csc;
 mod partition;
 mod schur;
 mod solver;

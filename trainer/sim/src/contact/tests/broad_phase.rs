@@ -83,6 +83,49 @@ fn grid_pairs_equal_brute_force_on_random_boxes() {
     }
 }
 
+/// A fine mesh's boxes beside a few boxes far longer than the grid's cells (an obstacle's
+/// faces): these are tested against every box, and the pairs are still each pair once.
+#[test]
+fn grid_pairs_with_long_boxes_equal_brute_force() {
+    let mut rng = rng(12);
+    let small = |rng: &mut rand_chacha::ChaCha8Rng, k: usize| -> Vec<Aabb> {
+        (0..k)
+            .map(|_| {
+                let c = random_vec(rng, 3);
+                Aabb {
+                    min: [c[0], c[1], c[2]],
+                    max: [c[0] + 0.02, c[1] + 0.02, c[2] + 0.02],
+                }
+            })
+            .collect()
+    };
+    for trial in 0..6 {
+        let (mut a, mut b) = (small(&mut rng, 400), small(&mut rng, 300));
+        for k in 0..=trial {
+            let y = rng.random_range(-1.0..1.0);
+            let slab = Aabb {
+                min: [-2.0, y, -2.0],
+                max: [2.0, y + 0.3, 2.0],
+            };
+            // Long boxes in either set, at varied positions among the small ones.
+            if k % 2 == 0 {
+                a.insert(k * 37 % a.len(), slab);
+            } else {
+                b.insert(k * 53 % b.len(), slab);
+            }
+        }
+        let keep = |i: usize, j: usize| !(i + 2 * j).is_multiple_of(7);
+        let grid = overlapping_pairs(&a, &b, keep);
+        assert_eq!(grid, overlapping_pairs_brute_force(&a, &b, keep), "trial {trial}");
+        assert!(grid.len() > 20, "trial {trial}: the slabs meet many boxes");
+        assert_eq!(
+            overlapping_self_pairs(&a, keep),
+            overlapping_self_pairs_brute_force(&a, keep),
+            "trial {trial}"
+        );
+    }
+}
+
 #[test]
 fn non_finite_boxes_overlap_nothing() {
     let unit = Aabb {
