@@ -122,22 +122,47 @@ impl HessianPattern {
         x: &[f64],
         project: bool,
     ) {
+        self.assemble_stencils(terms.map(|(e, w)| (e, w, None)), x, project);
+    }
+
+    /// [`Self::assemble`] with each term restricted to the stencils its list names (all
+    /// when `None`).
+    pub(crate) fn assemble_stencils<'a>(
+        &mut self,
+        terms: impl Iterator<Item = (&'a dyn StencilEnergy, f64, Option<&'a [usize]>)>,
+        x: &[f64],
+        project: bool,
+    ) {
         self.values.fill(0.0);
-        for (term, (energy, weight)) in terms.enumerate() {
-            if weight == 0.0 {
-                continue;
-            }
-            let slots = &self.slots[term];
-            let values = &mut self.values;
-            energy::for_each_hessian(energy, x, project, |s, _, local| {
-                let range = slots.offsets[s]..slots.offsets[s + 1];
-                for (slot, h) in slots.slots[range].iter().zip(&local.hess) {
-                    if *slot != NO_SLOT {
-                        values[*slot as usize] += weight * h;
-                    }
-                }
-            });
+        for (term, (energy, weight, stencils)) in terms.enumerate() {
+            self.add_stencils(term, energy, weight, stencils, x, project);
         }
+    }
+
+    /// Adds `weight` times the Hessians of the stencils `stencils` names (all when `None`)
+    /// of term number `term` (as the pattern was built) to the assembled values.
+    pub(crate) fn add_stencils(
+        &mut self,
+        term: usize,
+        energy: &dyn StencilEnergy,
+        weight: f64,
+        stencils: Option<&[usize]>,
+        x: &[f64],
+        project: bool,
+    ) {
+        if weight == 0.0 {
+            return;
+        }
+        let slots = &self.slots[term];
+        let values = &mut self.values;
+        energy::for_each_hessian_of(energy, stencils, x, project, |s, _, local| {
+            let range = slots.offsets[s]..slots.offsets[s + 1];
+            for (slot, h) in slots.slots[range].iter().zip(&local.hess) {
+                if *slot != NO_SLOT {
+                    values[*slot as usize] += weight * h;
+                }
+            }
+        });
     }
 
     /// The assembled matrix's lower triangle (CSC, sorted row indices per column).

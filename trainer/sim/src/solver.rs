@@ -538,9 +538,43 @@ impl Simulator {
 
     /// Assembles the energy terms' share of the free-free Hessian.
     fn assemble_terms(&mut self, x: &[f64], w_inertia: f64, w_potential: f64, project: bool) {
-        let terms = std::iter::once((&self.inertia as &dyn StencilEnergy, w_inertia))
-            .chain(self.potentials.iter().map(|p| (p.as_ref(), w_potential)));
-        self.hessian.assemble(terms, x, project);
+        // With the adaptive model's per-subdomain BFGS, the elastic terms (the first
+        // potentials) only over the subdomains it evaluates exactly.
+        let exact: Vec<Vec<usize>> = match self.adaptive.as_mut().and_then(|a| a.elastic_subspace_mut()) {
+            Some(e) => {
+                e.take_newly_exact();
+                (0..e.num_terms()).map(|t| e.exact_stencils(t)).collect()
+            }
+            None => Vec::new(),
+        };
+        let terms = std::iter::once((&self.inertia as &dyn StencilEnergy, w_inertia, None)).chain(
+            self.potentials
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (p.as_ref(), w_potential, exact.get(i).map(Vec::as_slice))),
+        );
+        self.hessian.assemble_stencils(terms, x, project);
+    }
+
+    /// Adds the elastic Hessians of the subdomains `solver` (taken out of the simulator for
+    /// its solve) made exact since the last assembly.
+    pub(super) fn assemble_newly_exact(
+        &mut self,
+        solver: &mut crate::adaptive::AdaptiveSolver,
+        x: &[f64],
+        w_potential: f64,
+        project: bool,
+    ) {
+        let Some(e) = solver.elastic_subspace_mut() else {
+            return;
+        };
+        let added: Vec<Vec<usize>> = (0..e.num_terms()).map(|t| e.newly_exact_stencils(t)).collect();
+        e.take_newly_exact();
+        for (i, stencils) in added.iter().enumerate().filter(|(_, s)| !s.is_empty()) {
+            let term = self.potentials[i].as_ref();
+            self.hessian
+                .add_stencils(1 + i, term, w_potential, Some(stencils), x, project);
+        }
     }
 }
 

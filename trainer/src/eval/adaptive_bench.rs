@@ -16,7 +16,7 @@
 
 use std::path::Path;
 
-use mochi_sim::adaptive::LinearSolverTimings;
+use mochi_sim::adaptive::{LinearSolverTimings, SubspaceHessian};
 use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::SpeedPlan;
 use mochi_sim::solver::StepReport;
@@ -155,9 +155,10 @@ fn mean_distance(a: &[f64], b: &[f64], dim: usize) -> f64 {
 /// Runs `scene` (its solver adaptive) and its full-space twin over `frames` frames of the
 /// sequence `mochi bench sim` uses, and compares them; `log` gets one line per 10% done.
 ///
-/// With `linear_solvers`, the solver keeps the largest system whose full Hessian factors
-/// (checking costs a factorisation whenever the enrichment grows, inside the timed steps)
-/// and the three linear solvers are timed on it afterwards.
+/// With `linear_solvers`, the solver evaluates the whole elastic Hessian exactly
+/// (`subspace_hessian = "exact"`, so the full system exists to be timed), keeps the largest
+/// system whose full Hessian factors (checking costs a factorisation whenever the enrichment
+/// grows, inside the timed steps) and the three linear solvers are timed on it afterwards.
 pub fn compare(
     scene: &Scene,
     frames: usize,
@@ -170,7 +171,11 @@ pub fn compare(
     }
     let mut full_scene = scene.clone();
     full_scene.solver = SolverSpec::FullSpace;
-    let mut adaptive = scene.build()?;
+    let mut adaptive_scene = scene.clone();
+    if let (SolverSpec::Adaptive(settings), true) = (&mut adaptive_scene.solver, linear_solvers) {
+        settings.subspace_hessian = SubspaceHessian::Exact;
+    }
+    let mut adaptive = adaptive_scene.build()?;
     let mut full = full_scene.build()?;
     let mut shadow = if per_step { Some(full_scene.build()?) } else { None };
     let seq: BcSequence = adaptive.sequence(&SpeedPlan::constant(0.5), frames, scene.dataset.seed);

@@ -22,6 +22,7 @@
 
 pub mod bfgs;
 pub mod candidates;
+pub mod elastic_subspace;
 pub mod full_space;
 mod lower_csc;
 pub mod model;
@@ -35,7 +36,7 @@ pub mod solver;
 pub mod system;
 
 pub use model::ActiveModel;
-pub use settings::AdaptiveSettings;
+pub use settings::{AdaptiveSettings, SubspaceHessian};
 pub use solve_error::SolveError;
 pub use solver::{AdaptiveSolver, AdaptiveStepStats};
 pub use system::LinearSolverTimings;

@@ -111,24 +111,9 @@ impl Partition {
         for (v, &p) in vertex_subdomain.iter().enumerate() {
             vertices[p].push(v);
         }
+        let element_subdomain = majority_subdomains(elements, &vertex_subdomain, parts);
         let mut element_members = vec![Vec::new(); parts];
-        let mut element_subdomain = Vec::with_capacity(elements.len());
-        let mut count = vec![0usize; parts];
-        for (e, verts) in elements.iter().enumerate() {
-            for &v in verts {
-                count[vertex_subdomain[v]] += 1;
-            }
-            // Most vertices wins; a tie goes to the subdomain with fewer elements so far,
-            // then to the lower index.
-            let p = verts
-                .iter()
-                .map(|&v| vertex_subdomain[v])
-                .min_by_key(|&p| (std::cmp::Reverse(count[p]), element_members[p].len(), p))
-                .expect("elements have vertices");
-            for &v in verts {
-                count[vertex_subdomain[v]] = 0;
-            }
-            element_subdomain.push(p);
+        for (e, &p) in element_subdomain.iter().enumerate() {
             element_members[p].push(e);
         }
         // Which subdomains' selections hold each vertex: those of its elements, or its own
@@ -200,6 +185,31 @@ impl Partition {
 }
 
 /// The vertex lists of a mesh's elements (tets, triangles, rod segments).
+/// Each element's (or stencil's) subdomain, given each vertex's (`< parts`): the one holding
+/// most of its vertices; a tie goes to the subdomain with fewer elements so far, then to the
+/// lower index (an element without vertices goes to subdomain 0).
+pub(crate) fn majority_subdomains(elements: &[Vec<usize>], vertex_subdomain: &[usize], parts: usize) -> Vec<usize> {
+    let mut members = vec![0usize; parts];
+    let mut count = vec![0usize; parts];
+    let mut out = Vec::with_capacity(elements.len());
+    for verts in elements {
+        for &v in verts {
+            count[vertex_subdomain[v]] += 1;
+        }
+        let p = verts
+            .iter()
+            .map(|&v| vertex_subdomain[v])
+            .min_by_key(|&p| (std::cmp::Reverse(count[p]), members[p], p))
+            .unwrap_or(0);
+        for &v in verts {
+            count[vertex_subdomain[v]] = 0;
+        }
+        out.push(p);
+        members[p] += 1;
+    }
+    out
+}
+
 pub(crate) fn element_vertices(elements: &Elements) -> Vec<Vec<usize>> {
     match elements {
         Elements::Tets(t) => t.iter().map(|e| e.to_vec()).collect(),

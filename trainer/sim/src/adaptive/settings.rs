@@ -38,6 +38,23 @@ pub struct AdaptiveSettings {
     /// Whether the oracle updates the model inside each step and downdating runs after it
     /// (default true; false keeps the initial model, for checks).
     pub adapt: bool,
+    /// How the elastic part of the subspace Hessian is evaluated where no vertex is
+    /// enriched (default `bfgs`).
+    pub subspace_hessian: SubspaceHessian,
+}
+
+/// How the elastic part of the subspace Hessian is evaluated on the subdomains without an
+/// enriched vertex ([`super::elastic_subspace`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SubspaceHessian {
+    /// A BFGS matrix per subdomain, exact at a step's first iterate and updated by the
+    /// secant pairs of the later ones (the paper's Sec. 3.9): the simulator assembles the
+    /// elastic Hessian of the exact subdomains only.
+    #[default]
+    Bfgs,
+    /// The exact Hessian at every iterate (the whole elastic Hessian is assembled).
+    Exact,
 }
 
 impl Default for AdaptiveSettings {
@@ -53,6 +70,7 @@ impl Default for AdaptiveSettings {
             initial_linear_modes: 6,
             pcg_tolerance: PcgSettings::default().tolerance,
             adapt: true,
+            subspace_hessian: SubspaceHessian::Bfgs,
         }
     }
 }

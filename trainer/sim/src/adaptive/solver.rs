@@ -10,13 +10,15 @@
 //!    exceeds `ε_G` where that step's progress is below `ε_E`;
 //! 2. [`AdaptiveSolver::solve`] (Sec. 3.8, 3.10): the masked model's system
 //!    `[B^T H B, B^T H S; S^T H B, S^T H S] [d_q; d_x] = -[B^T g; S^T g]` by the Schur
-//!    complement, with the exact Hessian `H` the simulator assembled (inertia, elasticity
-//!    and contact), so every vertex enriched is full-space Newton;
+//!    complement, with the Hessian `H` the simulator assembled (inertia, contact and the
+//!    elasticity of the subdomains near enriched vertices, exactly) and, with the default
+//!    `subspace_hessian = "bfgs"`, the per-subdomain BFGS matrices of the others' elasticity
+//!    added to `B^T H B` ([`super::elastic_subspace`]); every vertex enriched is full-space
+//!    Newton;
 //! 3. [`AdaptiveSolver::accept`] adds the line search's share of the modal step to the
 //!    step's modal displacement, and [`AdaptiveSolver::end_step`] downdates (Sec. 3.11).
 //!
-//! The subspace Hessian is evaluated exactly from the assembled `H` (no per-subdomain BFGS
-//! yet), and `U_a` is dense over the free dofs.
+//! `U_a` is dense over the free dofs.
 
 use std::time::Instant;
 
@@ -24,6 +26,7 @@ use faer::sparse::{SparseColMat, SparseColMatRef};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
 use super::candidates::{BlockKind, CandidateSet};
+use super::elastic_subspace::{ElasticSubspace, SubspaceHessianStats};
 use super::model::{ActiveModel, EnrichedDofs, ModalBasis};
 use super::oracle::{Oracle, Query, WeightedTerm};
 use super::pcg::PcgSettings;
@@ -43,8 +46,11 @@ pub struct Iterate<'a> {
     /// The right-hand side over the free dofs: the negative gradient (and a moving
     /// obstacle's push).
     pub rhs: &'a [f64],
-    /// The objective's stencil terms with their weights (the oracle's progress).
+    /// The objective's stencil terms with their weights (the oracle's progress): inertia
+    /// first, then the potentials, the body's elastic terms first among them.
     pub terms: &'a [WeightedTerm<'a>],
+    /// Whether the Hessian was assembled from per-stencil PSD projections.
+    pub projected: bool,
     /// Time step of the oracle's scales.
     pub dt: f64,
 }
@@ -76,6 +82,9 @@ pub struct AdaptiveStepStats {
     pub oracle_seconds: f64,
     /// Seconds building and solving the model's systems.
     pub system_seconds: f64,
+    /// What the per-subdomain BFGS approximations did (zero with `subspace_hessian =
+    /// "exact"`).
+    pub subspace_hessian: SubspaceHessianStats,
 }
 
 /// The model's bases, rebuilt when the model changes.
@@ -110,6 +119,10 @@ pub struct AdaptiveSolver {
     stats: AdaptiveStepStats,
     /// The largest system met, when asked to keep it.
     kept: Option<KeptSystem>,
+    /// The elastic subspace Hessian by per-subdomain BFGS, when the settings ask for it.
+    elastic: Option<ElasticSubspace>,
+    /// Whether `elastic` was brought to the current iterate.
+    elastic_prepared: bool,
 }
 
 impl AdaptiveSolver {
@@ -156,8 +169,30 @@ impl AdaptiveSolver {
             step_coefficients: vec![0.0; columns],
             stats: AdaptiveStepStats::default(),
             kept: None,
+            elastic: None,
+            elastic_prepared: false,
             candidates,
         }
+    }
+
+    /// Evaluates the elastic subspace Hessian of the subdomains without an enriched vertex
+    /// by `elastic`'s per-subdomain BFGS (its terms the first potentials of the iterates).
+    pub fn with_elastic_subspace(mut self, mut elastic: ElasticSubspace) -> Self {
+        elastic.set_enriched(&self.enriched_vertices());
+        elastic.take_newly_exact();
+        self.elastic = Some(elastic);
+        self
+    }
+
+    /// The per-subdomain BFGS of the elastic subspace Hessian, if used: the simulator
+    /// assembles the elastic Hessian of its exact subdomains only.
+    pub fn elastic_subspace(&self) -> Option<&ElasticSubspace> {
+        self.elastic.as_ref()
+    }
+
+    /// The same, to take the subdomains made exact since the simulator assembled.
+    pub fn elastic_subspace_mut(&mut self) -> Option<&mut ElasticSubspace> {
+        self.elastic.as_mut()
     }
 
     /// The settings.
@@ -188,6 +223,7 @@ impl AdaptiveSolver {
             self.enriched_subdomains[l] = verts.iter().any(|&v| model.enriched[v]);
         }
         self.bases = None;
+        self.enrichment_changed();
         Ok(())
     }
 
@@ -211,6 +247,10 @@ impl AdaptiveSolver {
     pub fn begin_step(&mut self) {
         self.step_coefficients.fill(0.0);
         self.last_coefficients.fill(0.0);
+        self.elastic_prepared = false;
+        if let Some(e) = &mut self.elastic {
+            e.begin_step();
+        }
         self.stats = AdaptiveStepStats {
             free_vertices: self.free_vertex.iter().filter(|&&f| f).count(),
             candidate_modes: self.candidates.modes.ncols(),
@@ -230,13 +270,19 @@ impl AdaptiveSolver {
             return Ok(());
         }
         let clock = Instant::now();
+        self.prepare_elastic(it);
+        let unmasked = &self.bases().unmasked;
+        let approximated = self.approximated_part(unmasked);
         let unmasked = &self.bases().unmasked;
         let mut step = vec![0.0; it.x.len()];
         let mut product = None;
         if !unmasked.is_empty() {
             let u = &unmasked.basis;
             let hu = hessian_times(it.hessian, u);
-            let h_q = u.transpose() * &hu;
+            let mut h_q = u.transpose() * &hu;
+            if let Some(extra) = &approximated {
+                h_q += extra;
+            }
             product = Some(hu);
             let g_q = u.transpose() * DVector::from_column_slice(it.rhs);
             let p = projected_solve(h_q, &g_q);
@@ -271,6 +317,9 @@ impl AdaptiveSolver {
         if !decision.activate_blocks.is_empty() || !decision.enrich_subdomains.is_empty() {
             self.bases = None;
         }
+        if !decision.enrich_subdomains.is_empty() {
+            self.enrichment_changed();
+        }
         let unmasked_is_masked = self.bases.as_ref().is_some_and(|b| b.enriched.dofs.is_empty());
         self.unmasked_product = product.filter(|_| unmasked_is_masked);
         self.stats.oracle_seconds += clock.elapsed().as_secs_f64();
@@ -282,13 +331,23 @@ impl AdaptiveSolver {
         let clock = Instant::now();
         let pcg = self.pcg();
         let num_free = self.num_free;
+        self.prepare_elastic(it);
         self.bases();
         let bases = self.bases.take().unwrap_or_else(|| unreachable!("built above"));
         let (b, enriched) = (&bases.masked, &bases.enriched);
+        let approximated = self.approximated_part(b);
         // The oracle's product serves this solve only (a retry with the projected Hessian
         // computes its own).
         let product = self.unmasked_product.take();
-        let found = model_direction(b, enriched, num_free, it.hessian, product, it.rhs, &pcg);
+        let found = model_direction(
+            b,
+            enriched,
+            num_free,
+            (it.hessian, approximated.as_ref()),
+            product,
+            it.rhs,
+            &pcg,
+        );
         let columns = b.columns.clone();
         let keep = self
             .kept
@@ -326,9 +385,11 @@ impl AdaptiveSolver {
     }
 
     /// From now on, keeps the system of the iterate with the most enriched coordinates whose
-    /// full Hessian is positive definite, for [`AdaptiveSolver::time_linear_solvers`].
+    /// full Hessian is positive definite, for [`AdaptiveSolver::time_linear_solvers`]. Only
+    /// with `subspace_hessian = "exact"`: with the per-subdomain BFGS the simulator does not
+    /// assemble the full Hessian, so nothing is kept.
     pub fn keep_largest_system(&mut self) {
-        if self.kept.is_none() {
+        if self.kept.is_none() && self.elastic.is_none() {
             self.kept = Some(KeptSystem {
                 hessian: SparseColMat::try_new_from_triplets(0, 0, &[]).unwrap_or_else(|_| unreachable!("empty")),
                 rhs: Vec::new(),
@@ -350,6 +411,45 @@ impl AdaptiveSolver {
         for (s, l) in self.step_coefficients.iter_mut().zip(&self.last_coefficients) {
             *s += alpha * l;
         }
+        self.elastic_prepared = false;
+    }
+
+    /// Brings the elastic subspace approximations to the iterate, once per iterate and
+    /// again when the active columns or the Hessian's projection changed.
+    fn prepare_elastic(&mut self, it: &Iterate<'_>) {
+        let columns = self.model().columns(&self.candidates);
+        let Some(e) = &mut self.elastic else {
+            return;
+        };
+        if self.elastic_prepared && e.is_current(&columns, it.projected) {
+            return;
+        }
+        let terms = it.terms.get(1..1 + e.num_terms()).unwrap_or(&[]);
+        e.prepare(
+            terms,
+            it.x,
+            &self.candidates.modes,
+            &self.free_index,
+            &columns,
+            &self.step_coefficients,
+            it.projected,
+        );
+        self.elastic_prepared = true;
+    }
+
+    /// `Wᵀ (Σ_l B_l) W` of `basis` (`W` its coefficients) over the approximated subdomains.
+    fn approximated_part(&self, basis: &ModalBasis) -> Option<DMatrix<f64>> {
+        let sum = self.elastic.as_ref()?.approximated_sum(&basis.columns)?;
+        let w = &basis.coefficients;
+        Some(w.transpose() * sum * w)
+    }
+
+    /// Tells the elastic subspace which vertices are enriched now.
+    fn enrichment_changed(&mut self) {
+        let enriched = self.enriched_vertices();
+        if let Some(e) = &mut self.elastic {
+            e.set_enriched(&enriched);
+        }
     }
 
     /// Ends a time step whose solve moved the body from `x_start` to `x_end` (every dof)
@@ -362,6 +462,7 @@ impl AdaptiveSolver {
             .collect();
         self.stats.enriched_vertices = self.stats.enriched.len();
         self.stats.active_modes = self.model().columns(&self.candidates).len();
+        self.stats.subspace_hessian = self.elastic.as_ref().map(|e| e.stats()).unwrap_or_default();
         if self.settings.adapt && self.settings.downdate > 0.0 {
             self.downdate(x_start, x_end, dt, &enriched);
         }
@@ -428,6 +529,9 @@ impl AdaptiveSolver {
         }
         if self.stats.downdated_blocks > 0 || self.stats.downdated_subdomains > 0 {
             self.bases = None;
+        }
+        if self.stats.downdated_subdomains > 0 {
+            self.enrichment_changed();
         }
     }
 

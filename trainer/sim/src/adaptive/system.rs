@@ -27,19 +27,23 @@ pub(super) struct ModelDirection {
 }
 
 /// The direction of the model `(b, enriched)` for the Hessian `h` (lower triangle, free
-/// dofs) and right-hand side `rhs = -g`; `hb` is `H B` when already computed.
+/// dofs) plus, when given, a matrix added to `Bᵀ H B` (the approximated elastic subspace
+/// Hessian), and right-hand side `rhs = -g`; `hb` is `H B` when already computed.
 pub(super) fn model_direction(
     b: &ModalBasis,
     enriched: &EnrichedDofs,
     num_free: usize,
-    h: SparseColMatRef<'_, u32, f64>,
+    (h, approximated): (SparseColMatRef<'_, u32, f64>, Option<&DMatrix<f64>>),
     hb: Option<DMatrix<f64>>,
     rhs: &[f64],
     pcg: &PcgSettings,
 ) -> Result<ModelDirection, SolveError> {
     let (a, nx) = (b.len(), enriched.dofs.len());
     let hb = hb.unwrap_or_else(|| hessian_times(h, &b.basis));
-    let h_q = b.basis.transpose() * &hb;
+    let mut h_q = b.basis.transpose() * &hb;
+    if let Some(extra) = approximated {
+        h_q += extra;
+    }
     // C = B^T H S: the enriched rows of H B, transposed.
     let coupling = DMatrix::from_fn(a, nx, |r, c| hb[(enriched.dofs[c], r)]);
     let mut triplets = Vec::new();
@@ -163,7 +167,7 @@ pub(super) fn time_solvers(
     let h = kept.hessian.as_ref();
     let g: Vec<f64> = kept.rhs.iter().map(|v| -v).collect();
     let clock = Instant::now();
-    let model = model_direction(&kept.masked, &kept.enriched, num_free, h, None, &kept.rhs, pcg)?;
+    let model = model_direction(&kept.masked, &kept.enriched, num_free, (h, None), None, &kept.rhs, pcg)?;
     let schur_seconds = clock.elapsed().as_secs_f64();
     let clock = Instant::now();
     let cholesky = cholesky_direction(h, &g)?;

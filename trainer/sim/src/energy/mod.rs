@@ -192,10 +192,22 @@ pub(crate) fn for_each_hessian(
     energy: &dyn StencilEnergy,
     x: &[f64],
     project: bool,
+    sink: impl FnMut(usize, f64, &Local),
+) {
+    for_each_hessian_of(energy, None, x, project, sink);
+}
+
+/// [`for_each_hessian`] over the stencils `stencils` lists (all when `None`), in that order.
+pub(crate) fn for_each_hessian_of(
+    energy: &dyn StencilEnergy,
+    stencils: Option<&[usize]>,
+    x: &[f64],
+    project: bool,
     mut sink: impl FnMut(usize, f64, &Local),
 ) {
     const CHUNK: usize = 1024;
-    let len = energy.len();
+    let len = stencils.map_or(energy.len(), <[usize]>::len);
+    let stencil = |k: usize| stencils.map_or(k, |list| list[k]);
     let mut start = 0;
     let mut buf: Vec<(f64, Local)> = Vec::new();
     while start < len {
@@ -204,7 +216,8 @@ pub(crate) fn for_each_hessian(
             .into_par_iter()
             .map_init(
                 || [0.0; MAX_DOF],
-                |xl, s| {
+                |xl, k| {
+                    let s = stencil(k);
                     let mut out = Local::default();
                     let n = gather(energy, s, x, xl);
                     let v = energy.eval(s, &xl[..n], Want::Hessian { project }, &mut out);
@@ -213,7 +226,7 @@ pub(crate) fn for_each_hessian(
             )
             .collect_into_vec(&mut buf);
         for (k, (v, out)) in buf.iter().enumerate() {
-            sink(start + k, *v, out);
+            sink(stencil(start + k), *v, out);
         }
         start = end;
     }

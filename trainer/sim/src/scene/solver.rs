@@ -7,7 +7,8 @@ use super::{Energies, Scene};
 use crate::adaptive::candidates::{Body, CandidateError, CandidateSet, CandidateSpec, LinearModeSettings};
 use crate::adaptive::oracle::{NodeScales, Oracle};
 use crate::adaptive::partition::Partition;
-use crate::adaptive::{AdaptiveSettings, AdaptiveSolver};
+use crate::adaptive::elastic_subspace::ElasticSubspace;
+use crate::adaptive::{AdaptiveSettings, AdaptiveSolver, SubspaceHessian};
 use crate::energy::StencilEnergy;
 use crate::error::InputError;
 use crate::mesh::Mesh;
@@ -89,13 +90,27 @@ impl Scene {
         let subdomains = (0..partition.num_subdomains())
             .map(|l| partition.vertices(l).to_vec())
             .collect();
-        Ok(AdaptiveSolver::new(
+        let solver = AdaptiveSolver::new(
             *settings,
             candidates,
             oracle,
             subdomains,
             fixed,
             mesh.rest_diagonal(),
-        ))
+        );
+        Ok(match settings.subspace_hessian {
+            SubspaceHessian::Exact => solver,
+            SubspaceHessian::Bfgs => {
+                // The simulator's first potentials are these elastic terms, stencil for
+                // stencil (`Scene::build_energies` starts from them).
+                let stencils = elastic
+                    .iter()
+                    .map(|e| (0..e.len()).map(|s| e.stencil(s).to_vec()).collect())
+                    .collect();
+                let subspace =
+                    ElasticSubspace::new(mesh.dim, stencils, partition.vertex_subdomains(), partition.num_subdomains());
+                solver.with_elastic_subspace(subspace)
+            }
+        })
     }
 }

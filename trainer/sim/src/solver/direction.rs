@@ -88,7 +88,7 @@ impl Simulator {
             .take()
             .unwrap_or_else(|| unreachable!("checked by the caller"));
         let negative_gradient = rhs.to_vec();
-        let found = self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, true);
+        let found = self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, !exact_first, true);
         let found = match found {
             Err(Failure::Solve(
                 SolveError::NotPositiveDefinite(_)
@@ -96,10 +96,16 @@ impl Simulator {
                 | SolveError::Indefinite { .. },
             )) if exact_first => {
                 let clock = Instant::now();
+                // The assembly asks the model which elastic stencils it evaluates exactly.
+                self.adaptive = Some(solver);
                 self.assemble(x, weights.0, weights.1, true);
+                solver = self
+                    .adaptive
+                    .take()
+                    .unwrap_or_else(|| unreachable!("put back above"));
                 report.phases.assembly += clock.elapsed().as_secs_f64();
                 report.projected_iterations += 1;
-                self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, false)
+                self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, true, false)
             }
             other => other,
         };
@@ -113,7 +119,9 @@ impl Simulator {
     }
 
     /// Updates the model when `update` says so, then solves its system with the assembled
-    /// Hessian.
+    /// Hessian (per-stencil PSD projections when `projected`), to which the elastic
+    /// Hessians of the subdomains the update made exact are added first.
+    #[allow(clippy::too_many_arguments)]
     fn adaptive_solve(
         &mut self,
         solver: &mut AdaptiveSolver,
@@ -121,9 +129,29 @@ impl Simulator {
         grad: &[f64],
         rhs: &[f64],
         (w_inertia, w_potential): (f64, f64),
+        projected: bool,
         update: bool,
     ) -> Result<Vec<f64>, Failure> {
-        let terms: Vec<WeightedTerm<'_>> = std::iter::once(WeightedTerm {
+        if update {
+            self.update_adaptive_model(solver, x, grad, rhs, (w_inertia, w_potential), projected)?;
+            self.assemble_newly_exact(solver, x, w_potential, projected);
+        }
+        let terms = self.weighted_terms(w_inertia, w_potential);
+        let it = Iterate {
+            hessian: self.hessian.lower(),
+            x,
+            gradient: grad,
+            rhs,
+            terms: &terms,
+            projected,
+            dt: self.dt,
+        };
+        solver.solve(&it).map_err(Failure::Solve)
+    }
+
+    /// The objective's stencil terms with their weights, inertia first.
+    fn weighted_terms(&self, w_inertia: f64, w_potential: f64) -> Vec<WeightedTerm<'_>> {
+        std::iter::once(WeightedTerm {
             energy: &self.inertia as &dyn StencilEnergy,
             weight: w_inertia,
         })
@@ -131,51 +159,63 @@ impl Simulator {
             energy: p.as_ref(),
             weight: w_potential,
         }))
-        .collect();
+        .collect()
+    }
+
+    /// The oracle's update of the model at this iterate (its step measured by a line
+    /// search bounded by half the smallest contact distance).
+    fn update_adaptive_model(
+        &mut self,
+        solver: &mut AdaptiveSolver,
+        x: &[f64],
+        grad: &[f64],
+        rhs: &[f64],
+        (w_inertia, w_potential): (f64, f64),
+        projected: bool,
+    ) -> Result<(), Failure> {
+        let terms = self.weighted_terms(w_inertia, w_potential);
         let it = Iterate {
             hessian: self.hessian.lower(),
             x,
             gradient: grad,
             rhs,
             terms: &terms,
+            projected,
             dt: self.dt,
         };
-        if update {
-            let (inertia, potentials, contact) = (&self.inertia, &self.potentials, &mut self.contact);
-            let free_index = &self.free_index;
-            let mut along = |step: &[f64]| {
-                let objective = |y: &[f64], contact: &Option<super::Contact>| {
-                    let e = super::incremental_potential(inertia, potentials, w_inertia, w_potential, y, None);
-                    e + contact.as_ref().map_or(0.0, |c| c.value(y))
-                };
-                // The oracle's step is only measured, never taken: instead of CCD (a broad
-                // phase over the swept surface), it is bounded so that no vertex moves more
-                // than half the smallest primitive distance, which no pair can close.
-                let largest = step.iter().fold(0.0f64, |m, s| m.abs().max(s.abs()));
-                let mut alpha = match contact.as_ref() {
-                    Some(c) if largest > 0.0 => (0.5 * c.min_distance() / largest).min(1.0),
-                    _ => 1.0,
-                };
-                let e0 = objective(x, contact);
-                let slope: f64 = free_index
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, &f)| f != NOT_FREE)
-                    .map(|(k, _)| grad[k] * step[k])
-                    .sum();
-                for _ in 0..ORACLE_HALVINGS {
-                    let y: Vec<f64> = x.iter().zip(step).map(|(a, s)| a + alpha * s).collect();
-                    let e = objective(&y, contact);
-                    if e.is_finite() && e <= e0 + 1e-4 * alpha * slope.min(0.0) {
-                        return alpha;
-                    }
-                    alpha *= 0.5;
-                }
-                0.0
+        let (inertia, potentials, contact) = (&self.inertia, &self.potentials, &mut self.contact);
+        let free_index = &self.free_index;
+        let mut along = |step: &[f64]| {
+            let objective = |y: &[f64], contact: &Option<super::Contact>| {
+                let e = super::incremental_potential(inertia, potentials, w_inertia, w_potential, y, None);
+                e + contact.as_ref().map_or(0.0, |c| c.value(y))
             };
-            solver.update_model(&it, &mut along).map_err(Failure::Oracle)?;
-        }
-        solver.solve(&it).map_err(Failure::Solve)
+            // The oracle's step is only measured, never taken: instead of CCD (a broad
+            // phase over the swept surface), it is bounded so that no vertex moves more
+            // than half the smallest primitive distance, which no pair can close.
+            let largest = step.iter().fold(0.0f64, |m, s| m.abs().max(s.abs()));
+            let mut alpha = match contact.as_ref() {
+                Some(c) if largest > 0.0 => (0.5 * c.min_distance() / largest).min(1.0),
+                _ => 1.0,
+            };
+            let e0 = objective(x, contact);
+            let slope: f64 = free_index
+                .iter()
+                .enumerate()
+                .filter(|(_, &f)| f != NOT_FREE)
+                .map(|(k, _)| grad[k] * step[k])
+                .sum();
+            for _ in 0..ORACLE_HALVINGS {
+                let y: Vec<f64> = x.iter().zip(step).map(|(a, s)| a + alpha * s).collect();
+                let e = objective(&y, contact);
+                if e.is_finite() && e <= e0 + 1e-4 * alpha * slope.min(0.0) {
+                    return alpha;
+                }
+                alpha *= 0.5;
+            }
+            0.0
+        };
+        solver.update_model(&it, &mut along).map_err(Failure::Oracle)
     }
 }
 

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::adaptive::{ActiveModel, AdaptiveSettings};
+use crate::adaptive::{ActiveModel, AdaptiveSettings, SubspaceHessian};
 use crate::energy::inertia::Inertia;
 use crate::scene::{BuiltScene, Energies, Scene, SolverSpec};
 use crate::solver::incremental_potential;
@@ -194,7 +194,10 @@ fn a_richer_fixed_model_reaches_a_lower_incremental_potential() {
     let e = first_step_potential(&scene);
     let mut energies = Vec::new();
     for enriched in [|_: &[f64]| false, |p: &[f64]| p[0] > 1.5, |_: &[f64]| true] {
-        let mut built = adaptive(|s| s.adapt = false);
+        let mut built = adaptive(|s| {
+            s.adapt = false;
+            s.subspace_hessian = SubspaceHessian::Exact;
+        });
         fix_model(&mut built, enriched);
         let targets = clamp_targets(&built);
         let report = built.simulator.step(&targets).unwrap();
@@ -211,6 +214,38 @@ fn a_richer_fixed_model_reaches_a_lower_incremental_potential() {
         energies.push(e(built.simulator.positions()));
     }
     assert!(energies[0] > energies[1] && energies[1] > energies[2], "{energies:?}");
+}
+
+/// The per-subdomain BFGS elastic subspace Hessian changes the path, not the solution: on
+/// a fixed modal model and on a mixed one, each step ends within the Newton tolerance of the
+/// exact subspace Hessian's, with one exact evaluation per step and secant updates after it.
+#[test]
+fn bfgs_subspace_hessians_reach_the_exact_hessians_solution() {
+    let scene = cantilever();
+    let scale = scene.dt * cantilever().build().unwrap().mesh.rest_diagonal();
+    for enriched in [|_: &[f64]| false, |p: &[f64]| p[0] > 1.5] {
+        let run = |hessian: SubspaceHessian| {
+            let mut built = adaptive(|s| {
+                s.adapt = false;
+                s.subspace_hessian = hessian;
+            });
+            fix_model(&mut built, enriched);
+            let targets = clamp_targets(&built);
+            let reports: Vec<_> = (0..4).map(|_| built.simulator.step(&targets).unwrap()).collect();
+            (built.simulator.positions().to_vec(), reports)
+        };
+        let (exact, exact_reports) = run(SubspaceHessian::Exact);
+        let (bfgs, bfgs_reports) = run(SubspaceHessian::Bfgs);
+        let gap = max_abs_diff(&bfgs, &exact) / scale;
+        assert!(gap < 10.0 * scene.newton.tolerance, "{gap} h L apart");
+        for (b, e) in bfgs_reports.iter().zip(&exact_reports) {
+            assert!(b.converged && e.converged);
+            let stats = b.adaptive.as_ref().unwrap().subspace_hessian;
+            assert_eq!(stats.evaluations, 1, "{stats:?}");
+            assert!(stats.updates > 0 && b.iterations > 1, "{stats:?}");
+            assert_eq!(e.adaptive.as_ref().unwrap().subspace_hessian.evaluations, 0);
+        }
+    }
 }
 
 /// Mean and largest vertex distance between two position vectors.
