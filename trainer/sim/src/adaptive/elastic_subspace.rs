@@ -15,14 +15,16 @@
 //! coupling exactly. So the simulator never assembles the elastic Hessian of the approximated
 //! subdomains, the cost that dominates an iterate whose model is mostly modal.
 
+use faer::Mat;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::bfgs::{SecantUpdate, SubdomainHessians};
 use super::oracle::WeightedTerm;
 use super::partition::majority_subdomains;
+use super::vertex_blocks::VertexBlocks;
 use crate::dofs::NOT_FREE;
-use crate::energy::{gather, Local, Want, MAX_DOF};
+use crate::energy::Want;
 
 /// What the per-subdomain approximations did in one time step.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -54,11 +56,12 @@ struct SecantState {
 /// approximations of the others.
 #[derive(Clone, Debug)]
 pub struct ElasticSubspace {
-    dim: usize,
     /// `[term][subdomain]`: the term's stencils in the subdomain, ascending.
     subdomain_stencils: Vec<Vec<Vec<usize>>>,
     /// `[term][stencil]`: the stencil's vertices.
     stencil_vertices: Vec<Vec<Vec<usize>>>,
+    /// Each subdomain's vertex-pair pattern.
+    blocks: Vec<VertexBlocks>,
     exact: Vec<bool>,
     /// Subdomains made exact since the simulator last asked.
     newly_exact: Vec<usize>,
@@ -71,7 +74,7 @@ impl ElasticSubspace {
     /// the subdomains `vertex_subdomain` assigns (`num_subdomains` of them); every subdomain
     /// starts approximated.
     pub fn new(dim: usize, stencils: Vec<Vec<Vec<usize>>>, vertex_subdomain: &[usize], num_subdomains: usize) -> Self {
-        let subdomain_stencils = stencils
+        let subdomain_stencils: Vec<Vec<Vec<usize>>> = stencils
             .iter()
             .map(|term| {
                 let mut by_subdomain = vec![Vec::new(); num_subdomains];
@@ -84,8 +87,15 @@ impl ElasticSubspace {
                 by_subdomain
             })
             .collect();
+        let blocks = (0..num_subdomains)
+            .into_par_iter()
+            .map(|l| {
+                let lists: Vec<Vec<usize>> = subdomain_stencils.iter().map(|t| t[l].clone()).collect();
+                VertexBlocks::new(dim, &lists, &stencils)
+            })
+            .collect();
         ElasticSubspace {
-            dim,
+            blocks,
             subdomain_stencils,
             stencil_vertices: stencils,
             exact: vec![false; num_subdomains],
@@ -179,7 +189,7 @@ impl ElasticSubspace {
         &mut self,
         elastic: &[WeightedTerm<'_>],
         x: &[f64],
-        modes: &DMatrix<f64>,
+        modes: &Mat<f64>,
         free_index: &[usize],
         columns: &[usize],
         coefficients: &[f64],
@@ -221,12 +231,7 @@ impl ElasticSubspace {
             return;
         }
         let state = self.state.as_mut().unwrap_or_else(|| unreachable!("not fresh"));
-        let s = DVector::from_iterator(
-            a,
-            columns
-                .iter()
-                .map(|&c| coefficients[c] - state.coefficients[c]),
-        );
+        let s = DVector::from_iterator(a, columns.iter().map(|&c| coefficients[c] - state.coefficients[c]));
         state.coefficients = coefficients.to_vec();
         for (l, (_, g)) in evaluated.into_iter().enumerate() {
             if self.exact[l] {
@@ -268,73 +273,27 @@ impl ElasticSubspace {
         a: usize,
         want: Want,
     ) -> Vec<(DMatrix<f64>, DVector<f64>)> {
-        let dim = self.dim;
-        let with_hessian = matches!(want, Want::Hessian { .. });
         (0..self.exact.len())
             .into_par_iter()
-            .map_init(
-                || (Local::default(), [0.0; MAX_DOF]),
-                |(out, xl), l| {
-                    let mut h = DMatrix::zeros(a, a);
-                    let mut g = DVector::zeros(a);
-                    if self.exact[l] {
-                        return (h, g);
-                    }
-                    let mut hw = vec![0.0; MAX_DOF * a];
-                    for (term, t) in elastic.iter().enumerate() {
-                        for &s in &self.subdomain_stencils[term][l] {
-                            let n = gather(t.energy, s, x, xl);
-                            t.energy.eval(s, &xl[..n], want, out);
-                            let verts = &self.stencil_vertices[term][s];
-                            let row = |r: usize| {
-                                let k = verts[r / dim] * dim + r % dim;
-                                &rows[k * a..(k + 1) * a]
-                            };
-                            for r in 0..n {
-                                let gr = t.weight * out.grad[r];
-                                for (gj, w) in g.iter_mut().zip(row(r)) {
-                                    *gj += gr * w;
-                                }
-                            }
-                            if !with_hessian {
-                                continue;
-                            }
-                            // (H_e W_e) row by row, then W_eᵀ (H_e W_e).
-                            for r in 0..n {
-                                let out_row = &mut hw[r * a..(r + 1) * a];
-                                out_row.fill(0.0);
-                                for c in 0..n {
-                                    let v = t.weight * out.hess[r * n + c];
-                                    if v != 0.0 {
-                                        for (o, w) in out_row.iter_mut().zip(row(c)) {
-                                            *o += v * w;
-                                        }
-                                    }
-                                }
-                            }
-                            for r in 0..n {
-                                let wr = row(r);
-                                let hr = &hw[r * a..(r + 1) * a];
-                                for (i, &wi) in wr.iter().enumerate() {
-                                    if wi == 0.0 {
-                                        continue;
-                                    }
-                                    for (j, &hj) in hr.iter().enumerate() {
-                                        h[(i, j)] += wi * hj;
-                                    }
-                                }
-                            }
-                        }
-                    }
-                    (h, g)
-                },
-            )
+            .map(|l| {
+                if self.exact[l] {
+                    return (DMatrix::zeros(a, a), DVector::zeros(a));
+                }
+                let stencils: Vec<&[usize]> = self.subdomain_stencils.iter().map(|t| t[l].as_slice()).collect();
+                let (h, g) = self.blocks[l].project(elastic, &stencils, x, rows, a, want);
+                let h = if h.is_empty() {
+                    DMatrix::zeros(a, a)
+                } else {
+                    DMatrix::from_row_slice(a, a, &h)
+                };
+                (h, DVector::from_vec(g))
+            })
             .collect()
     }
 }
 
 /// The `columns` of `modes` row-major over every dof, zero on the prescribed ones.
-fn active_rows(modes: &DMatrix<f64>, free_index: &[usize], columns: &[usize]) -> Vec<f64> {
+fn active_rows(modes: &Mat<f64>, free_index: &[usize], columns: &[usize]) -> Vec<f64> {
     let a = columns.len();
     let mut rows = vec![0.0; modes.nrows() * a];
     for (k, &f) in free_index.iter().enumerate() {

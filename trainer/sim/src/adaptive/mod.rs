@@ -34,6 +34,7 @@ pub mod settings;
 pub mod solve_error;
 pub mod solver;
 pub mod system;
+mod vertex_blocks;
 
 pub use model::ActiveModel;
 pub use settings::{AdaptiveSettings, SubspaceHessian};

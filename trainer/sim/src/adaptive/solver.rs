@@ -271,9 +271,13 @@ impl AdaptiveSolver {
         }
         let clock = Instant::now();
         self.prepare_elastic(it);
-        let unmasked = &self.bases().unmasked;
-        let approximated = self.approximated_part(unmasked);
-        let unmasked = &self.bases().unmasked;
+        self.bases();
+        let unmasked = &self
+            .bases
+            .as_ref()
+            .unwrap_or_else(|| unreachable!("built above"))
+            .unmasked;
+        let approximated = approximated_part(self.elastic.as_ref(), unmasked);
         let mut step = vec![0.0; it.x.len()];
         let mut product = None;
         if !unmasked.is_empty() {
@@ -335,7 +339,7 @@ impl AdaptiveSolver {
         self.bases();
         let bases = self.bases.take().unwrap_or_else(|| unreachable!("built above"));
         let (b, enriched) = (&bases.masked, &bases.enriched);
-        let approximated = self.approximated_part(b);
+        let approximated = approximated_part(self.elastic.as_ref(), b);
         // The oracle's product serves this solve only (a retry with the projected Hessian
         // computes its own).
         let product = self.unmasked_product.take();
@@ -435,13 +439,6 @@ impl AdaptiveSolver {
             it.projected,
         );
         self.elastic_prepared = true;
-    }
-
-    /// `Wᵀ (Σ_l B_l) W` of `basis` (`W` its coefficients) over the approximated subdomains.
-    fn approximated_part(&self, basis: &ModalBasis) -> Option<DMatrix<f64>> {
-        let sum = self.elastic.as_ref()?.approximated_sum(&basis.columns)?;
-        let w = &basis.coefficients;
-        Some(w.transpose() * sum * w)
     }
 
     /// Tells the elastic subspace which vertices are enriched now.
@@ -549,6 +546,14 @@ impl AdaptiveSolver {
         }
         self.bases.as_ref().unwrap_or_else(|| unreachable!("built above"))
     }
+}
+
+/// `Wᵀ (Σ_l B_l) W` of `basis` (`W` its coefficients) over the subdomains `elastic`
+/// approximates, when it approximates any over the basis' columns.
+fn approximated_part(elastic: Option<&ElasticSubspace>, basis: &ModalBasis) -> Option<DMatrix<f64>> {
+    let sum = elastic?.approximated_sum(&basis.columns)?;
+    let w = &basis.coefficients;
+    Some(w.transpose() * sum * w)
 }
 
 /// `H_q⁻¹ r` with `H_q` projected to positive definite (eigenvalues clamped to a small

@@ -5,9 +5,9 @@ use serde::{Deserialize, Serialize};
 
 use super::{Energies, Scene};
 use crate::adaptive::candidates::{Body, CandidateError, CandidateSet, CandidateSpec, LinearModeSettings};
+use crate::adaptive::elastic_subspace::ElasticSubspace;
 use crate::adaptive::oracle::{NodeScales, Oracle};
 use crate::adaptive::partition::Partition;
-use crate::adaptive::elastic_subspace::ElasticSubspace;
 use crate::adaptive::{AdaptiveSettings, AdaptiveSolver, SubspaceHessian};
 use crate::energy::StencilEnergy;
 use crate::error::InputError;
@@ -90,14 +90,7 @@ impl Scene {
         let subdomains = (0..partition.num_subdomains())
             .map(|l| partition.vertices(l).to_vec())
             .collect();
-        let solver = AdaptiveSolver::new(
-            *settings,
-            candidates,
-            oracle,
-            subdomains,
-            fixed,
-            mesh.rest_diagonal(),
-        );
+        let solver = AdaptiveSolver::new(*settings, candidates, oracle, subdomains, fixed, mesh.rest_diagonal());
         Ok(match settings.subspace_hessian {
             SubspaceHessian::Exact => solver,
             SubspaceHessian::Bfgs => {
@@ -107,8 +100,12 @@ impl Scene {
                     .iter()
                     .map(|e| (0..e.len()).map(|s| e.stencil(s).to_vec()).collect())
                     .collect();
-                let subspace =
-                    ElasticSubspace::new(mesh.dim, stencils, partition.vertex_subdomains(), partition.num_subdomains());
+                let subspace = ElasticSubspace::new(
+                    mesh.dim,
+                    stencils,
+                    partition.vertex_subdomains(),
+                    partition.num_subdomains(),
+                );
                 solver.with_elastic_subspace(subspace)
             }
         })

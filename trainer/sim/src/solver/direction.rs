@@ -8,6 +8,7 @@ use super::{HessianMode, Simulator, StepReport, NOT_FREE};
 use crate::adaptive::oracle::WeightedTerm;
 use crate::adaptive::solver::{AdaptiveSolver, Iterate};
 use crate::adaptive::SolveError;
+use crate::energy::inertia::Inertia;
 use crate::energy::StencilEnergy;
 use crate::error::StepError;
 
@@ -99,10 +100,7 @@ impl Simulator {
                 // The assembly asks the model which elastic stencils it evaluates exactly.
                 self.adaptive = Some(solver);
                 self.assemble(x, weights.0, weights.1, true);
-                solver = self
-                    .adaptive
-                    .take()
-                    .unwrap_or_else(|| unreachable!("put back above"));
+                solver = self.adaptive.take().unwrap_or_else(|| unreachable!("put back above"));
                 report.phases.assembly += clock.elapsed().as_secs_f64();
                 report.projected_iterations += 1;
                 self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, true, false)
@@ -136,7 +134,7 @@ impl Simulator {
             self.update_adaptive_model(solver, x, grad, rhs, (w_inertia, w_potential), projected)?;
             self.assemble_newly_exact(solver, x, w_potential, projected);
         }
-        let terms = self.weighted_terms(w_inertia, w_potential);
+        let terms = weighted_terms(&self.inertia, &self.potentials, w_inertia, w_potential);
         let it = Iterate {
             hessian: self.hessian.lower(),
             x,
@@ -147,19 +145,6 @@ impl Simulator {
             dt: self.dt,
         };
         solver.solve(&it).map_err(Failure::Solve)
-    }
-
-    /// The objective's stencil terms with their weights, inertia first.
-    fn weighted_terms(&self, w_inertia: f64, w_potential: f64) -> Vec<WeightedTerm<'_>> {
-        std::iter::once(WeightedTerm {
-            energy: &self.inertia as &dyn StencilEnergy,
-            weight: w_inertia,
-        })
-        .chain(self.potentials.iter().map(|p| WeightedTerm {
-            energy: p.as_ref(),
-            weight: w_potential,
-        }))
-        .collect()
     }
 
     /// The oracle's update of the model at this iterate (its step measured by a line
@@ -173,7 +158,7 @@ impl Simulator {
         (w_inertia, w_potential): (f64, f64),
         projected: bool,
     ) -> Result<(), Failure> {
-        let terms = self.weighted_terms(w_inertia, w_potential);
+        let terms = weighted_terms(&self.inertia, &self.potentials, w_inertia, w_potential);
         let it = Iterate {
             hessian: self.hessian.lower(),
             x,
@@ -217,6 +202,24 @@ impl Simulator {
         };
         solver.update_model(&it, &mut along).map_err(Failure::Oracle)
     }
+}
+
+/// The objective's stencil terms with their weights, inertia first.
+fn weighted_terms<'a>(
+    inertia: &'a Inertia,
+    potentials: &'a [Box<dyn StencilEnergy>],
+    w_inertia: f64,
+    w_potential: f64,
+) -> Vec<WeightedTerm<'a>> {
+    std::iter::once(WeightedTerm {
+        energy: inertia as &dyn StencilEnergy,
+        weight: w_inertia,
+    })
+    .chain(potentials.iter().map(|p| WeightedTerm {
+        energy: p.as_ref(),
+        weight: w_potential,
+    }))
+    .collect()
 }
 
 /// Why the adaptive model gave no direction.

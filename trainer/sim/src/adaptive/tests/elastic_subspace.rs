@@ -1,6 +1,7 @@
 //! The per-subdomain elastic subspace Hessian: exact evaluations against a dense projection
 //! of the assembled Hessian, the exact/approximated split, and the secant updates.
 
+use faer::Mat;
 use nalgebra::{DMatrix, DVector};
 
 use super::fixtures::{beam, random_matrix, random_vector, rng};
@@ -17,7 +18,7 @@ struct Case {
     partition: Partition,
     free_index: Vec<usize>,
     /// Candidate columns over every dof.
-    modes: DMatrix<f64>,
+    modes: Mat<f64>,
     rest: Vec<f64>,
 }
 
@@ -46,7 +47,10 @@ fn case() -> Case {
     let mut rng = rng(3);
     Case {
         partition: Partition::new(&mesh, 5).unwrap(),
-        modes: random_matrix(mesh.rest.len(), 7, &mut rng) * 0.1,
+        modes: {
+            let m = random_matrix(mesh.rest.len(), 7, &mut rng);
+            Mat::from_fn(m.nrows(), m.ncols(), |r, c| 0.1 * m[(r, c)])
+        },
         elastic,
         free_index,
         rest: mesh.rest.clone(),
@@ -119,7 +123,15 @@ fn an_exact_evaluation_is_the_projection_of_the_assembled_hessian() {
         weight,
     }];
     let coefficients = vec![0.0; case.modes.ncols()];
-    subspace.prepare(&terms, &x, &case.modes, &case.free_index, &columns, &coefficients, false);
+    subspace.prepare(
+        &terms,
+        &x,
+        &case.modes,
+        &case.free_index,
+        &columns,
+        &coefficients,
+        false,
+    );
     let all: Vec<usize> = (0..case.elastic.len()).collect();
     let (h, _) = case.dense(&all, &x);
     let w = case.basis(&columns);
@@ -132,7 +144,9 @@ fn an_exact_evaluation_is_the_projection_of_the_assembled_hessian() {
 
     // Enriching a vertex makes exact every subdomain with a stencil touching it: those
     // stencils leave the approximated sum, and are listed for the simulator.
-    let far = (0..case.rest.len() / 3).max_by(|&a, &b| case.rest[3 * a].total_cmp(&case.rest[3 * b])).unwrap();
+    let far = (0..case.rest.len() / 3)
+        .max_by(|&a, &b| case.rest[3 * a].total_cmp(&case.rest[3 * b]))
+        .unwrap();
     let mut enriched = vec![false; case.rest.len() / 3];
     enriched[far] = true;
     subspace.set_enriched(&enriched);
@@ -167,7 +181,15 @@ fn each_later_iterate_updates_the_approximations_by_its_secant_pair() {
     }];
     let x0 = case.deformed(2);
     let mut coefficients = vec![0.0; case.modes.ncols()];
-    subspace.prepare(&terms, &x0, &case.modes, &case.free_index, &columns, &coefficients, false);
+    subspace.prepare(
+        &terms,
+        &x0,
+        &case.modes,
+        &case.free_index,
+        &columns,
+        &coefficients,
+        false,
+    );
     let before = subspace.approximated_sum(&columns).unwrap();
     // A modal step of the active columns (the others' coefficients must not matter).
     let s = DVector::from_vec(vec![0.02, -0.01, 0.015, 0.01, -0.02]);
@@ -177,28 +199,39 @@ fn each_later_iterate_updates_the_approximations_by_its_secant_pair() {
     coefficients[0] = 5.0;
     let w = case.basis(&columns);
     let x1: Vec<f64> = (DVector::from_column_slice(&x0) + &w * &s).as_slice().to_vec();
-    subspace.prepare(&terms, &x1, &case.modes, &case.free_index, &columns, &coefficients, false);
+    subspace.prepare(
+        &terms,
+        &x1,
+        &case.modes,
+        &case.free_index,
+        &columns,
+        &coefficients,
+        false,
+    );
     let stats = subspace.stats();
     assert_eq!(stats.evaluations, 1, "no new exact evaluation");
-    assert_eq!(
-        stats.updates + stats.skipped,
-        case.partition.num_subdomains(),
-        "{stats:?}"
-    );
-    assert!(stats.updates > 0, "{stats:?}");
+    // A small step from a mildly bent state: every subdomain's curvature is positive.
+    assert_eq!(stats.updates, case.partition.num_subdomains(), "{stats:?}");
+    assert_eq!(stats.skipped, 0, "{stats:?}");
     let after = subspace.approximated_sum(&columns).unwrap();
     assert!(relative(&after, &before) > 1e-8, "the update changed nothing");
-    if stats.skipped == 0 {
-        // Every subdomain's secant condition holds, so their sum's does.
-        let all: Vec<usize> = (0..case.elastic.len()).collect();
-        let (_, g0) = case.dense(&all, &x0);
-        let (_, g1) = case.dense(&all, &x1);
-        let y = w.transpose() * (g1 - g0) * weight;
-        let hs = &after * &s;
-        assert!((&hs - &y).norm() < 1e-9 * y.norm(), "{} vs {}", hs, y);
-    }
+    // Every subdomain's secant condition holds, so their sum's does.
+    let all: Vec<usize> = (0..case.elastic.len()).collect();
+    let (_, g0) = case.dense(&all, &x0);
+    let (_, g1) = case.dense(&all, &x1);
+    let y = w.transpose() * (g1 - g0) * weight;
+    let hs = &after * &s;
+    assert!((&hs - &y).norm() < 1e-9 * y.norm(), "{hs} vs {y}");
     // Another projection or other columns start again from exact values.
-    subspace.prepare(&terms, &x1, &case.modes, &case.free_index, &columns, &coefficients, true);
+    subspace.prepare(
+        &terms,
+        &x1,
+        &case.modes,
+        &case.free_index,
+        &columns,
+        &coefficients,
+        true,
+    );
     assert_eq!(subspace.stats().evaluations, 2);
     assert!(subspace.is_current(&columns, true));
     subspace.begin_step();
