@@ -89,7 +89,8 @@ impl Simulator {
             .take()
             .unwrap_or_else(|| unreachable!("checked by the caller"));
         let negative_gradient = rhs.to_vec();
-        let found = self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, !exact_first, true);
+        let objective = Some(report.objective);
+        let found = self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, !exact_first, objective);
         let found = match found {
             Err(Failure::Solve(
                 SolveError::NotPositiveDefinite(_)
@@ -103,7 +104,7 @@ impl Simulator {
                 solver = self.adaptive.take().unwrap_or_else(|| unreachable!("put back above"));
                 report.phases.assembly += clock.elapsed().as_secs_f64();
                 report.projected_iterations += 1;
-                self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, true, false)
+                self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, true, None)
             }
             other => other,
         };
@@ -116,9 +117,9 @@ impl Simulator {
         Ok(())
     }
 
-    /// Updates the model when `update` says so, then solves its system with the assembled
-    /// Hessian (per-stencil PSD projections when `projected`), to which the elastic
-    /// Hessians of the subdomains the update made exact are added first.
+    /// Updates the model when given the objective at `x` (`update`), then solves its system
+    /// with the assembled Hessian (per-stencil PSD projections when `projected`), to which
+    /// the elastic Hessians of the subdomains the update made exact are added first.
     #[allow(clippy::too_many_arguments)]
     fn adaptive_solve(
         &mut self,
@@ -128,10 +129,11 @@ impl Simulator {
         rhs: &[f64],
         (w_inertia, w_potential): (f64, f64),
         projected: bool,
-        update: bool,
+        update: Option<f64>,
     ) -> Result<Vec<f64>, Failure> {
-        if update {
-            self.update_adaptive_model(solver, x, grad, rhs, (w_inertia, w_potential), projected)?;
+        if let Some(objective) = update {
+            let weights = (w_inertia, w_potential);
+            self.update_adaptive_model(solver, x, objective, grad, rhs, weights, projected)?;
             self.assemble_newly_exact(solver, x, w_potential, projected);
         }
         let terms = weighted_terms(&self.inertia, &self.potentials, w_inertia, w_potential);
@@ -147,12 +149,15 @@ impl Simulator {
         solver.solve(&it).map_err(Failure::Solve)
     }
 
-    /// The oracle's update of the model at this iterate (its step measured by a line
-    /// search bounded by half the smallest contact distance).
+    /// The oracle's update of the model at this iterate `x`, where the objective is
+    /// `objective` (its step measured by a line search bounded by half the smallest contact
+    /// distance).
+    #[allow(clippy::too_many_arguments)]
     fn update_adaptive_model(
         &mut self,
         solver: &mut AdaptiveSolver,
         x: &[f64],
+        objective: f64,
         grad: &[f64],
         rhs: &[f64],
         (w_inertia, w_potential): (f64, f64),
@@ -171,7 +176,7 @@ impl Simulator {
         let (inertia, potentials, contact) = (&self.inertia, &self.potentials, &mut self.contact);
         let free_index = &self.free_index;
         let mut along = |step: &[f64]| {
-            let objective = |y: &[f64], contact: &Option<super::Contact>| {
+            let objective_at = |y: &[f64], contact: &Option<super::Contact>| {
                 let e = super::incremental_potential(inertia, potentials, w_inertia, w_potential, y, None);
                 e + contact.as_ref().map_or(0.0, |c| c.value(y))
             };
@@ -183,7 +188,7 @@ impl Simulator {
                 Some(c) if largest > 0.0 => (0.5 * c.min_distance() / largest).min(1.0),
                 _ => 1.0,
             };
-            let e0 = objective(x, contact);
+            let e0 = objective;
             let slope: f64 = free_index
                 .iter()
                 .enumerate()
@@ -192,7 +197,7 @@ impl Simulator {
                 .sum();
             for _ in 0..ORACLE_HALVINGS {
                 let y: Vec<f64> = x.iter().zip(step).map(|(a, s)| a + alpha * s).collect();
-                let e = objective(&y, contact);
+                let e = objective_at(&y, contact);
                 if e.is_finite() && e <= e0 + 1e-4 * alpha * slope.min(0.0) {
                     return alpha;
                 }
