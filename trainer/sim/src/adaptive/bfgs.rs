@@ -1,12 +1,11 @@
 //! Per-subdomain BFGS approximations of the elastic subspace Hessian.
 //!
-//! Within a time step the elastic part of the unmasked subspace Hessian `U^T ∇²Ψ U` is
-//! the sum over the fixed element subdomains `l` of dense `a x a` matrices, each kept as a
+//! Within a time step the elastic part of the unmasked subspace Hessian `Wᵀ ∇²Ψ W` is the
+//! sum over the fixed element subdomains `l` of dense `a x a` matrices, each kept as a
 //! running BFGS approximation: initialised from an exact evaluation, then updated at every
-//! Newton iteration by the secant pair `s = q_k - q_{k-1}`,
-//! `y = U^T S_l (∇Ψ(x_k) - ∇Ψ(x_{k-1}))` (`S_l` the subdomain's weighted selection,
-//! [`super::partition::SubdomainSelection`]). The direct (not inverse) update is kept: the
-//! subspace Hessian is small and factorised anyway.
+//! Newton iteration by the secant pair `s = q_k - q_{k-1}`, `y = Wᵀ (∇Ψ_l(x_k) -
+//! ∇Ψ_l(x_{k-1}))` ([`super::elastic_subspace`] computes both). The direct (not inverse)
+//! update is kept: the subspace Hessian is small and factorised anyway.
 //!
 //! A subdomain holding an enriched vertex is invalidated: its contribution is then
 //! evaluated exactly by the caller, since a BFGS block and exactly integrated coupling
@@ -16,8 +15,6 @@
 //! and counted, which keeps every approximation symmetric positive definite.
 
 use nalgebra::{DMatrix, DVector};
-
-use super::partition::SubdomainSelection;
 
 /// Default relative curvature below which an update is skipped.
 pub const DEFAULT_CURVATURE_FLOOR: f64 = 1e-8;
@@ -114,26 +111,6 @@ impl Bfgs {
         self.applied += 1;
         SecantUpdate::Applied
     }
-}
-
-/// The subspace secant difference of subdomain `l`: `U^T S_l g` with `U` the dense
-/// `dn x a` basis and `g = ∇Ψ(x_k) - ∇Ψ(x_{k-1})` (`dim` entries per vertex).
-///
-/// # Panics
-/// If `g` does not have `U.nrows()` entries or the selection names a vertex beyond them.
-pub fn subspace_secant(u: &DMatrix<f64>, selection: &SubdomainSelection, g: &[f64], dim: usize) -> DVector<f64> {
-    assert_eq!(g.len(), u.nrows(), "gradient difference must match the basis rows");
-    let mut y = DVector::zeros(u.ncols());
-    for (&v, &w) in selection.vertices.iter().zip(&selection.weights) {
-        for i in 0..dim {
-            let r = v * dim + i;
-            let gw = w * g[r];
-            if gw != 0.0 {
-                y.axpy(gw, &u.row(r).transpose(), 1.0);
-            }
-        }
-    }
-    y
 }
 
 /// The elastic subspace Hessians of all subdomains: a BFGS approximation for each valid

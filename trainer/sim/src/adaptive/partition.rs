@@ -1,10 +1,8 @@
 //! The fixed decomposition of a body's mesh into `P` subdomains, computed once per mesh.
 //!
 //! It serves two purposes of the adaptive solver: nodal enrichment adds whole vertex groups
-//! (a vertex's subdomain), and the subspace Hessian is integrated per element subdomain,
-//! each with its own BFGS approximation (`Partition::selection`, the selection `S_l` of the
-//! per-subdomain secant equation: a subdomain's vertices, those shared with other
-//! subdomains weighted by one over the number of subdomains sharing them).
+//! (a vertex's subdomain), and the elastic subspace Hessian is integrated per element
+//! subdomain, each with its own BFGS approximation ([`super::elastic_subspace`]).
 //!
 //! The vertices are split by METIS's multilevel k-way partitioner on the mesh's nodal graph
 //! (two vertices adjacent when an element joins them), asking for contiguous parts when
@@ -67,15 +65,6 @@ pub enum PartitionError {
     EmptySubdomain(usize),
 }
 
-/// The vertices one element subdomain touches and their weights in `S_l`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SubdomainSelection {
-    /// Vertices of the subdomain's elements (and its isolated vertices), ascending.
-    pub vertices: Vec<usize>,
-    /// Per vertex, one over the number of subdomains whose selection holds it.
-    pub weights: Vec<f64>,
-}
-
 /// A fixed decomposition of a mesh into subdomains.
 #[derive(Clone, Debug)]
 pub struct Partition {
@@ -83,7 +72,6 @@ pub struct Partition {
     element_subdomain: Vec<usize>,
     vertices: Vec<Vec<usize>>,
     elements: Vec<Vec<usize>>,
-    selections: Vec<SubdomainSelection>,
 }
 
 impl Partition {
@@ -101,12 +89,12 @@ impl Partition {
             }
         }
         let vertex_subdomain = metis_vertex_parts(n, &elements, parts)?;
-        Ok(Partition::from_vertex_parts(n, &elements, parts, vertex_subdomain))
+        Ok(Partition::from_vertex_parts(&elements, parts, vertex_subdomain))
     }
 
     /// The decomposition given by each vertex's subdomain (`< parts`), with elements
     /// assigned by majority; every subdomain must hold a vertex.
-    fn from_vertex_parts(n: usize, elements: &[Vec<usize>], parts: usize, vertex_subdomain: Vec<usize>) -> Partition {
+    fn from_vertex_parts(elements: &[Vec<usize>], parts: usize, vertex_subdomain: Vec<usize>) -> Partition {
         let mut vertices = vec![Vec::new(); parts];
         for (v, &p) in vertex_subdomain.iter().enumerate() {
             vertices[p].push(v);
@@ -116,39 +104,11 @@ impl Partition {
         for (e, &p) in element_subdomain.iter().enumerate() {
             element_members[p].push(e);
         }
-        // Which subdomains' selections hold each vertex: those of its elements, or its own
-        // subdomain for a vertex no element touches.
-        let mut holders: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for (verts, &p) in elements.iter().zip(&element_subdomain) {
-            for &v in verts {
-                if !holders[v].contains(&p) {
-                    holders[v].push(p);
-                }
-            }
-        }
-        let mut selections = vec![
-            SubdomainSelection {
-                vertices: Vec::new(),
-                weights: Vec::new(),
-            };
-            parts
-        ];
-        for (v, held) in holders.iter_mut().enumerate() {
-            if held.is_empty() {
-                held.push(vertex_subdomain[v]);
-            }
-            let w = 1.0 / held.len() as f64;
-            for &p in held.iter() {
-                selections[p].vertices.push(v);
-                selections[p].weights.push(w);
-            }
-        }
         Partition {
             vertex_subdomain,
             element_subdomain,
             vertices,
             elements: element_members,
-            selections,
         }
     }
 
@@ -175,12 +135,6 @@ impl Partition {
     /// Elements whose subdomain is `l`, ascending.
     pub fn elements(&self, l: usize) -> &[usize] {
         &self.elements[l]
-    }
-
-    /// The selection `S_l` of element subdomain `l`: the vertices its elements touch, with
-    /// weights that sum to one over all subdomains for every vertex.
-    pub fn selection(&self, l: usize) -> &SubdomainSelection {
-        &self.selections[l]
     }
 }
 

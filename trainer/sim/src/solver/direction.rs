@@ -90,7 +90,15 @@ impl Simulator {
             .unwrap_or_else(|| unreachable!("checked by the caller"));
         let negative_gradient = rhs.to_vec();
         let objective = Some(report.objective);
-        let found = self.adaptive_solve(&mut solver, x, grad, &negative_gradient, weights, !exact_first, objective);
+        let found = self.adaptive_solve(
+            &mut solver,
+            x,
+            grad,
+            &negative_gradient,
+            weights,
+            !exact_first,
+            objective,
+        );
         let found = match found {
             Err(Failure::Solve(
                 SolveError::NotPositiveDefinite(_)

@@ -1,11 +1,10 @@
 //! BFGS: the secant condition, positive definiteness, recovery of a quadratic's Hessian,
-//! skipped updates, the per-subdomain holder and the subspace secant difference.
+//! skipped updates and the per-subdomain holder.
 
 use nalgebra::{DMatrix, DVector};
 
-use super::fixtures::{beam, random_matrix, random_spd, random_vector, rng};
-use crate::adaptive::bfgs::{subspace_secant, Bfgs, SecantUpdate, SubdomainHessians, DEFAULT_CURVATURE_FLOOR};
-use crate::adaptive::partition::Partition;
+use super::fixtures::{random_spd, random_vector, rng};
+use crate::adaptive::bfgs::{Bfgs, SecantUpdate, SubdomainHessians, DEFAULT_CURVATURE_FLOOR};
 
 fn relative_difference(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
     (a - b).norm() / b.norm()
@@ -148,35 +147,4 @@ fn the_holder_sums_valid_subdomains_and_leaves_invalid_ones_alone() {
     hessians.reinitialize(1, exact[1].clone());
     assert!(hessians.is_valid(1));
     assert!(relative_difference(&hessians.valid_sum(), &(&updated + &exact[1] + &exact[2])) < 1e-14);
-}
-
-#[test]
-fn subdomain_secant_differences_sum_to_the_whole_projection() {
-    let mesh = beam([8, 2, 2]);
-    let partition = Partition::new(&mesh, 4).expect("partition");
-    let mut rng = rng(7);
-    let dn = mesh.rest.len();
-    let u = random_matrix(dn, 5, &mut rng);
-    let g = random_vector(dn, &mut rng);
-    let whole = u.transpose() * DVector::from_column_slice(&g);
-    let mut sum = DVector::zeros(5);
-    for l in 0..partition.num_subdomains() {
-        let y = subspace_secant(&u, partition.selection(l), &g, 3);
-        // Only the subdomain's vertices contribute.
-        let mut masked = vec![0.0; dn];
-        for (&v, &w) in partition
-            .selection(l)
-            .vertices
-            .iter()
-            .zip(&partition.selection(l).weights)
-        {
-            for i in 0..3 {
-                masked[3 * v + i] = w * g[3 * v + i];
-            }
-        }
-        let want = u.transpose() * DVector::from_vec(masked);
-        assert!((&y - &want).norm() < 1e-12 * want.norm());
-        sum += y;
-    }
-    assert!((&sum - &whole).norm() < 1e-12 * whole.norm());
 }

@@ -81,47 +81,22 @@ fn check_partition(mesh: &Mesh, parts: usize) -> Partition {
         );
     }
 
-    let mut weight_sum = vec![0.0; n];
-    let mut holders = vec![0usize; n];
-    for l in 0..parts {
-        let selection = partition.selection(l);
-        assert_eq!(selection.vertices.len(), selection.weights.len());
+    // Every element belongs to the subdomain holding most of its vertices.
+    for (e, verts) in elements.iter().enumerate() {
+        let l = partition.element_subdomains()[e];
+        let count = |p: usize| verts.iter().filter(|&&v| partition.vertex_subdomains()[v] == p).count();
         assert!(
-            selection.vertices.windows(2).all(|w| w[0] < w[1]),
-            "ascending, no repeats"
+            verts
+                .iter()
+                .all(|&v| count(partition.vertex_subdomains()[v]) <= count(l)),
+            "element {e}"
         );
-        let touched: std::collections::BTreeSet<usize> = partition
-            .elements(l)
-            .iter()
-            .flat_map(|&e| elements[e].iter().copied())
-            .collect();
-        assert_eq!(selection.vertices, touched.into_iter().collect::<Vec<_>>());
-        for (&v, &w) in selection.vertices.iter().zip(&selection.weights) {
-            weight_sum[v] += w;
-            holders[v] += 1;
-        }
-    }
-    for v in 0..n {
-        assert!(
-            (weight_sum[v] - 1.0).abs() < 1e-12,
-            "vertex {v}: weights sum to {}",
-            weight_sum[v]
-        );
-    }
-    for l in 0..parts {
-        let selection = partition.selection(l);
-        for (&v, &w) in selection.vertices.iter().zip(&selection.weights) {
-            assert_eq!(w, 1.0 / holders[v] as f64);
-        }
-    }
-    if parts > 1 {
-        assert!(holders.iter().any(|&h| h > 1), "subdomains share interface vertices");
     }
     partition
 }
 
 #[test]
-fn beam_partition_is_complete_balanced_connected_and_weighted() {
+fn beam_partition_is_complete_balanced_and_connected() {
     let mesh = beam([16, 4, 4]);
     for parts in [2, 5, 8] {
         check_partition(&mesh, parts);
@@ -129,7 +104,7 @@ fn beam_partition_is_complete_balanced_connected_and_weighted() {
 }
 
 #[test]
-fn cloth_partition_is_complete_balanced_connected_and_weighted() {
+fn cloth_partition_is_complete_balanced_and_connected() {
     let mesh = cloth_grid([2.0, 1.0], [21, 11], [0.0; 3], ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0])).expect("cloth");
     check_partition(&mesh, 6);
 }
@@ -142,7 +117,7 @@ fn partition_is_reproducible_and_one_part_takes_everything() {
     assert_eq!(a.vertex_subdomains(), b.vertex_subdomains());
     assert_eq!(a.element_subdomains(), b.element_subdomains());
     let one = check_partition(&mesh, 1);
-    assert!(one.selection(0).weights.iter().all(|&w| w == 1.0));
+    assert!(one.vertex_subdomains().iter().all(|&l| l == 0));
 }
 
 #[test]
@@ -204,19 +179,11 @@ fn bad_part_counts_and_vertex_indices_are_errors() {
 }
 
 #[test]
-fn isolated_vertices_are_selected_by_their_own_subdomain() {
+fn isolated_vertices_get_a_subdomain() {
     let mut mesh = beam([4, 1, 1]);
     mesh.rest.extend_from_slice(&[9.0, 9.0, 9.0]);
     let partition = Partition::new(&mesh, 3).expect("partition");
     let v = mesh.num_vertices() - 1;
     let l = partition.vertex_subdomains()[v];
-    let selection = partition.selection(l);
-    let k = selection
-        .vertices
-        .binary_search(&v)
-        .expect("selected by its own subdomain");
-    assert_eq!(selection.weights[k], 1.0);
-    for other in (0..3).filter(|&o| o != l) {
-        assert!(partition.selection(other).vertices.binary_search(&v).is_err());
-    }
+    assert!(partition.vertices(l).contains(&v));
 }
