@@ -19,6 +19,7 @@ use std::path::Path;
 use mochi_sim::adaptive::{LinearSolverTimings, SubspaceHessian};
 use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::SpeedPlan;
+use mochi_sim::measure::mean_and_max_error;
 use mochi_sim::solver::StepReport;
 use mochi_sim::{AdaptiveSettings, Scene, SolverSpec};
 
@@ -142,16 +143,6 @@ fn max(v: &[f64]) -> f64 {
     v.iter().fold(0.0f64, |m, &x| m.max(x))
 }
 
-/// Mean vertex distance between two position vectors of `dim` coordinates per vertex.
-fn mean_distance(a: &[f64], b: &[f64], dim: usize) -> f64 {
-    let d: Vec<f64> = a
-        .chunks_exact(dim)
-        .zip(b.chunks_exact(dim))
-        .map(|(p, q)| p.iter().zip(q).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt())
-        .collect();
-    mean(&d)
-}
-
 /// Runs `scene` (its solver adaptive) and its full-space twin over `frames` frames of the
 /// sequence `mochi bench sim` uses, and compares them; `log` gets one line per 10% done.
 ///
@@ -217,7 +208,7 @@ pub fn compare(
         .iter()
         .zip(&reference.positions)
         .skip(1)
-        .map(|(a, b)| mean_distance(a, b, dim) / diagonal)
+        .map(|(a, b)| mean_and_max_error(a.as_slice(), b, dim, diagonal).0)
         .collect();
     let stats: Vec<_> = reports.iter().filter_map(|r| r.adaptive.clone()).collect();
     let share: Vec<f64> = stats

@@ -43,8 +43,6 @@ pub struct SubspaceHessianStats {
 struct SecantState {
     /// The candidate columns the matrices are over.
     columns: Vec<usize>,
-    /// Whether they started from per-stencil PSD-projected Hessians.
-    projected: bool,
     hessians: SubdomainHessians,
     /// `Wᵀ ∇Ψ_l` of every subdomain at the last iterate (zero for exact ones).
     gradients: Vec<DVector<f64>>,
@@ -180,9 +178,11 @@ impl ElasticSubspace {
     }
 
     /// Brings the approximations to the iterate `x`: exact evaluations when there are none
-    /// yet, or they are over other columns or another projection; the secant update by the
-    /// modal displacement since the last iterate (`coefficients`, the step's so far)
-    /// otherwise. `elastic` are the elastic terms with their weights, `modes` the candidate
+    /// yet or they are over other columns, the secant update by the modal displacement since
+    /// the last iterate (`coefficients`, the step's so far) otherwise. The evaluations
+    /// project every stencil Hessian to positive semi-definite, so each approximation starts
+    /// positive semi-definite and stays so (the paper's guarantee), whether or not the
+    /// simulator assembles the exact subdomains from projected Hessians. `elastic` are the elastic terms with their weights, `modes` the candidate
     /// columns over every dof, `free_index` maps a dof to its free index or `NOT_FREE`.
     #[allow(clippy::too_many_arguments)]
     pub fn prepare(
@@ -193,16 +193,12 @@ impl ElasticSubspace {
         free_index: &[usize],
         columns: &[usize],
         coefficients: &[f64],
-        projected: bool,
     ) {
         let rows = active_rows(modes, free_index, columns);
         let a = columns.len();
-        let fresh = self
-            .state
-            .as_ref()
-            .is_none_or(|s| s.columns != columns || s.projected != projected);
+        let fresh = self.state.as_ref().is_none_or(|s| s.columns != columns);
         let want = if fresh {
-            Want::Hessian { project: projected }
+            Want::Hessian { project: true }
         } else {
             Want::Gradient
         };
@@ -222,7 +218,6 @@ impl ElasticSubspace {
             }
             self.state = Some(SecantState {
                 columns: columns.to_vec(),
-                projected,
                 hessians,
                 gradients,
                 coefficients: coefficients.to_vec(),
@@ -247,11 +242,9 @@ impl ElasticSubspace {
         }
     }
 
-    /// Whether the approximations are over `columns` and the given projection.
-    pub fn is_current(&self, columns: &[usize], projected: bool) -> bool {
-        self.state
-            .as_ref()
-            .is_some_and(|s| s.columns == columns && s.projected == projected)
+    /// Whether the approximations are over `columns`.
+    pub fn is_current(&self, columns: &[usize]) -> bool {
+        self.state.as_ref().is_some_and(|s| s.columns == columns)
     }
 
     /// The sum of the approximated subdomains' matrices over `columns`, if the

@@ -49,8 +49,6 @@ pub struct Iterate<'a> {
     /// The objective's stencil terms with their weights (the oracle's progress): inertia
     /// first, then the potentials, the body's elastic terms first among them.
     pub terms: &'a [WeightedTerm<'a>],
-    /// Whether the Hessian was assembled from per-stencil PSD projections.
-    pub projected: bool,
     /// Time step of the oracle's scales.
     pub dt: f64,
 }
@@ -419,13 +417,13 @@ impl AdaptiveSolver {
     }
 
     /// Brings the elastic subspace approximations to the iterate, once per iterate and
-    /// again when the active columns or the Hessian's projection changed.
+    /// again when the active columns changed.
     fn prepare_elastic(&mut self, it: &Iterate<'_>) {
         let columns = self.model().columns(&self.candidates);
         let Some(e) = &mut self.elastic else {
             return;
         };
-        if self.elastic_prepared && e.is_current(&columns, it.projected) {
+        if self.elastic_prepared && e.is_current(&columns) {
             return;
         }
         let terms = it.terms.get(1..1 + e.num_terms()).unwrap_or(&[]);
@@ -436,7 +434,6 @@ impl AdaptiveSolver {
             &self.free_index,
             &columns,
             &self.step_coefficients,
-            it.projected,
         );
         self.elastic_prepared = true;
     }

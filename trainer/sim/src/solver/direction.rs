@@ -141,7 +141,7 @@ impl Simulator {
     ) -> Result<Vec<f64>, Failure> {
         if let Some(objective) = update {
             let weights = (w_inertia, w_potential);
-            self.update_adaptive_model(solver, x, objective, grad, rhs, weights, projected)?;
+            self.update_adaptive_model(solver, x, objective, grad, rhs, weights)?;
             self.assemble_newly_exact(solver, x, w_potential, projected);
         }
         let terms = weighted_terms(&self.inertia, &self.potentials, w_inertia, w_potential);
@@ -151,7 +151,6 @@ impl Simulator {
             gradient: grad,
             rhs,
             terms: &terms,
-            projected,
             dt: self.dt,
         };
         solver.solve(&it).map_err(Failure::Solve)
@@ -169,7 +168,6 @@ impl Simulator {
         grad: &[f64],
         rhs: &[f64],
         (w_inertia, w_potential): (f64, f64),
-        projected: bool,
     ) -> Result<(), Failure> {
         let terms = weighted_terms(&self.inertia, &self.potentials, w_inertia, w_potential);
         let it = Iterate {
@@ -178,7 +176,6 @@ impl Simulator {
             gradient: grad,
             rhs,
             terms: &terms,
-            projected,
             dt: self.dt,
         };
         let (inertia, potentials, contact) = (&self.inertia, &self.potentials, &mut self.contact);

@@ -7,6 +7,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::adaptive::{ActiveModel, AdaptiveSettings, SubspaceHessian};
 use crate::energy::inertia::Inertia;
+use crate::measure::mean_and_max_error;
 use crate::scene::{BuiltScene, Energies, Scene, SolverSpec};
 use crate::solver::incremental_potential;
 
@@ -248,19 +249,6 @@ fn bfgs_subspace_hessians_reach_the_exact_hessians_solution() {
     }
 }
 
-/// Mean and largest vertex distance between two position vectors.
-fn distances(a: &[f64], b: &[f64]) -> (f64, f64) {
-    let d: Vec<f64> = a
-        .chunks_exact(3)
-        .zip(b.chunks_exact(3))
-        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
-        .collect();
-    (
-        d.iter().sum::<f64>() / d.len() as f64,
-        d.iter().fold(0.0f64, |m, &v| m.max(v)),
-    )
-}
-
 #[test]
 fn tightening_the_error_threshold_converges_to_full_space() {
     let scene = cantilever();
@@ -283,8 +271,8 @@ fn tightening_the_error_threshold_converges_to_full_space() {
             assert!(report.converged, "threshold {threshold}: {report:?}");
             enriched = enriched.max(report.adaptive.unwrap().enriched_vertices);
         }
-        let (mean, _) = distances(built.simulator.positions(), &reference);
-        errors.push((threshold, mean / full.mesh.rest_diagonal(), enriched));
+        let (mean, _) = mean_and_max_error(built.simulator.positions(), &reference, 3, full.mesh.rest_diagonal());
+        errors.push((threshold, mean, enriched));
     }
     // Looser thresholds leave the solution further from full space, and enrich less.
     for w in errors.windows(2) {
