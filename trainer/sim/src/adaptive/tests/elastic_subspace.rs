@@ -4,14 +4,12 @@
 use faer::Mat;
 use nalgebra::{DMatrix, DVector};
 
-use super::fixtures::{beam, random_matrix, random_vector, rng};
+use super::fixtures::{random_matrix, random_vector, rubber_beam, rng};
 use crate::adaptive::elastic_subspace::ElasticSubspace;
 use crate::adaptive::oracle::WeightedTerm;
 use crate::adaptive::partition::Partition;
 use crate::dofs::{free_dof_index, NOT_FREE};
 use crate::energy::{self, tet::TetElastic, StencilEnergy};
-use crate::material::{ElementMaterial, MaterialLaw};
-use crate::mesh::Elements;
 
 struct Case {
     elastic: TetElastic,
@@ -25,23 +23,7 @@ struct Case {
 /// A 6 x 2 x 2 rubber beam in 5 subdomains, its vertices at `x = 0` prescribed, and 7
 /// random candidate columns.
 fn case() -> Case {
-    let mesh = beam([6, 2, 2]);
-    let Elements::Tets(tets) = &mesh.elements else {
-        unreachable!("box_tets gives tets")
-    };
-    let material = ElementMaterial {
-        youngs: 1e6,
-        poisson: 0.45,
-        density: 1000.0,
-    };
-    let elastic = TetElastic::new(
-        MaterialLaw::StableNeoHookean,
-        &mesh.rest,
-        tets,
-        &[material],
-        std::path::Path::new("<test beam>"),
-    )
-    .unwrap();
+    let (mesh, elastic) = rubber_beam([6, 2, 2]);
     let fixed: Vec<usize> = (0..mesh.num_vertices()).filter(|&v| mesh.rest[3 * v] == 0.0).collect();
     let (free_index, _) = free_dof_index(3, mesh.rest.len(), &fixed);
     let mut rng = rng(3);

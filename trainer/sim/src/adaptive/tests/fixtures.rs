@@ -117,27 +117,35 @@ pub fn beam(cells: [usize; 3]) -> Mesh {
     box_tets([0.0; 3], [4.0, 1.0, 1.0], cells).expect("valid box")
 }
 
-/// The implicit-Euler Hessian `M / h^2 + ∇²Ψ` (stencil Hessians projected to PSD) of a
-/// rubber beam at a bent, randomly perturbed state, assembled densely from the energy
-/// kernels the solver assembles; with the mesh.
-pub fn tet_hessian(cells: [usize; 3], seed: u64) -> (Mesh, DMatrix<f64>) {
+/// The rubber of the test beams: 1 MPa, Poisson's ratio 0.45, 1000 kg/m³.
+const RUBBER: ElementMaterial = ElementMaterial {
+    youngs: 1e6,
+    poisson: 0.45,
+    density: 1000.0,
+};
+
+/// A rubber [`beam`] and its stable neo-Hookean elasticity.
+pub fn rubber_beam(cells: [usize; 3]) -> (Mesh, TetElastic) {
     let mesh = beam(cells);
     let Elements::Tets(tets) = &mesh.elements else {
         unreachable!("box_tets gives tets")
-    };
-    let material = ElementMaterial {
-        youngs: 1e6,
-        poisson: 0.45,
-        density: 1000.0,
     };
     let elastic = TetElastic::new(
         MaterialLaw::StableNeoHookean,
         &mesh.rest,
         tets,
-        &[material],
+        &[RUBBER],
         Path::new("<test beam>"),
     )
     .expect("valid beam");
+    (mesh, elastic)
+}
+
+/// The implicit-Euler Hessian `M / h^2 + ∇²Ψ` (stencil Hessians projected to PSD) of a
+/// rubber beam at a bent, randomly perturbed state, assembled densely from the energy
+/// kernels the solver assembles; with the mesh.
+pub fn tet_hessian(cells: [usize; 3], seed: u64) -> (Mesh, DMatrix<f64>) {
+    let (mesh, elastic) = rubber_beam(cells);
     let mut rng = rng(seed);
     let x: Vec<f64> = mesh
         .rest
@@ -165,7 +173,7 @@ pub fn tet_hessian(cells: [usize; 3], seed: u64) -> (Mesh, DMatrix<f64>) {
         }
     });
     let dt = 1.0 / 60.0;
-    for (v, m) in lumped_masses(&mesh, &[material.density], 1.0, 1.0).iter().enumerate() {
+    for (v, m) in lumped_masses(&mesh, &[RUBBER.density], 1.0, 1.0).iter().enumerate() {
         for i in 0..3 {
             h[(3 * v + i, 3 * v + i)] += m / (dt * dt);
         }
