@@ -555,27 +555,6 @@ impl Simulator {
         );
         self.hessian.assemble_stencils(terms, x, project);
     }
-
-    /// Adds the elastic Hessians of the subdomains `solver` (taken out of the simulator for
-    /// its solve) made exact since the last assembly.
-    pub(super) fn assemble_newly_exact(
-        &mut self,
-        solver: &mut crate::adaptive::AdaptiveSolver,
-        x: &[f64],
-        w_potential: f64,
-        project: bool,
-    ) {
-        let Some(e) = solver.elastic_subspace_mut() else {
-            return;
-        };
-        let added: Vec<Vec<usize>> = (0..e.num_terms()).map(|t| e.newly_exact_stencils(t)).collect();
-        e.take_newly_exact();
-        for (i, stencils) in added.iter().enumerate().filter(|(_, s)| !s.is_empty()) {
-            let term = self.potentials[i].as_ref();
-            self.hessian
-                .add_stencils(1 + i, term, w_potential, Some(stencils), x, project);
-        }
-    }
 }
 
 /// The incremental potential without contact, `w_inertia * inertia + w_potential *
