@@ -158,13 +158,7 @@ impl Simulator {
 
     /// Adds the elastic Hessians of the subdomains `solver` (taken out of the simulator for
     /// its solve) made exact since the last assembly.
-    fn assemble_newly_exact(
-        &mut self,
-        solver: &mut AdaptiveSolver,
-        x: &[f64],
-        w_potential: f64,
-        project: bool,
-    ) {
+    fn assemble_newly_exact(&mut self, solver: &mut AdaptiveSolver, x: &[f64], w_potential: f64, project: bool) {
         let Some(e) = solver.elastic_subspace_mut() else {
             return;
         };

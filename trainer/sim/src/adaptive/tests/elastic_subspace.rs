@@ -4,7 +4,7 @@
 use faer::Mat;
 use nalgebra::{DMatrix, DVector};
 
-use super::fixtures::{random_matrix, random_vector, rubber_beam, rng};
+use super::fixtures::{random_matrix, random_vector, rng, rubber_beam};
 use crate::adaptive::elastic_subspace::ElasticSubspace;
 use crate::adaptive::oracle::WeightedTerm;
 use crate::adaptive::partition::Partition;
