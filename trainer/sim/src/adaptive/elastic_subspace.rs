@@ -43,6 +43,8 @@ pub struct SubspaceHessianStats {
 struct SecantState {
     /// The candidate columns the matrices are over.
     columns: Vec<usize>,
+    /// Those columns row-major over every dof, zero on the prescribed ones.
+    rows: Vec<f64>,
     hessians: SubdomainHessians,
     /// `Wᵀ ∇Ψ_l` of every subdomain at the last iterate (zero for exact ones).
     gradients: Vec<DVector<f64>>,
@@ -182,8 +184,9 @@ impl ElasticSubspace {
     /// the last iterate (`coefficients`, the step's so far) otherwise. The evaluations
     /// project every stencil Hessian to positive semi-definite, so each approximation starts
     /// positive semi-definite and stays so (the paper's guarantee), whether or not the
-    /// simulator assembles the exact subdomains from projected Hessians. `elastic` are the elastic terms with their weights, `modes` the candidate
-    /// columns over every dof, `free_index` maps a dof to its free index or `NOT_FREE`.
+    /// simulator assembles the exact subdomains from projected Hessians. `elastic` are the
+    /// elastic terms with their weights, `modes` the candidate columns over every dof,
+    /// `free_index` maps a dof to its free index or `NOT_FREE`.
     #[allow(clippy::too_many_arguments)]
     pub fn prepare(
         &mut self,
@@ -194,16 +197,11 @@ impl ElasticSubspace {
         columns: &[usize],
         coefficients: &[f64],
     ) {
-        let rows = active_rows(modes, free_index, columns);
         let a = columns.len();
-        let fresh = self.state.as_ref().is_none_or(|s| s.columns != columns);
-        let want = if fresh {
-            Want::Hessian { project: true }
-        } else {
-            Want::Gradient
-        };
-        let evaluated = self.project_subdomains(elastic, x, &rows, a, want);
-        if fresh {
+        let current = self.state.as_ref().filter(|s| s.columns == columns);
+        let Some(rows) = current.map(|s| &s.rows) else {
+            let rows = active_rows(modes, free_index, columns);
+            let evaluated = self.project_subdomains(elastic, x, &rows, a, Want::Hessian { project: true });
             let mut matrices = Vec::with_capacity(evaluated.len());
             let mut gradients = Vec::with_capacity(evaluated.len());
             for (h, g) in evaluated {
@@ -218,14 +216,16 @@ impl ElasticSubspace {
             }
             self.state = Some(SecantState {
                 columns: columns.to_vec(),
+                rows,
                 hessians,
                 gradients,
                 coefficients: coefficients.to_vec(),
             });
             self.stats.evaluations += 1;
             return;
-        }
-        let state = self.state.as_mut().unwrap_or_else(|| unreachable!("not fresh"));
+        };
+        let evaluated = self.project_subdomains(elastic, x, rows, a, Want::Gradient);
+        let state = self.state.as_mut().unwrap_or_else(|| unreachable!("current above"));
         let s = DVector::from_iterator(a, columns.iter().map(|&c| coefficients[c] - state.coefficients[c]));
         state.coefficients = coefficients.to_vec();
         for (l, (_, g)) in evaluated.into_iter().enumerate() {

@@ -48,14 +48,19 @@ impl ActiveModel {
 
     /// The candidate columns of the active blocks, ascending.
     pub fn columns(&self, candidates: &CandidateSet) -> Vec<usize> {
-        candidates
-            .blocks
-            .iter()
-            .zip(&self.blocks)
-            .filter(|(_, &on)| on)
-            .flat_map(|(b, _)| b.columns.clone())
-            .collect()
+        active_columns(candidates, &self.blocks)
     }
+}
+
+/// The candidate columns of the blocks where `blocks` holds, ascending.
+pub(super) fn active_columns(candidates: &CandidateSet, blocks: &[bool]) -> Vec<usize> {
+    candidates
+        .blocks
+        .iter()
+        .zip(blocks)
+        .filter(|(_, &on)| on)
+        .flat_map(|(b, _)| b.columns.clone())
+        .collect()
 }
 
 /// Orthonormal columns over the free dofs spanning some candidate columns, with the map

@@ -27,7 +27,7 @@ use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
 use super::candidates::{BlockKind, CandidateSet};
 use super::elastic_subspace::{ElasticSubspace, SubspaceHessianStats};
-use super::model::{ActiveModel, EnrichedDofs, ModalBasis};
+use super::model::{active_columns, ActiveModel, EnrichedDofs, ModalBasis};
 use super::oracle::{Oracle, Query, WeightedTerm};
 use super::pcg::PcgSettings;
 use super::settings::AdaptiveSettings;
@@ -419,7 +419,7 @@ impl AdaptiveSolver {
     /// Brings the elastic subspace approximations to the iterate, once per iterate and
     /// again when the active columns changed.
     fn prepare_elastic(&mut self, it: &Iterate<'_>) {
-        let columns = self.model().columns(&self.candidates);
+        let columns = active_columns(&self.candidates, &self.active_blocks);
         let Some(e) = &mut self.elastic else {
             return;
         };
@@ -455,7 +455,7 @@ impl AdaptiveSolver {
             .filter(|&i| enriched[i] && self.free_vertex[i])
             .collect();
         self.stats.enriched_vertices = self.stats.enriched.len();
-        self.stats.active_modes = self.model().columns(&self.candidates).len();
+        self.stats.active_modes = active_columns(&self.candidates, &self.active_blocks).len();
         self.stats.subspace_hessian = self.elastic.as_ref().map(|e| e.stats()).unwrap_or_default();
         if self.settings.adapt && self.settings.downdate > 0.0 {
             self.downdate(x_start, x_end, dt, &enriched);

@@ -140,20 +140,34 @@ impl Simulator {
         update: Option<f64>,
     ) -> Result<Vec<f64>, Failure> {
         if let Some(objective) = update {
-            let weights = (w_inertia, w_potential);
-            self.update_adaptive_model(solver, x, objective, grad, rhs, weights)?;
+            let terms = weighted_terms(&self.inertia, &self.potentials, w_inertia, w_potential);
+            let it = self.adaptive_iterate(x, grad, rhs, &terms);
+            self.update_adaptive_model(solver, &it, objective, (w_inertia, w_potential))?;
+            // The update may have made subdomains exact: their stencils join the Hessian
+            // the solve reads.
             self.assemble_newly_exact(solver, x, w_potential, projected);
         }
         let terms = weighted_terms(&self.inertia, &self.potentials, w_inertia, w_potential);
-        let it = Iterate {
+        let it = self.adaptive_iterate(x, grad, rhs, &terms);
+        solver.solve(&it).map_err(Failure::Solve)
+    }
+
+    /// The iterate at `x` as the adaptive model sees it, with the assembled Hessian.
+    fn adaptive_iterate<'a>(
+        &'a self,
+        x: &'a [f64],
+        gradient: &'a [f64],
+        rhs: &'a [f64],
+        terms: &'a [WeightedTerm<'a>],
+    ) -> Iterate<'a> {
+        Iterate {
             hessian: self.hessian.lower(),
             x,
-            gradient: grad,
+            gradient,
             rhs,
-            terms: &terms,
+            terms,
             dt: self.dt,
-        };
-        solver.solve(&it).map_err(Failure::Solve)
+        }
     }
 
     /// Adds the elastic Hessians of the subdomains `solver` (taken out of the simulator for
@@ -171,29 +185,18 @@ impl Simulator {
         }
     }
 
-    /// The oracle's update of the model at this iterate `x`, where the objective is
+    /// The oracle's update of the model at the iterate `it`, where the objective is
     /// `objective` (its step measured by a line search bounded by half the smallest contact
     /// distance).
-    #[allow(clippy::too_many_arguments)]
     fn update_adaptive_model(
-        &mut self,
+        &self,
         solver: &mut AdaptiveSolver,
-        x: &[f64],
+        it: &Iterate<'_>,
         objective: f64,
-        grad: &[f64],
-        rhs: &[f64],
         (w_inertia, w_potential): (f64, f64),
     ) -> Result<(), Failure> {
-        let terms = weighted_terms(&self.inertia, &self.potentials, w_inertia, w_potential);
-        let it = Iterate {
-            hessian: self.hessian.lower(),
-            x,
-            gradient: grad,
-            rhs,
-            terms: &terms,
-            dt: self.dt,
-        };
-        let (inertia, potentials, contact) = (&self.inertia, &self.potentials, &mut self.contact);
+        let (x, grad) = (it.x, it.gradient);
+        let (inertia, potentials, contact) = (&self.inertia, &self.potentials, &self.contact);
         let free_index = &self.free_index;
         let mut along = |step: &[f64]| {
             let objective_at = |y: &[f64], contact: &Option<super::Contact>| {
@@ -225,7 +228,7 @@ impl Simulator {
             }
             0.0
         };
-        solver.update_model(&it, &mut along).map_err(Failure::Oracle)
+        solver.update_model(it, &mut along).map_err(Failure::Oracle)
     }
 }
 
