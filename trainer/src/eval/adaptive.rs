@@ -39,11 +39,11 @@ pub fn evaluate_adaptive(
     report: &dyn Reporter,
 ) -> TrainerResult<(AdaptiveSettings, Vec<(SequencePlan, AdaptiveMetrics)>)> {
     let settings = match &problem.scene.solver {
-        SolverSpec::Adaptive(s) => *s,
+        SolverSpec::Adaptive(s) => s.clone(),
         SolverSpec::FullSpace => AdaptiveSettings::default(),
     };
     let mut scene = problem.scene.clone();
-    scene.solver = SolverSpec::Adaptive(settings);
+    scene.solver = SolverSpec::Adaptive(settings.clone());
     let mut adaptive = scene.build()?;
     let (dim, diagonal) = (adaptive.mesh.dim, adaptive.mesh.rest_diagonal());
     let mut out = Vec::new();

@@ -1,6 +1,8 @@
 //! The adaptive solver's settings, as a scene's `[solver]` table gives them
 //! (`kind = "adaptive"`).
 
+use std::path::PathBuf;
+
 use serde::{Deserialize, Serialize};
 
 use super::oracle::Thresholds;
@@ -8,7 +10,7 @@ use super::pcg::PcgSettings;
 
 /// Settings of the adaptive subspace solver (Trusty et al.); every field has the default
 /// named in its documentation.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct AdaptiveSettings {
     /// `ε_G` of modal candidates: a block whose error exceeds it may be activated
@@ -32,6 +34,15 @@ pub struct AdaptiveSettings {
     pub linear_modes: usize,
     /// Linear modes active at the start, next to the rigid and affine blocks (default 6).
     pub initial_linear_modes: usize,
+    /// Data modes among the candidates, each its own block: the principal components of
+    /// the displacements in the trajectories of `data_modes_from` (default 0, none).
+    pub data_modes: usize,
+    /// Data modes active at the start (default 0).
+    pub initial_data_modes: usize,
+    /// A directory of trajectories of this body (`mochi dataset` output): its `train-*.npz`
+    /// give the data modes. Relative to the scene file (default none; needed when
+    /// `data_modes > 0`).
+    pub data_modes_from: Option<PathBuf>,
     /// Relative tolerance of the Schur complement's conjugate gradients (default 1e-5, the
     /// paper's).
     pub pcg_tolerance: f64,
@@ -68,6 +79,9 @@ impl Default for AdaptiveSettings {
             subdomain_vertices: 64,
             linear_modes: 20,
             initial_linear_modes: 6,
+            data_modes: 0,
+            initial_data_modes: 0,
+            data_modes_from: None,
             pcg_tolerance: PcgSettings::default().tolerance,
             adapt: true,
             subspace_hessian: SubspaceHessian::Bfgs,
@@ -108,6 +122,24 @@ impl AdaptiveSettings {
                 format!(
                     "{} is more than linear_modes = {}",
                     self.initial_linear_modes, self.linear_modes
+                ),
+            ));
+        }
+        if self.initial_data_modes > self.data_modes {
+            return Some((
+                "initial_data_modes",
+                format!(
+                    "{} is more than data_modes = {}",
+                    self.initial_data_modes, self.data_modes
+                ),
+            ));
+        }
+        if self.data_modes > 0 && self.data_modes_from.is_none() {
+            return Some((
+                "data_modes_from",
+                format!(
+                    "data_modes = {} needs a directory of trajectories to take them from",
+                    self.data_modes
                 ),
             ));
         }

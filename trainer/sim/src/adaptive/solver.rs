@@ -147,6 +147,7 @@ impl AdaptiveSolver {
             .map(|b| match b.kind {
                 BlockKind::Rigid | BlockKind::Affine => true,
                 BlockKind::LinearMode(j) => j < settings.initial_linear_modes,
+                BlockKind::DataMode(j) => j < settings.initial_data_modes,
             })
             .collect();
         let columns = candidates.modes.ncols();

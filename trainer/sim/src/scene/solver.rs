@@ -4,7 +4,9 @@
 use serde::{Deserialize, Serialize};
 
 use super::{Energies, Scene};
-use crate::adaptive::candidates::{Body, CandidateError, CandidateSet, CandidateSpec, LinearModeSettings};
+use std::path::{Path, PathBuf};
+
+use crate::adaptive::candidates::{data_modes, Body, CandidateError, CandidateSet, CandidateSpec, LinearModeSettings};
 use crate::adaptive::elastic_subspace::ElasticSubspace;
 use crate::adaptive::oracle::{NodeScales, Oracle};
 use crate::adaptive::partition::Partition;
@@ -12,6 +14,7 @@ use crate::adaptive::{AdaptiveSettings, AdaptiveSolver, SubspaceHessian};
 use crate::energy::StencilEnergy;
 use crate::error::InputError;
 use crate::mesh::Mesh;
+use crate::trajectory::Trajectory;
 
 /// The solver of a scene (default: full space).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
@@ -55,6 +58,49 @@ impl Scene {
         CandidateSet::new(&body, &elastic, spec)
     }
 
+    /// Every frame of the `train-*.npz` trajectories in `settings.data_modes_from` (relative
+    /// to the scene file), each checked against `mesh`.
+    fn data_mode_frames(&self, settings: &AdaptiveSettings, mesh: &Mesh) -> Result<Vec<Vec<f64>>, InputError> {
+        let Some(dir) = &settings.data_modes_from else {
+            return Ok(Vec::new());
+        };
+        let dir = self.source.parent().unwrap_or(Path::new(".")).join(dir);
+        let field = |message: String| InputError::field(&self.source, "solver.data_modes_from", message);
+        let entries = std::fs::read_dir(&dir).map_err(|e| field(format!("{}: {e}", dir.display())))?;
+        let mut paths: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+                name.starts_with("train-") && name.ends_with(".npz")
+            })
+            .collect();
+        paths.sort();
+        if paths.is_empty() {
+            return Err(field(format!(
+                "{} holds no train-*.npz trajectory (make them with `mochi dataset`)",
+                dir.display()
+            )));
+        }
+        let mut frames = Vec::new();
+        for path in paths {
+            let trajectory = Trajectory::read_npz(&path)?;
+            if trajectory.dim != mesh.dim || trajectory.num_vertices() != mesh.num_vertices() {
+                return Err(InputError::file(
+                    &path,
+                    format!(
+                        "holds {} vertices in {}D; the scene's mesh has {} in {}D",
+                        trajectory.num_vertices(),
+                        trajectory.dim,
+                        mesh.num_vertices(),
+                        mesh.dim
+                    ),
+                ));
+            }
+            frames.extend(trajectory.positions);
+        }
+        Ok(frames)
+    }
+
     /// The adaptive model of the scene's body, with its prescribed vertices `fixed`: the
     /// candidate bases (rigid, affine and the linear modes of the rest shape), the fixed
     /// decomposition into subdomains and the oracle. The whole mesh is one body.
@@ -79,8 +125,17 @@ impl Scene {
             linear_modes: settings.linear_modes,
             settings: LinearModeSettings::default(),
         };
-        let candidates =
+        let mut candidates =
             CandidateSet::new(&body, &elastic, &spec).map_err(|e| error(format!("candidate modes: {e}")))?;
+        if settings.data_modes > 0 {
+            let frames = self.data_mode_frames(settings, mesh)?;
+            let frames: Vec<&[f64]> = frames.iter().map(Vec::as_slice).collect();
+            let modes =
+                data_modes(&body, &frames, settings.data_modes).map_err(|e| error(format!("data modes: {e}")))?;
+            candidates = candidates
+                .with_data_modes(modes)
+                .map_err(|e| error(format!("data modes: {e}")))?;
+        }
         let n = mesh.num_vertices();
         let parts = n.div_ceil(settings.subdomain_vertices).max(1);
         let partition = Partition::new(mesh, parts).map_err(|e| error(format!("subdomains: {e}")))?;
@@ -90,7 +145,14 @@ impl Scene {
         let subdomains = (0..partition.num_subdomains())
             .map(|l| partition.vertices(l).to_vec())
             .collect();
-        let solver = AdaptiveSolver::new(*settings, candidates, oracle, subdomains, fixed, mesh.rest_diagonal());
+        let solver = AdaptiveSolver::new(
+            settings.clone(),
+            candidates,
+            oracle,
+            subdomains,
+            fixed,
+            mesh.rest_diagonal(),
+        );
         Ok(match settings.subspace_hessian {
             SubspaceHessian::Exact => solver,
             SubspaceHessian::Bfgs => {

@@ -6,13 +6,15 @@
 //! - [`body`]: what a body is here (rest shape, lumped masses, prescribed vertices);
 //! - [`rigid`]: rigid and affine modes;
 //! - [`linear_modes`]: the lowest eigenpairs of `K u = lambda M u` at the rest shape;
-//! - [`lanczos`]: the shift-invert block Lanczos eigensolver behind them.
+//! - [`lanczos`]: the shift-invert block Lanczos eigensolver behind them;
+//! - [`data_modes`]: principal components of a dataset's displacements (optional).
 //!
 //! Every mode is a vector over all of the body's dofs, zero on the prescribed ones, and
 //! each block is M-orthonormal (lumped mass). Blocks need not be M-orthogonal to each
 //! other, except that a floating body's linear modes are M-orthogonal to its rigid ones.
 
 pub mod body;
+pub mod data_modes;
 mod error;
 pub mod lanczos;
 pub mod linear_modes;
@@ -21,6 +23,7 @@ pub mod rigid;
 mod tests;
 
 pub use body::Body;
+pub use data_modes::data_modes;
 pub use error::CandidateError;
 pub use lanczos::LanczosSettings;
 pub use linear_modes::{linear_modes, LinearModeSettings, LinearModes};
@@ -40,6 +43,8 @@ pub enum BlockKind {
     Affine,
     /// The linear mode with this index (0 = lowest).
     LinearMode(usize),
+    /// The data mode with this index (0 = largest variance, [`data_modes`]).
+    DataMode(usize),
 }
 
 /// A block of candidate modes: consecutive columns of [`CandidateSet::modes`].
@@ -83,7 +88,7 @@ pub struct CandidateSet {
     /// Every candidate mode as a column (`dim * n` rows, zero on prescribed dofs), block
     /// after block.
     pub modes: Mat<f64>,
-    /// The blocks, in column order: rigid, affine, then the linear modes.
+    /// The blocks, in column order: rigid, affine, the linear modes, then any data modes.
     pub blocks: Vec<Block>,
     /// The linear modes' eigenvalues and residuals (their columns are also in `modes`).
     pub linear: Option<LinearModes>,
@@ -141,6 +146,28 @@ impl CandidateSet {
             blocks,
             linear,
         })
+    }
+
+    /// Appends `modes` (columns over the body's dofs, zero on prescribed ones, such as
+    /// [`data_modes`] makes) as one block each.
+    pub fn with_data_modes(mut self, modes: Mat<f64>) -> Result<Self, CandidateError> {
+        if modes.nrows() != self.modes.nrows() {
+            return Err(CandidateError::InvalidBody(format!(
+                "data modes have {} rows, the candidates {}",
+                modes.nrows(),
+                self.modes.nrows()
+            )));
+        }
+        let at = self.modes.ncols();
+        let mut all = Mat::zeros(self.modes.nrows(), at + modes.ncols());
+        all.as_mut().subcols_mut(0, at).copy_from(self.modes.as_ref());
+        all.as_mut().subcols_mut(at, modes.ncols()).copy_from(modes.as_ref());
+        self.blocks.extend((0..modes.ncols()).map(|j| Block {
+            kind: BlockKind::DataMode(j),
+            columns: at + j..at + j + 1,
+        }));
+        self.modes = all;
+        Ok(self)
     }
 
     /// The columns of block `b`.

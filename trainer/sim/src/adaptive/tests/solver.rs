@@ -341,7 +341,50 @@ fn bad_adaptive_settings_name_their_field() {
     let text = format!("{CANTILEVER}\n[solver]\nkind = \"adaptive\"\nlinear_modes = 2\ninitial_linear_modes = 3\n");
     let err = Scene::parse(&text, Path::new("cantilever.toml")).unwrap_err();
     assert!(err.to_string().contains("solver.initial_linear_modes"), "{err}");
+    let text = format!("{CANTILEVER}\n[solver]\nkind = \"adaptive\"\ndata_modes = 2\n");
+    let err = Scene::parse(&text, Path::new("cantilever.toml")).unwrap_err();
+    assert!(err.to_string().contains("solver.data_modes_from"), "{err}");
     let text = format!("{CANTILEVER}\n[solver]\nkind = \"adaptive\"\nthreshold = 1.0\n");
     let err = Scene::parse(&text, Path::new("cantilever.toml")).unwrap_err();
     assert!(err.to_string().contains("threshold"), "{err}");
+}
+
+#[test]
+fn data_modes_come_from_a_directory_of_trajectories() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = dir.path().join("cantilever.toml");
+    // Full space writes the training trajectory the data modes are taken from.
+    let mut full = Scene::parse(CANTILEVER, &scene_path).unwrap().build().unwrap();
+    let seq = full.sequence(&crate::dataset::SpeedPlan::constant(0.5), 6, 1);
+    let trajectory = full.run(&seq, &crate::progress::Silent).unwrap();
+    std::fs::create_dir(dir.path().join("data")).unwrap();
+    trajectory.write_npz(&dir.path().join("data/train-00.npz")).unwrap();
+
+    let text = format!(
+        "{CANTILEVER}\n[solver]\nkind = \"adaptive\"\nlinear_modes = 2\ninitial_linear_modes = 2\ndata_modes = 3\ninitial_data_modes = 1\ndata_modes_from = \"data\"\n"
+    );
+    let mut built = Scene::parse(&text, &scene_path).unwrap().build().unwrap();
+    let solver = built.simulator.adaptive().unwrap();
+    let data = solver
+        .candidates()
+        .blocks
+        .iter()
+        .filter(|b| matches!(b.kind, crate::adaptive::candidates::BlockKind::DataMode(_)))
+        .count();
+    assert_eq!(data, 3);
+    // The first data mode is the sag the trajectory holds, so it starts active.
+    let targets = clamp_targets(&built);
+    let report = built.simulator.step(&targets).unwrap();
+    assert!(report.converged);
+    assert_eq!(report.adaptive.as_ref().unwrap().active_modes, 12 + 2 + 1);
+
+    let missing = text.replace("\"data\"", "\"nowhere\"");
+    let Err(err) = Scene::parse(&missing, &scene_path).unwrap().build() else {
+        panic!("a missing data directory built");
+    };
+    let err = err.to_string();
+    assert!(
+        err.contains("solver.data_modes_from") && err.contains("nowhere"),
+        "{err}"
+    );
 }
