@@ -106,6 +106,28 @@ enum Command {
         #[arg(long)]
         adaptive: bool,
     },
+    /// Replace a model's decoder by a cheaper one fitted to it (a small MLP before a linear
+    /// basis) on the latents its own rollouts over the scene's training motions visit; the
+    /// integrator is kept, so the latent trajectories do not change.
+    Distill {
+        /// Artifact (`SCENE.mochi`).
+        artifact: PathBuf,
+        /// Output artifact.
+        #[arg(long)]
+        out: PathBuf,
+        /// Columns of the basis (at least the latent size).
+        #[arg(long, default_value_t = 8)]
+        modes: usize,
+        /// Width of the MLP before the basis.
+        #[arg(long, default_value_t = 32)]
+        hidden: usize,
+        /// Residual blocks of that MLP.
+        #[arg(long, default_value_t = 1)]
+        blocks: usize,
+        /// Training epochs over the latents.
+        #[arg(long, default_value_t = 300)]
+        epochs: usize,
+    },
     /// Freeze an artifact into a Rust module of static arrays for the runtime.
     Codegen {
         /// Artifact (`SCENE.mochi`).
@@ -271,6 +293,16 @@ fn run(cli: Cli) -> Result<()> {
             accuracy_frames,
             adaptive,
         } => eval_models(&artifacts, out, frames, accuracy_frames, adaptive),
+        Command::Distill {
+            artifact,
+            out,
+            modes,
+            hidden,
+            blocks,
+            epochs,
+        } => Ok(mochi_trainer::cli::distill::run(
+            &artifact, &out, modes, hidden, blocks, epochs,
+        )?),
         Command::Codegen { artifact, out, weights } => {
             mochi_codegen::generate_file_with(&artifact, &out, &mochi_codegen::Options::weights(weights))?;
             println!(

@@ -1,3 +1,4 @@
-//! Jobs of the `mochi` command that run the whole path: `mochi demo`.
+//! Jobs of the `mochi` command: `mochi demo` (the whole path) and `mochi distill`.
 
 pub mod demo;
+pub mod distill;

@@ -6,6 +6,7 @@
 //! `mochi train` runs them as stages in [`crate::pipeline`].
 
 pub mod datafree;
+pub mod distill;
 pub mod encoding;
 pub(crate) mod integrator;
 pub mod loss;

@@ -8,6 +8,7 @@
 //! ([`reduced`]). Each stage's seconds go into the artifacts' training summary.
 
 pub(crate) mod assemble;
+pub mod distill;
 pub(crate) mod plain_vanilla;
 pub(crate) mod reduced;
 pub(crate) mod selection;

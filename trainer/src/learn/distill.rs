@@ -1,0 +1,244 @@
+//! Decoder distillation: a cheap decoder (a small residual MLP before a linear basis of `m`
+//! modes, [`DecoderShape::Basis`]) fitted to reproduce a trained decoder on the latents its
+//! integrator visits. The integrator is kept as it is, so the model's latent trajectories do
+//! not change; only the decoder's cost does (docs/design.md, decision 6).
+//!
+//! The basis is the PCA of the teacher's outputs on those latents (the `m` modes that hold
+//! most of its variance); the MLP `g` learns the coefficients. With `f(z) = pad(z) + g(z)`
+//! and the basis orthonormal, `|B f(z) + b - y|² = |f(z) - Bᵀ(y - b)|² + |residual of y|²`,
+//! so the fit runs in the `m` coefficients instead of the full output.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use super::network::{Decoder, DecoderShape, FrozenDecoder};
+use super::pca::Pca;
+use super::train::{self, BatchLoss, TrainConfig};
+use crate::error::{TrainerError, TrainerResult};
+
+/// The shape of a distilled decoder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DistillShape {
+    /// Columns of the basis `m` (at least the latent size).
+    pub modes: usize,
+    /// Width of the MLP before the basis.
+    pub hidden: usize,
+    /// Its residual blocks.
+    pub blocks: usize,
+}
+
+/// A distilled decoder and how closely it follows its teacher.
+#[derive(Debug, Clone)]
+pub struct Distilled {
+    /// The decoder.
+    pub decoder: FrozenDecoder,
+    /// Mean loss of every epoch (mean squared coefficient error).
+    pub losses: Vec<f64>,
+    /// RMS over the held-out latents and output values of the teacher's output minus its
+    /// projection onto the basis: what no MLP before this basis can recover.
+    pub basis_rms: f64,
+    /// RMS over the held-out latents and output values of the distilled decoder's output
+    /// minus the teacher's.
+    pub fit_rms: f64,
+}
+
+/// Distils `teacher` into a basis decoder of `shape`, fitted on the latents `train` and
+/// checked on the latents `held_out` (each of the teacher's latent size), with the training
+/// settings `config` (its batch rows are latents with their target coefficients).
+pub fn distill_decoder(
+    teacher: &FrozenDecoder,
+    train: &[Vec<f32>],
+    held_out: &[Vec<f32>],
+    shape: DistillShape,
+    config: &TrainConfig,
+) -> TrainerResult<Distilled> {
+    let k = teacher.latent();
+    if train.is_empty() || held_out.is_empty() {
+        return Err(TrainerError::invalid(
+            "distillation needs training and held-out latents",
+        ));
+    }
+    if let Some(z) = train.iter().chain(held_out).find(|z| z.len() != k) {
+        return Err(TrainerError::invalid(format!(
+            "a latent of {} values for a decoder of latent size {k}",
+            z.len()
+        )));
+    }
+    let outputs = teacher_outputs(teacher, train)?;
+    let pca = Pca::fit(&outputs, shape.modes)?;
+    let decoder_shape = DecoderShape::Basis {
+        modes: shape.modes,
+        hidden: shape.hidden,
+        blocks: shape.blocks,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+    let decoder = Decoder::basis_from_pca(k, decoder_shape, &pca.mean, &pca.basis, &mut rng)?;
+    let Decoder::Basis { mlp: Some(g), .. } = &decoder else {
+        return Err(TrainerError::invalid(
+            "a distilled decoder needs an MLP before its basis (hidden > 0)",
+        ));
+    };
+    // Each row: the latent, then the coefficients `g` must add to `pad(z)`.
+    let rows: Vec<Vec<f32>> = train
+        .iter()
+        .zip(&outputs)
+        .map(|(z, y)| {
+            let c = coefficients(&pca, y);
+            let mut row = z.clone();
+            row.extend(
+                c.iter()
+                    .enumerate()
+                    .map(|(i, &c)| (c - z.get(i).map_or(0.0, |&z| z as f64)) as f32),
+            );
+            row
+        })
+        .collect();
+    let m = shape.modes;
+    let report = train::train(&g.parameters("g"), &rows, config, false, |batch, _| {
+        let z = batch.inputs.narrow(1, 0, k)?;
+        let target = batch.inputs.narrow(1, k, m)?;
+        BatchLoss::new((g.forward(&z)? - target)?.sqr()?.mean_all()?)
+    })?;
+    let frozen = decoder.export()?;
+    let held_outputs = teacher_outputs(teacher, held_out)?;
+    let (mut basis_sum, mut fit_sum, mut count) = (0.0, 0.0, 0usize);
+    for (z, y) in held_out.iter().zip(&held_outputs) {
+        let c = coefficients(&pca, y);
+        let student = frozen.decode::<f64>(&z.iter().map(|&v| v as f64).collect::<Vec<_>>())?;
+        for (j, (&y, &s)) in y.iter().zip(&student).enumerate() {
+            let projected = pca.mean[j] + pca.basis.iter().zip(&c).map(|(b, c)| b[j] * c).sum::<f64>();
+            basis_sum += (y - projected).powi(2);
+            fit_sum += (y - s).powi(2);
+        }
+        count += y.len();
+    }
+    let rms = |sum: f64| (sum / count.max(1) as f64).sqrt();
+    Ok(Distilled {
+        decoder: frozen,
+        losses: report.losses,
+        basis_rms: rms(basis_sum),
+        fit_rms: rms(fit_sum),
+    })
+}
+
+/// The teacher's output (f64) for every latent.
+fn teacher_outputs(teacher: &FrozenDecoder, latents: &[Vec<f32>]) -> TrainerResult<Vec<Vec<f64>>> {
+    latents
+        .iter()
+        .map(|z| {
+            let z: Vec<f64> = z.iter().map(|&v| v as f64).collect();
+            Ok(teacher.decode::<f64>(&z)?)
+        })
+        .collect()
+}
+
+/// `Bᵀ (y - b)` of the PCA basis `B` (orthonormal rows) and mean `b`.
+fn coefficients(pca: &Pca, y: &[f64]) -> Vec<f64> {
+    pca.basis
+        .iter()
+        .map(|b| b.iter().zip(y).zip(&pca.mean).map(|((b, y), m)| b * (y - m)).sum())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::learn::train::AdamWConfig;
+
+    /// A teacher whose outputs lie on a curved 2-D manifold in 12 values.
+    fn teacher() -> FrozenDecoder {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let spec = crate::learn::network::MlpSpec {
+            input: 2,
+            output: 12,
+            hidden: 16,
+            blocks: 1,
+        };
+        let mlp = crate::learn::network::ResMlp::new(spec, &mut rng).unwrap();
+        FrozenDecoder::Mlp(mlp.export().unwrap())
+    }
+
+    fn latents(n: usize, seed: u64) -> Vec<Vec<f32>> {
+        use rand::Rng;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        (0..n)
+            .map(|_| vec![rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)])
+            .collect()
+    }
+
+    fn config(epochs: usize) -> TrainConfig {
+        TrainConfig {
+            name: "distill-test".into(),
+            epochs,
+            batch_size: 32,
+            seed: 1,
+            optimizer: AdamWConfig {
+                lr: 3e-3,
+                ..AdamWConfig::default()
+            },
+            final_lr: Some(1e-4),
+            checkpoint: None,
+            progress: false,
+        }
+    }
+
+    #[test]
+    fn the_distilled_decoder_follows_its_teacher_on_held_out_latents() {
+        let teacher = teacher();
+        let (train, held) = (latents(512, 1), latents(64, 2));
+        let shape = DistillShape {
+            modes: 6,
+            hidden: 16,
+            blocks: 1,
+        };
+        // The spread of the teacher's outputs about their mean: the scale of the errors.
+        let outputs = teacher_outputs(&teacher, &held).unwrap();
+        let n = outputs.len() as f64 * 12.0;
+        let mean: Vec<f64> = (0..12)
+            .map(|j| outputs.iter().map(|y| y[j]).sum::<f64>() * 12.0 / n)
+            .collect();
+        let spread = (outputs
+            .iter()
+            .flat_map(|y| y.iter().zip(&mean).map(|(a, b)| (a - b).powi(2)))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        let untrained = distill_decoder(&teacher, &train, &held, shape, &config(0)).unwrap();
+        let trained = distill_decoder(&teacher, &train, &held, shape, &config(150)).unwrap();
+        assert!(
+            trained.losses.last().unwrap() < &(0.05 * trained.losses[0]),
+            "{:?}",
+            trained.losses
+        );
+        assert!(
+            trained.fit_rms < 0.1 * untrained.fit_rms,
+            "{} vs {}",
+            trained.fit_rms,
+            untrained.fit_rms
+        );
+        assert!(
+            trained.fit_rms < 0.05 * spread,
+            "{} vs spread {spread}",
+            trained.fit_rms
+        );
+        assert!(trained.basis_rms <= trained.fit_rms + 1e-12);
+        assert_eq!(trained.decoder.latent(), 2);
+        assert_eq!(trained.decoder.output(), 12);
+        assert!(trained.decoder.is_basis());
+    }
+
+    #[test]
+    fn latents_of_the_wrong_size_are_refused() {
+        let teacher = teacher();
+        let shape = DistillShape {
+            modes: 4,
+            hidden: 8,
+            blocks: 0,
+        };
+        let err = distill_decoder(&teacher, &[vec![0.0; 3]], &latents(4, 2), shape, &config(1)).unwrap_err();
+        assert!(err.to_string().contains("latent of 3 values"), "{err}");
+        let linear = DistillShape { hidden: 0, ..shape };
+        let err = distill_decoder(&teacher, &latents(8, 1), &latents(4, 2), linear, &config(1)).unwrap_err();
+        assert!(err.to_string().contains("latent"), "{err}");
+    }
+}

@@ -1,0 +1,118 @@
+//! `mochi distill`: a trained model with its decoder replaced by a distilled one
+//! ([`crate::learn::distill`]): the latents come from the model's own rollouts over its
+//! scene's training motions (the states its integrator visits), the integrator is kept.
+
+use crate::artifact::Artifact;
+use crate::error::{TrainerError, TrainerResult};
+use crate::eval::rollout::{rebuild_problem, roll, LoadedModel};
+use crate::learn::distill::{distill_decoder, DistillShape, Distilled};
+use crate::learn::train::{AdamWConfig, TrainConfig};
+use mochi_sim::dataset::{self, Split};
+
+/// Settings of a distillation; every field has the default named in its documentation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DistillOptions {
+    /// The distilled decoder's shape (default: 8 modes after an MLP of width 32, 1 block).
+    pub shape: DistillShape,
+    /// Training epochs over the latents (default 300).
+    pub epochs: usize,
+    /// Learning rate at the first epoch (default 3e-3), decayed by a cosine to ...
+    pub learning_rate: f64,
+    /// ... this at the last (default 1e-5).
+    pub final_learning_rate: f64,
+    /// Latents per minibatch (default 256).
+    pub batch: usize,
+    /// Frames of each rollout (default: the scene's dataset frames).
+    pub frames: Option<usize>,
+    /// Every this many rollout latents, one is held out of the fit to check it (default 10).
+    pub hold_out_every: usize,
+    /// Seed of the initialisation and the shuffling (default 1).
+    pub seed: u64,
+    /// Show progress bars.
+    pub progress: bool,
+}
+
+impl Default for DistillOptions {
+    fn default() -> Self {
+        DistillOptions {
+            shape: DistillShape {
+                modes: 8,
+                hidden: 32,
+                blocks: 1,
+            },
+            epochs: 300,
+            learning_rate: 3e-3,
+            final_learning_rate: 1e-5,
+            batch: 256,
+            frames: None,
+            hold_out_every: 10,
+            seed: 1,
+            progress: false,
+        }
+    }
+}
+
+/// A distilled model and how it was made.
+#[derive(Debug, Clone)]
+pub struct DistillOutcome {
+    /// The model with the distilled decoder.
+    pub artifact: Artifact,
+    /// The fit.
+    pub distilled: Distilled,
+    /// Latents fitted on and held out.
+    pub latents: (usize, usize),
+    /// RMS vertex distance between the distilled and the teacher's decoding on the held-out
+    /// latents, over the rest diagonal.
+    pub fit_error: f64,
+    /// The same for the teacher's decoding projected onto the basis (the basis' share).
+    pub basis_error: f64,
+}
+
+/// Distils the decoder of `artifact` (see the module documentation).
+pub fn distill_artifact(artifact: &Artifact, options: &DistillOptions) -> TrainerResult<DistillOutcome> {
+    if options.hold_out_every < 2 {
+        return Err(TrainerError::invalid("hold_out_every must be at least 2"));
+    }
+    let (problem, encoding) = rebuild_problem(artifact)?;
+    let model = LoadedModel::new(artifact.clone())?;
+    let spec = &problem.scene.dataset;
+    let frames = options.frames.unwrap_or(spec.frames);
+    let (mut train, mut held_out) = (Vec::new(), Vec::new());
+    for plan in dataset::plan(spec).iter().filter(|p| p.split == Split::Train) {
+        let bc = problem.sequence(&plan.speeds, frames, plan.seed);
+        roll(&model, &problem, &encoding, &bc, frames, |t, z, _, _| {
+            if t % options.hold_out_every == 0 {
+                held_out.push(z.to_vec());
+            } else {
+                train.push(z.to_vec());
+            }
+            true
+        })?;
+    }
+    let config = TrainConfig {
+        name: format!("distill-{}", artifact.scene),
+        epochs: options.epochs,
+        batch_size: options.batch,
+        seed: options.seed,
+        optimizer: AdamWConfig {
+            lr: options.learning_rate,
+            ..AdamWConfig::default()
+        },
+        final_lr: Some(options.final_learning_rate),
+        checkpoint: None,
+        progress: options.progress,
+    };
+    let distilled = distill_decoder(&model.decoder, &train, &held_out, options.shape, &config)?;
+    let mut out = artifact.clone();
+    out.decoder = distilled.decoder.layers().into_iter().cloned().collect();
+    out.decoder_basis = true;
+    let per_vertex = (artifact.encoded_len() / artifact.encoding.free_vertices.len().max(1)) as f64;
+    let to_vertex = per_vertex.sqrt() / artifact.diagonal;
+    Ok(DistillOutcome {
+        fit_error: distilled.fit_rms * to_vertex,
+        basis_error: distilled.basis_rms * to_vertex,
+        artifact: out,
+        latents: (train.len(), held_out.len()),
+        distilled,
+    })
+}
