@@ -84,6 +84,34 @@ mod tests {
         }
     }
 
+    /// An input given in parts (an integrator's latents and signals) gives the rows of the
+    /// same input given whole, on the wide kernel where the CPU has one; one longer than the
+    /// gathering buffer falls back to the canonical sum, within rounding of it.
+    #[test]
+    fn an_input_in_parts_gives_the_rows_of_the_whole_input() {
+        for cols in [48, 300] {
+            let case = Case::new(19, cols);
+            let x: Vec<f32> = noise(cols as u32 + 5, cols).collect();
+            let layer = case.layer(WeightFormat::F32);
+            let mut whole = std::vec![0.0; 19];
+            dense_rows(&case.weights(), &layer, &[&x], 0, &mut whole);
+            let cut = [6, 12, 24, 36];
+            let parts: Vec<&[f32]> = [0, cut[0], cut[1], cut[2], cut[3], cols]
+                .windows(2)
+                .map(|w| &x[w[0]..w[1]])
+                .collect();
+            let mut split = std::vec![0.0; 19];
+            dense_rows(&case.weights(), &layer, &parts, 0, &mut split);
+            if cols <= 256 {
+                assert_eq!(split, whole, "{cols} columns");
+            } else {
+                for (a, b) in split.iter().zip(&whole) {
+                    assert!((a - b).abs() <= 1e-4 * (1.0 + b.abs()), "{cols} columns: {a} vs {b}");
+                }
+            }
+        }
+    }
+
     /// A layer that does not fit its pool computes nothing here (no panic, no read past it).
     #[test]
     fn a_layer_outside_its_pool_is_left_to_the_caller() {

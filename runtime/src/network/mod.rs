@@ -77,7 +77,7 @@ pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usi
         WeightFormat::F32 => {
             let done = match parts {
                 [x] => fast::rows(p, layer, x, first, out),
-                _ => 0,
+                _ => joined_rows(p, layer, parts, first, out),
             };
             let (first, out) = (first + done, &mut out[done..]);
             canonical::rows(p, layer, matrix(p, layer), parts, first, out);
@@ -95,6 +95,34 @@ pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usi
         }
         WeightFormat::Int8 => integer::rows(p, layer, matrix(weights.bytes, layer), parts, first, out),
     }
+}
+
+/// Longest input that [`joined_rows`] gathers on the stack.
+#[cfg(target_arch = "x86_64")]
+const JOINED_MAX: usize = 256;
+
+/// The wide `f32` kernel ([`fast::rows`]) for an input given in `parts` (an integrator's
+/// latents and signals), gathered into one stack buffer first; returns the rows written (0
+/// when the input is longer than [`JOINED_MAX`] or the CPU has no wide kernel).
+#[cfg(target_arch = "x86_64")]
+fn joined_rows(p: &[f32], layer: &Layer, parts: &[&[f32]], first: usize, out: &mut [f32]) -> usize {
+    let total: usize = parts.iter().map(|x| x.len()).sum();
+    if total > JOINED_MAX || fast::width() == Width::Canonical {
+        return 0;
+    }
+    let mut joined = [0.0f32; JOINED_MAX];
+    let mut at = 0;
+    for x in parts {
+        joined[at..at + x.len()].copy_from_slice(x);
+        at += x.len();
+    }
+    fast::rows(p, layer, &joined[..total], first, out)
+}
+
+/// Elsewhere no wide `f32` kernel exists: nothing to gather.
+#[cfg(not(target_arch = "x86_64"))]
+fn joined_rows(_: &[f32], _: &Layer, _: &[&[f32]], _: usize, _: &mut [f32]) -> usize {
+    0
 }
 
 /// The last hidden activation `swish(h)` of a network for the input `parts`, written into
