@@ -13,8 +13,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::network::{Decoder, DecoderShape, FrozenDecoder};
 use super::pca::Pca;
-use super::train::{self, BatchLoss, TrainConfig};
-use crate::error::{TrainerError, TrainerResult};
+use super::train::{self, BatchLoss, TrainConfig, TrainError, TrainResult};
 
 /// The shape of a distilled decoder.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,31 +50,31 @@ pub fn distill_decoder(
     held_out: &[Vec<f32>],
     shape: DistillShape,
     config: &TrainConfig,
-) -> TrainerResult<Distilled> {
+) -> TrainResult<Distilled> {
     let k = teacher.latent();
     if train.is_empty() || held_out.is_empty() {
-        return Err(TrainerError::invalid(
-            "distillation needs training and held-out latents",
+        return Err(TrainError::Invalid(
+            "distillation needs training and held-out latents".into(),
         ));
     }
     if let Some(z) = train.iter().chain(held_out).find(|z| z.len() != k) {
-        return Err(TrainerError::invalid(format!(
+        return Err(TrainError::Invalid(format!(
             "a latent of {} values for a decoder of latent size {k}",
             z.len()
         )));
     }
     let outputs = teacher_outputs(teacher, train)?;
-    let pca = Pca::fit(&outputs, shape.modes)?;
+    let pca = Pca::fit(&outputs, shape.modes).map_err(invalid)?;
     let decoder_shape = DecoderShape::Basis {
         modes: shape.modes,
         hidden: shape.hidden,
         blocks: shape.blocks,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
-    let decoder = Decoder::basis_from_pca(k, decoder_shape, &pca.mean, &pca.basis, &mut rng)?;
+    let decoder = Decoder::basis_from_pca(k, decoder_shape, &pca.mean, &pca.basis, &mut rng).map_err(invalid)?;
     let Decoder::Basis { mlp: Some(g), .. } = &decoder else {
-        return Err(TrainerError::invalid(
-            "a distilled decoder needs an MLP before its basis (hidden > 0)",
+        return Err(TrainError::Invalid(
+            "a distilled decoder needs an MLP before its basis (hidden > 0)".into(),
         ));
     };
     // Each row: the latent, then the coefficients `g` must add to `pad(z)`.
@@ -99,12 +98,14 @@ pub fn distill_decoder(
         let target = batch.inputs.narrow(1, k, m)?;
         BatchLoss::new((g.forward(&z)? - target)?.sqr()?.mean_all()?)
     })?;
-    let frozen = decoder.export()?;
+    let frozen = decoder.export().map_err(invalid)?;
     let held_outputs = teacher_outputs(teacher, held_out)?;
     let (mut basis_sum, mut fit_sum, mut count) = (0.0, 0.0, 0usize);
     for (z, y) in held_out.iter().zip(&held_outputs) {
         let c = coefficients(&pca, y);
-        let student = frozen.decode::<f64>(&z.iter().map(|&v| v as f64).collect::<Vec<_>>())?;
+        let student = frozen
+            .decode::<f64>(&z.iter().map(|&v| v as f64).collect::<Vec<_>>())
+            .map_err(invalid)?;
         for (j, (&y, &s)) in y.iter().zip(&student).enumerate() {
             let projected = pca.mean[j] + pca.basis.iter().zip(&c).map(|(b, c)| b[j] * c).sum::<f64>();
             basis_sum += (y - projected).powi(2);
@@ -121,13 +122,18 @@ pub fn distill_decoder(
     })
 }
 
+/// A network or PCA error as the training's own.
+fn invalid(e: impl std::fmt::Display) -> TrainError {
+    TrainError::Invalid(e.to_string())
+}
+
 /// The teacher's output (f64) for every latent.
-fn teacher_outputs(teacher: &FrozenDecoder, latents: &[Vec<f32>]) -> TrainerResult<Vec<Vec<f64>>> {
+fn teacher_outputs(teacher: &FrozenDecoder, latents: &[Vec<f32>]) -> TrainResult<Vec<Vec<f64>>> {
     latents
         .iter()
         .map(|z| {
             let z: Vec<f64> = z.iter().map(|&v| v as f64).collect();
-            Ok(teacher.decode::<f64>(&z)?)
+            teacher.decode::<f64>(&z).map_err(invalid)
         })
         .collect()
 }
