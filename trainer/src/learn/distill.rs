@@ -82,16 +82,16 @@ pub fn distill_decoder(
         .iter()
         .zip(&outputs)
         .map(|(z, y)| {
-            let c = coefficients(&pca, y);
+            let c = pca.project(y).map_err(invalid)?;
             let mut row = z.clone();
             row.extend(
                 c.iter()
                     .enumerate()
                     .map(|(i, &c)| (c - z.get(i).map_or(0.0, |&z| z as f64)) as f32),
             );
-            row
+            Ok(row)
         })
-        .collect();
+        .collect::<TrainResult<_>>()?;
     let m = shape.modes;
     let report = train::train(&g.parameters("g"), &rows, config, false, |batch, _| {
         let z = batch.inputs.narrow(1, 0, k)?;
@@ -102,13 +102,12 @@ pub fn distill_decoder(
     let held_outputs = teacher_outputs(teacher, held_out)?;
     let (mut basis_sum, mut fit_sum, mut count) = (0.0, 0.0, 0usize);
     for (z, y) in held_out.iter().zip(&held_outputs) {
-        let c = coefficients(&pca, y);
+        let projected = pca.project(y).and_then(|c| pca.reconstruct(&c)).map_err(invalid)?;
         let student = frozen
             .decode::<f64>(&z.iter().map(|&v| v as f64).collect::<Vec<_>>())
             .map_err(invalid)?;
-        for (j, (&y, &s)) in y.iter().zip(&student).enumerate() {
-            let projected = pca.mean[j] + pca.basis.iter().zip(&c).map(|(b, c)| b[j] * c).sum::<f64>();
-            basis_sum += (y - projected).powi(2);
+        for ((&y, &p), &s) in y.iter().zip(&projected).zip(&student) {
+            basis_sum += (y - p).powi(2);
             fit_sum += (y - s).powi(2);
         }
         count += y.len();
@@ -135,14 +134,6 @@ fn teacher_outputs(teacher: &FrozenDecoder, latents: &[Vec<f32>]) -> TrainResult
             let z: Vec<f64> = z.iter().map(|&v| v as f64).collect();
             teacher.decode::<f64>(&z).map_err(invalid)
         })
-        .collect()
-}
-
-/// `Bᵀ (y - b)` of the PCA basis `B` (orthonormal rows) and mean `b`.
-fn coefficients(pca: &Pca, y: &[f64]) -> Vec<f64> {
-    pca.basis
-        .iter()
-        .map(|b| b.iter().zip(y).zip(&pca.mean).map(|((b, y), m)| b * (y - m)).sum())
         .collect()
 }
 
