@@ -5,9 +5,10 @@ use core::fmt;
 
 use nalgebra::Vector3;
 
+use crate::decode::{decoder_features, output_rows, put, to_world, walk_chains, Origins};
 use crate::frame::{HandleMotion, Placement};
 use crate::model::{Layer, Model, ModelError, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
-use crate::network::{self, dense_rows, hidden};
+use crate::network::hidden;
 
 /// Latent room of an [`AnyInstance`].
 pub const MAX_LATENT: usize = 64;
@@ -297,8 +298,9 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
             output_rows(&m.weights(), m.decoder, &h, 0, &mut out[..m.encoded_len()]);
             // Free vertex j moves from out[j*d..] to out[v*d..] with v >= j (free vertices
             // ascend): going backwards, no source is overwritten before it is read.
+            let mut origins = Origins::new(&place);
             for (j, (&v, &o)) in m.free_vertices().iter().zip(m.origin_of()).enumerate().rev() {
-                let world = to_world(&place, &out[j * d..j * d + d], o);
+                let world = to_world(&place, &out[j * d..j * d + d], origins.get(o));
                 put(out, v as usize, d, &world);
             }
         }
@@ -319,6 +321,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let h = decoder_features::<H>(m, &self.z[..k]);
         let place = Placement::new(m, &self.signal[..s]);
         let (origins, sources) = (m.origin_of(), m.surface_source());
+        let mut origin_at = Origins::new(&place);
         if m.bends() {
             for (i, &source) in sources.iter().enumerate() {
                 if source & HANDLE_SOURCE != 0 {
@@ -353,7 +356,8 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                 }
                 for k in 0..run {
                     let q = out.get(((i + k) * d)..((i + k + 1) * d)).unwrap_or(&[0.0; 3]);
-                    let world = to_world(&place, q, origins.get(j + k).copied().unwrap_or(0));
+                    let o = origin_at.get(origins.get(j + k).copied().unwrap_or(0));
+                    let world = to_world(&place, q, o);
                     put(out, i + k, d, &world);
                 }
                 i += run;
@@ -373,107 +377,12 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     }
 }
 
-/// Writes the first `d` coordinates of `p` as vertex `v` of `out` (element by element: a
-/// slice copy of 2 or 3 floats would be a call to `memmove`).
-#[inline]
-fn put(out: &mut [f32], v: usize, d: usize, p: &Vector3<f32>) {
-    for c in 0..d {
-        if let Some(o) = out.get_mut(v * d + c) {
-            *o = p[c];
-        }
-    }
-}
-
 /// The last hidden activation of the network `layers` for the input `parts`, with scratch on
 /// the stack (`H` is at least the hidden width: checked by `check_sizes`).
 fn last_hidden<const H: usize>(weights: &Weights, layers: &[Layer], parts: &[&[f32]]) -> [f32; H] {
     let (mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H]);
     hidden(weights, layers, parts, &mut h, [&mut a, &mut b]);
     h
-}
-
-/// What the decoder's last layer reads for the latent `z` ([`network::decoder_features`]),
-/// with scratch on the stack.
-fn decoder_features<const H: usize>(m: &Model, z: &[f32]) -> [f32; H] {
-    let (mut f, mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H], [0.0f32; H]);
-    network::decoder_features(
-        &m.weights(),
-        m.decoder,
-        m.decoder_basis,
-        z,
-        &mut f,
-        [&mut h, &mut a, &mut b],
-    );
-    f
-}
-
-/// Rows `first..first + out.len()` of the output layer of `layers` applied to the last hidden
-/// activation `h` (of which the layer reads its first `cols` values).
-fn output_rows(weights: &Weights, layers: &[Layer], h: &[f32], first: usize, out: &mut [f32]) {
-    if let Some(output) = layers.last() {
-        let x = h.get(..output.cols as usize).unwrap_or(h);
-        dense_rows(weights, output, &[x], first, out);
-    }
-}
-
-/// Encoded vertices whose decoder rows [`BendRows`] computes at once.
-const BEND_BLOCK: usize = 16;
-
-/// The decoder's output rows for bend-encoded vertices, computed for a block of consecutive
-/// free vertices at a time (the strands of a mesh usually list consecutive ones): each row has
-/// the same bits whichever block computes it (see [`crate::network`]).
-struct BendRows<'w, 'l, 'h> {
-    weights: Weights<'w>,
-    layers: &'l [Layer],
-    h: &'h [f32],
-    /// Free vertices of the model.
-    total: usize,
-    /// First free vertex in `rows`, and how many.
-    first: usize,
-    count: usize,
-    rows: [f32; 2 * BEND_BLOCK],
-}
-
-impl BendRows<'_, '_, '_> {
-    /// The two encoded numbers of free vertex `j`.
-    fn get(&mut self, j: usize) -> [f32; 2] {
-        if j < self.first || j >= self.first + self.count {
-            let count = BEND_BLOCK.min(self.total.saturating_sub(j));
-            output_rows(&self.weights, self.layers, self.h, 2 * j, &mut self.rows[..2 * count]);
-            self.first = j;
-            self.count = count;
-        }
-        let at = |i: usize| self.rows.get(i).copied().unwrap_or(0.0);
-        let i = 2 * j.saturating_sub(self.first);
-        [at(i), at(i + 1)]
-    }
-}
-
-/// Walks every bend-encoded strand of `m` from its start in `place`, with the decoder's last
-/// hidden activation `h`, calling `visit(j, position)` for each free vertex `j` in strand order.
-fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: impl FnMut(usize, &[f32; 3])) {
-    let mut rows = BendRows {
-        weights: m.weights(),
-        layers: m.decoder,
-        h,
-        total: m.free_vertices().len(),
-        first: 0,
-        count: 0,
-        rows: [0.0; 2 * BEND_BLOCK],
-    };
-    for chain in m.chains() {
-        let mut walk = place.chain_start(&chain);
-        for (&j, &length) in chain.slots.iter().zip(chain.lengths) {
-            let p = walk.step(rows.get(j as usize), length);
-            visit(j as usize, &p);
-        }
-    }
-}
-
-/// `R q + o` for an encoded vertex (`q` has `dim` numbers).
-fn to_world(place: &Placement, q: &[f32], origin: u32) -> Vector3<f32> {
-    let local = Vector3::new(q[0], q[1], q.get(2).copied().unwrap_or(0.0));
-    place.frame * local + place.origin(origin)
 }
 
 fn check_len(out: &[f32], expected: usize) -> Result<(), DecodeError> {

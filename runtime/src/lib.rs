@@ -23,6 +23,7 @@ extern crate std;
 pub mod artifact;
 #[cfg(feature = "capi")]
 pub mod capi;
+mod decode;
 pub mod envelope;
 mod fields;
 pub mod frame;

@@ -25,9 +25,13 @@
 //! Every row is computed the same way whichever call computes it, so a caller may compute any
 //! subset of a layer's rows ([`dense_rows`]) and get the same bits as a whole-layer call.
 
+pub mod activation;
 pub mod canonical;
 pub mod fast;
 pub mod integer;
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod narrow;
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod x86;
@@ -45,11 +49,8 @@ pub enum Width {
     Canonical,
 }
 
-/// `x * sigmoid(x)`.
-#[inline]
-pub fn swish(x: f32) -> f32 {
-    x / (1.0 + libm::expf(-x))
-}
+pub use activation::swish;
+use activation::swish_all;
 
 /// `b[r] + s[r] * sum` for row `r` of `layer` (`s[r] = 1` unless the layer is int8).
 #[inline(always)]
@@ -139,11 +140,15 @@ pub fn hidden(weights: &Weights, layers: &[Layer], parts: &[&[f32]], h: &mut [f3
     dense_rows(weights, input, parts, 0, h);
     for pair in blocks.chunks_exact(2) {
         dense_rows(weights, &pair[0], &[h], 0, a);
-        a.iter_mut().for_each(|v| *v = swish(*v));
+        swish_all(&pair[0], a);
         dense_rows(weights, &pair[1], &[a], 0, r);
         h.iter_mut().zip(r.iter()).for_each(|(h, r)| *h += r);
     }
-    h.iter_mut().for_each(|v| *v = swish(*v));
+    // `h` sums the outputs of the input layer and of every block's second layer: the vector
+    // activation only where all of them are `f32`.
+    let mut sources = core::iter::once(input).chain(blocks.chunks_exact(2).map(|pair| &pair[1]));
+    let exact = sources.find(|l| l.format != WeightFormat::F32);
+    swish_all(exact.unwrap_or(input), h);
 }
 
 /// What a decoder's last layer reads for the latent `z`, written into `f`: the last hidden

@@ -57,6 +57,13 @@ fn reduce8(s: [__m256; BLOCK]) -> __m256 {
 /// Writes the reduced sums of `n` rows from `r` (bias added) into `out`.
 #[inline(always)]
 fn store_rows(params: &[f32], layer: &Layer, sums: __m256, r: usize, out: &mut [f32]) {
+    let start = layer.bias as usize + r;
+    if let (Some(bias), true) = (params.get(start..start + BLOCK), out.len() == BLOCK) {
+        // `finish` of an `f32` layer (the only kind these kernels run), eight rows at once.
+        // SAFETY: `bias` and `out` hold 8 floats; AVX, as above.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), _mm256_add_ps(_mm256_loadu_ps(bias.as_ptr()), sums)) };
+        return;
+    }
     let mut lanes = [0.0f32; BLOCK];
     // SAFETY: `lanes` holds 8 floats; storing needs only AVX, which every caller has.
     unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), sums) };
@@ -72,6 +79,7 @@ pub(super) fn rows_f32(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], firs
     // every bound from the slices (see their docs).
     unsafe {
         match width() {
+            Width::Avx512 if x.len() <= super::narrow::MAX_COLS => super::narrow::rows(params, layer, w, x, first, out),
             Width::Avx512 => rows_f32_avx512(params, layer, w, x, first, out),
             Width::Avx2 => rows_f32_avx2(params, layer, w, x, first, out),
             Width::Canonical => 0,

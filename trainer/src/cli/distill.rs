@@ -21,8 +21,9 @@ pub fn run(path: &Path, out: &Path, modes: usize, hidden: usize, blocks: usize, 
     let outcome = distill_artifact(&artifact, &options)?;
     outcome.artifact.write(out)?;
     let last = outcome.distilled.losses.last().copied().unwrap_or(f64::NAN);
+    let plural = if blocks == 1 { "" } else { "s" };
     println!(
-        "{} -> {}: decoder of {modes} modes after an MLP of width {hidden} ({blocks} blocks), fitted on {} rollout latents (last loss {last:.3e}); on {} held-out latents the RMS vertex distance to the original decoder is {:.3e} of the diagonal ({:.3e} from the basis alone)",
+        "{} -> {}: decoder of {modes} modes after an MLP of width {hidden} ({blocks} block{plural}), fitted on {} rollout latents (last loss {last:.3e}); on {} held-out latents the RMS vertex distance to the original decoder is {:.3e} of the diagonal ({:.3e} from the basis alone)",
         path.display(),
         out.display(),
         outcome.latents.0,

@@ -1,0 +1,130 @@
+//! From a decoder's output to world positions: the output layer's rows, the world transform
+//! of encoded vertices, and the walk along bend-encoded strands. Shared by
+//! [`crate::instance::Instance`]'s full and surface decodes.
+
+use nalgebra::Vector3;
+
+use crate::frame::Placement;
+use crate::model::{Layer, Model, Weights};
+use crate::network::{self, dense_rows};
+
+/// Writes the first `d` coordinates of `p` as vertex `v` of `out` (element by element: a
+/// slice copy of 2 or 3 floats would be a call to `memmove`).
+#[inline]
+pub(crate) fn put(out: &mut [f32], v: usize, d: usize, p: &Vector3<f32>) {
+    for c in 0..d {
+        if let Some(o) = out.get_mut(v * d + c) {
+            *o = p[c];
+        }
+    }
+}
+
+/// What the decoder's last layer reads for the latent `z` ([`network::decoder_features`]),
+/// with scratch on the stack.
+pub(crate) fn decoder_features<const H: usize>(m: &Model, z: &[f32]) -> [f32; H] {
+    let (mut f, mut h, mut a, mut b) = ([0.0f32; H], [0.0f32; H], [0.0f32; H], [0.0f32; H]);
+    network::decoder_features(
+        &m.weights(),
+        m.decoder,
+        m.decoder_basis,
+        z,
+        &mut f,
+        [&mut h, &mut a, &mut b],
+    );
+    f
+}
+
+/// Rows `first..first + out.len()` of the output layer of `layers` applied to the last hidden
+/// activation `h` (of which the layer reads its first `cols` values).
+pub(crate) fn output_rows(weights: &Weights, layers: &[Layer], h: &[f32], first: usize, out: &mut [f32]) {
+    if let Some(output) = layers.last() {
+        let x = h.get(..output.cols as usize).unwrap_or(h);
+        dense_rows(weights, output, &[x], first, out);
+    }
+}
+
+/// Encoded vertices whose decoder rows [`BendRows`] computes at once.
+const BEND_BLOCK: usize = 16;
+
+/// The decoder's output rows for bend-encoded vertices, computed for a block of consecutive
+/// free vertices at a time (the strands of a mesh usually list consecutive ones): each row has
+/// the same bits whichever block computes it (see [`crate::network`]).
+struct BendRows<'w, 'l, 'h> {
+    weights: Weights<'w>,
+    layers: &'l [Layer],
+    h: &'h [f32],
+    /// Free vertices of the model.
+    total: usize,
+    /// First free vertex in `rows`, and how many.
+    first: usize,
+    count: usize,
+    rows: [f32; 2 * BEND_BLOCK],
+}
+
+impl BendRows<'_, '_, '_> {
+    /// The two encoded numbers of free vertex `j`.
+    fn get(&mut self, j: usize) -> [f32; 2] {
+        if j < self.first || j >= self.first + self.count {
+            let count = BEND_BLOCK.min(self.total.saturating_sub(j));
+            output_rows(&self.weights, self.layers, self.h, 2 * j, &mut self.rows[..2 * count]);
+            self.first = j;
+            self.count = count;
+        }
+        let at = |i: usize| self.rows.get(i).copied().unwrap_or(0.0);
+        let i = 2 * j.saturating_sub(self.first);
+        [at(i), at(i + 1)]
+    }
+}
+
+/// Walks every bend-encoded strand of `m` from its start in `place`, with the decoder's last
+/// hidden activation `h`, calling `visit(j, position)` for each free vertex `j` in strand order.
+pub(crate) fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: impl FnMut(usize, &[f32; 3])) {
+    let mut rows = BendRows {
+        weights: m.weights(),
+        layers: m.decoder,
+        h,
+        total: m.free_vertices().len(),
+        first: 0,
+        count: 0,
+        rows: [0.0; 2 * BEND_BLOCK],
+    };
+    for chain in m.chains() {
+        let mut walk = place.chain_start(&chain);
+        for (&j, &length) in chain.slots.iter().zip(chain.lengths) {
+            let p = walk.step(rows.get(j as usize), length);
+            visit(j as usize, &p);
+        }
+    }
+}
+
+/// `R q + o` for an encoded vertex (`q` has `dim` numbers, `o` its origin).
+#[inline]
+pub(crate) fn to_world(place: &Placement, q: &[f32], o: Vector3<f32>) -> Vector3<f32> {
+    let local = Vector3::new(q[0], q[1], q.get(2).copied().unwrap_or(0.0));
+    place.frame * local + o
+}
+
+/// The origins of encoded vertices ([`Placement::origin`]), the last one kept: consecutive
+/// vertices mostly share an origin, and placing a handle vertex costs a rotation.
+pub(crate) struct Origins<'p, 'm, 'a> {
+    place: &'p Placement<'m, 'a>,
+    last: Option<(u32, Vector3<f32>)>,
+}
+
+impl<'p, 'm, 'a> Origins<'p, 'm, 'a> {
+    pub(crate) fn new(place: &'p Placement<'m, 'a>) -> Self {
+        Origins { place, last: None }
+    }
+
+    #[inline]
+    pub(crate) fn get(&mut self, origin: u32) -> Vector3<f32> {
+        match self.last {
+            Some((at, o)) if at == origin => o,
+            _ => {
+                let o = self.place.origin(origin);
+                self.last = Some((origin, o));
+                o
+            }
+        }
+    }
+}
