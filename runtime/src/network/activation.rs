@@ -48,6 +48,7 @@ mod x86 {
 
     /// `exp(t)` in 16 lanes: `t = n ln 2 + r` with `|r| <= ln 2 / 2` (`ln 2` in two parts), a
     /// degree-6 polynomial for `exp(r)` (Cephes' `expf` coefficients), `2^n` by `vscalefps`.
+    /// (`0.693_359_4` is `355 / 512` exactly, so `n` times it is exact.)
     /// `t` is clamped to `[-104, 89]` first: below, `exp` underflows to zero; above, to
     /// infinity, as the scalar definition does. NaN stays NaN.
     #[target_feature(enable = "avx512f")]
@@ -58,7 +59,7 @@ mod x86 {
             t,
             _mm512_set1_ps(core::f32::consts::LOG2_E),
         ));
-        let r = _mm512_fnmadd_ps(n, _mm512_set1_ps(0.693_359_375), t);
+        let r = _mm512_fnmadd_ps(n, _mm512_set1_ps(0.693_359_4), t);
         let r = _mm512_fnmadd_ps(n, _mm512_set1_ps(-2.121_944_4e-4), r);
         let mut p = _mm512_set1_ps(1.987_569_1e-4);
         for c in [1.398_199_9e-3, 8.333_452e-3, 4.166_579_6e-2, 0.166_666_65, 0.5] {
