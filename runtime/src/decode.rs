@@ -97,23 +97,72 @@ pub(crate) fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: im
     }
 }
 
-/// `R q + o` for an encoded vertex (`q` has `dim` numbers, `o` its origin).
-#[inline]
-pub(crate) fn to_world(place: &Placement, q: &[f32], o: Vector3<f32>) -> Vector3<f32> {
-    let local = Vector3::new(q[0], q[1], q.get(2).copied().unwrap_or(0.0));
-    place.frame * local + o
+/// Turns the local coordinates of a run of encoded vertices decoded into `run` (`d` floats
+/// each) into world positions in place, `origin_of` their origin indices: sixteen at a time
+/// where the CPU has a vector transform and the sixteen share an origin, else one by one.
+pub(crate) fn place_run(d: usize, run: &mut [f32], origin_of: &[u32], origins: &mut Origins) {
+    let mut done = 0;
+    #[cfg(target_arch = "x86_64")]
+    if d == 3 {
+        use crate::world_x86::BLOCK_FLOATS;
+        for (block, of) in run
+            .chunks_exact_mut(BLOCK_FLOATS)
+            .zip(origin_of.chunks_exact(BLOCK_FLOATS / 3))
+        {
+            let Some(block) = <&mut [f32; BLOCK_FLOATS]>::try_from(block).ok() else {
+                break;
+            };
+            if !of.iter().all(|&o| o == of[0]) || !origins.place_block(of[0], block) {
+                break;
+            }
+            done += BLOCK_FLOATS / 3;
+        }
+    }
+    let frame = origins.place.frame;
+    for (q, &o) in run.chunks_exact_mut(d).zip(origin_of).skip(done) {
+        let world = frame * Vector3::new(q[0], q[1], q.get(2).copied().unwrap_or(0.0)) + origins.get(o);
+        q.iter_mut().zip(world.iter()).for_each(|(q, w)| *q = *w);
+    }
 }
 
 /// The origins of encoded vertices ([`Placement::origin`]), the last one kept: consecutive
-/// vertices mostly share an origin, and placing a handle vertex costs a rotation.
+/// vertices mostly share an origin, and placing a handle vertex costs a rotation. On x86-64
+/// also the vector transform for that origin.
 pub(crate) struct Origins<'p, 'm, 'a> {
     place: &'p Placement<'m, 'a>,
     last: Option<(u32, Vector3<f32>)>,
+    #[cfg(target_arch = "x86_64")]
+    blocks: Option<(u32, crate::world_x86::WorldBlocks)>,
 }
 
 impl<'p, 'm, 'a> Origins<'p, 'm, 'a> {
     pub(crate) fn new(place: &'p Placement<'m, 'a>) -> Self {
-        Origins { place, last: None }
+        Origins {
+            place,
+            last: None,
+            #[cfg(target_arch = "x86_64")]
+            blocks: None,
+        }
+    }
+
+    /// Sixteen vertices of origin `origin` placed with the vector transform; `false`, and
+    /// nothing done, where the CPU has none.
+    #[cfg(target_arch = "x86_64")]
+    fn place_block(&mut self, origin: u32, block: &mut [f32; crate::world_x86::BLOCK_FLOATS]) -> bool {
+        if self.blocks.as_ref().is_none_or(|(at, _)| *at != origin) {
+            let o = self.get(origin);
+            match crate::world_x86::WorldBlocks::new(&self.place.frame, &o) {
+                Some(blocks) => self.blocks = Some((origin, blocks)),
+                None => return false,
+            }
+        }
+        match &self.blocks {
+            Some((_, blocks)) => {
+                blocks.apply(block);
+                true
+            }
+            None => false,
+        }
     }
 
     #[inline]

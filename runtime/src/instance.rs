@@ -5,7 +5,7 @@ use core::fmt;
 
 use nalgebra::Vector3;
 
-use crate::decode::{decoder_features, output_rows, put, to_world, walk_chains, Origins};
+use crate::decode::{decoder_features, output_rows, place_run, put, walk_chains, Origins};
 use crate::frame::{HandleMotion, Placement};
 use crate::model::{Layer, Model, ModelError, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::hidden;
@@ -295,13 +295,20 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                 }
             });
         } else {
-            output_rows(&m.weights(), m.decoder, &h, 0, &mut out[..m.encoded_len()]);
-            // Free vertex j moves from out[j*d..] to out[v*d..] with v >= j (free vertices
-            // ascend): going backwards, no source is overwritten before it is read.
+            // Runs of consecutive free vertices: their output rows are contiguous, decoded
+            // straight into place and turned into world positions there.
+            let (free, origin_of) = (m.free_vertices(), m.origin_of());
             let mut origins = Origins::new(&place);
-            for (j, (&v, &o)) in m.free_vertices().iter().zip(m.origin_of()).enumerate().rev() {
-                let world = to_world(&place, &out[j * d..j * d + d], origins.get(o));
-                put(out, v as usize, d, &world);
+            let mut j = 0;
+            while j < free.len() {
+                let v = free[j];
+                let run = free[j..].iter().zip(v..).take_while(|(f, want)| **f == *want).count();
+                let (rows, of) = (j * d..(j + run) * d, origin_of.get(j..j + run).unwrap_or(&[]));
+                if let Some(block) = out.get_mut(v as usize * d..(v as usize + run) * d) {
+                    output_rows(&m.weights(), m.decoder, &h, rows.start, block);
+                    place_run(d, block, of, &mut origins);
+                }
+                j += run;
             }
         }
         for (slot, &v) in m.handle_vertices().iter().enumerate() {
@@ -353,12 +360,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                     .count();
                 if let Some(block) = out.get_mut(i * d..(i + run) * d) {
                     output_rows(&m.weights(), m.decoder, &h, j * d, block);
-                }
-                for k in 0..run {
-                    let q = out.get(((i + k) * d)..((i + k + 1) * d)).unwrap_or(&[0.0; 3]);
-                    let o = origin_at.get(origins.get(j + k).copied().unwrap_or(0));
-                    let world = to_world(&place, q, o);
-                    put(out, i + k, d, &world);
+                    place_run(d, block, origins.get(j..j + run).unwrap_or(&[]), &mut origin_at);
                 }
                 i += run;
             }

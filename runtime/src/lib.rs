@@ -33,6 +33,9 @@ pub mod network;
 #[cfg(feature = "std")]
 pub mod payload;
 mod vertex_lists;
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod world_x86;
 
 #[cfg(feature = "std")]
 pub use artifact::OwnedModel;
