@@ -101,8 +101,13 @@ unsafe fn block_sums<const FULL: bool>(base: *const f32, n: usize, cols: usize, 
             // 8 g + l < cols of a row < n, all inside the block; a load whose mask is zero
             // reads nothing (the pointers are formed with wrapping arithmetic).
             let v = unsafe {
-                let v = _mm512_maskz_loadu_ps(lo, base.wrapping_add(even * cols + 8 * g));
-                _mm512_mask_loadu_ps(v, hi, base.wrapping_add(odd * cols + 8 * g).wrapping_sub(8))
+                if cols == 8 {
+                    // The two rows are adjacent: one load.
+                    _mm512_maskz_loadu_ps(lo | hi, base.wrapping_add(even * 8))
+                } else {
+                    let v = _mm512_maskz_loadu_ps(lo, base.wrapping_add(even * cols + 8 * g));
+                    _mm512_mask_loadu_ps(v, hi, base.wrapping_add(odd * cols + 8 * g).wrapping_sub(8))
+                }
             };
             *a = _mm512_fmadd_ps(v, *xv, *a);
         }
