@@ -101,28 +101,40 @@ pub(crate) fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: im
 /// each) into world positions in place, `origin_of` their origin indices: sixteen at a time
 /// where the CPU has a vector transform and the sixteen share an origin, else one by one.
 pub(crate) fn place_run(d: usize, run: &mut [f32], origin_of: &[u32], origins: &mut Origins) {
-    let mut done = 0;
     #[cfg(target_arch = "x86_64")]
-    if d == 3 {
-        use crate::world_x86::BLOCK_FLOATS;
-        for (block, of) in run
-            .chunks_exact_mut(BLOCK_FLOATS)
-            .zip(origin_of.chunks_exact(BLOCK_FLOATS / 3))
-        {
-            let Some(block) = <&mut [f32; BLOCK_FLOATS]>::try_from(block).ok() else {
-                break;
-            };
-            if !of.iter().all(|&o| o == of[0]) || !origins.place_block(of[0], block) {
-                break;
-            }
-            done += BLOCK_FLOATS / 3;
-        }
-    }
+    let done = if d == 3 {
+        place_blocks(run, origin_of, origins)
+    } else {
+        0
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let done = 0;
     let frame = origins.place.frame;
     for (q, &o) in run.chunks_exact_mut(d).zip(origin_of).skip(done) {
         let world = frame * Vector3::new(q[0], q[1], q.get(2).copied().unwrap_or(0.0)) + origins.get(o);
         q.iter_mut().zip(world.iter()).for_each(|(q, w)| *q = *w);
     }
+}
+
+/// The leading blocks of sixteen 3D vertices of `run` that share an origin, placed with the
+/// vector transform; returns the vertices placed (0 where the CPU has no vector transform).
+#[cfg(target_arch = "x86_64")]
+fn place_blocks(run: &mut [f32], origin_of: &[u32], origins: &mut Origins) -> usize {
+    use crate::world_x86::BLOCK_FLOATS;
+    let mut done = 0;
+    for (block, of) in run
+        .chunks_exact_mut(BLOCK_FLOATS)
+        .zip(origin_of.chunks_exact(BLOCK_FLOATS / 3))
+    {
+        let Some(block) = <&mut [f32; BLOCK_FLOATS]>::try_from(block).ok() else {
+            break;
+        };
+        if !of.iter().all(|&o| o == of[0]) || !origins.place_block(of[0], block) {
+            break;
+        }
+        done += BLOCK_FLOATS / 3;
+    }
+    done
 }
 
 /// The origins of encoded vertices ([`Placement::origin`]), the last one kept: consecutive
