@@ -102,7 +102,7 @@ pub(crate) fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: im
 /// where the CPU has a vector transform and the sixteen share an origin, else one by one.
 pub(crate) fn place_run(d: usize, run: &mut [f32], origin_of: &[u32], origins: &mut Origins) {
     #[cfg(target_arch = "x86_64")]
-    let done = if d == 3 {
+    let done = if d == 3 && origins.vector {
         place_blocks(run, origin_of, origins)
     } else {
         0
@@ -143,15 +143,23 @@ fn place_blocks(run: &mut [f32], origin_of: &[u32], origins: &mut Origins) -> us
 pub(crate) struct Origins<'p, 'm, 'a> {
     place: &'p Placement<'m, 'a>,
     last: Option<(u32, Vector3<f32>)>,
+    /// Whether the vector transform may be used: only behind an `f32` decoder, whose targets
+    /// agree within rounding; `f16` and int8 decoders promise the same bits everywhere, and
+    /// the vector transform rounds differently from the scalar one.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    vector: bool,
     #[cfg(target_arch = "x86_64")]
     blocks: Option<(u32, crate::world_x86::WorldBlocks)>,
 }
 
 impl<'p, 'm, 'a> Origins<'p, 'm, 'a> {
-    pub(crate) fn new(place: &'p Placement<'m, 'a>) -> Self {
+    /// The origins of `place`; `vector` where the decoded coordinates come from an `f32`
+    /// layer.
+    pub(crate) fn new(place: &'p Placement<'m, 'a>, vector: bool) -> Self {
         Origins {
             place,
             last: None,
+            vector,
             #[cfg(target_arch = "x86_64")]
             blocks: None,
         }

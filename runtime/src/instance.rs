@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 
 use crate::decode::{decoder_features, output_rows, place_run, put, walk_chains, Origins};
 use crate::frame::{HandleMotion, Placement};
-use crate::model::{Layer, Model, ModelError, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
+use crate::model::{Layer, Model, ModelError, WeightFormat, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::hidden;
 
 /// Latent room of an [`AnyInstance`].
@@ -298,7 +298,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
             // Runs of consecutive free vertices: their output rows are contiguous, decoded
             // straight into place and turned into world positions there.
             let (free, origin_of) = (m.free_vertices(), m.origin_of());
-            let mut origins = Origins::new(&place);
+            let mut origins = Origins::new(&place, f32_decoder(m));
             let mut j = 0;
             while j < free.len() {
                 let v = free[j];
@@ -328,7 +328,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let h = decoder_features::<H>(m, &self.z[..k]);
         let place = Placement::new(m, &self.signal[..s]);
         let (origins, sources) = (m.origin_of(), m.surface_source());
-        let mut origin_at = Origins::new(&place);
+        let mut origin_at = Origins::new(&place, f32_decoder(m));
         if m.bends() {
             for (i, &source) in sources.iter().enumerate() {
                 if source & HANDLE_SOURCE != 0 {
@@ -377,6 +377,11 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
             }
         }
     }
+}
+
+/// Whether the decoder's output layer is stored in `f32` (see [`Origins`]).
+fn f32_decoder(m: &Model) -> bool {
+    m.decoder.last().is_some_and(|l| l.format == WeightFormat::F32)
 }
 
 /// The last hidden activation of the network `layers` for the input `parts`, with scratch on
