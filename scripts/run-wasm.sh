@@ -4,8 +4,8 @@
 #   scripts/run-wasm.sh [ARTIFACT] [f32|f16|int8]
 # The page offers the model compiled into the module and the artifacts it fetches from its
 # models/ folder: MOCHI_PAGE_MODELS (space-separated .mochi files; default the committed
-# tests/artifacts/beam.mochi and cloth-line.mochi). Models without triangles to draw (rods) are
-# drawn as points.
+# right-sized models tests/artifacts/beam-m8.mochi and cloth-line-m24.mochi). Models without
+# triangles to draw (rods) are drawn as points.
 # Outputs: target/targets/wasm-<name>-<weights>.txt (the node run, the protocol every target
 # prints), target/targets/web/ (the page, ready to serve), target/targets/wasm-page.png and
 # wasm-page-<model>.png (screenshots). Fails when node fails, or when for some model the page's
@@ -17,7 +17,7 @@ artifact="$(realpath "${1:-$repo/tests/artifacts/tiny.mochi}")"
 weights="${2:-f32}"
 name="$(basename "$artifact" .mochi)"
 page_models=()
-for page_model in ${MOCHI_PAGE_MODELS:-$repo/tests/artifacts/beam.mochi $repo/tests/artifacts/cloth-line.mochi}; do
+for page_model in ${MOCHI_PAGE_MODELS:-$repo/tests/artifacts/beam-m8.mochi $repo/tests/artifacts/cloth-line-m24.mochi}; do
   page_models+=("$(realpath "$page_model")")
 done
 for tool in /usr/bin/rustc node chromium python3; do

@@ -6,7 +6,7 @@ use mochi_runtime::WeightFormat;
 fn main() {
     for name in mochi_tests_artifacts() {
         let artifact = format!("artifacts/{name}.mochi");
-        if let Err(e) = build_rs(&artifact, &format!("{name}.rs")) {
+        if let Err(e) = build_rs(&artifact, &format!("{}.rs", name.replace('-', "_"))) {
             panic!("codegen failed: {e}");
         }
     }
@@ -15,6 +15,7 @@ fn main() {
         ("tiny", WeightFormat::F16, "tiny_f16.rs"),
         ("tiny", WeightFormat::Int8, "tiny_int8.rs"),
         ("beam", WeightFormat::Int8, "beam_int8.rs"),
+        ("beam-m8", WeightFormat::Int8, "beam_m8_int8.rs"),
     ] {
         let artifact = format!("artifacts/{artifact}.mochi");
         if let Err(e) = build_rs_with(&artifact, out, &Options::weights(format)) {
@@ -24,6 +25,6 @@ fn main() {
 }
 
 /// The committed artifacts (see `artifacts/README.md`).
-fn mochi_tests_artifacts() -> [&'static str; 3] {
-    ["tiny", "beam", "strands"]
+fn mochi_tests_artifacts() -> [&'static str; 4] {
+    ["tiny", "beam", "strands", "beam-m8"]
 }

@@ -13,6 +13,17 @@ pub mod beam {
     include!(concat!(env!("OUT_DIR"), "/beam.rs"));
 }
 
+/// Generated from `artifacts/beam-m8.mochi` (the right-sized beam: beam's integrator with its
+/// decoder distilled into 8 modes).
+pub mod beam_m8 {
+    include!(concat!(env!("OUT_DIR"), "/beam_m8.rs"));
+}
+
+/// Generated from `artifacts/beam-m8.mochi` with int8 weights (the integrator in `f16`).
+pub mod beam_m8_int8 {
+    include!(concat!(env!("OUT_DIR"), "/beam_m8_int8.rs"));
+}
+
 /// Generated from `artifacts/strands.mochi` (four rods encoded by their bends).
 pub mod strands {
     include!(concat!(env!("OUT_DIR"), "/strands.rs"));

@@ -117,6 +117,22 @@ fn generated_beam_model_agrees_with_the_trainer() {
     );
 }
 
+/// The right-sized beam (a basis decoder of 8 modes, `mochi distill`) generated into code.
+#[test]
+fn generated_right_sized_beam_model_agrees_with_the_trainer() {
+    use mochi_tests::beam_m8;
+    let model = ValidModel::new(beam_m8::MODEL).unwrap();
+    assert!(model.model().decoder_basis, "beam-m8 ends in a linear basis");
+    let worst = worst_disagreement::<{ beam_m8::LATENT }, { beam_m8::SIGNAL }, { beam_m8::HIDDEN }>(
+        Path::new("artifacts/beam-m8.mochi"),
+        &model,
+    );
+    assert!(
+        worst <= TOLERANCE,
+        "generated beam-m8 model is {worst:.2e} diagonals from the trainer"
+    );
+}
+
 #[test]
 fn beam_model_loaded_from_bytes_agrees_with_the_trainer() {
     with_big_stack(|| {

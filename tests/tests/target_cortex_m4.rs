@@ -7,7 +7,7 @@ use std::process::Command;
 
 use mochi_runtime::{Model, ValidModel};
 use mochi_target_common::host;
-use mochi_tests::{beam, beam_int8, tiny, tiny_int8};
+use mochi_tests::{beam, beam_int8, beam_m8, beam_m8_int8, tiny, tiny_int8};
 
 /// Runs the firmware for the artifact `name` with `weights` and checks it against `model`
 /// with an `Instance<K, S, H>`; returns the script's output (sizes and rates).
@@ -61,6 +61,33 @@ fn beam_int8_fits_one_mebibyte_of_flash_and_matches_the_host() {
         "int8",
         beam_int8::MODEL,
     );
+    let (flash, ram) = kibibytes(&output);
+    assert!(flash <= 1024.0 && ram <= 64.0, "{flash} KiB of flash, {ram} KiB of RAM");
+}
+
+/// The right-sized beam (`beam-m8`, int8 decoder) within 512 KiB of flash and 64 KiB of RAM at
+/// 60 frames per second or more on a 168 MHz Cortex-M4 (at most 2.8 M instructions per
+/// frame), bit-identical to the host.
+#[test]
+fn right_sized_beam_runs_at_60_frames_per_second_within_512_kib() {
+    let output = firmware_matches_the_host::<{ beam_m8::LATENT }, { beam_m8::SIGNAL }, { beam_m8::HIDDEN }>(
+        "beam-m8",
+        "int8",
+        beam_m8_int8::MODEL,
+    );
+    let (flash, ram) = kibibytes(&output);
+    assert!(flash <= 512.0 && ram <= 64.0, "{flash} KiB of flash, {ram} KiB of RAM");
+    let report = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/targets/cortex-m4-beam-m8-int8.txt"),
+    )
+    .unwrap();
+    let per_frame = host::parse(&report).unwrap().instructions_per_frame.unwrap();
+    assert!(per_frame <= 2_800_000, "{per_frame} instructions per frame");
+}
+
+/// Flash and RAM in KiB from the script's size line (`flash N B (X KiB of 1024) ... (Y KiB of
+/// 64)`).
+fn kibibytes(output: &str) -> (f64, f64) {
     let line = output.lines().find(|l| l.starts_with("flash ")).expect("a size line");
     let kib = |before: &str| -> f64 {
         let text = line.split(before).next().unwrap_or("");
@@ -72,5 +99,5 @@ fn beam_int8_fits_one_mebibyte_of_flash_and_matches_the_host() {
             .parse()
             .unwrap_or(f64::NAN)
     };
-    assert!(kib("KiB of 1024") <= 1024.0 && kib("KiB of 64") <= 64.0, "{line}");
+    (kib("KiB of 1024"), kib("KiB of 64"))
 }

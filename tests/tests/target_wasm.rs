@@ -1,7 +1,8 @@
 //! The wasm module (`targets/wasm`) built for `wasm32-unknown-unknown` by `scripts/run-wasm.sh`:
 //! run in node, its checksums of the decoded positions equal the host runtime's bit for bit;
 //! its web page, served locally and opened in headless Chromium (`scripts/check-page.py`),
-//! offers the compiled-in tiny model and the fetched beam and cloth-line artifacts, and for
+//! offers the compiled-in tiny model and the fetched right-sized beam and cloth-line
+//! artifacts (`beam-m8`, `cloth-line-m24`), and for
 //! each one chosen in its model list steps frames, moves the surface under the (synthetic)
 //! mouse, draws it with WebGL2 (pixels read back) and shows a time per frame; screenshots are
 //! left behind.
@@ -54,7 +55,7 @@ fn wasm_module_matches_the_host_and_its_page_runs_in_chromium() {
     let models: Vec<String> = pages.iter().map(|l| field(l, "model")).collect();
     assert_eq!(
         models,
-        ["beam", "tiny", "cloth-line"],
+        ["beam-m8", "tiny", "cloth-line-m24"],
         "the models the page showed: {pages:?}"
     );
     for line in &pages {
