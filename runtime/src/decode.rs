@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 
 use crate::frame::Placement;
 use crate::model::{Layer, Model, Weights};
-use crate::network::{self, dense_rows};
+use crate::network::{self, LayerInput};
 
 /// Writes the first `d` coordinates of `p` as vertex `v` of `out` (element by element: a
 /// slice copy of 2 or 3 floats would be a call to `memmove`).
@@ -34,12 +34,28 @@ pub(crate) fn decoder_features<const H: usize>(m: &Model, z: &[f32]) -> [f32; H]
     f
 }
 
-/// Rows `first..first + out.len()` of the output layer of `layers` applied to the last hidden
-/// activation `h` (of which the layer reads its first `cols` values).
-pub(crate) fn output_rows(weights: &Weights, layers: &[Layer], h: &[f32], first: usize, out: &mut [f32]) {
-    if let Some(output) = layers.last() {
-        let x = h.get(..output.cols as usize).unwrap_or(h);
-        dense_rows(weights, output, &[x], first, out);
+/// The output layer of a network applied to its last hidden activation, row range by row
+/// range: the input is prepared once ([`LayerInput`]).
+pub(crate) struct OutputRows<'w, 'l, 'h> {
+    weights: Weights<'w>,
+    output: Option<&'l Layer>,
+    input: LayerInput<'h>,
+}
+
+impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
+    /// The output layer of `layers` on `h` (of which it reads its first `cols` values).
+    pub(crate) fn new(weights: Weights<'w>, layers: &'l [Layer], h: &'h [f32]) -> Self {
+        let output = layers.last();
+        let x = output.and_then(|l| h.get(..l.cols as usize)).unwrap_or(h);
+        let input = LayerInput::new(output.unwrap_or(&Layer::default()), x);
+        OutputRows { weights, output, input }
+    }
+
+    /// Rows `first..first + out.len()`.
+    pub(crate) fn rows(&self, first: usize, out: &mut [f32]) {
+        if let Some(output) = self.output {
+            self.input.rows(&self.weights, output, first, out);
+        }
     }
 }
 
@@ -50,9 +66,7 @@ const BEND_BLOCK: usize = 16;
 /// free vertices at a time (the strands of a mesh usually list consecutive ones): each row has
 /// the same bits whichever block computes it (see [`crate::network`]).
 struct BendRows<'w, 'l, 'h> {
-    weights: Weights<'w>,
-    layers: &'l [Layer],
-    h: &'h [f32],
+    output: OutputRows<'w, 'l, 'h>,
     /// Free vertices of the model.
     total: usize,
     /// First free vertex in `rows`, and how many.
@@ -66,7 +80,7 @@ impl BendRows<'_, '_, '_> {
     fn get(&mut self, j: usize) -> [f32; 2] {
         if j < self.first || j >= self.first + self.count {
             let count = BEND_BLOCK.min(self.total.saturating_sub(j));
-            output_rows(&self.weights, self.layers, self.h, 2 * j, &mut self.rows[..2 * count]);
+            self.output.rows(2 * j, &mut self.rows[..2 * count]);
             self.first = j;
             self.count = count;
         }
@@ -80,9 +94,7 @@ impl BendRows<'_, '_, '_> {
 /// hidden activation `h`, calling `visit(j, position)` for each free vertex `j` in strand order.
 pub(crate) fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: impl FnMut(usize, &[f32; 3])) {
     let mut rows = BendRows {
-        weights: m.weights(),
-        layers: m.decoder,
-        h,
+        output: OutputRows::new(m.weights(), m.decoder, h),
         total: m.free_vertices().len(),
         first: 0,
         count: 0,

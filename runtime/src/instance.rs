@@ -5,7 +5,7 @@ use core::fmt;
 
 use nalgebra::Vector3;
 
-use crate::decode::{decoder_features, output_rows, place_run, put, walk_chains, Origins};
+use crate::decode::{decoder_features, place_run, put, walk_chains, Origins, OutputRows};
 use crate::frame::{HandleMotion, Placement};
 use crate::model::{Layer, Model, ModelError, WeightFormat, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::hidden;
@@ -253,7 +253,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         ];
         let h = last_hidden::<H>(&m.weights(), m.integrator, &parts);
         let mut increment = [0.0f32; K];
-        output_rows(&m.weights(), m.integrator, &h, 0, &mut increment[..k]);
+        OutputRows::new(m.weights(), m.integrator, &h).rows(0, &mut increment[..k]);
         let mut z = self.z;
         z.iter_mut().zip(&increment[..k]).for_each(|(z, dz)| *z += dz);
         let mut status = Stepped::Ok;
@@ -299,13 +299,14 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
             // straight into place and turned into world positions there.
             let (free, origin_of) = (m.free_vertices(), m.origin_of());
             let mut origins = Origins::new(&place, f32_decoder(m));
+            let output = OutputRows::new(m.weights(), m.decoder, &h);
             let mut j = 0;
             while j < free.len() {
                 let v = free[j];
                 let run = free[j..].iter().zip(v..).take_while(|(f, want)| **f == *want).count();
                 let (rows, of) = (j * d..(j + run) * d, origin_of.get(j..j + run).unwrap_or(&[]));
                 if let Some(block) = out.get_mut(v as usize * d..(v as usize + run) * d) {
-                    output_rows(&m.weights(), m.decoder, &h, rows.start, block);
+                    output.rows(rows.start, block);
                     place_run(d, block, of, &mut origins);
                 }
                 j += run;
@@ -329,6 +330,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let place = Placement::new(m, &self.signal[..s]);
         let (origins, sources) = (m.origin_of(), m.surface_source());
         let mut origin_at = Origins::new(&place, f32_decoder(m));
+        let output = OutputRows::new(m.weights(), m.decoder, &h);
         if m.bends() {
             for (i, &source) in sources.iter().enumerate() {
                 if source & HANDLE_SOURCE != 0 {
@@ -359,7 +361,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                     .take_while(|(s, want)| **s == *want)
                     .count();
                 if let Some(block) = out.get_mut(i * d..(i + run) * d) {
-                    output_rows(&m.weights(), m.decoder, &h, j * d, block);
+                    output.rows(j * d, block);
                     place_run(d, block, origins.get(j..j + run).unwrap_or(&[]), &mut origin_at);
                 }
                 i += run;

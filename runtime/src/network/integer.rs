@@ -91,11 +91,17 @@ impl Quantized {
 /// Rows `first..first + out.len()` of the int8 layer `layer` (scales and biases in `params`,
 /// weights `w`) for the input `parts`.
 pub fn rows(params: &[f32], layer: &Layer, w: &[i8], parts: &[&[f32]], first: usize, out: &mut [f32]) {
+    match Quantized::new(parts, layer.cols as usize) {
+        Some(x) => quantized_rows(params, layer, w, &x, first, out),
+        None => out.fill(f32::NAN),
+    }
+}
+
+/// [`rows`] for an input already quantised for this layer (`x` from [`Quantized::new`] with
+/// the layer's column count): a caller that computes a layer's rows in several calls
+/// quantises once.
+pub fn quantized_rows(params: &[f32], layer: &Layer, w: &[i8], x: &Quantized, first: usize, out: &mut [f32]) {
     let cols = layer.cols as usize;
-    let Some(x) = Quantized::new(parts, cols) else {
-        out.fill(f32::NAN);
-        return;
-    };
     for (i, o) in out.iter_mut().enumerate() {
         let r = first + i;
         let acc = w.get(r * cols..(r + 1) * cols).map_or(0, |row| x.dot(row));

@@ -98,6 +98,37 @@ pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usi
     }
 }
 
+/// The input of one layer prepared once for many [`LayerInput::rows`] calls (a decode computes
+/// the output layer's rows run by run): an int8 layer's quantisation is done once.
+pub struct LayerInput<'x> {
+    x: &'x [f32],
+    /// `Some` for an int8 layer whose input is finite.
+    quantized: Option<integer::Quantized>,
+}
+
+impl<'x> LayerInput<'x> {
+    /// `x` prepared for `layer`.
+    pub fn new(layer: &Layer, x: &'x [f32]) -> Self {
+        let quantized = match layer.format {
+            WeightFormat::Int8 => integer::Quantized::new(&[x], layer.cols as usize),
+            WeightFormat::F32 | WeightFormat::F16 => None,
+        };
+        LayerInput { x, quantized }
+    }
+
+    /// [`dense_rows`] of `layer` (the layer this input was prepared for) on this input: the
+    /// same bits.
+    pub fn rows(&self, weights: &Weights, layer: &Layer, first: usize, out: &mut [f32]) {
+        match (layer.format, &self.quantized) {
+            (WeightFormat::Int8, Some(x)) => {
+                integer::quantized_rows(weights.params, layer, matrix(weights.bytes, layer), x, first, out)
+            }
+            (WeightFormat::Int8, None) => out.fill(f32::NAN),
+            (WeightFormat::F32 | WeightFormat::F16, _) => dense_rows(weights, layer, &[self.x], first, out),
+        }
+    }
+}
+
 /// Longest input that [`joined_rows`] gathers on the stack.
 #[cfg(target_arch = "x86_64")]
 const JOINED_MAX: usize = 256;
