@@ -25,6 +25,6 @@ fn main() {
 }
 
 /// The committed artifacts (see `artifacts/README.md`).
-fn mochi_tests_artifacts() -> [&'static str; 4] {
-    ["tiny", "beam", "strands", "beam-m8"]
+fn mochi_tests_artifacts() -> [&'static str; 5] {
+    ["tiny", "beam", "strands", "beam-m8", "rods"]
 }

@@ -24,6 +24,12 @@ pub mod beam_m8_int8 {
     include!(concat!(env!("OUT_DIR"), "/beam_m8_int8.rs"));
 }
 
+/// Generated from `artifacts/rods.mochi` (the `rods` scene's model as `mochi train` selects
+/// it: 16 strands of 30 vertices encoded by their bends, a linear decoder).
+pub mod rods {
+    include!(concat!(env!("OUT_DIR"), "/rods.rs"));
+}
+
 /// Generated from `artifacts/strands.mochi` (four rods encoded by their bends).
 pub mod strands {
     include!(concat!(env!("OUT_DIR"), "/strands.rs"));

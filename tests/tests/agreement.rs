@@ -117,6 +117,21 @@ fn generated_beam_model_agrees_with_the_trainer() {
     );
 }
 
+/// The `rods` scene's model (480 bend-encoded vertices, a linear decoder).
+#[test]
+fn generated_rods_model_agrees_with_the_trainer() {
+    use mochi_tests::rods;
+    let model = ValidModel::new(rods::MODEL).unwrap();
+    let worst = worst_disagreement::<{ rods::LATENT }, { rods::SIGNAL }, { rods::HIDDEN }>(
+        Path::new("artifacts/rods.mochi"),
+        &model,
+    );
+    assert!(
+        worst <= TOLERANCE,
+        "generated rods model is {worst:.2e} diagonals from the trainer"
+    );
+}
+
 /// The right-sized beam (a basis decoder of 8 modes, `mochi distill`) generated into code.
 #[test]
 fn generated_right_sized_beam_model_agrees_with_the_trainer() {
