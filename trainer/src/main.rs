@@ -108,7 +108,9 @@ enum Command {
     },
     /// Replace a model's decoder by a cheaper one fitted to it (a small MLP before a linear
     /// basis) on the latents its own rollouts over the scene's training motions visit; the
-    /// integrator is kept, so the latent trajectories do not change.
+    /// integrator is kept, so the latent trajectories do not change. With `--integrator W`
+    /// the integrator is then distilled into width `W` too (its own rollouts added to the fit
+    /// for `--rounds` rounds).
     Distill {
         /// Artifact (`SCENE.mochi`).
         artifact: PathBuf,
@@ -127,6 +129,21 @@ enum Command {
         /// Training epochs over the latents.
         #[arg(long, default_value_t = 300)]
         epochs: usize,
+        /// Also distil the integrator into this hidden width (0: keep it).
+        #[arg(long, default_value_t = 0)]
+        integrator: usize,
+        /// Residual blocks of the distilled integrator.
+        #[arg(long, default_value_t = 2)]
+        integrator_blocks: usize,
+        /// Rollouts of the distilled integrator whose inputs are added to its fit.
+        #[arg(long, default_value_t = 3)]
+        rounds: usize,
+        /// Keep the decoder (distil only the integrator).
+        #[arg(long)]
+        keep_decoder: bool,
+        /// Frames of each rollout over a training motion (default: the scene's dataset frames).
+        #[arg(long)]
+        frames: Option<usize>,
     },
     /// Freeze an artifact into a Rust module of static arrays for the runtime.
     Codegen {
@@ -300,8 +317,27 @@ fn run(cli: Cli) -> Result<()> {
             hidden,
             blocks,
             epochs,
-        } => Ok(mochi_trainer::cli::distill::run(
-            &artifact, &out, modes, hidden, blocks, epochs,
+            integrator,
+            integrator_blocks,
+            rounds,
+            keep_decoder,
+            frames,
+        } => Ok(mochi_trainer::cli::distill::run_with(
+            &artifact,
+            &out,
+            mochi_trainer::learn::distill::DistillShape { modes, hidden, blocks },
+            epochs,
+            mochi_trainer::cli::distill::IntegratorChoice {
+                keep_decoder,
+                frames,
+                integrator: (integrator > 0).then_some(
+                    mochi_trainer::learn::distill_integrator::IntegratorDistillShape {
+                        hidden: integrator,
+                        blocks: integrator_blocks,
+                        rounds,
+                    },
+                ),
+            },
         )?),
         Command::Codegen { artifact, out, weights } => {
             mochi_codegen::generate_file_with(&artifact, &out, &mochi_codegen::Options::weights(weights))?;

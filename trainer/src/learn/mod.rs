@@ -7,6 +7,7 @@
 
 pub mod datafree;
 pub mod distill;
+pub mod distill_integrator;
 pub mod encoding;
 pub(crate) mod integrator;
 pub mod loss;

@@ -6,6 +6,8 @@ use crate::artifact::Artifact;
 use crate::error::{TrainerError, TrainerResult};
 use crate::eval::rollout::{rebuild_problem, roll, LoadedModel};
 use crate::learn::distill::{distill_decoder, DistillShape, Distilled};
+use crate::learn::distill_integrator::{distill_integrator, DistilledIntegrator, IntegratorDistillShape, Step};
+use crate::learn::encoding::pack_signals;
 use crate::learn::train::{AdamWConfig, TrainConfig};
 use mochi_sim::dataset::{self, Split};
 
@@ -115,4 +117,69 @@ pub fn distill_artifact(artifact: &Artifact, options: &DistillOptions) -> Traine
         latents: (train.len(), held_out.len()),
         distilled,
     })
+}
+
+/// Replaces the integrator of `artifact` by one of `shape` distilled from it
+/// ([`crate::learn::distill_integrator`]) on the packed inputs of rollouts over the scene's
+/// training motions; `options` sets the fits (epochs, rates, batch, seed), its decoder shape
+/// is not used.
+pub fn distill_artifact_integrator(
+    artifact: &Artifact,
+    shape: IntegratorDistillShape,
+    options: &DistillOptions,
+) -> TrainerResult<(Artifact, DistilledIntegrator)> {
+    let (problem, _) = rebuild_problem(artifact)?;
+    let model = LoadedModel::new(artifact.clone())?;
+    let spec = &problem.scene.dataset;
+    let frames = options.frames.unwrap_or(spec.frames);
+    let sequences: Vec<_> = dataset::plan(spec)
+        .iter()
+        .filter(|p| p.split == Split::Train)
+        .map(|p| problem.sequence(&p.speeds, frames, p.seed))
+        .collect();
+    let (lo, hi) = (&artifact.latent_min, &artifact.latent_max);
+    // A rollout stops where its latent leaves the training range widened by its width on
+    // each side (the runtime clamps there) or is not finite.
+    let inside = |z: &[f32]| {
+        z.iter()
+            .zip(lo.iter().zip(hi))
+            .all(|(v, (l, h))| v.is_finite() && *v >= l - (h - l) && *v <= h + (h - l))
+    };
+    let rollout = |step: &Step| {
+        let mut inputs = Vec::new();
+        for bc in &sequences {
+            let mut z_prev = artifact.initial_latent.clone();
+            let mut z_prev2 = artifact.initial_latent.clone();
+            let mut signals = [bc.signal(0), bc.signal(0), bc.signal(0)];
+            for t in 1..=frames {
+                signals.rotate_right(1);
+                signals[0] = bc.signal(t);
+                let q = pack_signals(&z_prev, &z_prev2, [&signals[0], &signals[1], &signals[2]]);
+                let z = step(&q)?;
+                inputs.push(q);
+                if !inside(&z) {
+                    break;
+                }
+                z_prev2 = std::mem::replace(&mut z_prev, z);
+            }
+        }
+        Ok(inputs)
+    };
+    let config = TrainConfig {
+        name: format!("distill-integrator-{}", artifact.scene),
+        epochs: options.epochs,
+        batch_size: options.batch,
+        seed: options.seed,
+        optimizer: AdamWConfig {
+            lr: options.learning_rate,
+            ..AdamWConfig::default()
+        },
+        final_lr: Some(options.final_learning_rate),
+        checkpoint: None,
+        progress: options.progress,
+    };
+    let distilled = distill_integrator(&model.integrator, shape, &config, rollout)?;
+    let mut out = artifact.clone();
+    out.integrator = distilled.integrator.mlp().layers().into_iter().cloned().collect();
+    Ok((out, distilled))
 }

@@ -1,0 +1,110 @@
+//! Integrator distillation: a narrower latent integrator fitted to reproduce a trained one's
+//! steps on the packed inputs its rollouts visit, by dataset aggregation: the student is
+//! fitted to the teacher's steps on the teacher's rollout inputs, then rolled out itself, the
+//! inputs it reaches labelled with the teacher's steps and added, and fitted again, so it
+//! learns to come back from its own errors (a rollout compounds them).
+
+use candle_core::{Device, Tensor};
+
+use super::network::{ExportedIntegrator, IntegratorSpec, LatentIntegrator, Normalisation};
+use super::train::{self, BatchLoss, TrainConfig, TrainError, TrainResult};
+
+/// The shape and schedule of a distilled integrator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IntegratorDistillShape {
+    /// Hidden width of the student.
+    pub hidden: usize,
+    /// Its residual blocks.
+    pub blocks: usize,
+    /// Rounds of rollouts by the student after the first fit (0: teacher inputs only).
+    pub rounds: usize,
+}
+
+/// One step of an integrator from a packed input (the teacher's or the student's).
+pub type Step<'a> = dyn Fn(&[f32]) -> TrainResult<Vec<f32>> + 'a;
+
+/// A distilled integrator and its losses.
+#[derive(Debug, Clone)]
+pub struct DistilledIntegrator {
+    /// The student.
+    pub integrator: ExportedIntegrator,
+    /// Mean loss of the last epoch of each fit (squared step error over the teacher's
+    /// increment spread).
+    pub losses: Vec<f64>,
+    /// Packed inputs fitted on, in all.
+    pub inputs: usize,
+}
+
+/// Distils `teacher` into an integrator of `shape`. `rollout(step)` rolls a stepping function
+/// over the training motions and returns the packed inputs it met; `config` sets each fit.
+pub fn distill_integrator(
+    teacher: &ExportedIntegrator,
+    shape: IntegratorDistillShape,
+    config: &TrainConfig,
+    mut rollout: impl FnMut(&Step) -> TrainResult<Vec<Vec<f32>>>,
+) -> TrainResult<DistilledIntegrator> {
+    let k = teacher.latent();
+    let teach = |q: &[f32]| teacher.step(q).map_err(|e| TrainError::Invalid(e.to_string()));
+    let mut inputs = rollout(&teach)?;
+    let Some(width) = inputs.first().map(Vec::len) else {
+        return Err(TrainError::Invalid("the teacher's rollouts visited no input".into()));
+    };
+    if width < 2 * k || !(width - 2 * k).is_multiple_of(3) {
+        return Err(TrainError::Invalid(format!(
+            "packed inputs of {width} values for latent size {k}"
+        )));
+    }
+    let increments = |qs: &[Vec<f32>]| -> TrainResult<Vec<Vec<f32>>> {
+        qs.iter()
+            .map(|q| Ok(teach(q)?.iter().zip(q).map(|(z, p)| z - p).collect()))
+            .collect()
+    };
+    let input_norm = Normalisation::fit(&inputs).map_err(|e| TrainError::Invalid(e.to_string()))?;
+    let increment_norm = Normalisation::fit(&increments(&inputs)?).map_err(|e| TrainError::Invalid(e.to_string()))?;
+    let spec = IntegratorSpec {
+        latent: k,
+        bc: (width - 2 * k) / 3,
+        hidden: shape.hidden,
+        blocks: shape.blocks,
+    };
+    let inverse: Vec<f32> = increment_norm.std.iter().map(|s| 1.0 / s).collect();
+    let inverse = Tensor::from_vec(inverse, (1, k), &Device::Cpu)?;
+    let student = LatentIntegrator::new(spec, input_norm, increment_norm, config.seed)
+        .map_err(|e| TrainError::Invalid(e.to_string()))?;
+    let mut losses = Vec::new();
+    for round in 0..=shape.rounds {
+        if round > 0 {
+            let current = student.export().map_err(|e| TrainError::Invalid(e.to_string()))?;
+            let step = |q: &[f32]| current.step(q).map_err(|e| TrainError::Invalid(e.to_string()));
+            inputs.extend(rollout(&step)?);
+        }
+        let rows: Vec<Vec<f32>> = inputs
+            .iter()
+            .map(|q| {
+                let mut row = q.clone();
+                row.extend(teach(q)?);
+                Ok(row)
+            })
+            .collect::<TrainResult<_>>()?;
+        let round_config = TrainConfig {
+            name: format!("{}-round-{round}", config.name),
+            ..config.clone()
+        };
+        let report = train::train(&student.parameters(), &rows, &round_config, false, |batch, _| {
+            let q = batch.inputs.narrow(1, 0, width)?;
+            let target = batch.inputs.narrow(1, width, k)?;
+            BatchLoss::new(
+                (student.forward(&q)? - target)?
+                    .broadcast_mul(&inverse)?
+                    .sqr()?
+                    .mean_all()?,
+            )
+        })?;
+        losses.push(report.losses.last().copied().unwrap_or(f64::NAN));
+    }
+    Ok(DistilledIntegrator {
+        integrator: student.export().map_err(|e| TrainError::Invalid(e.to_string()))?,
+        losses,
+        inputs: inputs.len(),
+    })
+}
