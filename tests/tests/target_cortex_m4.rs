@@ -89,11 +89,8 @@ fn right_sized_beam_runs_at_60_frames_per_second_within_512_kib() {
 /// 64 KiB of RAM, within the `f32` tolerance of the host.
 #[test]
 fn rods_fit_one_mebibyte_of_flash_and_match_the_host() {
-    let output = firmware_matches_the_host::<{ rods::LATENT }, { rods::SIGNAL }, { rods::HIDDEN }>(
-        "rods",
-        "f32",
-        rods::MODEL,
-    );
+    let output =
+        firmware_matches_the_host::<{ rods::LATENT }, { rods::SIGNAL }, { rods::HIDDEN }>("rods", "f32", rods::MODEL);
     let (flash, ram) = kibibytes(&output);
     assert!(flash <= 1024.0 && ram <= 64.0, "{flash} KiB of flash, {ram} KiB of RAM");
 }

@@ -91,19 +91,7 @@ pub fn distill_artifact(artifact: &Artifact, options: &DistillOptions) -> Traine
             true
         })?;
     }
-    let config = TrainConfig {
-        name: format!("distill-{}", artifact.scene),
-        epochs: options.epochs,
-        batch_size: options.batch,
-        seed: options.seed,
-        optimizer: AdamWConfig {
-            lr: options.learning_rate,
-            ..AdamWConfig::default()
-        },
-        final_lr: Some(options.final_learning_rate),
-        checkpoint: None,
-        progress: options.progress,
-    };
+    let config = train_config(format!("distill-{}", artifact.scene), options);
     let distilled = distill_decoder(&model.decoder, &train, &held_out, options.shape, &config)?;
     let mut out = artifact.clone();
     out.decoder = distilled.decoder.layers().into_iter().cloned().collect();
@@ -165,8 +153,17 @@ pub fn distill_artifact_integrator(
         }
         Ok(inputs)
     };
-    let config = TrainConfig {
-        name: format!("distill-integrator-{}", artifact.scene),
+    let config = train_config(format!("distill-integrator-{}", artifact.scene), options);
+    let distilled = distill_integrator(&model.integrator, shape, &config, rollout)?;
+    let mut out = artifact.clone();
+    out.integrator = distilled.integrator.mlp().layers().into_iter().cloned().collect();
+    Ok((out, distilled))
+}
+
+/// The fit's settings from `options` (no checkpoints: a fit takes seconds to minutes).
+fn train_config(name: String, options: &DistillOptions) -> TrainConfig {
+    TrainConfig {
+        name,
         epochs: options.epochs,
         batch_size: options.batch,
         seed: options.seed,
@@ -177,9 +174,5 @@ pub fn distill_artifact_integrator(
         final_lr: Some(options.final_learning_rate),
         checkpoint: None,
         progress: options.progress,
-    };
-    let distilled = distill_integrator(&model.integrator, shape, &config, rollout)?;
-    let mut out = artifact.clone();
-    out.integrator = distilled.integrator.mlp().layers().into_iter().cloned().collect();
-    Ok((out, distilled))
+    }
 }
