@@ -109,6 +109,15 @@ pub(crate) fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: im
     }
 }
 
+/// How many leading values of `values` count up by one from the first (a run of consecutive
+/// vertices, whose output rows are contiguous).
+pub(crate) fn consecutive(values: &[u32]) -> usize {
+    let Some(&first) = values.first() else {
+        return 0;
+    };
+    values.iter().zip(first..).take_while(|(v, want)| **v == *want).count()
+}
+
 /// Turns the local coordinates of a run of encoded vertices decoded into `run` (`d` floats
 /// each) into world positions in place, `origin_of` their origin indices: sixteen at a time
 /// where the CPU has a vector transform and the sixteen share an origin, else one by one.

@@ -5,7 +5,7 @@ use core::fmt;
 
 use nalgebra::Vector3;
 
-use crate::decode::{decoder_features, place_run, put, walk_chains, Origins, OutputRows};
+use crate::decode::{consecutive, decoder_features, place_run, put, walk_chains, Origins, OutputRows};
 use crate::frame::{HandleMotion, Placement};
 use crate::model::{Layer, Model, ModelError, WeightFormat, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::hidden;
@@ -303,7 +303,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
             let mut j = 0;
             while j < free.len() {
                 let v = free[j];
-                let run = free[j..].iter().zip(v..).take_while(|(f, want)| **f == *want).count();
+                let run = consecutive(&free[j..]);
                 let (rows, of) = (j * d..(j + run) * d, origin_of.get(j..j + run).unwrap_or(&[]));
                 if let Some(block) = out.get_mut(v as usize * d..(v as usize + run) * d) {
                     output.rows(rows.start, block);
@@ -329,8 +329,6 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let h = decoder_features::<H>(m, &self.z[..k]);
         let place = Placement::new(m, &self.signal[..s]);
         let (origins, sources) = (m.origin_of(), m.surface_source());
-        let mut origin_at = Origins::new(&place, f32_decoder(m));
-        let output = OutputRows::new(m.weights(), m.decoder, &h);
         if m.bends() {
             for (i, &source) in sources.iter().enumerate() {
                 if source & HANDLE_SOURCE != 0 {
@@ -344,6 +342,8 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                 }
             });
         } else {
+            let mut origin_at = Origins::new(&place, f32_decoder(m));
+            let output = OutputRows::new(m.weights(), m.decoder, &h);
             let mut i = 0;
             while i < sources.len() {
                 let source = sources[i];
@@ -355,11 +355,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                 // A run of drawn vertices that are consecutive free vertices: their rows of the
                 // output layer are contiguous and go through the kernel together.
                 let j = source as usize;
-                let run = sources[i..]
-                    .iter()
-                    .zip(source..)
-                    .take_while(|(s, want)| **s == *want)
-                    .count();
+                let run = consecutive(&sources[i..]);
                 if let Some(block) = out.get_mut(i * d..(i + run) * d) {
                     output.rows(j * d, block);
                     place_run(d, block, origins.get(j..j + run).unwrap_or(&[]), &mut origin_at);

@@ -41,11 +41,7 @@ impl WorldBlocks {
     /// The pattern for the rotation `r` and the origin `o`; `None` where the CPU lacks
     /// AVX-512F (the caller transforms vertex by vertex).
     pub(crate) fn new(r: &Matrix3<f32>, o: &Vector3<f32>) -> Option<Self> {
-        #[cfg(feature = "std")]
-        let present = std::is_x86_feature_detected!("avx512f");
-        #[cfg(not(feature = "std"))]
-        let present = cfg!(target_feature = "avx512f");
-        if !present {
+        if crate::network::fast::width() != crate::network::Width::Avx512 {
             return None;
         }
         let lanes = |b: usize, f: &dyn Fn(usize) -> f32| -> [f32; 16] { core::array::from_fn(|l| f((16 * b + l) % 3)) };

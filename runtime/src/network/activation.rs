@@ -31,14 +31,12 @@ pub fn swish_all(layer: &Layer, v: &mut [f32]) {
 mod x86 {
     use core::arch::x86_64::*;
 
+    use crate::network::{fast, Width};
+
     /// [`super::swish`] of every value with AVX-512F ([`swish16`]); `false`, and nothing
-    /// computed, where the CPU lacks it (detected once under `std`, the target features
-    /// without).
+    /// computed, where the CPU lacks it (the `f32` kernel's own choice, [`fast::width`]).
     pub(super) fn swish_all(v: &mut [f32]) -> bool {
-        #[cfg(feature = "std")]
-        let present = std::is_x86_feature_detected!("avx512f");
-        #[cfg(not(feature = "std"))]
-        let present = cfg!(target_feature = "avx512f");
+        let present = fast::width() == Width::Avx512;
         if present {
             // SAFETY: the CPU has AVX-512F.
             unsafe { swish16(v) };
