@@ -141,7 +141,8 @@ enum Command {
         /// Keep the decoder (distil only the integrator).
         #[arg(long)]
         keep_decoder: bool,
-        /// Frames of each rollout over a training motion (default: the scene's dataset frames).
+        /// Frames of each rollout over a training motion, for every fit (default: the scene's
+        /// dataset frames).
         #[arg(long)]
         frames: Option<usize>,
     },
@@ -322,14 +323,15 @@ fn run(cli: Cli) -> Result<()> {
             rounds,
             keep_decoder,
             frames,
-        } => Ok(mochi_trainer::cli::distill::run_with(
+        } => Ok(mochi_trainer::cli::distill::run(
             &artifact,
             &out,
-            mochi_trainer::learn::distill::DistillShape { modes, hidden, blocks },
-            epochs,
-            mochi_trainer::cli::distill::IntegratorChoice {
-                keep_decoder,
-                frames,
+            mochi_trainer::cli::distill::DistillChoice {
+                decoder: (!keep_decoder).then_some(mochi_trainer::learn::distill::DistillShape {
+                    modes,
+                    hidden,
+                    blocks,
+                }),
                 integrator: (integrator > 0).then_some(
                     mochi_trainer::learn::distill_integrator::IntegratorDistillShape {
                         hidden: integrator,
@@ -337,7 +339,9 @@ fn run(cli: Cli) -> Result<()> {
                         rounds,
                     },
                 ),
+                frames,
             },
+            epochs,
         )?),
         Command::Codegen { artifact, out, weights } => {
             mochi_codegen::generate_file_with(&artifact, &out, &mochi_codegen::Options::weights(weights))?;
