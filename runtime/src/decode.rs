@@ -5,8 +5,9 @@
 use nalgebra::Vector3;
 
 use crate::frame::Placement;
-use crate::model::{Layer, Model, Weights};
+use crate::model::{Chain, Layer, Model, Weights};
 use crate::network::{self, LayerInput};
+use crate::strand_lanes::ChainWalks;
 
 /// Writes the first `d` coordinates of `p` as vertex `v` of `out` (element by element: a
 /// slice copy of 2 or 3 floats would be a call to `memmove`).
@@ -59,30 +60,51 @@ impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
     }
 }
 
-/// Encoded vertices whose decoder rows [`BendRows`] computes at once.
+/// Encoded vertices whose decoder rows a [`BendRows`] computes at once.
 const BEND_BLOCK: usize = 16;
 
-/// The decoder's output rows for bend-encoded vertices, computed for a block of consecutive
-/// free vertices at a time (the strands of a mesh usually list consecutive ones): each row has
-/// the same bits whichever block computes it (see [`crate::network`]).
-struct BendRows<'w, 'l, 'h> {
-    output: OutputRows<'w, 'l, 'h>,
-    /// Free vertices of the model.
-    total: usize,
+/// Strands walked side by side ([`ChainWalks`]): eight where the lanes become vector
+/// instructions, one on targets without vectors (the Cortex-M4), where more lanes only add
+/// bookkeeping. Any number gives the same bits.
+const STRAND_LANES: usize = if cfg!(any(
+    target_arch = "x86_64",
+    target_arch = "aarch64",
+    all(target_arch = "wasm32", target_feature = "simd128")
+)) {
+    8
+} else {
+    1
+};
+
+/// One strand's cache of the decoder's output rows for bend-encoded vertices, a block of
+/// consecutive free vertices at a time (a strand usually lists consecutive ones): each row
+/// has the same bits whichever block computes it (see [`crate::network`]).
+#[derive(Clone, Copy)]
+struct BendRows {
     /// First free vertex in `rows`, and how many.
     first: usize,
     count: usize,
     rows: [f32; 2 * BEND_BLOCK],
 }
 
-impl BendRows<'_, '_, '_> {
-    /// The two encoded numbers of free vertex `j`.
-    fn get(&mut self, j: usize) -> [f32; 2] {
+impl BendRows {
+    const EMPTY: BendRows = BendRows {
+        first: 0,
+        count: 0,
+        rows: [0.0; 2 * BEND_BLOCK],
+    };
+
+    /// The two encoded numbers of free vertex `j` of the `total` free vertices (zeros past
+    /// them).
+    fn get(&mut self, output: &OutputRows, total: usize, j: usize) -> [f32; 2] {
         if j < self.first || j >= self.first + self.count {
-            let count = BEND_BLOCK.min(self.total.saturating_sub(j));
-            self.output.rows(2 * j, &mut self.rows[..2 * count]);
+            let count = BEND_BLOCK.min(total.saturating_sub(j));
+            output.rows(2 * j, &mut self.rows[..2 * count]);
             self.first = j;
             self.count = count;
+        }
+        if self.count == 0 {
+            return [0.0; 2];
         }
         let at = |i: usize| self.rows.get(i).copied().unwrap_or(0.0);
         let i = 2 * j.saturating_sub(self.first);
@@ -91,21 +113,73 @@ impl BendRows<'_, '_, '_> {
 }
 
 /// Walks every bend-encoded strand of `m` from its start in `place`, with the decoder's last
-/// hidden activation `h`, calling `visit(j, position)` for each free vertex `j` in strand order.
-pub(crate) fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: impl FnMut(usize, &[f32; 3])) {
-    let mut rows = BendRows {
-        output: OutputRows::new(m.weights(), m.decoder, h),
-        total: m.free_vertices().len(),
-        first: 0,
-        count: 0,
-        rows: [0.0; 2 * BEND_BLOCK],
-    };
-    for chain in m.chains() {
-        let mut walk = place.chain_start(&chain);
-        for (&j, &length) in chain.slots.iter().zip(chain.lengths) {
-            let p = walk.step(rows.get(j as usize), length);
-            visit(j as usize, &p);
+/// hidden activation `h`, calling `visit(lane, j, position)` for each free vertex `j`: in
+/// strand order along each strand, [`STRAND_LANES`] strands side by side (`lane` says which
+/// of them, so that a caller can follow each strand's own order).
+pub(crate) fn walk_chains(m: &Model, h: &[f32], place: &Placement, mut visit: impl FnMut(usize, usize, &[f32; 3])) {
+    let output = OutputRows::new(m.weights(), m.decoder, h);
+    let total = m.free_vertices().len();
+    let mut chains = m.chains();
+    loop {
+        let group: [Option<Chain>; STRAND_LANES] = core::array::from_fn(|_| chains.next());
+        if group[0].is_none() {
+            return;
         }
+        let mut walks = ChainWalks::<STRAND_LANES>::idle();
+        for (l, chain) in group.iter().enumerate() {
+            if let Some(chain) = chain {
+                walks.set(l, &place.chain_start(chain));
+            }
+        }
+        let vertex = |chain: &Option<Chain>, t: usize| -> Option<(usize, f32)> {
+            let chain = chain.as_ref()?;
+            Some((*chain.slots.get(t)? as usize, *chain.lengths.get(t)?))
+        };
+        let mut rows = [BendRows::EMPTY; STRAND_LANES];
+        let longest = group
+            .iter()
+            .flatten()
+            .map(|c| c.slots.len().min(c.lengths.len()))
+            .max()
+            .unwrap_or(0);
+        for t in 0..longest {
+            // Lanes whose strand has ended step along an edge of zero bend and unit length.
+            let (mut q0, mut q1, mut length) = ([0.0; STRAND_LANES], [0.0; STRAND_LANES], [1.0; STRAND_LANES]);
+            for (l, chain) in group.iter().enumerate() {
+                if let Some((j, edge)) = vertex(chain, t) {
+                    [q0[l], q1[l]] = rows[l].get(&output, total, j);
+                    length[l] = edge;
+                }
+            }
+            walks.step(&q0, &q1, &length);
+            for (l, chain) in group.iter().enumerate() {
+                if let Some((j, _)) = vertex(chain, t) {
+                    visit(l, j, &walks.position(l));
+                }
+            }
+        }
+    }
+}
+
+/// Where each strand lane of [`walk_chains`] last found its vertex in an ascending list of
+/// vertices: a strand lists consecutive vertices mostly, so the next one is usually the next
+/// entry, and a binary search (whose branches the CPU cannot predict) is the exception.
+pub(crate) struct ListCursors {
+    at: [usize; STRAND_LANES],
+}
+
+impl ListCursors {
+    pub(crate) const START: ListCursors = ListCursors { at: [0; STRAND_LANES] };
+
+    /// The index of `v` in the ascending `list`, for strand lane `lane`.
+    pub(crate) fn find(&mut self, list: &[u32], lane: usize, v: u32) -> Option<usize> {
+        let at = self.at.get_mut(lane)?;
+        let i = match list.get(*at + 1) {
+            Some(&next) if next == v => *at + 1,
+            _ => list.binary_search(&v).ok()?,
+        };
+        *at = i;
+        Some(i)
     }
 }
 

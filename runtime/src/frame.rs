@@ -229,7 +229,7 @@ impl<'m, 'a> Placement<'m, 'a> {
         };
         ChainWalk {
             position: anchor,
-            axes: [d, u, cross(&d, &u)],
+            axes: [d, u, cross(&d, &u)].map(|axis| axis.map(flush_tiny)),
         }
     }
 
@@ -286,19 +286,41 @@ impl ChainWalk {
     /// Places the next vertex from its two encoded numbers `q` and the rest length of the edge
     /// that ends at it: turns the axes by the Cayley map of `g = (u q[0] + w q[1]) / length`
     /// (`y + 2 / (1 + |g|^2) (g x y + g x (g x y))`) and steps `length` along the new `d`.
-    /// Returns the vertex's position.
+    /// `q`, `g`, `g x y` and the turned axes are [`flush_tiny`]'d. Returns the vertex's
+    /// position.
     pub fn step(&mut self, q: [f32; 2], length: f32) -> [f32; 3] {
+        let q = q.map(flush_tiny);
         let [_, u, w] = self.axes;
-        let g: [f32; 3] = core::array::from_fn(|i| (u[i] * q[0] + w[i] * q[1]) / length);
+        let g: [f32; 3] = core::array::from_fn(|i| flush_tiny((u[i] * q[0] + w[i] * q[1]) / length));
         let c = 2.0 / (1.0 + dot(&g, &g));
         for y in &mut self.axes {
-            let h = cross(&g, y);
+            let h = cross(&g, y).map(flush_tiny);
             let k = cross(&g, &h);
-            *y = core::array::from_fn(|i| y[i] + (h[i] + k[i]) * c);
+            *y = core::array::from_fn(|i| flush_tiny(y[i] + (h[i] + k[i]) * c));
         }
         let d = self.axes[0];
         self.position = core::array::from_fn(|i| self.position[i] + d[i] * length);
         self.position
+    }
+}
+
+/// Magnitudes below this (`2^-50`) are zero in a strand walk.
+const TINY: f32 = 1.0 / (1u64 << 50) as f32;
+
+/// `v`, or zero where `|v| < 2^-50` (NaN stays NaN): the strand walk flushes its inputs and
+/// the factors of its products, so that every operand is zero or at least `2^-50` and no
+/// product or difference of two falls below `f32`'s normal range. A strand that moves in a
+/// plane has out-of-plane bends and axis components that decay towards zero frame after
+/// frame; x86 computes with such subnormal numbers in microcode, tens of times slower (a
+/// swinging `rods` model spent two thirds of its frame there). The rule is arithmetic, not
+/// an FPU mode, so every target flushes the same values and keeps the same bits; at `2^-50`
+/// of a unit axis or a bend it is far below `f32`'s resolution of the positions.
+#[inline(always)]
+pub(crate) fn flush_tiny(v: f32) -> f32 {
+    if libm::fabsf(v) < TINY {
+        0.0
+    } else {
+        v
     }
 }
 

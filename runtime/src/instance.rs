@@ -5,7 +5,7 @@ use core::fmt;
 
 use nalgebra::Vector3;
 
-use crate::decode::{consecutive, decoder_features, place_run, put, walk_chains, Origins, OutputRows};
+use crate::decode::{consecutive, decoder_features, place_run, put, walk_chains, ListCursors, Origins, OutputRows};
 use crate::frame::{HandleMotion, Placement};
 use crate::model::{Layer, Model, ModelError, WeightFormat, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::hidden;
@@ -289,7 +289,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let place = Placement::new(m, &self.signal[..s]);
         if m.bends() {
             let free = m.free_vertices();
-            walk_chains(m, &h, &place, |j, p| {
+            walk_chains(m, &h, &place, |_, j, p| {
                 if let Some(&v) = free.get(j) {
                     put(out, v as usize, d, &Vector3::from(*p));
                 }
@@ -336,8 +336,9 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                 }
             }
             let (free, surface) = (m.free_vertices(), m.surface_vertices());
-            walk_chains(m, &h, &place, |j, p| {
-                if let Some(i) = free.get(j).and_then(|v| surface.binary_search(v).ok()) {
+            let mut cursors = ListCursors::START;
+            walk_chains(m, &h, &place, |lane, j, p| {
+                if let Some(i) = free.get(j).and_then(|&v| cursors.find(surface, lane, v)) {
                     put(out, i, d, &Vector3::from(*p));
                 }
             });

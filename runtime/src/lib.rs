@@ -32,6 +32,7 @@ pub mod model;
 pub mod network;
 #[cfg(feature = "std")]
 pub mod payload;
+mod strand_lanes;
 mod vertex_lists;
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
