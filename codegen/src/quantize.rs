@@ -16,7 +16,7 @@ pub fn parse_format(name: &str) -> Option<WeightFormat> {
 /// The spelling [`parse_format`] reads.
 pub fn format_name(format: WeightFormat) -> &'static str {
     match format {
-        WeightFormat::F32 => "f32",
+        WeightFormat::F32 | WeightFormat::F32Columns => "f32",
         WeightFormat::F16 => "f16",
         WeightFormat::Int8 => "int8",
     }
@@ -77,9 +77,19 @@ impl Quantized {
             format: self.format,
             ..*layer
         };
-        // Weights, then biases, then scales: for `f32` the artifact's own layout.
+        // Weights, then biases, then scales: for `f32` the layout the loader chose (a decoder's
+        // narrow output layer column by column, padded), the other storages row by row.
         match self.format {
-            WeightFormat::F32 => {
+            WeightFormat::F32 | WeightFormat::F32Columns if layer.format == WeightFormat::F32Columns => {
+                out.format = WeightFormat::F32Columns;
+                out.weights = self.params.len() as u32;
+                let start = layer.weights as usize;
+                let padded = mochi_runtime::column_stride(rows) * cols;
+                self.params
+                    .extend(model.params.get(start..start + padded).unwrap_or(&[]));
+            }
+            WeightFormat::F32 | WeightFormat::F32Columns => {
+                out.format = WeightFormat::F32;
                 out.weights = self.params.len() as u32;
                 self.params.extend(&w);
             }
@@ -118,12 +128,24 @@ pub fn int8_row(row: &[f32]) -> (f32, Vec<i8>) {
     (scale, q)
 }
 
-/// The weights of `layer` of `model` as `f32` (exact conversions from its storage).
+/// The weights of `layer` of `model` as `f32`, row by row (exact conversions from its
+/// storage, whichever layout).
 pub fn weights_f32(model: &Model, layer: &Layer) -> Vec<f32> {
     let (rows, cols) = (layer.rows as usize, layer.cols as usize);
     let range = layer.weights as usize..layer.weights as usize + rows * cols;
     match layer.format {
         WeightFormat::F32 => model.params.get(range).unwrap_or(&[]).to_vec(),
+        WeightFormat::F32Columns => {
+            let stride = mochi_runtime::column_stride(rows);
+            let start = layer.weights as usize;
+            let w = model.params.get(start..start + stride * cols).unwrap_or(&[]);
+            let at = |i: usize| w.get((i % cols) * stride + i / cols).copied().unwrap_or(0.0);
+            if w.is_empty() {
+                Vec::new()
+            } else {
+                (0..rows * cols).map(at).collect()
+            }
+        }
         WeightFormat::F16 => model
             .halves
             .get(range)

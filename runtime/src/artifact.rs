@@ -17,7 +17,10 @@ use serde::{Deserialize, Deserializer};
 
 use crate::envelope::{self, EnvelopeError};
 use crate::instance::ValidModel;
-use crate::model::{Handle, Layer, Model, ModelError, Problem, Span, HANDLE_SOURCE, MAX_HANDLES, MAX_LAYERS};
+use crate::model::{
+    column_stride, stores_columns, Handle, Layer, Model, ModelError, Problem, Span, WeightFormat, HANDLE_SOURCE,
+    MAX_HANDLES, MAX_LAYERS,
+};
 use crate::vertex_lists::{fill_chain_order, UNNAMED};
 
 /// First bytes of every artifact (the magic of its first section).
@@ -241,6 +244,7 @@ where
     fn read(&mut self, payload: &[u8]) -> Result<(), LoadError> {
         let mut r = Reader {
             de: postcard::Deserializer::from_bytes(payload),
+            size: payload.len(),
         };
         let h = &mut self.header;
         h.dt = r.value::<f64>("dt")? as f32;
@@ -274,8 +278,8 @@ where
         h.initial_latent = r.seq("initial_latent", &mut self.floats)?;
         h.latent_min = r.seq("latent_min", &mut self.floats)?;
         h.latent_max = r.seq("latent_max", &mut self.floats)?;
-        r.network("decoder", &mut self.params, &mut self.decoder)?;
-        r.network("integrator", &mut self.params, &mut self.integrator)?;
+        r.network("decoder", &mut self.params, &mut self.decoder, true)?;
+        r.network("integrator", &mut self.params, &mut self.integrator, false)?;
         self.header.surface_triangles = r.seq("surface_triangles", &mut self.indices)?;
         self.header.decoder_basis = r.value("decoder_basis")?;
         match r.de.finalize() {
@@ -354,6 +358,8 @@ fn span(start: usize, end: usize) -> Span {
 /// Field-by-field reader of the payload.
 struct Reader<'de> {
     de: postcard::Deserializer<'de, postcard::de_flavors::Slice<'de>>,
+    /// Bytes of the whole payload (no sequence can hold more elements).
+    size: usize,
 }
 
 impl<'de> Reader<'de> {
@@ -436,21 +442,27 @@ impl<'de> Reader<'de> {
     }
 
     /// A network (list of dense layers): weights and biases appended to `params`, layers to
-    /// `list`.
+    /// `list`. For a `decoder`, an output layer that [`stores_columns`] is stored column by
+    /// column.
     fn network<P: Pool<f32>, L: Pool<Layer>>(
         &mut self,
         field: &'static str,
         params: &mut P,
         list: &mut L,
+        decoder: bool,
     ) -> Result<(), LoadError> {
         let layers = self.len(field)?;
         if layers > MAX_LAYERS {
             return Err(LoadError::Capacity { field });
         }
-        for _ in 0..layers {
+        for i in 0..layers {
             let rows: u64 = self.value(field)?;
             let cols: u64 = self.value(field)?;
-            let w = self.seq::<f32, _>(field, params)?;
+            let columns = decoder && i + 1 == layers && stores_columns(cols as usize);
+            let w = match columns {
+                true => self.columns(field, params, rows, cols)?,
+                false => self.seq::<f32, _>(field, params)?,
+            };
             let b = self.seq::<f32, _>(field, params)?;
             if rows.checked_mul(cols) != Some(w.len as u64) || rows != b.len as u64 {
                 return Err(LoadError::Malformed { field });
@@ -458,6 +470,11 @@ impl<'de> Reader<'de> {
             let layer = Layer {
                 rows: rows as u32,
                 cols: cols as u32,
+                format: if columns {
+                    WeightFormat::F32Columns
+                } else {
+                    WeightFormat::F32
+                },
                 weights: w.start,
                 bias: b.start,
                 ..Layer::default()
@@ -467,6 +484,42 @@ impl<'de> Reader<'de> {
             }
         }
         Ok(())
+    }
+}
+
+impl Reader<'_> {
+    /// A `rows x cols` weight matrix written row by row, appended to `params` column by column
+    /// ([`WeightFormat::F32Columns`]): each value goes straight to its place, so the layer
+    /// needs no more room than row by row.
+    fn columns<P: Pool<f32>>(
+        &mut self,
+        field: &'static str,
+        params: &mut P,
+        rows: u64,
+        cols: u64,
+    ) -> Result<Span, LoadError> {
+        let n = self.len(field)?;
+        // Room is made before the values are read: a count the payload cannot hold is refused
+        // first, so that a crafted count never reserves more than the payload's size.
+        if rows.checked_mul(cols) != Some(n as u64) || n > self.size / 4 {
+            return Err(LoadError::Malformed { field });
+        }
+        let (rows, cols) = (rows as usize, cols as usize);
+        let stride = column_stride(rows);
+        let start = params.as_slice().len();
+        for _ in 0..stride * cols {
+            if !params.push(0.0) {
+                return Err(LoadError::Capacity { field });
+            }
+        }
+        for i in 0..n {
+            let v: f32 = self.value(field)?;
+            if let Some(w) = params.as_mut_slice().get_mut(start + (i % cols) * stride + i / cols) {
+                *w = v;
+            }
+        }
+        // The span of the values read (the network check compares its length with the shape).
+        Ok(span(start, start + n))
     }
 }
 

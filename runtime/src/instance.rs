@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 
 use crate::decode::{consecutive, decoder_features, place_run, put, walk_chains, ListCursors, Origins, OutputRows};
 use crate::frame::{HandleMotion, Placement};
-use crate::model::{Layer, Model, ModelError, WeightFormat, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
+use crate::model::{Layer, Model, ModelError, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::hidden;
 
 /// Latent room of an [`AnyInstance`].
@@ -380,7 +380,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
 
 /// Whether the decoder's output layer is stored in `f32` (see [`Origins`]).
 fn f32_decoder(m: &Model) -> bool {
-    m.decoder.last().is_some_and(|l| l.format == WeightFormat::F32)
+    m.decoder.last().is_some_and(|l| l.format.is_f32())
 }
 
 /// The last hidden activation of the network `layers` for the input `parts`, with scratch on

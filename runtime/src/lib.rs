@@ -49,6 +49,6 @@ pub use instance::{
     RANGE_MARGIN,
 };
 pub use model::{
-    Chain, Chains, Handle, Layer, Model, ModelError, Problem, Span, WeightFormat, Weights, HANDLE_SOURCE,
-    SIGNAL_PER_HANDLE,
+    column_stride, stores_columns, Chain, Chains, Handle, Layer, Model, ModelError, Problem, Span, WeightFormat,
+    Weights, COLUMNS_MAX, HANDLE_SOURCE, SIGNAL_PER_HANDLE,
 };

@@ -53,10 +53,43 @@ pub enum WeightFormat {
     /// Signed bytes times a per-row (output channel) scale: `W[r][c] = scale[r] * q[r][c]`,
     /// `q` in [`Model::bytes`], the scales in [`Model::params`].
     Int8,
+    /// `f32`, in [`Model::params`], stored **column by column** (`W[r][c]` at
+    /// `weights + c * column_stride(rows) + r`, the padding zero), computed like
+    /// [`WeightFormat::F32`]: what the loader makes of a decoder's narrow output layer
+    /// ([`stores_columns`]). The wide kernel then adds one column into sixteen rows per
+    /// instruction instead of reducing each row; the canonical sum reads it in its own
+    /// order, so its bits do not depend on the layout.
+    F32Columns,
 }
 
-/// One dense layer `y = W x + b`: `W` row-major at `weights..weights + rows * cols` of the pool
-/// its [`WeightFormat`] names, `b` at `params[bias..bias + rows]`.
+/// Floats from one column of a [`WeightFormat::F32Columns`] layer of `rows` rows to the next:
+/// `rows` rounded up to a multiple of 16, so that every column has the same alignment and a
+/// block of sixteen rows is one aligned load in each.
+pub const fn column_stride(rows: usize) -> usize {
+    rows.div_ceil(16) * 16
+}
+
+impl WeightFormat {
+    /// Whether the weights are `f32` (either layout).
+    pub fn is_f32(self) -> bool {
+        matches!(self, WeightFormat::F32 | WeightFormat::F32Columns)
+    }
+}
+
+/// Widest decoder output layer the loader stores column by column.
+pub const COLUMNS_MAX: usize = 64;
+
+/// Whether the loader stores a decoder's output layer of `cols` columns column by column
+/// ([`WeightFormat::F32Columns`]): for at most [`COLUMNS_MAX`] columns (a basis decoder's
+/// modes; wider rows cost little to reduce). The same on every target, so code generated on
+/// any machine holds the numbers a target's loader would read.
+pub const fn stores_columns(cols: usize) -> bool {
+    cols <= COLUMNS_MAX
+}
+
+/// One dense layer `y = W x + b`: `W` at `weights..weights + rows * cols` of the pool its
+/// [`WeightFormat`] names (row-major, except [`WeightFormat::F32Columns`]), `b` at
+/// `params[bias..bias + rows]`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Layer {
     /// Outputs.
@@ -780,6 +813,7 @@ impl<'a> Model<'a> {
                 |start: u32, len: usize, pool: usize| (start as usize).checked_add(len).is_some_and(|e| e <= pool);
             let weights_fit = match l.format {
                 WeightFormat::F32 => fits(l.weights, rows * cols, self.params.len()),
+                WeightFormat::F32Columns => fits(l.weights, column_stride(rows) * cols, self.params.len()),
                 WeightFormat::F16 => fits(l.weights, rows * cols, self.halves.len()),
                 WeightFormat::Int8 => {
                     fits(l.weights, rows * cols, self.bytes.len()) && fits(l.scales, rows, self.params.len())

@@ -12,7 +12,8 @@
 
 use std::path::Path;
 
-use mochi_runtime::{Model, OwnedModel, Stepped, ValidModel};
+use mochi_codegen::quantize::weights_f32;
+use mochi_runtime::{Model, OwnedModel, Stepped, ValidModel, WeightFormat};
 use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::{self, Split};
 use mochi_tests::motions;
@@ -247,12 +248,27 @@ fn runtime_loads_what_the_trainer_wrote_field_for_field() {
     for (layers, trained) in [(m.decoder, &artifact.decoder), (m.integrator, &artifact.integrator)] {
         assert_eq!(layers.len(), trained.len());
         for (l, t) in layers.iter().zip(trained) {
-            let w = &m.params[l.weights as usize..l.weights as usize + t.weights.len()];
+            // Row by row, whichever layout the loader chose (`WeightFormat::F32Columns`).
+            let w = weights_f32(m, l);
             let b = &m.params[l.bias as usize..l.bias as usize + t.bias.len()];
             assert_eq!(
-                (l.rows as usize, l.cols as usize, w, b),
+                (l.rows as usize, l.cols as usize, &w[..], b),
                 (t.rows, t.cols, &t.weights[..], &t.bias[..])
             );
+        }
+        // The decoder's output layer is stored column by column: every column padded to a
+        // multiple of 16 rows with zeros.
+        let output = m.decoder.last().unwrap();
+        assert_eq!(output.format, WeightFormat::F32Columns);
+        let (rows, cols) = (output.rows as usize, output.cols as usize);
+        let stride = mochi_runtime::column_stride(rows);
+        let stored = &m.params[output.weights as usize..][..stride * cols];
+        let row_major = &artifact.decoder.last().unwrap().weights;
+        for c in 0..cols {
+            for r in 0..stride {
+                let want = if r < rows { row_major[r * cols + c] } else { 0.0 };
+                assert_eq!(stored[c * stride + r], want, "column {c}, row {r}");
+            }
         }
     }
 }

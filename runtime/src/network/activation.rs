@@ -18,7 +18,7 @@ pub fn swish(x: f32) -> f32 {
 /// and the CPU has AVX-512F, the scalar definition otherwise.
 pub fn swish_all(layer: &Layer, v: &mut [f32]) {
     #[cfg(target_arch = "x86_64")]
-    if layer.format == crate::model::WeightFormat::F32 && x86::swish_all(v) {
+    if layer.format.is_f32() && x86::swish_all(v) {
         return;
     }
     #[cfg(not(target_arch = "x86_64"))]

@@ -41,6 +41,27 @@ pub fn rows(params: &[f32], layer: &Layer, x: &[f32], first: usize, out: &mut [f
     done
 }
 
+/// [`rows`] for a layer stored column by column ([`crate::model::WeightFormat::F32Columns`]).
+pub fn column_rows(params: &[f32], layer: &Layer, x: &[f32], first: usize, out: &mut [f32]) -> usize {
+    if x.len() != layer.cols as usize || x.is_empty() {
+        return 0;
+    }
+    let w = super::matrix(params, layer);
+    if w.len() != crate::model::column_stride(layer.rows as usize) * layer.cols as usize {
+        return 0;
+    }
+    let rows = out.len().min((layer.rows as usize).saturating_sub(first));
+    let out = &mut out[..rows];
+    #[cfg(target_arch = "x86_64")]
+    let done = super::x86::column_rows_f32(params, layer, w, x, first, out);
+    #[cfg(not(target_arch = "x86_64"))]
+    let done = {
+        let _ = (params, first, out);
+        0
+    };
+    done
+}
+
 #[cfg(all(test, feature = "std"))]
 mod tests {
     extern crate std;

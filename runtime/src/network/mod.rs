@@ -9,6 +9,10 @@
 //!   by target features without it). Targets agree within rounding: the cross-target check
 //!   asks for the decoded positions to stay within 1e-5 of the rest diagonal over 1,000
 //!   frames. Targets without a fast kernel (Cortex-M4, wasm) run the canonical sum below.
+//!   A layer stored column by column ([`WeightFormat::F32Columns`], a decoder's narrow
+//!   output layer as the x86-64 loader stores it) is computed the same way: one chain of
+//!   fused multiply-adds over the columns per row in the wide kernel, the canonical sum
+//!   without it.
 //! - **`f16`** ([`canonical`]): the canonical sum, every product and sum rounded to `f32` in a
 //!   fixed order (no FMA), so every target computes the same bits:
 //!
@@ -27,6 +31,9 @@
 
 pub mod activation;
 pub mod canonical;
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod columns;
 pub mod fast;
 pub mod integer;
 #[cfg(target_arch = "x86_64")]
@@ -58,7 +65,7 @@ pub(crate) fn finish(params: &[f32], layer: &Layer, r: usize, sum: f32) -> f32 {
     let b = params.get(layer.bias as usize + r).copied().unwrap_or(0.0);
     match layer.format {
         WeightFormat::Int8 => b + params.get(layer.scales as usize + r).copied().unwrap_or(0.0) * sum,
-        WeightFormat::F32 | WeightFormat::F16 => b + sum,
+        WeightFormat::F32 | WeightFormat::F16 | WeightFormat::F32Columns => b + sum,
     }
 }
 
@@ -67,8 +74,11 @@ pub(crate) fn finish(params: &[f32], layer: &Layer, r: usize, sum: f32) -> f32 {
 #[inline(always)]
 pub(crate) fn matrix<'p, T>(pool: &'p [T], layer: &Layer) -> &'p [T] {
     let start = layer.weights as usize;
-    pool.get(start..start + layer.rows as usize * layer.cols as usize)
-        .unwrap_or(&[])
+    let rows = match layer.format {
+        WeightFormat::F32Columns => crate::model::column_stride(layer.rows as usize),
+        _ => layer.rows as usize,
+    };
+    pool.get(start..start + rows * layer.cols as usize).unwrap_or(&[])
 }
 
 /// Rows `first..first + out.len()` of `layer` applied to the concatenation of `parts`.
@@ -95,6 +105,14 @@ pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usi
             canonical::rows(p, layer, matrix(weights.halves, layer), parts, first, out);
         }
         WeightFormat::Int8 => integer::rows(p, layer, matrix(weights.bytes, layer), parts, first, out),
+        WeightFormat::F32Columns => {
+            let done = match parts {
+                [x] => fast::column_rows(p, layer, x, first, out),
+                _ => 0,
+            };
+            let (first, out) = (first + done, &mut out[done..]);
+            canonical::column_rows(p, layer, matrix(p, layer), parts, first, out);
+        }
     }
 }
 
@@ -111,7 +129,7 @@ impl<'x> LayerInput<'x> {
     pub fn new(layer: &Layer, x: &'x [f32]) -> Self {
         let quantized = match layer.format {
             WeightFormat::Int8 => integer::Quantized::new(&[x], layer.cols as usize),
-            WeightFormat::F32 | WeightFormat::F16 => None,
+            WeightFormat::F32 | WeightFormat::F16 | WeightFormat::F32Columns => None,
         };
         LayerInput { x, quantized }
     }
@@ -124,7 +142,9 @@ impl<'x> LayerInput<'x> {
                 integer::quantized_rows(weights.params, layer, matrix(weights.bytes, layer), x, first, out)
             }
             (WeightFormat::Int8, None) => out.fill(f32::NAN),
-            (WeightFormat::F32 | WeightFormat::F16, _) => dense_rows(weights, layer, &[self.x], first, out),
+            (WeightFormat::F32 | WeightFormat::F16 | WeightFormat::F32Columns, _) => {
+                dense_rows(weights, layer, &[self.x], first, out)
+            }
         }
     }
 }
@@ -178,7 +198,7 @@ pub fn hidden(weights: &Weights, layers: &[Layer], parts: &[&[f32]], h: &mut [f3
     // `h` sums the outputs of the input layer and of every block's second layer: the vector
     // activation only where all of them are `f32`.
     let mut sources = core::iter::once(input).chain(blocks.chunks_exact(2).map(|pair| &pair[1]));
-    let exact = sources.find(|l| l.format != WeightFormat::F32);
+    let exact = sources.find(|l| !l.format.is_f32());
     swish_all(exact.unwrap_or(input), h);
 }
 
@@ -271,21 +291,32 @@ pub(crate) mod test_support {
                 rows: self.rows as u32,
                 cols: self.cols as u32,
                 format,
-                weights: if format == WeightFormat::F32 {
-                    2 * self.rows as u32
-                } else {
-                    0
-                },
+                weights: if format.is_f32() { 2 * self.rows as u32 } else { 0 },
                 bias: 0,
                 scales: self.rows as u32,
             }
+        }
+
+        /// `params` with the weights stored column by column instead
+        /// ([`WeightFormat::F32Columns`], same offsets).
+        pub fn columns(&self) -> Vec<f32> {
+            let stride = crate::model::column_stride(self.rows);
+            let mut params = self.params[..2 * self.rows].to_vec();
+            params.resize(2 * self.rows + stride * self.cols, 0.0);
+            let w = &self.params[2 * self.rows..];
+            for r in 0..self.rows {
+                for c in 0..self.cols {
+                    params[2 * self.rows + c * stride + r] = w[r * self.cols + c];
+                }
+            }
+            params
         }
 
         /// Row `r`'s weights as `f32` in `format`, unscaled.
         pub fn row(&self, format: WeightFormat, r: usize) -> Vec<f32> {
             let span = r * self.cols..(r + 1) * self.cols;
             match format {
-                WeightFormat::F32 => self.params[2 * self.rows..][span].to_vec(),
+                WeightFormat::F32 | WeightFormat::F32Columns => self.params[2 * self.rows..][span].to_vec(),
                 WeightFormat::F16 => self.halves[span]
                     .iter()
                     .map(|&h| half::f16::from_bits(h).to_f32())

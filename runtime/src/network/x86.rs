@@ -87,6 +87,25 @@ pub(super) fn rows_f32(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], firs
     }
 }
 
+/// [`rows_f32`] for a layer stored column by column ([`super::columns`]).
+pub(super) fn column_rows_f32(
+    params: &[f32],
+    layer: &Layer,
+    w: &[f32],
+    x: &[f32],
+    first: usize,
+    out: &mut [f32],
+) -> usize {
+    // SAFETY: as in `rows_f32`.
+    unsafe {
+        match width() {
+            Width::Avx512 => super::columns::rows512(params, layer, w, x, first, out),
+            Width::Avx2 => super::columns::rows256(params, layer, w, x, first, out),
+            Width::Canonical => 0,
+        }
+    }
+}
+
 /// The accumulators of `N` consecutive rows starting at `base` (row stride `cols`): for each
 /// row one chain of 16-lane fused multiply-adds over the columns, the last 16 masked; the
 /// rows past `N` stay zero. `N` is a constant so that the chains live in registers.

@@ -250,7 +250,7 @@ fn params<'a>(m: &Model<'a>, start: u32, rows: u64) -> &'a [f32] {
 /// their scales).
 fn stored_weights(m: &Model, layer: &Layer) -> Vec<f32> {
     match layer.format {
-        WeightFormat::F32 | WeightFormat::F16 => weights_f32(m, layer),
+        WeightFormat::F32 | WeightFormat::F16 | WeightFormat::F32Columns => weights_f32(m, layer),
         WeightFormat::Int8 => {
             let start = layer.weights as usize;
             let range = start..start + layer.rows as usize * layer.cols as usize;

@@ -1,0 +1,183 @@
+//! The wide `f32` kernel for layers stored column by column
+//! ([`crate::model::WeightFormat::F32Columns`]): a decoder's narrow output layer, thousands
+//! of rows of a few columns.
+//!
+//! Stored row by row, each row's few products must be summed across a vector, which costs
+//! more shuffles than multiply-adds ([`super::narrow`]). Stored column by column, one vector
+//! holds the same column of sixteen (AVX-512) or eight (AVX2) consecutive rows, and each
+//! column is one fused multiply-add into all of them; nothing is reduced. Each row is one
+//! chain over the columns in order, whichever vector or lane holds it, so a row computed
+//! alone, or from any offset, gets the same bits, with either vector width:
+//!
+//! ```text
+//! s = 0;  s = fma(w[r][c], x[c], s) for c = 0, 1, ..., cols - 1;  y[r] = b[r] + s
+//! ```
+
+use core::arch::x86_64::*;
+
+use crate::model::{column_stride, Layer, COLUMNS_MAX};
+
+/// Rows `first..first + out.len()` of a column-stored `f32` layer (weights `w`, `cols` =
+/// `x.len() <= COLUMNS_MAX`, biases in `params`) with AVX-512F; returns the rows written (0
+/// when the shapes do not match: the caller computes them). The first block ends where the
+/// loads become 64-byte aligned (every column has the same alignment, see
+/// [`column_stride`]): a load across two cache lines costs two.
+///
+/// # Safety
+/// The CPU must have AVX-512F.
+#[target_feature(enable = "avx512f")]
+pub(super) unsafe fn rows512(
+    params: &[f32],
+    layer: &Layer,
+    w: &[f32],
+    x: &[f32],
+    first: usize,
+    out: &mut [f32],
+) -> usize {
+    let Some(bias) = checked(params, layer, w, x.len(), first, out.len()) else {
+        return 0;
+    };
+    let stride = column_stride(layer.rows as usize);
+    let (head, rest) = out.split_at_mut(lead(w, first, 16).min(out.len()));
+    let mut r = first;
+    for o in core::iter::once(head)
+        .filter(|h| !h.is_empty())
+        .chain(rest.chunks_mut(16))
+    {
+        let keep = ((1u32 << o.len()) - 1) as u16;
+        let mut s = _mm512_setzero_ps();
+        for (c, &xc) in x.iter().enumerate() {
+            // SAFETY: `checked` made sure rows `r..r + o.len()` exist, so
+            // `c * stride + r + o.len() <= stride * cols = w.len()`; the mask reads only them.
+            let v = unsafe { _mm512_maskz_loadu_ps(keep, w.as_ptr().add(c * stride + r)) };
+            s = _mm512_fmadd_ps(v, _mm512_set1_ps(xc), s);
+        }
+        // SAFETY: `bias` holds rows `r..r + o.len()` (checked); the masks cover only them and
+        // `o`.
+        unsafe {
+            let b = _mm512_maskz_loadu_ps(keep, bias.as_ptr().add(r));
+            _mm512_mask_storeu_ps(o.as_mut_ptr(), keep, _mm512_add_ps(b, s));
+        }
+        r += o.len();
+    }
+    out.len()
+}
+
+/// [`rows512`] with AVX2 and FMA, eight rows per vector, loads aligned to 32 bytes (the same
+/// bits).
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn rows256(
+    params: &[f32],
+    layer: &Layer,
+    w: &[f32],
+    x: &[f32],
+    first: usize,
+    out: &mut [f32],
+) -> usize {
+    let Some(bias) = checked(params, layer, w, x.len(), first, out.len()) else {
+        return 0;
+    };
+    let stride = column_stride(layer.rows as usize);
+    let (head, rest) = out.split_at_mut(lead(w, first, 8).min(out.len()));
+    let mut r = first;
+    for o in core::iter::once(head)
+        .filter(|h| !h.is_empty())
+        .chain(rest.chunks_mut(8))
+    {
+        let n = o.len() as i32;
+        let mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+        let mut s = _mm256_setzero_ps();
+        for (c, &xc) in x.iter().enumerate() {
+            // SAFETY: as in `rows512`; the mask reads only this block's rows.
+            let v = unsafe { _mm256_maskload_ps(w.as_ptr().add(c * stride + r), mask) };
+            s = _mm256_fmadd_ps(v, _mm256_set1_ps(xc), s);
+        }
+        // SAFETY: as in `rows512`.
+        unsafe {
+            let b = _mm256_maskload_ps(bias.as_ptr().add(r), mask);
+            _mm256_maskstore_ps(o.as_mut_ptr(), mask, _mm256_add_ps(b, s));
+        }
+        r += o.len();
+    }
+    out.len()
+}
+
+/// Rows from `first` until row `first + lead` of `w`'s columns starts on a multiple of
+/// `lanes` floats in memory (0 when it already does).
+#[inline(always)]
+fn lead(w: &[f32], first: usize, lanes: usize) -> usize {
+    let at = (w.as_ptr() as usize / 4).wrapping_add(first);
+    (lanes - at % lanes) % lanes
+}
+
+/// The layer's biases when `n` rows from `first` of a `cols`-column layer stored in `w` can
+/// be computed: the shapes agree, `cols <= COLUMNS_MAX` and every row exists.
+#[inline(always)]
+fn checked<'p>(params: &'p [f32], layer: &Layer, w: &[f32], cols: usize, first: usize, n: usize) -> Option<&'p [f32]> {
+    let rows = layer.rows as usize;
+    let fits = cols > 0
+        && cols <= COLUMNS_MAX
+        && cols == layer.cols as usize
+        && w.len() == column_stride(rows) * cols
+        && first.checked_add(n).is_some_and(|end| end <= rows);
+    let start = layer.bias as usize;
+    fits.then(|| params.get(start..start + rows)).flatten()
+}
+
+#[cfg(all(test, feature = "std"))]
+mod tests {
+    extern crate std;
+    use std::vec::Vec;
+
+    use super::*;
+    use crate::model::WeightFormat;
+    use crate::network::test_support::{noise, Case};
+
+    /// The module's formula for row `r`, written out with scalar fused multiply-adds.
+    fn formula(row: &[f32], x: &[f32], b: f32) -> f32 {
+        b + row.iter().zip(x).fold(0.0f32, |s, (w, x)| w.mul_add(*x, s))
+    }
+
+    /// Every row of every kernel this CPU has equals the formula bit for bit, computed with
+    /// the whole layer or alone from any offset.
+    #[test]
+    fn every_row_is_the_formula_alone_or_in_a_block() {
+        let avx512 = std::is_x86_feature_detected!("avx512f");
+        let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
+        for (rows, cols) in [(1, 1), (5, 3), (16, 8), (37, 6), (100, 24), (33, 64), (17, 13)] {
+            let case = Case::new(rows, cols);
+            let params = case.columns();
+            let layer = case.layer(WeightFormat::F32Columns);
+            let w = &params[layer.weights as usize..][..column_stride(rows) * cols];
+            let x: Vec<f32> = noise(7 + cols as u32, cols).collect();
+            let want: Vec<u32> = (0..rows)
+                .map(|r| formula(&case.row(WeightFormat::F32, r), &x, case.params[r]).to_bits())
+                .collect();
+            type Kernel = unsafe fn(&[f32], &Layer, &[f32], &[f32], usize, &mut [f32]) -> usize;
+            let kernels: [(bool, Kernel); 2] = [(avx512, rows512), (avx2, rows256)];
+            for (_, kernel) in kernels.into_iter().filter(|(has, _)| *has) {
+                let mut all = std::vec![0.0f32; rows];
+                // SAFETY: the CPU has the kernel's features (filtered above).
+                assert_eq!(unsafe { kernel(&params, &layer, w, &x, 0, &mut all) }, rows);
+                assert_eq!(
+                    all.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    want,
+                    "{rows}x{cols}"
+                );
+                for first in 0..rows {
+                    let mut one = [0.0f32];
+                    // SAFETY: as above.
+                    assert_eq!(unsafe { kernel(&params, &layer, w, &x, first, &mut one) }, 1);
+                    assert_eq!(one[0].to_bits(), want[first], "{rows}x{cols}, row {first} alone");
+                }
+                // Rows past the layer are refused, not read.
+                let mut past = [0.0f32; 2];
+                // SAFETY: as above.
+                assert_eq!(unsafe { kernel(&params, &layer, w, &x, rows - 1, &mut past) }, 0);
+            }
+        }
+    }
+}
