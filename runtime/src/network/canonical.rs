@@ -115,44 +115,89 @@ fn rows_blocked<T: Stored>(params: &[f32], layer: &Layer, w: &[T], x: &[f32], fi
     done
 }
 
+/// Rows [`column_rows`] computes together: four, fewer instructions per frame than one, two,
+/// eight or sixteen both on the Cortex-M4 (whose 32 single-precision registers hold four
+/// rows' eight lanes) and in wasm with `simd128` (`scripts/run-cortex-m4.sh`,
+/// `scripts/run-wasm.sh`).
+const COLUMN_BLOCK: usize = 4;
+
 /// [`rows`] for a layer stored column by column (`W[r][c]` at `w[c * column_stride(rows) +
-/// r]`): the same sum, so the same bits as the layer stored row by row. Eight rows at a time,
-/// each column read as eight consecutive values (the loop the compiler vectorises).
+/// r]`): the same sum, so the same bits as the layer stored row by row. [`COLUMN_BLOCK`] rows
+/// at a time, each column read as that many consecutive values.
 pub fn column_rows<T: Stored>(params: &[f32], layer: &Layer, w: &[T], parts: &[&[f32]], first: usize, out: &mut [f32]) {
-    const ROWS: usize = 8;
     let (rows, cols) = (layer.rows as usize, layer.cols as usize);
     let stride = crate::model::column_stride(rows);
     let w = w.get(..stride * cols).unwrap_or(&[]);
-    for (block, o) in out.chunks_mut(ROWS).enumerate() {
-        let r = first + ROWS * block;
-        // lanes[l][k]: lane `l` of the canonical sum of row `r + k`.
-        let mut lanes = [[0.0f32; ROWS]; LANES];
+    let done = match parts {
+        [x] if x.len() == cols && !w.is_empty() => column_blocks::<T, COLUMN_BLOCK>(params, layer, w, x, first, out),
+        _ => 0,
+    };
+    // The rest (an input in several parts, a block past the columns' padding): row by row, a
+    // missing weight read as nothing.
+    for (i, o) in out.iter_mut().enumerate().skip(done) {
+        let r = first + i;
+        let mut lanes = [0.0f32; LANES];
         let x = parts.iter().flat_map(|p| p.iter()).take(cols);
         for (c, &v) in x.enumerate() {
-            let lane = &mut lanes[c % LANES];
-            let at = c * stride + r;
-            match w.get(at..at + ROWS).and_then(|c| <&[T; ROWS]>::try_from(c).ok()) {
-                Some(column) => {
-                    for k in 0..ROWS {
-                        lane[k] += column[k].value() * v;
-                    }
+            if let Some(wv) = w.get(c * stride + r).filter(|_| r < rows) {
+                lanes[c % LANES] += wv.value() * v;
+            }
+        }
+        *o = finish(params, layer, r, fold(&lanes));
+    }
+}
+
+/// The leading whole blocks of `ROWS` rows of [`column_rows`] for one input `x` (`w` the
+/// layer's `stride * cols` weights); returns the rows written. The columns go eight at a
+/// time, so that every lane index is a constant.
+#[inline(always)]
+fn column_blocks<T: Stored, const ROWS: usize>(
+    params: &[f32],
+    layer: &Layer,
+    w: &[T],
+    x: &[f32],
+    first: usize,
+    out: &mut [f32],
+) -> usize {
+    let stride = crate::model::column_stride(layer.rows as usize);
+    let (xc, xt) = x.as_chunks::<LANES>();
+    let mut done = 0;
+    for (block, o) in out.chunks_exact_mut(ROWS).enumerate() {
+        let r = first + ROWS * block;
+        let column = |c: usize| {
+            w.get(c * stride + r..c * stride + r + ROWS)
+                .and_then(|s| <&[T; ROWS]>::try_from(s).ok())
+        };
+        if r + ROWS > stride {
+            break;
+        }
+        // lanes[l][k]: lane `l` of the canonical sum of row `r + k`.
+        let mut lanes = [[0.0f32; ROWS]; LANES];
+        for (g, xg) in xc.iter().enumerate() {
+            for l in 0..LANES {
+                let Some(col) = column(g * LANES + l) else {
+                    return done;
+                };
+                for k in 0..ROWS {
+                    lanes[l][k] += col[k].value() * xg[l];
                 }
-                // A block that ends past the column's padding (it starts off a multiple of
-                // eight): row by row, a missing weight read as nothing.
-                None => {
-                    for (k, s) in lane.iter_mut().enumerate().take(o.len()) {
-                        if let Some(wv) = w.get(at + k) {
-                            *s += wv.value() * v;
-                        }
-                    }
-                }
+            }
+        }
+        for (l, &v) in xt.iter().enumerate() {
+            let Some(col) = column(xc.len() * LANES + l) else {
+                return done;
+            };
+            for k in 0..ROWS {
+                lanes[l][k] += col[k].value() * v;
             }
         }
         for (k, o) in o.iter_mut().enumerate() {
             let row: [f32; LANES] = core::array::from_fn(|l| lanes[l][k]);
             *o = finish(params, layer, r + k, fold(&row));
         }
+        done += ROWS;
     }
+    done
 }
 
 #[cfg(all(test, feature = "std"))]
