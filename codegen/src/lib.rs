@@ -288,6 +288,10 @@ fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
     for (field, value) in fields {
         let ident = static_name(field);
         match value {
+            // The weights on a cache line (`mochi_runtime::aligned`), the other pools as arrays.
+            FieldValue::F32s(v) if field == "params" => {
+                aligned_array(&mut s, &ident, "f32", v.iter().map(|v| format!("{v:?}")))
+            }
             FieldValue::F32s(v) => array(&mut s, &ident, "f32", v.iter().map(|v| format!("{v:?}"))),
             FieldValue::U16s(v) => array(&mut s, &ident, "u16", v.iter().map(|v| format!("{v:#06x}"))),
             FieldValue::I8s(v) => array(&mut s, &ident, "i8", v.iter().map(|v| v.to_string())),
@@ -311,6 +315,7 @@ fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
             FieldValue::F32(v) => format!("{v:?}"),
             FieldValue::Bool(v) => v.to_string(),
             FieldValue::Span(v) => span(v),
+            FieldValue::F32s(_) if field == "params" => format!("&{}.0", static_name(field)),
             FieldValue::F32s(_)
             | FieldValue::U16s(_)
             | FieldValue::I8s(_)
@@ -368,9 +373,26 @@ fn handles(s: &mut String, ident: &str, handles: &[Handle]) {
     let _ = writeln!(s, "];");
 }
 
+/// [`array`] inside a `mochi_runtime::Aligned` (64-byte boundary).
+fn aligned_array(s: &mut String, ident: &str, ty: &str, values: impl Iterator<Item = String>) {
+    let _ = write!(
+        s,
+        "\n#[rustfmt::skip]\nstatic {ident}: mochi_runtime::Aligned<[{ty}; {ident}_LEN]> = mochi_runtime::Aligned("
+    );
+    array_values(s, values);
+    let _ = writeln!(s, ");");
+}
+
 /// A `#[rustfmt::skip]` static array `[ty; IDENT_LEN]`, values wrapped at 100 columns.
 fn array(s: &mut String, ident: &str, ty: &str, values: impl Iterator<Item = String>) {
-    let _ = writeln!(s, "\n#[rustfmt::skip]\nstatic {ident}: [{ty}; {ident}_LEN] = [");
+    let _ = write!(s, "\n#[rustfmt::skip]\nstatic {ident}: [{ty}; {ident}_LEN] = ");
+    array_values(s, values);
+    let _ = writeln!(s, ";");
+}
+
+/// `[v, v, ...]` over lines of at most 100 columns (ends at the closing bracket).
+fn array_values(s: &mut String, values: impl Iterator<Item = String>) {
+    let _ = writeln!(s, "[");
     let mut line = String::from("   ");
     for v in values {
         if line.len() + v.len() + 2 > 100 {
@@ -384,5 +406,5 @@ fn array(s: &mut String, ident: &str, ty: &str, values: impl Iterator<Item = Str
     if !line.trim().is_empty() {
         let _ = writeln!(s, "{}", line.trim_end());
     }
-    let _ = writeln!(s, "];");
+    s.push(']');
 }

@@ -79,6 +79,12 @@ impl Quantized {
         };
         // Weights, then biases, then scales: for `f32` the layout the loader chose (a decoder's
         // narrow output layer column by column, padded), the other storages row by row.
+        if self.format.is_f32() {
+            // Every layer's `f32` weights start on a cache line, as the loader places them.
+            while !self.params.len().is_multiple_of(mochi_runtime::aligned::LINE) {
+                self.params.push(0.0);
+            }
+        }
         match self.format {
             WeightFormat::F32 | WeightFormat::F32Columns if layer.format == WeightFormat::F32Columns => {
                 out.format = WeightFormat::F32Columns;

@@ -15,6 +15,7 @@ use core::marker::PhantomData;
 use serde::de::{DeserializeSeed, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer};
 
+use crate::aligned::LINE;
 use crate::envelope::{self, EnvelopeError};
 use crate::instance::ValidModel;
 use crate::model::{
@@ -176,8 +177,13 @@ pub type LoadedModel<const P: usize, const F: usize, const I: usize> = Storage<
 
 /// Heap-backed storage for desktop tools (feature `std`).
 #[cfg(feature = "std")]
-pub type OwnedModel =
-    Storage<std::vec::Vec<f32>, std::vec::Vec<f32>, std::vec::Vec<u32>, std::vec::Vec<Layer>, std::vec::Vec<Handle>>;
+pub type OwnedModel = Storage<
+    crate::aligned::AlignedFloats,
+    std::vec::Vec<f32>,
+    std::vec::Vec<u32>,
+    std::vec::Vec<Layer>,
+    std::vec::Vec<Handle>,
+>;
 
 impl<const P: usize, const F: usize, const I: usize> LoadedModel<P, F, I> {
     /// Empty storage (usable in a `static`).
@@ -459,6 +465,12 @@ impl<'de> Reader<'de> {
             let rows: u64 = self.value(field)?;
             let cols: u64 = self.value(field)?;
             let columns = decoder && i + 1 == layers && stores_columns(cols as usize);
+            // Every layer's weights start on a cache line of the pool (`aligned`).
+            while !params.as_slice().len().is_multiple_of(LINE) {
+                if !params.push(0.0) {
+                    return Err(LoadError::Capacity { field });
+                }
+            }
             let w = match columns {
                 true => self.columns(field, params, rows, cols)?,
                 false => self.seq::<f32, _>(field, params)?,

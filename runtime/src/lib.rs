@@ -20,6 +20,7 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod aligned;
 pub mod artifact;
 #[cfg(feature = "capi")]
 pub mod capi;
@@ -38,6 +39,7 @@ mod vertex_lists;
 #[allow(unsafe_code)]
 mod world_x86;
 
+pub use aligned::Aligned;
 #[cfg(feature = "std")]
 pub use artifact::OwnedModel;
 pub use artifact::{LoadError, LoadedModel, Storage, FORMAT_VERSION as ARTIFACT_VERSION};
