@@ -110,8 +110,9 @@ pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usi
                 [x] => fast::column_rows(p, layer, x, first, out),
                 _ => 0,
             };
-            let (first, out) = (first + done, &mut out[done..]);
-            canonical::column_rows(p, layer, matrix(p, layer), parts, first, out);
+            if done < out.len() {
+                canonical::column_rows(p, layer, matrix(p, layer), parts, first + done, &mut out[done..]);
+            }
         }
     }
 }
