@@ -22,7 +22,6 @@ mod pool {
     use std::vec::Vec;
 
     use super::LINE;
-    use crate::artifact::Pool;
 
     /// One cache line of floats.
     #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -38,12 +37,15 @@ mod pool {
         len: usize,
     }
 
-    impl Pool<f32> for AlignedFloats {
-        fn clear(&mut self) {
+    impl AlignedFloats {
+        /// Removes every value.
+        pub fn clear(&mut self) {
             self.lines.clear();
             self.len = 0;
         }
-        fn push(&mut self, v: f32) -> bool {
+
+        /// Appends `v`.
+        pub fn push(&mut self, v: f32) {
             if self.len == self.lines.len() * LINE {
                 self.lines.push(Line::default());
             }
@@ -51,14 +53,17 @@ mod pool {
                 line.0[self.len % LINE] = v;
             }
             self.len += 1;
-            true
         }
-        fn as_slice(&self) -> &[f32] {
+
+        /// The values.
+        pub fn as_slice(&self) -> &[f32] {
             bytemuck::cast_slice::<Line, f32>(&self.lines)
                 .get(..self.len)
                 .unwrap_or(&[])
         }
-        fn as_mut_slice(&mut self) -> &mut [f32] {
+
+        /// The values, to change in place.
+        pub fn as_mut_slice(&mut self) -> &mut [f32] {
             let len = self.len;
             bytemuck::cast_slice_mut::<Line, f32>(&mut self.lines)
                 .get_mut(..len)
@@ -75,7 +80,7 @@ mod pool {
             let mut pool = AlignedFloats::default();
             assert!(pool.as_slice().is_empty());
             for i in 0..40 {
-                assert!(pool.push(i as f32));
+                pool.push(i as f32);
             }
             assert_eq!(pool.as_slice().as_ptr() as usize % 64, 0);
             assert_eq!(pool.as_slice(), (0..40).map(|i| i as f32).collect::<Vec<_>>());

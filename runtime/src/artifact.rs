@@ -135,6 +135,24 @@ impl<T> Pool<T> for std::vec::Vec<T> {
     }
 }
 
+/// The desktop weight pool, on cache lines (see [`crate::aligned`]).
+#[cfg(feature = "std")]
+impl Pool<f32> for crate::aligned::AlignedFloats {
+    fn clear(&mut self) {
+        crate::aligned::AlignedFloats::clear(self);
+    }
+    fn push(&mut self, v: f32) -> bool {
+        crate::aligned::AlignedFloats::push(self, v);
+        true
+    }
+    fn as_slice(&self) -> &[f32] {
+        crate::aligned::AlignedFloats::as_slice(self)
+    }
+    fn as_mut_slice(&mut self) -> &mut [f32] {
+        crate::aligned::AlignedFloats::as_mut_slice(self)
+    }
+}
+
 /// A model loaded from artifact bytes into pools `P` (weights), `F` (other reals), `I`
 /// (indices), `L` (layers) and `G` (handles). Use [`LoadedModel`] on targets and
 /// `OwnedModel` (feature `std`) on the desktop.
