@@ -18,42 +18,23 @@ pub fn width() -> Width {
     width
 }
 
-/// Rows `first..` of the `f32` layer `layer` (weights and biases in `params`) for the input
-/// `x` (`cols` values), written into the leading part of `out`; returns how many rows were
-/// written (0 where this CPU has no wide kernel: the caller computes the rest).
+/// Rows `first..` of the `f32` layer `layer` (weights and biases in `params`, stored by rows
+/// or by columns) for the input `x` (`cols` values), written into the leading part of `out`;
+/// returns how many rows were written (0 where this CPU has no wide kernel: the caller
+/// computes the rest).
 pub fn rows(params: &[f32], layer: &Layer, x: &[f32], first: usize, out: &mut [f32]) -> usize {
     if x.len() != layer.cols as usize || x.is_empty() {
         return 0;
     }
+    // The whole matrix in its layout, or empty when it does not fit the pool.
     let w = super::matrix(params, layer);
-    if w.len() != layer.rows as usize * layer.cols as usize {
+    if w.is_empty() {
         return 0;
     }
     let rows = out.len().min((layer.rows as usize).saturating_sub(first));
     let out = &mut out[..rows];
     #[cfg(target_arch = "x86_64")]
     let done = super::x86::rows_f32(params, layer, w, x, first, out);
-    #[cfg(not(target_arch = "x86_64"))]
-    let done = {
-        let _ = (params, first, out);
-        0
-    };
-    done
-}
-
-/// [`rows`] for a layer stored column by column ([`crate::model::WeightFormat::F32Columns`]).
-pub fn column_rows(params: &[f32], layer: &Layer, x: &[f32], first: usize, out: &mut [f32]) -> usize {
-    if x.len() != layer.cols as usize || x.is_empty() {
-        return 0;
-    }
-    let w = super::matrix(params, layer);
-    if w.len() != crate::model::column_stride(layer.rows as usize) * layer.cols as usize {
-        return 0;
-    }
-    let rows = out.len().min((layer.rows as usize).saturating_sub(first));
-    let out = &mut out[..rows];
-    #[cfg(target_arch = "x86_64")]
-    let done = super::x86::column_rows_f32(params, layer, w, x, first, out);
     #[cfg(not(target_arch = "x86_64"))]
     let done = {
         let _ = (params, first, out);

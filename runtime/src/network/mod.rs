@@ -85,13 +85,17 @@ pub(crate) fn matrix<'p, T>(pool: &'p [T], layer: &Layer) -> &'p [T] {
 pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usize, out: &mut [f32]) {
     let p = weights.params;
     match layer.format {
-        WeightFormat::F32 => {
+        WeightFormat::F32 | WeightFormat::F32Columns => {
             let done = match parts {
                 [x] => fast::rows(p, layer, x, first, out),
                 _ => joined_rows(p, layer, parts, first, out),
             };
             let (first, out) = (first + done, &mut out[done..]);
-            canonical::rows(p, layer, matrix(p, layer), parts, first, out);
+            match layer.format {
+                _ if out.is_empty() => {}
+                WeightFormat::F32Columns => canonical::column_rows(p, layer, matrix(p, layer), parts, first, out),
+                _ => canonical::rows(p, layer, matrix(p, layer), parts, first, out),
+            }
         }
         WeightFormat::F16 => {
             #[cfg(target_arch = "x86_64")]
@@ -105,15 +109,6 @@ pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usi
             canonical::rows(p, layer, matrix(weights.halves, layer), parts, first, out);
         }
         WeightFormat::Int8 => integer::rows(p, layer, matrix(weights.bytes, layer), parts, first, out),
-        WeightFormat::F32Columns => {
-            let done = match parts {
-                [x] => fast::column_rows(p, layer, x, first, out),
-                _ => 0,
-            };
-            if done < out.len() {
-                canonical::column_rows(p, layer, matrix(p, layer), parts, first + done, &mut out[done..]);
-            }
-        }
     }
 }
 

@@ -8,7 +8,7 @@ use core::arch::x86_64::*;
 
 use super::canonical::{fold, Stored, LANES};
 use super::{finish, matrix, Width};
-use crate::model::{Layer, Weights};
+use crate::model::{Layer, WeightFormat, Weights};
 
 /// Whether this CPU has a feature: detected at run time (once, then cached by std) under
 /// `std`, the compiled target features without it.
@@ -72,35 +72,19 @@ fn store_rows(params: &[f32], layer: &Layer, sums: __m256, r: usize, out: &mut [
     }
 }
 
-/// The wide kernel for rows `first..first + out.len()` of an `f32` layer (weights `w`, input
-/// `x`); returns the rows written (0 where the CPU has no wide kernel).
+/// The wide kernel for rows `first..first + out.len()` of an `f32` layer (weights `w` in the
+/// layer's layout, input `x`); returns the rows written (0 where the CPU has no wide kernel).
 pub(super) fn rows_f32(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], first: usize, out: &mut [f32]) -> usize {
+    let columns = layer.format == WeightFormat::F32Columns;
     // SAFETY: `width` reports only kernels whose features this CPU has; the kernels take
     // every bound from the slices (see their docs).
     unsafe {
         match width() {
+            Width::Avx512 if columns => super::columns::rows512(params, layer, w, x, first, out),
+            Width::Avx2 if columns => super::columns::rows256(params, layer, w, x, first, out),
             Width::Avx512 if x.len() <= super::narrow::MAX_COLS => super::narrow::rows(params, layer, w, x, first, out),
             Width::Avx512 => rows_f32_avx512(params, layer, w, x, first, out),
             Width::Avx2 => rows_f32_avx2(params, layer, w, x, first, out),
-            Width::Canonical => 0,
-        }
-    }
-}
-
-/// [`rows_f32`] for a layer stored column by column ([`super::columns`]).
-pub(super) fn column_rows_f32(
-    params: &[f32],
-    layer: &Layer,
-    w: &[f32],
-    x: &[f32],
-    first: usize,
-    out: &mut [f32],
-) -> usize {
-    // SAFETY: as in `rows_f32`.
-    unsafe {
-        match width() {
-            Width::Avx512 => super::columns::rows512(params, layer, w, x, first, out),
-            Width::Avx2 => super::columns::rows256(params, layer, w, x, first, out),
             Width::Canonical => 0,
         }
     }
