@@ -8,6 +8,8 @@ use crate::frame::Placement;
 use crate::model::{Chain, Layer, Model, Weights};
 use crate::network::{self, LayerInput};
 use crate::strand_lanes::ChainWalks;
+#[cfg(target_arch = "x86_64")]
+use crate::world_x86::WorldBlocks;
 
 /// Writes the first `d` coordinates of `p` as vertex `v` of `out` (element by element: a
 /// slice copy of 2 or 3 floats would be a call to `memmove`).
@@ -57,6 +59,16 @@ impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
         if let Some(output) = self.output {
             self.input.rows(&self.weights, output, first, out);
         }
+    }
+
+    /// Rows from `first` transformed by `blocks` in the same pass, as many whole blocks of
+    /// sixteen 3D vertices as `out` holds; returns the rows written (0 unless the layer is
+    /// stored by columns, see [`WorldBlocks::placed_rows`]).
+    #[cfg(target_arch = "x86_64")]
+    fn placed_rows(&self, blocks: &WorldBlocks, first: usize, out: &mut [f32]) -> usize {
+        self.output.map_or(0, |l| {
+            blocks.placed_rows(self.weights.params, l, self.input.values(), first, out)
+        })
     }
 }
 
@@ -192,6 +204,91 @@ pub(crate) fn consecutive(values: &[u32]) -> usize {
     values.iter().zip(first..).take_while(|(v, want)| **v == *want).count()
 }
 
+/// How many leading values of the strictly ascending `values` count up by one from the first,
+/// found by bisection: `values[i] - i` never decreases, so the run is where it stays equal
+/// to the first value.
+pub(crate) fn consecutive_ascending(values: &[u32]) -> usize {
+    let Some(&first) = values.first() else {
+        return 0;
+    };
+    let in_run = |i: usize| values.get(i).is_some_and(|&v| v as usize == first as usize + i);
+    // `in_run(lo)` holds and `in_run(hi)` does not (past the end it never does).
+    let (mut lo, mut hi) = (0, values.len());
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if in_run(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// Decodes the run of consecutive encoded vertices whose output rows start at `first_row`
+/// straight into `run` (`d` floats each, `origin_of` their origin indices) and turns them
+/// into world positions: blocks of sixteen 3D vertices that share an origin in one pass
+/// where the CPU has the vector transform and the layer is stored by columns, the rest row
+/// by row and then [`place_run`].
+pub(crate) fn decode_run(
+    output: &OutputRows,
+    d: usize,
+    first_row: usize,
+    run: &mut [f32],
+    origin_of: &[u32],
+    origins: &mut Origins,
+) {
+    #[cfg(target_arch = "x86_64")]
+    let done = if d == 3 && origins.vector {
+        placed_blocks(output, first_row, run, origin_of, origins)
+    } else {
+        0
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let done = 0;
+    let rest = run.get_mut(done * d..).unwrap_or_default();
+    output.rows(first_row + done * d, rest);
+    place_run(d, rest, origin_of.get(done..).unwrap_or(&[]), origins);
+}
+
+/// The leading blocks of sixteen 3D vertices of `run` whose vertices share an origin block by
+/// block, decoded and placed in one pass ([`OutputRows::placed_rows`]); returns the vertices
+/// done.
+#[cfg(target_arch = "x86_64")]
+fn placed_blocks(
+    output: &OutputRows,
+    first_row: usize,
+    run: &mut [f32],
+    origin_of: &[u32],
+    origins: &mut Origins,
+) -> usize {
+    const PER_BLOCK: usize = crate::world_x86::BLOCK_FLOATS / 3;
+    let mut done = 0;
+    while let Some(&origin) = origin_of.get(done) {
+        // Mostly every vertex left shares the origin: a pass without an early exit vectorises.
+        let left = origin_of.get(done..).unwrap_or(&[]);
+        let shared = match left.iter().fold(true, |all, &o| all & (o == origin)) {
+            true => left.len(),
+            false => left.iter().take_while(|&&o| o == origin).count(),
+        };
+        let vertices = shared / PER_BLOCK * PER_BLOCK;
+        let (Some(span), Some(blocks)) = (run.get_mut(3 * done..3 * (done + vertices)), origins.blocks_for(origin))
+        else {
+            break;
+        };
+        let written = if vertices > 0 {
+            output.placed_rows(blocks, first_row + 3 * done, span) / 3
+        } else {
+            0
+        };
+        done += written;
+        if written == 0 || written < shared {
+            break;
+        }
+    }
+    done
+}
+
 /// Turns the local coordinates of a run of encoded vertices decoded into `run` (`d` floats
 /// each) into world positions in place, `origin_of` their origin indices: sixteen at a time
 /// where the CPU has a vector transform and the sixteen share an origin, else one by one.
@@ -244,7 +341,7 @@ pub(crate) struct Origins<'p, 'm, 'a> {
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     vector: bool,
     #[cfg(target_arch = "x86_64")]
-    blocks: Option<(u32, crate::world_x86::WorldBlocks)>,
+    blocks: Option<(u32, WorldBlocks)>,
 }
 
 impl<'p, 'm, 'a> Origins<'p, 'm, 'a> {
@@ -260,24 +357,21 @@ impl<'p, 'm, 'a> Origins<'p, 'm, 'a> {
         }
     }
 
+    /// The vector transform for origin `origin`; `None` where the CPU has none.
+    #[cfg(target_arch = "x86_64")]
+    fn blocks_for(&mut self, origin: u32) -> Option<&WorldBlocks> {
+        if self.blocks.as_ref().is_none_or(|(at, _)| *at != origin) {
+            let o = self.get(origin);
+            self.blocks = Some((origin, WorldBlocks::new(&self.place.frame, &o)?));
+        }
+        self.blocks.as_ref().map(|(_, blocks)| blocks)
+    }
+
     /// Sixteen vertices of origin `origin` placed with the vector transform; `false`, and
     /// nothing done, where the CPU has none.
     #[cfg(target_arch = "x86_64")]
     fn place_block(&mut self, origin: u32, block: &mut [f32; crate::world_x86::BLOCK_FLOATS]) -> bool {
-        if self.blocks.as_ref().is_none_or(|(at, _)| *at != origin) {
-            let o = self.get(origin);
-            match crate::world_x86::WorldBlocks::new(&self.place.frame, &o) {
-                Some(blocks) => self.blocks = Some((origin, blocks)),
-                None => return false,
-            }
-        }
-        match &self.blocks {
-            Some((_, blocks)) => {
-                blocks.apply(block);
-                true
-            }
-            None => false,
-        }
+        self.blocks_for(origin).map(|blocks| blocks.apply(block)).is_some()
     }
 
     #[inline]
@@ -289,6 +383,30 @@ impl<'p, 'm, 'a> Origins<'p, 'm, 'a> {
                 self.last = Some((origin, o));
                 o
             }
+        }
+    }
+}
+
+#[cfg(all(test, feature = "std"))]
+mod tests {
+    use super::*;
+
+    /// Bisection finds the run the linear scan finds, at every start of ascending lists with
+    /// runs of every length and gaps.
+    #[test]
+    fn bisection_finds_the_scanned_run() {
+        let mut values = std::vec::Vec::new();
+        let mut v = 3u32;
+        for (i, run) in [1usize, 2, 7, 16, 33, 1, 100, 5].into_iter().enumerate() {
+            values.extend((0..run as u32).map(|k| v + k));
+            v += run as u32 + 1 + i as u32 % 3;
+        }
+        for start in 0..=values.len() {
+            assert_eq!(
+                consecutive_ascending(&values[start..]),
+                consecutive(&values[start..]),
+                "from {start}"
+            );
         }
     }
 }

@@ -143,7 +143,8 @@ impl<'m, 'a> Placement<'m, 'a> {
         };
         let slots = model.handle_vertices().len();
         if slots > 0 {
-            let sum = (0..slots).fold(Vector3::zeros(), |acc, s| acc + placement.target(s));
+            let mut sum = Vector3::zeros();
+            placement.each_target(|_, p| sum += p);
             placement.centroid = sum / slots as f32;
         }
         if model.rotates {
@@ -187,10 +188,25 @@ impl<'m, 'a> Placement<'m, 'a> {
 
     /// World position of handle slot `slot` (z = 0 in 2D).
     pub fn target(&self, slot: usize) -> Vector3<f32> {
-        let Some((handle, i, translation, rotation)) = self
-            .locate(slot)
-            .and_then(|(h, handle, i)| Some((handle, i, self.translations.get(h)?, self.rotations.get(h)?)))
-        else {
+        self.locate(slot)
+            .map_or(Vector3::zeros(), |(h, handle, i)| self.target_in(h, handle, i))
+    }
+
+    /// [`Placement::target`] of every handle slot in order, as `visit(slot, position)`: one
+    /// handle after another, without searching for each slot's handle.
+    pub fn each_target(&self, mut visit: impl FnMut(usize, Vector3<f32>)) {
+        let mut slot = 0;
+        for (h, handle) in self.model.handles.iter().enumerate() {
+            for i in 0..handle.vertices.len as usize {
+                visit(slot, self.target_in(h, handle, i));
+                slot += 1;
+            }
+        }
+    }
+
+    /// World position of vertex `i` of `handle`, handle number `h` (z = 0 in 2D).
+    fn target_in(&self, h: usize, handle: &Handle, i: usize) -> Vector3<f32> {
+        let (Some(translation), Some(rotation)) = (self.translations.get(h), self.rotations.get(h)) else {
             return Vector3::zeros();
         };
         let pivot = Vector3::from(handle.pivot);

@@ -5,7 +5,11 @@ use core::fmt;
 
 use nalgebra::Vector3;
 
-use crate::decode::{consecutive, decoder_features, place_run, put, walk_chains, ListCursors, Origins, OutputRows};
+use crate::decode::{
+    consecutive, consecutive_ascending, decode_run, decoder_features, put, walk_chains, ListCursors, Origins,
+    OutputRows,
+};
+use crate::finite::all_finite;
 use crate::frame::{HandleMotion, Placement};
 use crate::model::{Layer, Model, ModelError, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::hidden;
@@ -303,18 +307,20 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
             let mut j = 0;
             while j < free.len() {
                 let v = free[j];
-                let run = consecutive(&free[j..]);
-                let (rows, of) = (j * d..(j + run) * d, origin_of.get(j..j + run).unwrap_or(&[]));
+                let run = consecutive_ascending(&free[j..]);
+                let of = origin_of.get(j..j + run).unwrap_or(&[]);
                 if let Some(block) = out.get_mut(v as usize * d..(v as usize + run) * d) {
-                    output.rows(rows.start, block);
-                    place_run(d, block, of, &mut origins);
+                    decode_run(&output, d, j * d, block, of, &mut origins);
                 }
                 j += run;
             }
         }
-        for (slot, &v) in m.handle_vertices().iter().enumerate() {
-            put(out, v as usize, d, &place.target(slot));
-        }
+        let handle_vertices = m.handle_vertices();
+        place.each_target(|slot, p| {
+            if let Some(&v) = handle_vertices.get(slot) {
+                put(out, v as usize, d, &p);
+            }
+        });
         finite_or_rest(out, m.rest())
     }
 
@@ -358,8 +364,8 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
                 let j = source as usize;
                 let run = consecutive(&sources[i..]);
                 if let Some(block) = out.get_mut(i * d..(i + run) * d) {
-                    output.rows(j * d, block);
-                    place_run(d, block, origins.get(j..j + run).unwrap_or(&[]), &mut origin_at);
+                    let of = origins.get(j..j + run).unwrap_or(&[]);
+                    decode_run(&output, d, j * d, block, of, &mut origin_at);
                 }
                 i += run;
             }
@@ -405,14 +411,7 @@ fn check_len(out: &[f32], expected: usize) -> Result<(), DecodeError> {
 /// `Ok` when `out` is finite; otherwise overwrites it with `rest` (zeros past its end) and
 /// reports it, so no NaN reaches the caller.
 fn finite_or_rest(out: &mut [f32], rest: &[f32]) -> Result<(), DecodeError> {
-    // A value is not finite when its exponent bits are all set. One pass of compares and ORs
-    // over the buffer vectorises on every x86-64 (SSE2), where an early-exit test runs value
-    // by value.
-    const EXPONENT: u32 = 0x7f80_0000;
-    let any = out
-        .iter()
-        .fold(0u32, |any, v| any | u32::from(v.to_bits() & EXPONENT == EXPONENT));
-    if any == 0 {
+    if all_finite(out) {
         return Ok(());
     }
     for (i, o) in out.iter_mut().enumerate() {

@@ -27,6 +27,8 @@ pub mod capi;
 mod decode;
 pub mod envelope;
 mod fields;
+#[allow(unsafe_code)]
+mod finite;
 pub mod frame;
 pub mod instance;
 pub mod model;

@@ -116,7 +116,14 @@ fn lead(w: &[f32], first: usize, lanes: usize) -> usize {
 /// The layer's biases when `n` rows from `first` of a `cols`-column layer stored in `w` can
 /// be computed: the shapes agree, `cols <= COLUMNS_MAX` and every row exists.
 #[inline(always)]
-fn checked<'p>(params: &'p [f32], layer: &Layer, w: &[f32], cols: usize, first: usize, n: usize) -> Option<&'p [f32]> {
+pub(super) fn checked<'p>(
+    params: &'p [f32],
+    layer: &Layer,
+    w: &[f32],
+    cols: usize,
+    first: usize,
+    n: usize,
+) -> Option<&'p [f32]> {
     let rows = layer.rows as usize;
     let fits = cols > 0
         && cols <= COLUMNS_MAX

@@ -81,6 +81,23 @@ pub(crate) fn matrix<'p, T>(pool: &'p [T], layer: &Layer) -> &'p [T] {
     pool.get(start..start + rows * layer.cols as usize).unwrap_or(&[])
 }
 
+/// The weights (column by column) and biases of a [`WeightFormat::F32Columns`] layer, when
+/// rows `first..first + n` of it exist for an input of `cols` values.
+#[cfg(target_arch = "x86_64")]
+pub(crate) fn column_layer<'p>(
+    params: &'p [f32],
+    layer: &Layer,
+    cols: usize,
+    first: usize,
+    n: usize,
+) -> Option<(&'p [f32], &'p [f32])> {
+    if layer.format != WeightFormat::F32Columns {
+        return None;
+    }
+    let w = matrix(params, layer);
+    columns::checked(params, layer, w, cols, first, n).map(|bias| (w, bias))
+}
+
 /// Rows `first..first + out.len()` of `layer` applied to the concatenation of `parts`.
 pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usize, out: &mut [f32]) {
     let p = weights.params;
@@ -128,6 +145,11 @@ impl<'x> LayerInput<'x> {
             WeightFormat::F32 | WeightFormat::F16 | WeightFormat::F32Columns => None,
         };
         LayerInput { x, quantized }
+    }
+
+    /// The input's values.
+    pub fn values(&self) -> &'x [f32] {
+        self.x
     }
 
     /// [`dense_rows`] of `layer` (the layer this input was prepared for) on this input: the

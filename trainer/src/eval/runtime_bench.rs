@@ -5,7 +5,7 @@
 //!
 //! The runtime's instance sizes are compile-time constants; here artifacts arrive at run
 //! time, so the benchmark is instantiated for every latent size up to 16 and one or two
-//! handles, with hidden scratch of [`MAX_HIDDEN`].
+//! handles, with hidden scratch of 128 floats, or [`MAX_HIDDEN`] for wider models.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,6 +24,8 @@ use mochi_sim::measure::vertex_errors;
 
 /// Widest hidden layer the benchmark's instances can run.
 pub(crate) const MAX_HIDDEN: usize = 512;
+/// The benchmark's scratch for models no wider than this (the right-sized ones).
+const NARROW_HIDDEN: usize = 128;
 
 /// What one artifact measured.
 #[derive(Clone, Debug)]
@@ -152,7 +154,7 @@ pub(crate) fn bench_artifact(
             reference: &reference,
             diagonal: artifact.diagonal,
         };
-        let measured = run_for_sizes(k, s, &run)?;
+        let measured = run_for_sizes(k, s, m.hidden(), &run)?;
         timings.push(RuntimeTiming {
             path: path.to_path_buf(),
             weights,
@@ -215,11 +217,11 @@ pub fn agreement<const K: usize, const S: usize, const H: usize>(
     Ok((worst, compared))
 }
 
-fn measure<const K: usize, const S: usize>(run: &Run) -> Result<Measured> {
+fn measure<const K: usize, const S: usize, const H: usize>(run: &Run) -> Result<Measured> {
     let model = run.model;
     let m = model.model();
-    let fresh = || Instance::<K, S, MAX_HIDDEN>::new(model);
-    let (disagreement, compared) = agreement::<K, S, MAX_HIDDEN>(model, run.script, run.reference, run.diagonal)?;
+    let fresh = || Instance::<K, S, H>::new(model);
+    let (disagreement, compared) = agreement::<K, S, H>(model, run.script, run.reference, run.diagonal)?;
     let mut x = vec![0.0f32; m.state_len()];
     let frames = run.script.len();
     let mut body = fresh()?;
@@ -236,20 +238,25 @@ fn measure<const K: usize, const S: usize>(run: &Run) -> Result<Measured> {
     Ok(Measured {
         full,
         surface,
-        state_bytes: std::mem::size_of::<Instance<K, S, MAX_HIDDEN>>(),
+        state_bytes: std::mem::size_of::<Instance<K, S, H>>(),
         disagreement,
         compared,
     })
 }
 
-/// `measure::<K, S>` for the artifact's latent size and signal length.
-fn run_for_sizes(k: usize, s: usize, run: &Run) -> Result<Measured> {
+/// `measure::<K, S, H>` for the artifact's latent size and signal length, with the narrowest
+/// hidden scratch `H` that holds the model's widest layer (a generated module's `HIDDEN` is
+/// that width: scratch it does not need would only be zeroed every frame).
+fn run_for_sizes(k: usize, s: usize, hidden: usize, run: &Run) -> Result<Measured> {
     macro_rules! sizes {
         ($($k:literal)*) => {
-            match (k, s) {
-                $(($k, 0) => measure::<$k, 0>(run),)*
-                $(($k, 12) => measure::<$k, 12>(run),)*
-                $(($k, 24) => measure::<$k, 24>(run),)*
+            match (k, s, hidden <= NARROW_HIDDEN) {
+                $(($k, 0, true) => measure::<$k, 0, NARROW_HIDDEN>(run),)*
+                $(($k, 12, true) => measure::<$k, 12, NARROW_HIDDEN>(run),)*
+                $(($k, 24, true) => measure::<$k, 24, NARROW_HIDDEN>(run),)*
+                $(($k, 0, false) => measure::<$k, 0, MAX_HIDDEN>(run),)*
+                $(($k, 12, false) => measure::<$k, 12, MAX_HIDDEN>(run),)*
+                $(($k, 24, false) => measure::<$k, 24, MAX_HIDDEN>(run),)*
                 _ => bail!("the benchmark runs latent sizes 1-16 with no, one or two handles, not latent {k} with {s} signal numbers"),
             }
         };
