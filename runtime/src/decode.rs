@@ -61,6 +61,30 @@ impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
         }
     }
 
+    /// [`WorldBlocks::placed_vertices`] of the layer: the leading free vertices of origin
+    /// `origin`, sixteen at a time, decoded and placed straight into `out`; returns how many.
+    #[cfg(target_arch = "x86_64")]
+    fn placed_vertices(
+        &self,
+        blocks: &WorldBlocks,
+        free: &[u32],
+        origin_of: &[u32],
+        origin: u32,
+        out: &mut [f32],
+    ) -> usize {
+        self.output.map_or(0, |l| {
+            blocks.placed_vertices(
+                self.weights.params,
+                l,
+                self.input.values(),
+                free,
+                origin_of,
+                origin,
+                out,
+            )
+        })
+    }
+
     /// Rows from `first` transformed by `blocks` in the same pass, as many whole blocks of
     /// sixteen 3D vertices as `out` holds; returns the rows written (0 unless the layer is
     /// stored by columns, see [`WorldBlocks::placed_rows`]).
@@ -249,6 +273,29 @@ pub(crate) fn decode_run(
     let rest = run.get_mut(done * d..).unwrap_or_default();
     output.rows(first_row + done * d, rest);
     place_run(d, rest, origin_of.get(done..).unwrap_or(&[]), origins);
+}
+
+/// The leading free vertices of a full decode into `out` (all the model's vertices, `d`
+/// floats each) decoded and placed in one pass over the output layer where the CPU has the
+/// vector transform and the layer is stored by columns: every block of sixteen free vertices
+/// that shares the first one's origin ([`OutputRows::placed_vertices`]). Returns how many;
+/// the caller decodes the rest run by run.
+pub(crate) fn placed_free(
+    output: &OutputRows,
+    d: usize,
+    free: &[u32],
+    origin_of: &[u32],
+    out: &mut [f32],
+    origins: &mut Origins,
+) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if let (3, true, Some(&origin)) = (d, origins.vector, origin_of.first()) {
+        if let Some(blocks) = origins.blocks_for(origin) {
+            return output.placed_vertices(blocks, free, origin_of, origin, out);
+        }
+    }
+    let _ = (output, d, free, origin_of, out, origins);
+    0
 }
 
 /// The leading blocks of sixteen 3D vertices of `run` whose vertices share an origin block by

@@ -6,8 +6,8 @@ use core::fmt;
 use nalgebra::Vector3;
 
 use crate::decode::{
-    consecutive, consecutive_ascending, decode_run, decoder_features, put, walk_chains, ListCursors, Origins,
-    OutputRows,
+    consecutive, consecutive_ascending, decode_run, decoder_features, placed_free, put, walk_chains, ListCursors,
+    Origins, OutputRows,
 };
 use crate::finite::all_finite;
 use crate::frame::{HandleMotion, Placement};
@@ -304,7 +304,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
             let (free, origin_of) = (m.free_vertices(), m.origin_of());
             let mut origins = Origins::new(&place, f32_decoder(m));
             let output = OutputRows::new(m.weights(), m.decoder, &h);
-            let mut j = 0;
+            let mut j = placed_free(&output, d, free, origin_of, out, &mut origins);
             while j < free.len() {
                 let v = free[j];
                 let run = consecutive_ascending(&free[j..]);

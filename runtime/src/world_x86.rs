@@ -156,36 +156,223 @@ impl WorldBlocks {
     /// columns of `w` (`stride` floats apart).
     #[target_feature(enable = "avx512f")]
     unsafe fn placed_avx512(&self, w: &[f32], stride: usize, bias: &[f32], x: &[f32], first: usize, out: &mut [f32]) {
-        for (g, block) in out.chunks_exact_mut(BLOCK_FLOATS).enumerate() {
-            let r = first + BLOCK_FLOATS * g;
-            // Three chains, one per vector of the block, as the column kernel computes each.
-            let (mut s0, mut s1, mut s2) = (_mm512_setzero_ps(), _mm512_setzero_ps(), _mm512_setzero_ps());
-            for (c, &xc) in x.iter().enumerate() {
-                let xv = _mm512_set1_ps(xc);
-                // SAFETY: column `c` holds rows `r..r + 48` (the caller's promise).
-                unsafe {
-                    let column = w.as_ptr().add(c * stride + r);
-                    s0 = _mm512_fmadd_ps(_mm512_loadu_ps(column), xv, s0);
-                    s1 = _mm512_fmadd_ps(_mm512_loadu_ps(column.add(16)), xv, s1);
-                    s2 = _mm512_fmadd_ps(_mm512_loadu_ps(column.add(32)), xv, s2);
-                }
-            }
-            // SAFETY: `bias` holds rows `r..r + 48` (the caller's promise); the block holds 48
-            // floats.
+        // Two blocks at a time where there are two: six independent chains hide the latency
+        // of each block's chain and transform.
+        let mut pairs = out.chunks_exact_mut(2 * BLOCK_FLOATS);
+        let mut r = first;
+        for pair in &mut pairs {
+            // SAFETY: rows `r..r + 96` exist in every column and in `bias` (the caller's
+            // promise); `pair` holds 96 floats.
             unsafe {
-                let b = bias.as_ptr().add(r);
-                let [out0, out1, out2] = self.transform(
-                    _mm512_add_ps(_mm512_loadu_ps(b), s0),
-                    _mm512_add_ps(_mm512_loadu_ps(b.add(16)), s1),
-                    _mm512_add_ps(_mm512_loadu_ps(b.add(32)), s2),
+                let [a, b] = column_sums::<2>(w.as_ptr().add(r), stride, x);
+                self.finish_block(bias.as_ptr().add(r), a, pair.as_mut_ptr());
+                self.finish_block(
+                    bias.as_ptr().add(r + BLOCK_FLOATS),
+                    b,
+                    pair.as_mut_ptr().add(BLOCK_FLOATS),
                 );
-                let p = block.as_mut_ptr();
-                _mm512_storeu_ps(p, out0);
-                _mm512_storeu_ps(p.add(16), out1);
-                _mm512_storeu_ps(p.add(32), out2);
+            }
+            r += 2 * BLOCK_FLOATS;
+        }
+        if let Some(block) = pairs.into_remainder().get_mut(..BLOCK_FLOATS) {
+            // SAFETY: as above, for 48 rows.
+            unsafe {
+                let [a] = column_sums::<1>(w.as_ptr().add(r), stride, x);
+                self.finish_block(bias.as_ptr().add(r), a, block.as_mut_ptr());
             }
         }
     }
+
+    /// The encoded vertices `free` (the model's free vertices, ascending; `origin_of` their
+    /// origins) decoded from a column-stored `f32` output layer on the input `x` and placed,
+    /// sixteen at a time, each block straight to its vertices in `out` (`3` floats per
+    /// vertex): contiguous blocks with three stores, blocks across a prescribed vertex vertex
+    /// by vertex. Stops at the first block with another origin than `origin`, and before the
+    /// last `free.len() % 16`; returns the free vertices placed (0 where the layer is not
+    /// stored by columns or `out` is too short). The bits of [`WorldBlocks::placed_rows`].
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn placed_vertices(
+        &self,
+        params: &[f32],
+        layer: &Layer,
+        x: &[f32],
+        free: &[u32],
+        origin_of: &[u32],
+        origin: u32,
+        out: &mut [f32],
+    ) -> usize {
+        const PER_BLOCK: usize = BLOCK_FLOATS / 3;
+        let n = free.len().min(origin_of.len()) / PER_BLOCK * PER_BLOCK;
+        let Some((w, bias)) = network::column_layer(params, layer, x.len(), 0, 3 * n).filter(|_| n > 0) else {
+            return 0;
+        };
+        let stride = column_stride(layer.rows as usize);
+        // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; `column_layer`
+        // checked that rows `0..3 n` exist in every column of `w` and in `bias`.
+        unsafe { self.placed_vertices_avx512(w, stride, bias, x, &free[..n], &origin_of[..n], origin, out) }
+    }
+
+    /// # Safety
+    /// Rows `0..3 free.len()` must exist in `bias` and in each of the `x.len()` columns of
+    /// `w`; `free.len()` a multiple of 16 and equal to `origin_of`'s. (Destinations are
+    /// checked here: a block is stored whole only where its sixteen vertices are
+    /// consecutive and inside `out`.)
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn placed_vertices_avx512(
+        &self,
+        w: &[f32],
+        stride: usize,
+        bias: &[f32],
+        x: &[f32],
+        free: &[u32],
+        origin_of: &[u32],
+        origin: u32,
+        out: &mut [f32],
+    ) -> usize {
+        const PER_BLOCK: usize = BLOCK_FLOATS / 3;
+        let wanted = _mm512_set1_epi32(origin as i32);
+        // SAFETY (both calls below): chunks of 16 indices; AVX-512F is present.
+        let shares = |origins: &[u32]| unsafe { shares_origin(origins, wanted) };
+        // Two blocks at a time where both share the origin (as in `placed_avx512`).
+        let mut done = 0;
+        for (vertices, origins) in free
+            .chunks_exact(2 * PER_BLOCK)
+            .zip(origin_of.chunks_exact(2 * PER_BLOCK))
+        {
+            if !(shares(&origins[..PER_BLOCK]) && shares(&origins[PER_BLOCK..])) {
+                break;
+            }
+            let r = 3 * done;
+            // SAFETY: rows `r..r + 96` exist in every column and in `bias` (the caller's
+            // promise).
+            let [a, b] = unsafe { column_sums::<2>(w.as_ptr().add(r), stride, x) };
+            // SAFETY: as above.
+            unsafe {
+                self.store_block(bias.as_ptr().add(r), a, &vertices[..PER_BLOCK], out);
+                self.store_block(bias.as_ptr().add(r + BLOCK_FLOATS), b, &vertices[PER_BLOCK..], out);
+            }
+            done += 2 * PER_BLOCK;
+        }
+        for (vertices, origins) in free[done..]
+            .chunks_exact(PER_BLOCK)
+            .zip(origin_of[done..].chunks_exact(PER_BLOCK))
+        {
+            if !shares(origins) {
+                break;
+            }
+            let r = 3 * done;
+            // SAFETY: as above, for 48 rows.
+            unsafe {
+                let [a] = column_sums::<1>(w.as_ptr().add(r), stride, x);
+                self.store_block(bias.as_ptr().add(r), a, vertices, out);
+            }
+            done += PER_BLOCK;
+        }
+        done
+    }
+
+    /// One block's sums plus its biases at `bias`, transformed and stored as the vertices
+    /// `vertices` (16) of `out`: with three stores where they are consecutive and inside
+    /// `out`, else vertex by vertex ([`WorldBlocks::scatter_block`]).
+    ///
+    /// # Safety
+    /// `bias` must hold 48 floats.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn store_block(&self, bias: *const f32, s: [__m512; 3], vertices: &[u32], out: &mut [f32]) {
+        let (Some(&first), Some(&last)) = (vertices.first(), vertices.get(BLOCK_FLOATS / 3 - 1)) else {
+            return;
+        };
+        let (v0, last) = (first as usize, last as usize);
+        if last.wrapping_sub(v0) == BLOCK_FLOATS / 3 - 1 && 3 * last + 3 <= out.len() {
+            // SAFETY: the caller's promise for `bias`; the block's vertices are `v0..=last`,
+            // so floats `3 v0..3 last + 3` of `out` (checked).
+            unsafe { self.finish_block(bias, s, out.as_mut_ptr().add(3 * v0)) };
+        } else {
+            // SAFETY: the caller's promise.
+            unsafe { self.scatter_block(bias, s, vertices, out) };
+        }
+    }
+
+    /// [`WorldBlocks::store_block`] vertex by vertex (those outside `out` are skipped): a
+    /// block across a prescribed vertex.
+    ///
+    /// # Safety
+    /// `bias` must hold 48 floats.
+    #[target_feature(enable = "avx512f")]
+    #[cold]
+    unsafe fn scatter_block(&self, bias: *const f32, s: [__m512; 3], vertices: &[u32], out: &mut [f32]) {
+        let mut block = [0.0f32; BLOCK_FLOATS];
+        // SAFETY: the caller's promise; `block` holds 48 floats.
+        unsafe { self.finish_block(bias, s, block.as_mut_ptr()) };
+        for (&v, p) in vertices.iter().zip(block.chunks_exact(3)) {
+            if let Some(o) = out.get_mut(3 * v as usize..3 * v as usize + 3) {
+                o.copy_from_slice(p);
+            }
+        }
+    }
+
+    /// One block's sums plus its biases at `bias`, transformed and stored at `out`.
+    ///
+    /// # Safety
+    /// `bias` and `out` must hold 48 floats.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn finish_block(&self, bias: *const f32, s: [__m512; 3], out: *mut f32) {
+        // SAFETY: the caller's promise.
+        unsafe {
+            let [out0, out1, out2] = self.transform(
+                _mm512_add_ps(_mm512_loadu_ps(bias), s[0]),
+                _mm512_add_ps(_mm512_loadu_ps(bias.add(16)), s[1]),
+                _mm512_add_ps(_mm512_loadu_ps(bias.add(32)), s[2]),
+            );
+            _mm512_storeu_ps(out, out0);
+            _mm512_storeu_ps(out.add(16), out1);
+            _mm512_storeu_ps(out.add(32), out2);
+        }
+    }
+}
+
+/// Whether all sixteen `origins` equal `wanted` (broadcast).
+///
+/// # Safety
+/// The CPU must have AVX-512F; `origins` must hold 16 indices.
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn shares_origin(origins: &[u32], wanted: __m512i) -> bool {
+    // SAFETY: the caller's promise.
+    unsafe { _mm512_cmpeq_epi32_mask(_mm512_loadu_si512(origins.as_ptr().cast()), wanted) == u16::MAX }
+}
+
+/// The sums of `N` consecutive blocks of a column-stored layer from row pointer `w` (row
+/// `r` of column 0; column `c` is `c * stride` floats further): for each of the block's
+/// three vectors one chain of fused multiply-adds over the columns in order, as the column
+/// kernel computes each row.
+///
+/// # Safety
+/// The CPU must have AVX-512F; `48 N` floats from `w + c * stride` must be readable for every
+/// column `c < x.len()`.
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn column_sums<const N: usize>(w: *const f32, stride: usize, x: &[f32]) -> [[__m512; 3]; N] {
+    let mut s = [[_mm512_setzero_ps(); 3]; N];
+    for (c, &xc) in x.iter().enumerate() {
+        let xv = _mm512_set1_ps(xc);
+        // SAFETY: the caller's promise.
+        let column = unsafe { w.add(c * stride) };
+        for (b, s) in s.iter_mut().enumerate() {
+            for (i, s) in s.iter_mut().enumerate() {
+                // SAFETY: the caller's promise.
+                *s = _mm512_fmadd_ps(
+                    unsafe { _mm512_loadu_ps(column.add(BLOCK_FLOATS * b + 16 * i)) },
+                    xv,
+                    *s,
+                );
+            }
+        }
+    }
+    s
 }
 
 #[cfg(all(test, feature = "std"))]
@@ -239,6 +426,65 @@ mod tests {
             assert_eq!(blocks.placed_rows(&case.params, &rows_layer, &x, 0, &mut out), 0);
             assert_eq!(blocks.placed_rows(&params, &layer, &x, 3 * vertices - 47, &mut out), 0);
         }
+    }
+
+    /// Free vertices decoded and placed straight into a full buffer have the bits of the rows
+    /// placed block by block, whole blocks or across prescribed vertices; decoding stops at
+    /// a block of another origin and before the last partial block, and leaves prescribed
+    /// vertices untouched.
+    #[test]
+    fn placed_vertices_are_the_placed_rows_at_their_vertices() {
+        use crate::model::WeightFormat;
+        use crate::network::test_support::{noise, Case};
+        let r = Matrix3::new(0.36, 0.48, -0.8, -0.8, 0.6, 0.0, 0.48, 0.64, 0.6);
+        let Some(blocks) = WorldBlocks::new(&r, &Vector3::new(1.5, -2.0, 0.25)) else {
+            std::println!("no AVX-512F: the vector transform is not run on this CPU");
+            return;
+        };
+        // 120 vertices; prescribed: 0, 40 and 41 (inside a block of free vertices), 119.
+        let prescribed = [0u32, 40, 41, 119];
+        let free: std::vec::Vec<u32> = (0..120).filter(|v| !prescribed.contains(v)).collect();
+        let (cols, n) = (8, free.len());
+        let case = Case::new(3 * n, cols);
+        let params = case.columns();
+        let layer = case.layer(WeightFormat::F32Columns);
+        let x: std::vec::Vec<f32> = noise(11, cols).collect();
+        let mut rows = std::vec![0.0f32; 3 * n];
+        assert_eq!(blocks.placed_rows(&params, &layer, &x, 0, &mut rows), 3 * (n / 16 * 16));
+        let bits = |v: &[f32]| v.iter().map(|v| v.to_bits()).collect::<std::vec::Vec<_>>();
+        for (stop, origin_of) in [
+            (n / 16 * 16, std::vec![2u32; n]),
+            (48, (0..n).map(|j| if j == 50 { 3 } else { 2 }).collect()),
+        ] {
+            let mut out = std::vec![7.0f32; 3 * 120];
+            assert_eq!(
+                blocks.placed_vertices(&params, &layer, &x, &free, &origin_of, 2, &mut out),
+                stop
+            );
+            for (j, &v) in free.iter().enumerate() {
+                let got = &out[3 * v as usize..3 * v as usize + 3];
+                match j < stop {
+                    true => assert_eq!(bits(got), bits(&rows[3 * j..3 * j + 3]), "free vertex {j}"),
+                    false => assert_eq!(got, [7.0; 3], "free vertex {j} is past the stop"),
+                }
+            }
+            for v in prescribed {
+                assert_eq!(out[3 * v as usize..3 * v as usize + 3], [7.0; 3], "prescribed {v}");
+            }
+        }
+        // A buffer too short for the last block's vertices is not written past its end.
+        let mut short = std::vec![0.0f32; 3 * 60];
+        let done = blocks.placed_vertices(&params, &layer, &x, &free, &std::vec![2; n], 2, &mut short);
+        assert_eq!(done, n / 16 * 16);
+        let rows_layer = Layer {
+            format: WeightFormat::F32,
+            ..layer
+        };
+        let mut out = std::vec![0.0f32; 3 * 120];
+        assert_eq!(
+            blocks.placed_vertices(&case.params, &rows_layer, &x, &free, &[2; 116], 2, &mut out),
+            0
+        );
     }
 
     /// The pairs of vectors [`WorldBlocks::transform`] permutes are the ones [`gather`] names.
