@@ -11,10 +11,17 @@ use mochi_runtime::WeightFormat;
 
 /// Artifact, weight storage, length and FNV-1a 64 of the generated module.
 ///
-/// Last change: every layer's `f32` weights start on a cache line of the pool (padded to a
-/// multiple of 16 floats, as the loader places them; `tiny` `f32`: `PARAMS_LEN` 13,340 ->
-/// 13,348) and the `PARAMS` static is a `mochi_runtime::Aligned` (64-byte boundary), in every
-/// module. Before: the loader stores a decoder output layer of at most 64 columns column by
+/// Last change: the loader stores by columns every `f32` layer of at most 64 columns or of
+/// 128-256 rows (`mochi_runtime::stores_columns`), not only a decoder's narrow output layer,
+/// and `f32` code keeps that layout: `beam`'s hidden layers and `tiny`'s and `strands`'
+/// layers are written by columns (`tiny` `f32`: `PARAMS_LEN` 13,348 -> 13,732, the padding of
+/// columns to multiples of 16 rows; `DECODER_WEIGHTS` and `INTEGRATOR_WEIGHTS` name
+/// `F32Columns`); `f16` and int8 modules changed only in `ARTIFACT_PARAMS_LEN` (`tiny` 13,348
+/// -> 13,732; `beam` int8 is unchanged: its wide output layer keeps rows and its hidden
+/// layers' padding was already a multiple of 16). Before: every layer's `f32` weights start
+/// on a cache line of the pool (padded to a multiple of 16 floats, as the loader places
+/// them; `tiny` `f32`: `PARAMS_LEN` 13,340 -> 13,348) and the `PARAMS` static is a
+/// `mochi_runtime::Aligned` (64-byte boundary), in every module. Before: the loader stores a decoder output layer of at most 64 columns column by
 /// column (`WeightFormat::F32Columns`, each column padded to a multiple of 16 rows), and `f32`
 /// code keeps that layout: `tiny`'s and `strands`' output layers are written by columns
 /// (`tiny`: 216 rows padded to 224 in each of 32 columns, `PARAMS_LEN` 13,084 -> 13,340, the
@@ -27,11 +34,11 @@ use mochi_runtime::WeightFormat;
 /// vertices, the `surface_source` span's start and the new `surface_triangles` span). Before
 /// that: the loader's derived `chain_order` (the inverse of the strands' slots).
 const EXPECTED: [(&str, WeightFormat, usize, u64); 6] = [
-    ("tiny", WeightFormat::F32, 198365, 0x06dfaec17960dce1),
-    ("beam", WeightFormat::F32, 11411165, 0xfff8b86b960805fd),
-    ("strands", WeightFormat::F32, 93665, 0x95d6275a698be2a5),
-    ("tiny", WeightFormat::F16, 121005, 0x89804e7661e721b7),
-    ("tiny", WeightFormat::Int8, 87471, 0xabbbda7baa5cedca),
+    ("tiny", WeightFormat::F32, 200440, 0x3f8018b7129d8820),
+    ("beam", WeightFormat::F32, 11411305, 0x164f9e16295fd229),
+    ("strands", WeightFormat::F32, 95388, 0x4264dc0580154267),
+    ("tiny", WeightFormat::F16, 121005, 0x1c37f0a0dd18e0fa),
+    ("tiny", WeightFormat::Int8, 87471, 0x0a7e3f4d4dfcd25f),
     ("beam", WeightFormat::Int8, 3417818, 0x18bed3c71a5aaa28),
 ];
 

@@ -302,8 +302,8 @@ where
         h.initial_latent = r.seq("initial_latent", &mut self.floats)?;
         h.latent_min = r.seq("latent_min", &mut self.floats)?;
         h.latent_max = r.seq("latent_max", &mut self.floats)?;
-        r.network("decoder", &mut self.params, &mut self.decoder, true)?;
-        r.network("integrator", &mut self.params, &mut self.integrator, false)?;
+        r.network("decoder", &mut self.params, &mut self.decoder)?;
+        r.network("integrator", &mut self.params, &mut self.integrator)?;
         self.header.surface_triangles = r.seq("surface_triangles", &mut self.indices)?;
         self.header.decoder_basis = r.value("decoder_basis")?;
         match r.de.finalize() {
@@ -466,23 +466,21 @@ impl<'de> Reader<'de> {
     }
 
     /// A network (list of dense layers): weights and biases appended to `params`, layers to
-    /// `list`. For a `decoder`, an output layer that [`stores_columns`] is stored column by
-    /// column.
+    /// `list`; a layer that [`stores_columns`] is stored column by column.
     fn network<P: Pool<f32>, L: Pool<Layer>>(
         &mut self,
         field: &'static str,
         params: &mut P,
         list: &mut L,
-        decoder: bool,
     ) -> Result<(), LoadError> {
         let layers = self.len(field)?;
         if layers > MAX_LAYERS {
             return Err(LoadError::Capacity { field });
         }
-        for i in 0..layers {
+        for _ in 0..layers {
             let rows: u64 = self.value(field)?;
             let cols: u64 = self.value(field)?;
-            let columns = decoder && i + 1 == layers && stores_columns(cols as usize);
+            let columns = stores_columns(rows as usize, cols as usize);
             // Every layer's weights start on a cache line of the pool (`aligned`).
             while !params.as_slice().len().is_multiple_of(LINE) {
                 if !params.push(0.0) {

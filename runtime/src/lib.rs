@@ -54,5 +54,5 @@ pub use instance::{
 };
 pub use model::{
     column_stride, stores_columns, Chain, Chains, Handle, Layer, Model, ModelError, Problem, Span, WeightFormat,
-    Weights, COLUMNS_MAX, HANDLE_SOURCE, SIGNAL_PER_HANDLE,
+    Weights, COLUMNS_MAX, COLUMN_ROWS, HANDLE_SOURCE, SIGNAL_PER_HANDLE,
 };
