@@ -48,11 +48,19 @@ impl Quantized {
 
     /// Re-stores the decoder in `decoder` and the integrator in `integrator`.
     pub fn split(model: &Model, decoder: WeightFormat, integrator: WeightFormat) -> Self {
-        let mut q = Quantized::default();
-        q.format = decoder;
-        q.decoder = model.decoder.iter().map(|l| q.push(model, l)).collect();
+        let mut q = Quantized {
+            format: decoder,
+            ..Quantized::default()
+        };
+        let last = model.decoder.len().saturating_sub(1);
+        q.decoder = model
+            .decoder
+            .iter()
+            .enumerate()
+            .map(|(i, l)| q.push(model, l, i == last && mochi_runtime::stores_columns(l.cols as usize)))
+            .collect();
         q.format = integrator;
-        q.integrator = model.integrator.iter().map(|l| q.push(model, l)).collect();
+        q.integrator = model.integrator.iter().map(|l| q.push(model, l, false)).collect();
         q
     }
 
@@ -68,8 +76,12 @@ impl Quantized {
         }
     }
 
-    /// Appends one layer of `model` and returns it pointing into these pools.
-    fn push(&mut self, model: &Model, layer: &Layer) -> Layer {
+    /// Appends one layer of `model` and returns it pointing into these pools; `f32` weights
+    /// stay column by column only where every loader stores them so (`columns`: a decoder's
+    /// narrow output layer, [`mochi_runtime::stores_columns`]), other layers a wide kernel's
+    /// loader stored by columns go back to rows, so that the module does not depend on the
+    /// machine that generated it.
+    fn push(&mut self, model: &Model, layer: &Layer, columns: bool) -> Layer {
         let rows = layer.rows as usize;
         let cols = layer.cols as usize;
         let w = weights_f32(model, layer);
@@ -77,8 +89,8 @@ impl Quantized {
             format: self.format,
             ..*layer
         };
-        // Weights, then biases, then scales: for `f32` the layout the loader chose (a decoder's
-        // narrow output layer column by column, padded), the other storages row by row.
+        // Weights, then biases, then scales: for `f32` a decoder's narrow output layer column
+        // by column, padded, as every loader stores it; everything else row by row.
         if self.format.is_f32() {
             // Every layer's `f32` weights start on a cache line, as the loader places them.
             while !self.params.len().is_multiple_of(mochi_runtime::aligned::LINE) {
@@ -86,7 +98,7 @@ impl Quantized {
             }
         }
         match self.format {
-            WeightFormat::F32 | WeightFormat::F32Columns if layer.format == WeightFormat::F32Columns => {
+            WeightFormat::F32 | WeightFormat::F32Columns if columns && layer.format == WeightFormat::F32Columns => {
                 out.format = WeightFormat::F32Columns;
                 out.weights = self.params.len() as u32;
                 let start = layer.weights as usize;

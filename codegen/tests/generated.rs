@@ -11,17 +11,15 @@ use mochi_runtime::WeightFormat;
 
 /// Artifact, weight storage, length and FNV-1a 64 of the generated module.
 ///
-/// Last change: the loader stores by columns every `f32` layer of at most 64 columns or of
-/// 128-256 rows (`mochi_runtime::stores_columns`), not only a decoder's narrow output layer,
-/// and `f32` code keeps that layout: `beam`'s hidden layers and `tiny`'s and `strands`'
-/// layers are written by columns (`tiny` `f32`: `PARAMS_LEN` 13,348 -> 13,732, the padding of
-/// columns to multiples of 16 rows; `DECODER_WEIGHTS` and `INTEGRATOR_WEIGHTS` name
-/// `F32Columns`); `f16` and int8 modules changed only in `ARTIFACT_PARAMS_LEN` (`tiny` 13,348
-/// -> 13,732; `beam` int8 is unchanged: its wide output layer keeps rows and its hidden
-/// layers' padding was already a multiple of 16). Before: every layer's `f32` weights start
-/// on a cache line of the pool (padded to a multiple of 16 floats, as the loader places
-/// them; `tiny` `f32`: `PARAMS_LEN` 13,340 -> 13,348) and the `PARAMS` static is a
-/// `mochi_runtime::Aligned` (64-byte boundary), in every module. Before: the loader stores a decoder output layer of at most 64 columns column by
+/// Last change: `ARTIFACT_PARAMS_LEN` (the capacity for loading the artifact) is computed from
+/// the layer shapes as a loader with a wide `f32` kernel fills its pool, which on x86-64 now
+/// stores every layer of at most 64 columns or of 128-256 rows by columns (more padding):
+/// `tiny` 13,348 -> 13,732, `strands` 7,798 -> 8,118, `beam` unchanged; the rest of every
+/// module is unchanged (generated code keeps only a decoder's narrow output layer by
+/// columns). Before: every layer's `f32` weights start on a cache line of the pool (padded to a
+/// multiple of 16 floats, as the loader places them; `tiny` `f32`: `PARAMS_LEN` 13,340 ->
+/// 13,348) and the `PARAMS` static is a `mochi_runtime::Aligned` (64-byte boundary), in every
+/// module. Before: the loader stores a decoder output layer of at most 64 columns column by
 /// column (`WeightFormat::F32Columns`, each column padded to a multiple of 16 rows), and `f32`
 /// code keeps that layout: `tiny`'s and `strands`' output layers are written by columns
 /// (`tiny`: 216 rows padded to 224 in each of 32 columns, `PARAMS_LEN` 13,084 -> 13,340, the
@@ -34,9 +32,9 @@ use mochi_runtime::WeightFormat;
 /// vertices, the `surface_source` span's start and the new `surface_triangles` span). Before
 /// that: the loader's derived `chain_order` (the inverse of the strands' slots).
 const EXPECTED: [(&str, WeightFormat, usize, u64); 6] = [
-    ("tiny", WeightFormat::F32, 200440, 0x3f8018b7129d8820),
-    ("beam", WeightFormat::F32, 11411305, 0x164f9e16295fd229),
-    ("strands", WeightFormat::F32, 95388, 0x4264dc0580154267),
+    ("tiny", WeightFormat::F32, 198365, 0xd1021d499b220044),
+    ("beam", WeightFormat::F32, 11411165, 0xfff8b86b960805fd),
+    ("strands", WeightFormat::F32, 93665, 0xa0bac02f4e7ff144),
     ("tiny", WeightFormat::F16, 121005, 0x1c37f0a0dd18e0fa),
     ("tiny", WeightFormat::Int8, 87471, 0x0a7e3f4d4dfcd25f),
     ("beam", WeightFormat::Int8, 3417818, 0x18bed3c71a5aaa28),

@@ -19,8 +19,8 @@ use crate::aligned::LINE;
 use crate::envelope::{self, EnvelopeError};
 use crate::instance::ValidModel;
 use crate::model::{
-    column_stride, stores_columns, Handle, Layer, Model, ModelError, Problem, Span, WeightFormat, HANDLE_SOURCE,
-    MAX_HANDLES, MAX_LAYERS,
+    column_stride, stores_columns, wide_stores_columns, Handle, Layer, Model, ModelError, Problem, Span, WeightFormat,
+    HANDLE_SOURCE, MAX_HANDLES, MAX_LAYERS,
 };
 use crate::vertex_lists::{fill_chain_order, UNNAMED};
 
@@ -302,8 +302,8 @@ where
         h.initial_latent = r.seq("initial_latent", &mut self.floats)?;
         h.latent_min = r.seq("latent_min", &mut self.floats)?;
         h.latent_max = r.seq("latent_max", &mut self.floats)?;
-        r.network("decoder", &mut self.params, &mut self.decoder)?;
-        r.network("integrator", &mut self.params, &mut self.integrator)?;
+        r.network("decoder", &mut self.params, &mut self.decoder, true)?;
+        r.network("integrator", &mut self.params, &mut self.integrator, false)?;
         self.header.surface_triangles = r.seq("surface_triangles", &mut self.indices)?;
         self.header.decoder_basis = r.value("decoder_basis")?;
         match r.de.finalize() {
@@ -466,21 +466,26 @@ impl<'de> Reader<'de> {
     }
 
     /// A network (list of dense layers): weights and biases appended to `params`, layers to
-    /// `list`; a layer that [`stores_columns`] is stored column by column.
+    /// `list`. For a `decoder`, an output layer that [`stores_columns`] is stored column by
+    /// column, and where the CPU has a wide kernel every layer that [`wide_stores_columns`].
     fn network<P: Pool<f32>, L: Pool<Layer>>(
         &mut self,
         field: &'static str,
         params: &mut P,
         list: &mut L,
+        decoder: bool,
     ) -> Result<(), LoadError> {
         let layers = self.len(field)?;
         if layers > MAX_LAYERS {
             return Err(LoadError::Capacity { field });
         }
-        for _ in 0..layers {
+        // Where the CPU has a wide kernel, most layers go by columns (`wide_stores_columns`).
+        let wide = crate::network::fast::width() != crate::network::Width::Canonical;
+        for i in 0..layers {
             let rows: u64 = self.value(field)?;
             let cols: u64 = self.value(field)?;
-            let columns = stores_columns(rows as usize, cols as usize);
+            let columns = (decoder && i + 1 == layers && stores_columns(cols as usize))
+                || (wide && wide_stores_columns(rows as usize, cols as usize));
             // Every layer's weights start on a cache line of the pool (`aligned`).
             while !params.as_slice().len().is_multiple_of(LINE) {
                 if !params.push(0.0) {

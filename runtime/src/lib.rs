@@ -53,6 +53,6 @@ pub use instance::{
     RANGE_MARGIN,
 };
 pub use model::{
-    column_stride, stores_columns, Chain, Chains, Handle, Layer, Model, ModelError, Problem, Span, WeightFormat,
-    Weights, COLUMNS_MAX, COLUMN_ROWS, HANDLE_SOURCE, SIGNAL_PER_HANDLE,
+    column_stride, stores_columns, wide_stores_columns, Chain, Chains, Handle, Layer, Model, ModelError, Problem, Span,
+    WeightFormat, Weights, COLUMNS_MAX, COLUMN_ROWS, HANDLE_SOURCE, SIGNAL_PER_HANDLE,
 };

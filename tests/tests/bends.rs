@@ -1,11 +1,13 @@
 //! Rods encoded by their bends (`[latent] rods = "bends"`, `artifacts/strands.mochi`) in the
 //! runtime: decoded positions agree with the trainer's `Encoding::decode` of the same encoded
 //! state within 1e-5 of the diagonal, the artifact round-trips and loads field for field,
-//! generated constants and the artifact loaded from bytes decode the same bits, and malformed
+//! generated constants and the artifact loaded from bytes decode alike (within 1e-5 of the
+//! diagonal; the surface decode the full decode's bits), and malformed
 //! strands are refused naming the field.
 
 use std::path::Path;
 
+use mochi_codegen::quantize::weights_f32;
 use mochi_runtime::{AnyInstance, LoadError, Model, OwnedModel, Problem, ValidModel};
 use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::{self, Split};
@@ -151,9 +153,17 @@ fn strands_artifact_round_trips_and_loads_field_for_field() {
         assert_eq!(c.slots, &want.slots[..]);
         assert_eq!(c.lengths, &want.lengths[..]);
     }
-    // The generated constants hold the same numbers.
+    // The generated constants hold the same numbers (the weights layer by layer: a loader
+    // with a wide `f32` kernel stores more layers by columns than generated code does).
     let generated = strands::MODEL;
-    assert_eq!(m.params, generated.params);
+    for (a, b) in [(m.decoder, generated.decoder), (m.integrator, generated.integrator)] {
+        assert_eq!(a.len(), b.len());
+        for (la, lb) in a.iter().zip(b) {
+            assert_eq!(weights_f32(m, la), weights_f32(&generated, lb));
+            let bias = |m: &Model, l: &mochi_runtime::Layer| m.params[l.bias as usize..][..l.rows as usize].to_vec();
+            assert_eq!(bias(m, la), bias(&generated, lb));
+        }
+    }
     assert_eq!(m.floats, generated.floats);
     assert_eq!(m.indices, generated.indices);
     assert_eq!(
@@ -169,7 +179,7 @@ fn strands_artifact_round_trips_and_loads_field_for_field() {
 }
 
 #[test]
-fn generated_and_loaded_strands_decode_the_same_bits() {
+fn generated_and_loaded_strands_decode_alike() {
     let a = artifact();
     let (_, _, bcs) = scene(&a, FRAMES);
     let generated = ValidModel::new(strands::MODEL).unwrap();
@@ -181,18 +191,25 @@ fn generated_and_loaded_strands_decode_the_same_bits() {
         strands::Instance::new(&loaded).unwrap(),
     );
     let (mut xa, mut xb) = ([0.0f32; strands::STATE_LEN], [0.0f32; strands::STATE_LEN]);
+    let diagonal = mochi_target_common::diagonal(generated.model().rest(), 3);
     let mut surface = [0.0f32; strands::SURFACE_LEN];
     for t in 1..=FRAMES {
         let bc = motions(&bcs[0], t);
         assert_eq!(a_body.step(&generated, &bc), b_body.step(&loaded, &bc));
         a_body.decode_into(&generated, &mut xa).unwrap();
         b_body.decode_into(&loaded, &mut xb).unwrap();
-        assert_eq!(xa, xb, "frame {t}");
+        // Where the loader stored layers by columns for a wide kernel, the `f32` sums are
+        // ordered differently: the two agree as `f32` targets do, within 1e-5 of the diagonal.
+        let worst = xa.iter().zip(&xb).fold(0.0f32, |w, (a, b)| w.max((a - b).abs()));
+        assert!(
+            worst <= 1e-5 * diagonal,
+            "frame {t}: {worst:.3e} apart (diagonal {diagonal})"
+        );
         // The surface decode walks the same strands: the same bits on the drawn vertices.
         b_body.decode_surface_into(&loaded, &mut surface).unwrap();
         for (i, &v) in loaded.model().surface_vertices().iter().enumerate() {
             let v = v as usize;
-            assert_eq!(surface[3 * i..3 * i + 3], xa[3 * v..3 * v + 3], "vertex {v}, frame {t}");
+            assert_eq!(surface[3 * i..3 * i + 3], xb[3 * v..3 * v + 3], "vertex {v}, frame {t}");
         }
     }
 }

@@ -18,7 +18,7 @@
 
 use core::arch::x86_64::*;
 
-use crate::model::{column_stride, stores_columns, Layer};
+use crate::model::{column_stride, wide_stores_columns, Layer};
 
 /// Blocks of 16 (AVX-512) or 8 (AVX2) rows computed together, one pass over the columns:
 /// eight independent chains hide each fused multiply-add's latency, and a layer of at most
@@ -229,7 +229,7 @@ pub(super) fn checked<'p>(
 ) -> Option<&'p [f32]> {
     let rows = layer.rows as usize;
     let fits = cols > 0
-        && stores_columns(rows, cols)
+        && wide_stores_columns(rows, cols)
         && cols == layer.cols as usize
         && w.len() == column_stride(rows) * cols
         && first.checked_add(n).is_some_and(|end| end <= rows);
