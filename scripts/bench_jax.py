@@ -31,11 +31,13 @@ ROUNDS = 5
 def load(path):
     """The exported model as a dict of numpy arrays and ints."""
     d = np.load(path)
-    if int(d["format_version"]) != 1:
-        sys.exit(f"{path}: export format {int(d['format_version'])}, this script reads 1")
+    if int(d["format_version"]) not in (1, 2):
+        sys.exit(f"{path}: export format {int(d['format_version'])}, this script reads 1 and 2")
     m = {key: d[key] for key in d.files}
     for key in ["dim", "num_vertices", "latent", "signal", "hidden", "rotates"]:
         m[key] = int(m[key])
+    # Format 1 archives hold position-encoded models only.
+    m["bends"] = int(m.get("bends", 0))
     # Archives written before basis decoders existed hold residual MLP decoders.
     m["decoder_basis"] = int(m.get("decoder_basis", 0))
     for net in ["integrator", "decoder"]:
@@ -53,10 +55,12 @@ def load(path):
 class Ops:
     """The runtime's forward math over an array module (`jax.numpy` or `numpy`)."""
 
-    def __init__(self, xp, m):
+    def __init__(self, xp, m, scan):
         self.xp = xp
         self.m = m
         self.f32 = xp.float32
+        # `scan(f, carry, xs)` as `jax.lax.scan`: the strand walk's steps.
+        self.scan = scan
 
     def layer(self, p, x):
         w, b, scale = p
@@ -153,6 +157,52 @@ class Ops:
         flip = xp.where(xp.linalg.det(r) < 0, self.f32(-1.0), self.f32(1.0))
         return vt.T @ xp.diag(xp.stack([self.f32(1.0), self.f32(1.0), flip])) @ u.T
 
+    def unit(self, v):
+        return v / self.xp.sqrt(self.xp.sum(v * v, axis=-1, keepdims=True))
+
+    def cross(self, a, b):
+        return self.xp.cross(a, b)
+
+    def walk(self, params, q, targets, frame):
+        """Bend-encoded strands (the runtime's `chain_start` and `ChainWalk::step`), all
+        strands side by side, one scan step per vertex along them (shorter strands padded and
+        masked): the world positions of the free vertices (free x 3). `q`: two bend numbers
+        per free vertex."""
+        xp = self.xp
+        parent = params["chain_parent"]
+        anchor = targets[parent[:, 1]]
+        d = self.unit(anchor - targets[parent[:, 0]])
+        turned = params["chain_rest_normal"] @ frame.T
+        projected = turned - d * xp.sum(d * turned, axis=1, keepdims=True)
+        norm = xp.sqrt(xp.sum(projected * projected, axis=1, keepdims=True))
+        # Where the rest normal turned onto the edge: the unit axis least along it, made
+        # normal to it.
+        least = xp.argmin(xp.abs(d), axis=1)
+        e = (xp.arange(3)[None, :] == least[:, None]).astype(self.f32)
+        fallback = self.unit(e - d * xp.sum(d * e, axis=1, keepdims=True))
+        u = xp.where(norm > 1e-6, projected / xp.maximum(norm, self.f32(1e-30)), fallback)
+        w = self.cross(d, u)
+
+        def step(carry, inputs):
+            position, d, u, w = carry
+            qi, length, keep = inputs
+            g = (u * qi[:, 0:1] + w * qi[:, 1:2]) / length[:, None]
+            c = 2.0 / (1.0 + xp.sum(g * g, axis=1, keepdims=True))
+
+            def turn(y):
+                h = self.cross(g, y)
+                return y + (h + self.cross(g, h)) * c
+
+            d2, u2, w2 = turn(d), turn(u), turn(w)
+            moved = (position + d2 * length[:, None], d2, u2, w2)
+            keep = keep[:, None]
+            new = tuple(xp.where(keep, a, b) for a, b in zip(moved, carry))
+            return new, new[0]
+
+        inputs = (q[params["chain_slot"]].transpose(1, 0, 2), params["chain_length"].T, params["chain_mask"].T)
+        _, placed = self.scan(step, (anchor, d, u, w), inputs)
+        return placed.transpose(1, 0, 2).reshape(-1, 3)[params["walk_index"]]
+
     def frame(self, params, state, p):
         """One frame: the integrator step (clamped, held when not finite) and the full decode.
         `state` is `(z, z_prev, signal, signal_prev)`; returns the new state and the positions
@@ -163,11 +213,14 @@ class Ops:
         stepped = z + self.network(params["integrator"], x)
         stepped = xp.where(xp.all(xp.isfinite(stepped)), stepped, z)
         stepped = xp.clip(stepped, params["low"], params["high"])
-        q = self.decode(params["decoder"], stepped).reshape(-1, m["dim"])
         targets, frame, origins = self.placement(params, p)
-        if m["dim"] == 2:
-            q = xp.concatenate([q, xp.zeros((q.shape[0], 1), dtype=self.f32)], axis=1)
-        world = q @ frame.T + origins
+        if m["bends"]:
+            world = self.walk(params, self.decode(params["decoder"], stepped).reshape(-1, 2), targets, frame)
+        else:
+            q = self.decode(params["decoder"], stepped).reshape(-1, m["dim"])
+            if m["dim"] == 2:
+                q = xp.concatenate([q, xp.zeros((q.shape[0], 1), dtype=self.f32)], axis=1)
+            world = q @ frame.T + origins
         # Free and handle vertices partition the mesh: one gather puts every vertex in place.
         d = m["dim"]
         placed = xp.concatenate([world[:, :d], targets[:, :d]])
@@ -190,7 +243,32 @@ def params_of(m, xp):
     order[m["free_vertices"]] = np.arange(len(m["free_vertices"]))
     order[m["handle_vertices"]] = len(m["free_vertices"]) + np.arange(len(m["handle_vertices"]))
     net = lambda layers: [(f(w), f(b), None if s is None else f(s)) for w, b, s in layers]
-    return {
+    strands = {}
+    if m["bends"]:
+        # The strands padded to the longest: slot, edge length and mask per (strand, step),
+        # and where each free vertex's position lands in the flattened (strand, step) walk.
+        counts = m["chain_count"].astype(np.int64)
+        chains, longest = len(counts), int(counts.max())
+        slot = np.zeros((chains, longest), dtype=np.int64)
+        length = np.ones((chains, longest), dtype=np.float32)
+        mask = np.zeros((chains, longest), dtype=bool)
+        walk_index = np.zeros(len(m["free_vertices"]), dtype=np.int64)
+        first = 0
+        for c, n in enumerate(counts):
+            slot[c, :n] = m["chain_slots"][first : first + n]
+            length[c, :n] = m["chain_lengths"][first : first + n]
+            mask[c, :n] = True
+            walk_index[slot[c, :n]] = c * longest + np.arange(n)
+            first += n
+        strands = {
+            "chain_parent": i(m["chain_parent"]),
+            "chain_rest_normal": f(m["chain_rest_normal"]),
+            "chain_slot": i(slot),
+            "chain_length": f(length),
+            "chain_mask": xp.asarray(mask),
+            "walk_index": i(walk_index),
+        }
+    return strands | {
         "integrator": net(m["integrator"]),
         "decoder": net(m["decoder"]),
         "low": f(lo - margin),
@@ -232,8 +310,17 @@ def best_of(rounds, run):
     return best
 
 
+def numpy_scan(f, carry, xs):
+    """`jax.lax.scan` as a Python loop over the leading axis."""
+    outs = []
+    for x in zip(*xs):
+        carry, y = f(carry, x)
+        outs.append(y)
+    return carry, np.stack(outs)
+
+
 def bench_numpy(m):
-    ops, params = Ops(np, m), params_of(m, np)
+    ops, params = Ops(np, m, numpy_scan), params_of(m, np)
     signals = [row.astype(np.float32) for row in m["script_signal"]]
     kept = {int(f) for f in m["runtime_frames"]}
     seen = {}
@@ -253,7 +340,7 @@ def bench_jax(m):
     import jax
     import jax.numpy as jnp
 
-    ops = Ops(jnp, m)
+    ops = Ops(jnp, m, jax.lax.scan)
     params = jax.device_put(params_of(m, np))
     signals = jnp.asarray(m["script_signal"], dtype=jnp.float32)
     rows = [jax.device_put(row) for row in np.asarray(m["script_signal"], dtype=np.float32)]

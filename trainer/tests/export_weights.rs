@@ -256,12 +256,34 @@ fn export_holds_the_runtime_networks_and_reproduces_its_rollout() {
 }
 
 #[test]
-fn export_refuses_bend_encoded_strands_naming_the_file() {
+fn bend_encoded_strands_are_exported_with_their_chains() {
     let dir = tempfile::tempdir().unwrap();
-    let run = export(&artifact("strands.mochi"), &dir.path().join("s.npz"), &[]);
-    let err = String::from_utf8_lossy(&run.stderr);
-    assert!(
-        !run.status.success() && err.contains("strands.mochi") && err.contains("bends"),
-        "{err}"
-    );
+    let out = dir.path().join("s.npz");
+    let run = export(&artifact("strands.mochi"), &out, &["--frames", "20"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let a = Archive::read(&out);
+    assert_eq!(a.scalar("bends"), 1);
+    let bytes = std::fs::read(artifact("strands.mochi")).unwrap();
+    let mut storage = OwnedModel::default();
+    let model = storage.load(&bytes).unwrap();
+    let m = model.model();
+    let chains: Vec<_> = m.chains().collect();
+    assert_eq!(a.shape("chain_parent"), [chains.len() as u64, 2]);
+    let (mut slots, mut lengths) = (Vec::new(), Vec::new());
+    for (i, c) in chains.iter().enumerate() {
+        assert_eq!(a.get("chain_parent")[2 * i..2 * i + 2], c.parent.map(f64::from));
+        assert_eq!(
+            a.get("chain_rest_normal")[3 * i..3 * i + 3],
+            c.rest_normal.map(f64::from)
+        );
+        assert_eq!(a.get("chain_count")[i], c.slots.len() as f64);
+        slots.extend(c.slots.iter().map(|&v| f64::from(v)));
+        lengths.extend(c.lengths.iter().map(|&v| f64::from(v)));
+    }
+    assert_eq!(a.get("chain_slots"), slots);
+    assert_eq!(a.get("chain_lengths"), lengths);
+    assert_eq!(slots.len(), m.free_vertices().len(), "every free vertex is on a strand");
+    // Two numbers per free vertex come out of the decoder.
+    let last = a.shape("decoder_layers")[0] as usize - 1;
+    assert_eq!(a.shape(&format!("decoder_{last}_w"))[0] as usize, 2 * slots.len());
 }

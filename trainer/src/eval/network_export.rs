@@ -1,7 +1,10 @@
 //! `mochi export-weights`: the networks of an artifact exactly as the runtime runs them, and
 //! the runtime's own rollout of the targets' reference script, as a numpy `.npz` archive, so
 //! that another framework can run the same computation on the same inputs and be checked
-//! against the runtime (`scripts/bench-jax.sh`).
+//! against the runtime (`scripts/bench-jax.sh`). A bend-encoded model (`bends`) also carries
+//! its strands: each starts at its second prescribed vertex with the axes of
+//! [`mochi_runtime::frame::Placement::chain_start`] and places one vertex per decoded pair
+//! of bend numbers ([`mochi_runtime::ChainWalk::step`]).
 //!
 //! A network is the layer list `[input, inner_0, outer_0, ..., output]` of
 //! [`mochi_runtime::model`]: `h = input(x); h += outer_j(swish(inner_j(h))); y =
@@ -33,6 +36,11 @@
 //! | `handle_pivot` | float32 | `(handles, 3)` |
 //! | `free_vertices`, `origin_of` | uint32 | `(free,)` |
 //! | `root_slots` | uint32 | `(roots,)` |
+//! | `bends` | uint32 | `()`: 1 when the decoder's output is two bend numbers per free vertex, walked along strands (`mochi_runtime::Chain`, `ChainWalk`) |
+//! | `chain_parent` | uint32 | `(chains, 2)`: handle slots of each strand's two prescribed vertices (bends only) |
+//! | `chain_rest_normal` | float32 | `(chains, 3)` (bends only) |
+//! | `chain_count` | uint32 | `(chains,)`: free vertices per strand (bends only) |
+//! | `chain_slots`, `chain_lengths` | uint32, float32 | `(sum of chain_count,)`: free-vertex index and rest length of the edge ending at it, root to tip, strand after strand (bends only) |
 //! | `script_signal` | float32 | `(frames, signal)`: `p_t` of frames `1..=frames` |
 //! | `runtime_latent` | float32 | `(frames, latent)`: the runtime's `z_t` |
 //! | `runtime_stepped` | uint8 | `(frames,)`: 0 stepped, 1 clamped, 2 held |
@@ -50,7 +58,7 @@ use mochi_target_common::{Script, CHECKPOINTS};
 use crate::error::{bail, Context, TrainerError, TrainerResult as Result};
 
 /// Version number stored in `format_version`; bumped when the layout changes.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 
 /// What an export wrote.
 #[derive(Clone, Debug, PartialEq)]
@@ -86,12 +94,6 @@ pub fn export(artifact: &Path, out: &Path, frames: usize, weights: WeightFormat)
     let model = ValidModel::new(stored.model(loaded.model()))
         .with_context(|| format!("{}: with {} weights", artifact.display(), format_name(weights)))?;
     let m = model.model();
-    if m.bends() {
-        bail!(
-            "{}: strands encoded by their bends are not exported (only position-encoded models)",
-            artifact.display()
-        );
-    }
     let rollout = Rollout::run(&model, frames)?;
     let name = artifact
         .file_name()
@@ -225,6 +227,29 @@ fn write(m: &Model, name: &str, weights: WeightFormat, r: &Rollout, out: &Path) 
         ("root_slots", m.root_slots()),
     ] {
         npz.array(key, &[values.len() as u64], values.iter().copied())?;
+    }
+    npz.array("bends", &[], [u32::from(m.bends())])?;
+    if m.bends() {
+        let chains: Vec<_> = m.chains().collect();
+        let c = chains.len() as u64;
+        npz.array("chain_parent", &[c, 2], chains.iter().flat_map(|ch| ch.parent))?;
+        npz.array(
+            "chain_rest_normal",
+            &[c, 3],
+            chains.iter().flat_map(|ch| ch.rest_normal),
+        )?;
+        npz.array("chain_count", &[c], chains.iter().map(|ch| ch.slots.len() as u32))?;
+        let total = chains.iter().map(|ch| ch.slots.len() as u64).sum::<u64>();
+        npz.array(
+            "chain_slots",
+            &[total],
+            chains.iter().flat_map(|ch| ch.slots.iter().copied()),
+        )?;
+        npz.array(
+            "chain_lengths",
+            &[total],
+            chains.iter().flat_map(|ch| ch.lengths.iter().copied()),
+        )?;
     }
     let frames = r.stepped.len() as u64;
     npz.array("script_signal", &[frames, s], r.signal.iter().copied())?;
