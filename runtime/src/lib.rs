@@ -36,6 +36,7 @@ pub mod network;
 #[cfg(feature = "std")]
 pub mod payload;
 mod strand_lanes;
+mod validation;
 mod vertex_lists;
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
