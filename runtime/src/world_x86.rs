@@ -379,6 +379,16 @@ unsafe fn column_sums<const N: usize>(w: *const f32, stride: usize, x: &[f32]) -
 mod tests {
     use super::*;
 
+    /// The transform of a fixed rotation and origin; `None` (said) without AVX-512F.
+    fn test_blocks() -> Option<WorldBlocks> {
+        let r = Matrix3::new(0.36, 0.48, -0.8, -0.8, 0.6, 0.0, 0.48, 0.64, 0.6);
+        let blocks = WorldBlocks::new(&r, &Vector3::new(1.5, -2.0, 0.25));
+        if blocks.is_none() {
+            std::println!("no AVX-512F: the vector transform is not run on this CPU");
+        }
+        blocks
+    }
+
     /// Rows decoded and placed in one pass have the bits of the column kernel's rows placed
     /// block by block afterwards, from any first vertex; a layer stored by rows, or rows past
     /// the layer, are left to the caller.
@@ -386,9 +396,7 @@ mod tests {
     fn placed_rows_are_the_rows_then_the_transform() {
         use crate::model::{WeightFormat, Weights};
         use crate::network::test_support::{noise, Case};
-        let r = Matrix3::new(0.36, 0.48, -0.8, -0.8, 0.6, 0.0, 0.48, 0.64, 0.6);
-        let Some(blocks) = WorldBlocks::new(&r, &Vector3::new(1.5, -2.0, 0.25)) else {
-            std::println!("no AVX-512F: the vector transform is not run on this CPU");
+        let Some(blocks) = test_blocks() else {
             return;
         };
         for (vertices, cols) in [(40, 8), (77, 24), (16, 1), (50, 64)] {
@@ -436,9 +444,7 @@ mod tests {
     fn placed_vertices_are_the_placed_rows_at_their_vertices() {
         use crate::model::WeightFormat;
         use crate::network::test_support::{noise, Case};
-        let r = Matrix3::new(0.36, 0.48, -0.8, -0.8, 0.6, 0.0, 0.48, 0.64, 0.6);
-        let Some(blocks) = WorldBlocks::new(&r, &Vector3::new(1.5, -2.0, 0.25)) else {
-            std::println!("no AVX-512F: the vector transform is not run on this CPU");
+        let Some(blocks) = test_blocks() else {
             return;
         };
         // 120 vertices; prescribed: 0, 40 and 41 (inside a block of free vertices), 119.
