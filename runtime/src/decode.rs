@@ -99,11 +99,13 @@ impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
 /// Encoded vertices whose decoder rows a [`BendRows`] computes at once.
 const BEND_BLOCK: usize = 16;
 
-/// Strands walked side by side ([`ChainWalks`]): eight where the lanes become vector
-/// instructions, one on targets without vectors (the Cortex-M4), where more lanes only add
-/// bookkeeping. Any number gives the same bits.
-const STRAND_LANES: usize = if cfg!(any(
-    target_arch = "x86_64",
+/// Strands walked side by side ([`ChainWalks`]): sixteen on x86-64 (one AVX-512 vector,
+/// whose step `ChainWalks` writes with intrinsics), eight where the lanes become other
+/// vector instructions, one on targets without vectors (the Cortex-M4), where more lanes
+/// only add bookkeeping. Any number gives the same bits.
+const STRAND_LANES: usize = if cfg!(target_arch = "x86_64") {
+    16
+} else if cfg!(any(
     target_arch = "aarch64",
     all(target_arch = "wasm32", target_feature = "simd128")
 )) {

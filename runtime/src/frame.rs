@@ -321,7 +321,7 @@ impl ChainWalk {
 }
 
 /// Magnitudes below this (`2^-50`) are zero in a strand walk.
-const TINY: f32 = 1.0 / (1u64 << 50) as f32;
+pub(crate) const TINY: f32 = 1.0 / (1u64 << 50) as f32;
 
 /// `v`, or zero where `|v| < 2^-50` (NaN stays NaN): the strand walk flushes its inputs and
 /// the factors of its products, so that every operand is zero or at least `2^-50` and no
