@@ -232,37 +232,16 @@ impl WorldBlocks {
     ) -> usize {
         const PER_BLOCK: usize = BLOCK_FLOATS / 3;
         let wanted = _mm512_set1_epi32(origin as i32);
-        // SAFETY (both calls below): chunks of 16 indices; AVX-512F is present.
+        // SAFETY: chunks of 16 indices; AVX-512F is present.
         let shares = |origins: &[u32]| unsafe { shares_origin(origins, wanted) };
-        // Two blocks at a time where both share the origin (as in `placed_avx512`).
         let mut done = 0;
-        for (vertices, origins) in free
-            .chunks_exact(2 * PER_BLOCK)
-            .zip(origin_of.chunks_exact(2 * PER_BLOCK))
-        {
-            if !(shares(&origins[..PER_BLOCK]) && shares(&origins[PER_BLOCK..])) {
-                break;
-            }
-            let r = 3 * done;
-            // SAFETY: rows `r..r + 96` exist in every column and in `bias` (the caller's
-            // promise).
-            let [a, b] = unsafe { column_sums::<2>(w.as_ptr().add(r), stride, x) };
-            // SAFETY: as above.
-            unsafe {
-                self.store_block(bias.as_ptr().add(r), a, &vertices[..PER_BLOCK], out);
-                self.store_block(bias.as_ptr().add(r + BLOCK_FLOATS), b, &vertices[PER_BLOCK..], out);
-            }
-            done += 2 * PER_BLOCK;
-        }
-        for (vertices, origins) in free[done..]
-            .chunks_exact(PER_BLOCK)
-            .zip(origin_of[done..].chunks_exact(PER_BLOCK))
-        {
+        for (vertices, origins) in free.chunks_exact(PER_BLOCK).zip(origin_of.chunks_exact(PER_BLOCK)) {
             if !shares(origins) {
                 break;
             }
             let r = 3 * done;
-            // SAFETY: as above, for 48 rows.
+            // SAFETY: rows `r..r + 48` exist in every column and in `bias` (the caller's
+            // promise).
             unsafe {
                 let [a] = column_sums::<1>(w.as_ptr().add(r), stride, x);
                 self.store_block(bias.as_ptr().add(r), a, vertices, out);
