@@ -13,7 +13,7 @@ use core::arch::x86_64::*;
 use nalgebra::{Matrix3, Vector3};
 
 use crate::model::{column_stride, Layer};
-use crate::network;
+use crate::network::{self, column_chains512};
 
 /// Floats in one block: sixteen vertices of three coordinates.
 pub(crate) const BLOCK_FLOATS: usize = 48;
@@ -164,7 +164,8 @@ impl WorldBlocks {
             // SAFETY: rows `r..r + 96` exist in every column and in `bias` (the caller's
             // promise); `pair` holds 96 floats.
             unsafe {
-                let [a, b] = column_sums::<2>(w.as_ptr().add(r), stride, x);
+                let [a0, a1, a2, b0, b1, b2] = column_chains512::<6>(w.as_ptr().add(r), stride, x);
+                let (a, b) = ([a0, a1, a2], [b0, b1, b2]);
                 self.finish_block(bias.as_ptr().add(r), a, pair.as_mut_ptr());
                 self.finish_block(
                     bias.as_ptr().add(r + BLOCK_FLOATS),
@@ -177,7 +178,7 @@ impl WorldBlocks {
         if let Some(block) = pairs.into_remainder().get_mut(..BLOCK_FLOATS) {
             // SAFETY: as above, for 48 rows.
             unsafe {
-                let [a] = column_sums::<1>(w.as_ptr().add(r), stride, x);
+                let a = column_chains512::<3>(w.as_ptr().add(r), stride, x);
                 self.finish_block(bias.as_ptr().add(r), a, block.as_mut_ptr());
             }
         }
@@ -243,7 +244,7 @@ impl WorldBlocks {
             // SAFETY: rows `r..r + 48` exist in every column and in `bias` (the caller's
             // promise).
             unsafe {
-                let [a] = column_sums::<1>(w.as_ptr().add(r), stride, x);
+                let a = column_chains512::<3>(w.as_ptr().add(r), stride, x);
                 self.store_block(bias.as_ptr().add(r), a, vertices, out);
             }
             done += PER_BLOCK;
@@ -322,36 +323,6 @@ impl WorldBlocks {
 unsafe fn shares_origin(origins: &[u32], wanted: __m512i) -> bool {
     // SAFETY: the caller's promise.
     unsafe { _mm512_cmpeq_epi32_mask(_mm512_loadu_si512(origins.as_ptr().cast()), wanted) == u16::MAX }
-}
-
-/// The sums of `N` consecutive blocks of a column-stored layer from row pointer `w` (row
-/// `r` of column 0; column `c` is `c * stride` floats further): for each of the block's
-/// three vectors one chain of fused multiply-adds over the columns in order, as the column
-/// kernel computes each row.
-///
-/// # Safety
-/// The CPU must have AVX-512F; `48 N` floats from `w + c * stride` must be readable for every
-/// column `c < x.len()`.
-#[target_feature(enable = "avx512f")]
-#[inline]
-unsafe fn column_sums<const N: usize>(w: *const f32, stride: usize, x: &[f32]) -> [[__m512; 3]; N] {
-    let mut s = [[_mm512_setzero_ps(); 3]; N];
-    for (c, &xc) in x.iter().enumerate() {
-        let xv = _mm512_set1_ps(xc);
-        // SAFETY: the caller's promise.
-        let column = unsafe { w.add(c * stride) };
-        for (b, s) in s.iter_mut().enumerate() {
-            for (i, s) in s.iter_mut().enumerate() {
-                // SAFETY: the caller's promise.
-                *s = _mm512_fmadd_ps(
-                    unsafe { _mm512_loadu_ps(column.add(BLOCK_FLOATS * b + 16 * i)) },
-                    xv,
-                    *s,
-                );
-            }
-        }
-    }
-    s
 }
 
 #[cfg(all(test, feature = "std"))]

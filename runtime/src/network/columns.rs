@@ -97,18 +97,8 @@ unsafe fn block512(w: &[f32], stride: usize, x: &[f32], bias: &[f32], r: usize, 
 #[target_feature(enable = "avx512f")]
 #[inline]
 unsafe fn group512(w: &[f32], stride: usize, x: &[f32], bias: &[f32], r: usize, out: &mut [f32]) {
-    let mut s = [_mm512_setzero_ps(); GROUP];
-    for (c, &xc) in x.iter().enumerate() {
-        let xv = _mm512_set1_ps(xc);
-        for (b, s) in s.iter_mut().enumerate() {
-            // SAFETY: the caller's promise.
-            *s = _mm512_fmadd_ps(
-                unsafe { _mm512_loadu_ps(w.as_ptr().add(c * stride + r + 16 * b)) },
-                xv,
-                *s,
-            );
-        }
-    }
+    // SAFETY: the caller's promise.
+    let s = unsafe { column_chains512::<GROUP>(w.as_ptr().add(r), stride, x) };
     for (b, s) in s.iter().enumerate() {
         // SAFETY: the caller's promise.
         unsafe {
@@ -116,6 +106,30 @@ unsafe fn group512(w: &[f32], stride: usize, x: &[f32], bias: &[f32], r: usize, 
             _mm512_storeu_ps(out.as_mut_ptr().add(16 * b), v);
         }
     }
+}
+
+/// The sums of `V` consecutive 16-row vectors of a column-stored layer, from `w` (row `r` of
+/// column 0; column `c` is `c * stride` floats further): for each vector one chain of fused
+/// multiply-adds over the columns in order, the module's formula without the bias. Also
+/// what the decode's one-pass kernels of `crate::world_x86` sum.
+///
+/// # Safety
+/// The CPU must have AVX-512F; `16 V` floats from `w + c * stride` must be readable for every
+/// column `c < x.len()`.
+#[target_feature(enable = "avx512f")]
+#[inline]
+pub(crate) unsafe fn column_chains512<const V: usize>(w: *const f32, stride: usize, x: &[f32]) -> [__m512; V] {
+    let mut s = [_mm512_setzero_ps(); V];
+    for (c, &xc) in x.iter().enumerate() {
+        let xv = _mm512_set1_ps(xc);
+        // SAFETY: the caller's promise.
+        let column = unsafe { w.add(c * stride) };
+        for (b, s) in s.iter_mut().enumerate() {
+            // SAFETY: the caller's promise.
+            *s = _mm512_fmadd_ps(unsafe { _mm512_loadu_ps(column.add(16 * b)) }, xv, *s);
+        }
+    }
+    s
 }
 
 /// [`rows512`] with AVX2 and FMA, eight rows per vector, loads aligned to 32 bytes (the same

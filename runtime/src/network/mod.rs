@@ -81,6 +81,9 @@ pub(crate) fn matrix<'p, T>(pool: &'p [T], layer: &Layer) -> &'p [T] {
     pool.get(start..start + rows * layer.cols as usize).unwrap_or(&[])
 }
 
+#[cfg(target_arch = "x86_64")]
+pub(crate) use columns::column_chains512;
+
 /// The weights (column by column) and biases of a [`WeightFormat::F32Columns`] layer, when
 /// rows `first..first + n` of it exist for an input of `cols` values.
 #[cfg(target_arch = "x86_64")]
