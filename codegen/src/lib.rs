@@ -127,25 +127,7 @@ pub fn generate_with(bytes: &[u8], name: &str, options: &Options) -> Result<Stri
         format: options.decoder,
         error,
     })?;
-    Ok(emit(&stored, artifact_params_len(base), name))
-}
-
-/// The weights pool a loader fills for `m`'s networks on a CPU with a wide `f32` kernel, which
-/// stores the most layers by columns ([`mochi_runtime::wide_stores_columns`]; every layer on
-/// a cache line): the most any loader needs, since storing by columns only adds padding.
-/// Computed from the shapes, so that the module does not depend on the generating machine.
-fn artifact_params_len(m: &Model) -> usize {
-    let mut len = 0usize;
-    for layer in m.decoder.iter().chain(m.integrator) {
-        let (rows, cols) = (layer.rows as usize, layer.cols as usize);
-        len = len.next_multiple_of(mochi_runtime::aligned::LINE);
-        len += match mochi_runtime::wide_stores_columns(rows, cols) {
-            true => mochi_runtime::column_stride(rows) * cols,
-            false => rows * cols,
-        };
-        len += rows;
-    }
-    len
+    Ok(emit(&stored, mochi_runtime::artifact::wide_params_len(base), name))
 }
 
 /// Reads the artifact at `artifact`, writes its module (`f32` weights) to `out` (only when the

@@ -82,6 +82,25 @@ impl fmt::Display for LoadError {
 #[cfg(feature = "std")]
 impl std::error::Error for LoadError {}
 
+/// Floats of the weights pool [`Storage::load`] fills for the networks of `m` on a CPU with a
+/// wide `f32` kernel, which stores the most layers by columns ([`wide_stores_columns`]), every
+/// layer on a cache line: the most any loader needs for the artifact `m` came from (storing by
+/// columns only pads), computed from the layer shapes alone (the capacity code generation
+/// writes, the same whichever machine generates it).
+pub fn wide_params_len(m: &Model) -> usize {
+    let mut len = 0usize;
+    for layer in m.decoder.iter().chain(m.integrator) {
+        let (rows, cols) = (layer.rows as usize, layer.cols as usize);
+        len = len.next_multiple_of(LINE);
+        len += match wide_stores_columns(rows, cols) {
+            true => column_stride(rows) * cols,
+            false => rows * cols,
+        };
+        len += rows;
+    }
+    len
+}
+
 /// The deployable payload of an artifact (its first section), after checking every section's
 /// envelope.
 pub fn payload(bytes: &[u8]) -> Result<&[u8], LoadError> {

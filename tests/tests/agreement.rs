@@ -185,6 +185,13 @@ fn tiny_model_loaded_from_bytes_agrees_with_the_trainer() {
     // The same numbers as the generated constants. The weights layer by layer: a loader with
     // a wide `f32` kernel stores more layers by columns than generated code does.
     let (loaded, generated) = (model.model(), tiny::MODEL);
+    // The capacity code generation writes is what a wide-kernel loader fills, from the shapes.
+    let capacity = mochi_runtime::artifact::wide_params_len(loaded);
+    assert_eq!(capacity, tiny::ARTIFACT_PARAMS_LEN);
+    match mochi_runtime::network::fast::width() {
+        mochi_runtime::network::Width::Canonical => assert!(loaded.params.len() <= capacity),
+        _ => assert_eq!(loaded.params.len(), capacity),
+    }
     assert_eq!(loaded.floats, generated.floats);
     assert_eq!(loaded.indices, generated.indices);
     for (a, b) in [
