@@ -61,15 +61,15 @@ impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
         }
     }
 
-    /// [`WorldBlocks::placed_vertices`] of the layer: the leading free vertices of origin
-    /// `origin`, sixteen at a time, decoded and placed straight into `out`; returns how many.
+    /// [`WorldBlocks::placed_vertices`] of the layer: the free vertices, sixteen at a time,
+    /// decoded and placed straight into `out`; returns how many.
     #[cfg(target_arch = "x86_64")]
     fn placed_vertices(
         &self,
-        blocks: &WorldBlocks,
+        (blocks, origin): (&mut WorldBlocks, &mut u32),
         free: &[u32],
         origin_of: &[u32],
-        origin: u32,
+        origin_at: &mut dyn FnMut(u32) -> Vector3<f32>,
         out: &mut [f32],
     ) -> usize {
         self.output.map_or(0, |l| {
@@ -80,6 +80,7 @@ impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
                 free,
                 origin_of,
                 origin,
+                origin_at,
                 out,
             )
         })
@@ -279,9 +280,9 @@ pub(crate) fn decode_run(
 
 /// The leading free vertices of a full decode into `out` (all the model's vertices, `d`
 /// floats each) decoded and placed in one pass over the output layer where the CPU has the
-/// vector transform and the layer is stored by columns: every block of sixteen free vertices
-/// that shares the first one's origin ([`OutputRows::placed_vertices`]). Returns how many;
-/// the caller decodes the rest run by run.
+/// vector transform and the layer is stored by columns: every whole block of sixteen free
+/// vertices ([`OutputRows::placed_vertices`]). Returns how many; the caller decodes the rest
+/// run by run.
 pub(crate) fn placed_free(
     output: &OutputRows,
     d: usize,
@@ -292,8 +293,11 @@ pub(crate) fn placed_free(
 ) -> usize {
     #[cfg(target_arch = "x86_64")]
     if let (3, true, Some(&origin)) = (d, origins.vector, origin_of.first()) {
-        if let Some(blocks) = origins.blocks_for(origin) {
-            return output.placed_vertices(blocks, free, origin_of, origin, out);
+        let place = origins.place;
+        if origins.blocks_for(origin).is_some() {
+            if let Some((at, blocks)) = origins.blocks.as_mut() {
+                return output.placed_vertices((blocks, at), free, origin_of, &mut |o| place.origin(o), out);
+            }
         }
     }
     let _ = (output, d, free, origin_of, out, origins);
@@ -409,9 +413,18 @@ impl<'p, 'm, 'a> Origins<'p, 'm, 'a> {
     /// The vector transform for origin `origin`; `None` where the CPU has none.
     #[cfg(target_arch = "x86_64")]
     fn blocks_for(&mut self, origin: u32) -> Option<&WorldBlocks> {
-        if self.blocks.as_ref().is_none_or(|(at, _)| *at != origin) {
-            let o = self.get(origin);
-            self.blocks = Some((origin, WorldBlocks::new(&self.place.frame, &o)?));
+        let o = match self.blocks {
+            Some((at, _)) if at == origin => None,
+            _ => Some(self.get(origin)),
+        };
+        match (&mut self.blocks, o) {
+            (_, None) => {}
+            // The rotation stays: only the origin moves.
+            (Some((at, blocks)), Some(o)) => {
+                blocks.set_origin(&o);
+                *at = origin;
+            }
+            (None, Some(o)) => self.blocks = Some((origin, WorldBlocks::new(&self.place.frame, &o)?)),
         }
         self.blocks.as_ref().map(|(_, blocks)| blocks)
     }

@@ -63,14 +63,13 @@ impl WorldBlocks {
             return None;
         }
         // Lane `l` of output vector `b` holds coordinate `(16 b + l) % 3` of its vertex.
-        let (mut rows, mut origin) = ([[[0.0f32; 16]; 3]; 3], [[0.0f32; 16]; 3]);
+        let mut rows = [[[0.0f32; 16]; 3]; 3];
         for b in 0..3 {
             for l in 0..16 {
                 let c = (16 * b + l) % 3;
                 for k in 0..3 {
                     rows[b][k][l] = r[(c, k)];
                 }
-                origin[b][l] = o[c];
             }
         }
         // SAFETY: every array holds 16 values; AVX-512F is present (checked above).
@@ -80,11 +79,25 @@ impl WorldBlocks {
                 |v: &[i32; 16]| _mm512_loadu_si512(v.as_ptr().cast()),
             )
         };
-        Some(WorldBlocks {
+        let mut blocks = WorldBlocks {
             gathers: GATHERS.map(|b| [index(&b[0]), index(&b[1]), index(&b[2])]),
             rows: rows.map(|b| [load(&b[0]), load(&b[1]), load(&b[2])]),
-            origin: [load(&origin[0]), load(&origin[1]), load(&origin[2])],
-        })
+            origin: [load(&[0.0; 16]); 3],
+        };
+        blocks.set_origin(o);
+        Some(blocks)
+    }
+
+    /// Moves the transform to the origin `o` (the rotation stays).
+    pub(crate) fn set_origin(&mut self, o: &Vector3<f32>) {
+        let mut origin = [[0.0f32; 16]; 3];
+        for (b, lanes) in origin.iter_mut().enumerate() {
+            for (l, lane) in lanes.iter_mut().enumerate() {
+                *lane = o[(16 * b + l) % 3];
+            }
+        }
+        // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; 16 floats each.
+        self.origin = origin.map(|lanes| unsafe { _mm512_loadu_ps(lanes.as_ptr()) });
     }
 
     /// Transforms one block of sixteen vertices in place.
@@ -185,21 +198,26 @@ impl WorldBlocks {
     }
 
     /// The encoded vertices `free` (the model's free vertices, ascending; `origin_of` their
-    /// origins) decoded from a column-stored `f32` output layer on the input `x` and placed,
-    /// sixteen at a time, each block straight to its vertices in `out` (`3` floats per
-    /// vertex): contiguous blocks with three stores, blocks across a prescribed vertex vertex
-    /// by vertex. Stops at the first block with another origin than `origin`, and before the
-    /// last `free.len() % 16`; returns the free vertices placed (0 where the layer is not
-    /// stored by columns or `out` is too short). The bits of [`WorldBlocks::placed_rows`].
+    /// origins, `origin` the one this transform is at, `origin_at` the position of any)
+    /// decoded from a column-stored `f32` output layer on the input `x` and placed, sixteen at
+    /// a time, each block straight to its vertices in `out` (`3` floats per vertex):
+    /// contiguous blocks with three stores, blocks across a prescribed vertex vertex by
+    /// vertex. A block whose first vertex has another origin moves the transform there
+    /// ([`WorldBlocks::set_origin`]); the vertices of a block with several origins are moved
+    /// from the first one's to their own one by one. Stops before the last
+    /// `free.len() % 16`; returns the free vertices placed (0 where the layer is not stored
+    /// by columns or `out` is too short). Blocks of one origin have the bits of
+    /// [`WorldBlocks::placed_rows`].
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn placed_vertices(
-        &self,
+        &mut self,
         params: &[f32],
         layer: &Layer,
         x: &[f32],
         free: &[u32],
         origin_of: &[u32],
-        origin: u32,
+        origin: &mut u32,
+        origin_at: &mut dyn FnMut(u32) -> Vector3<f32>,
         out: &mut [f32],
     ) -> usize {
         const PER_BLOCK: usize = BLOCK_FLOATS / 3;
@@ -208,48 +226,60 @@ impl WorldBlocks {
             return 0;
         };
         let stride = column_stride(layer.rows as usize);
-        // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; `column_layer`
-        // checked that rows `0..3 n` exist in every column of `w` and in `bias`.
-        unsafe { self.placed_vertices_avx512(w, stride, bias, x, &free[..n], &origin_of[..n], origin, out) }
-    }
-
-    /// # Safety
-    /// Rows `0..3 free.len()` must exist in `bias` and in each of the `x.len()` columns of
-    /// `w`; `free.len()` a multiple of 16 and equal to `origin_of`'s. (Destinations are
-    /// checked here: a block is stored whole only where its sixteen vertices are
-    /// consecutive and inside `out`.)
-    #[allow(clippy::too_many_arguments)]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn placed_vertices_avx512(
-        &self,
-        w: &[f32],
-        stride: usize,
-        bias: &[f32],
-        x: &[f32],
-        free: &[u32],
-        origin_of: &[u32],
-        origin: u32,
-        out: &mut [f32],
-    ) -> usize {
-        const PER_BLOCK: usize = BLOCK_FLOATS / 3;
-        let wanted = _mm512_set1_epi32(origin as i32);
-        // SAFETY: chunks of 16 indices; AVX-512F is present.
-        let shares = |origins: &[u32]| unsafe { shares_origin(origins, wanted) };
         let mut done = 0;
-        for (vertices, origins) in free.chunks_exact(PER_BLOCK).zip(origin_of.chunks_exact(PER_BLOCK)) {
-            if !shares(origins) {
-                break;
+        for (vertices, origins) in free[..n].chunks_exact(PER_BLOCK).zip(origin_of.chunks_exact(PER_BLOCK)) {
+            if origins[0] != *origin {
+                *origin = origins[0];
+                self.set_origin(&origin_at(*origin));
             }
             let r = 3 * done;
-            // SAFETY: rows `r..r + 48` exist in every column and in `bias` (the caller's
-            // promise).
+            // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; `column_layer`
+            // checked that rows `0..3 n` exist in every column of `w` and in `bias`, so rows
+            // `r..r + 48`; `origins` holds 16 indices.
             unsafe {
                 let a = column_chains512::<3>(w.as_ptr().add(r), stride, x);
-                self.store_block(bias.as_ptr().add(r), a, vertices, out);
+                match shares_origin(origins, _mm512_set1_epi32(*origin as i32)) {
+                    true => self.store_block(bias.as_ptr().add(r), a, vertices, out),
+                    false => self.mixed_block(bias.as_ptr().add(r), a, vertices, origins, origin_at, out),
+                }
             }
             done += PER_BLOCK;
         }
         done
+    }
+
+    /// [`WorldBlocks::scatter_block`] for a block whose vertices `vertices` have the origins
+    /// `origins`, not all this transform's (the first's): each other vertex moved by the
+    /// difference of its origin (`origin_at`) and the first's.
+    ///
+    /// # Safety
+    /// `bias` must hold 48 floats.
+    #[target_feature(enable = "avx512f")]
+    #[cold]
+    unsafe fn mixed_block(
+        &self,
+        bias: *const f32,
+        s: [__m512; 3],
+        vertices: &[u32],
+        origins: &[u32],
+        origin_at: &mut dyn FnMut(u32) -> Vector3<f32>,
+        out: &mut [f32],
+    ) {
+        let mut block = [0.0f32; BLOCK_FLOATS];
+        // SAFETY: the caller's promise; `block` holds 48 floats.
+        unsafe { self.finish_block(bias, s, block.as_mut_ptr()) };
+        let first = origins.first().map_or(Vector3::zeros(), |&o| origin_at(o));
+        let mut shift = (origins.first().copied().unwrap_or(0), Vector3::zeros());
+        for ((&v, &o), p) in vertices.iter().zip(origins).zip(block.chunks_exact(3)) {
+            if o != shift.0 {
+                shift = (o, origin_at(o) - first);
+            }
+            if let Some(x) = out.get_mut(3 * v as usize..3 * v as usize + 3) {
+                for ((x, p), d) in x.iter_mut().zip(p).zip(shift.1.iter()) {
+                    *x = p + d;
+                }
+            }
+        }
     }
 
     /// One block's sums plus its biases at `bias`, transformed and stored as the vertices
@@ -387,16 +417,21 @@ mod tests {
     }
 
     /// Free vertices decoded and placed straight into a full buffer have the bits of the rows
-    /// placed block by block, whole blocks or across prescribed vertices; decoding stops at
-    /// a block of another origin and before the last partial block, and leaves prescribed
-    /// vertices untouched.
+    /// placed block by block, whole blocks or across prescribed vertices, at their origin:
+    /// the transform moves to the origin of each block's first vertex, and a vertex of
+    /// another origin inside a block is moved to its own (within rounding). Decoding stops
+    /// before the last partial block and leaves prescribed vertices untouched.
     #[test]
     fn placed_vertices_are_the_placed_rows_at_their_vertices() {
         use crate::model::WeightFormat;
         use crate::network::test_support::{noise, Case};
-        let Some(blocks) = test_blocks() else {
+        let (Some(mut blocks), Some(mut at_three)) = (test_blocks(), test_blocks()) else {
             return;
         };
+        // Origin 2 is the test transform's; origin 3 another.
+        let (two, three) = (Vector3::new(1.5f32, -2.0, 0.25), Vector3::new(-0.5f32, 4.0, 1.0));
+        at_three.set_origin(&three);
+        let mut origin_at = |o: u32| if o == 3 { three } else { two };
         // 120 vertices; prescribed: 0, 40 and 41 (inside a block of free vertices), 119.
         let prescribed = [0u32, 40, 41, 119];
         let free: std::vec::Vec<u32> = (0..120).filter(|v| !prescribed.contains(v)).collect();
@@ -405,42 +440,78 @@ mod tests {
         let params = case.columns();
         let layer = case.layer(WeightFormat::F32Columns);
         let x: std::vec::Vec<f32> = noise(11, cols).collect();
-        let mut rows = std::vec![0.0f32; 3 * n];
-        assert_eq!(blocks.placed_rows(&params, &layer, &x, 0, &mut rows), 3 * (n / 16 * 16));
+        let placed = |blocks: &WorldBlocks| {
+            let mut rows = std::vec![0.0f32; 3 * n];
+            assert_eq!(blocks.placed_rows(&params, &layer, &x, 0, &mut rows), 3 * (n / 16 * 16));
+            rows
+        };
+        let (rows_two, rows_three) = (placed(&blocks), placed(&at_three));
         let bits = |v: &[f32]| v.iter().map(|v| v.to_bits()).collect::<std::vec::Vec<_>>();
-        for (stop, origin_of) in [
-            (n / 16 * 16, std::vec![2u32; n]),
-            (48, (0..n).map(|j| if j == 50 { 3 } else { 2 }).collect()),
+        let stop = n / 16 * 16;
+        // All at origin 2; vertex 50 alone at 3 (inside a block); from the fifth block on at 3.
+        for origin_of in [
+            std::vec![2u32; n],
+            (0..n).map(|j| if j == 50 { 3 } else { 2 }).collect(),
+            (0..n)
+                .map(|j| if j >= 64 { 3 } else { 2 })
+                .collect::<std::vec::Vec<u32>>(),
         ] {
             let mut out = std::vec![7.0f32; 3 * 120];
-            assert_eq!(
-                blocks.placed_vertices(&params, &layer, &x, &free, &origin_of, 2, &mut out),
-                stop
+            let mut origin = 2;
+            let done = blocks.placed_vertices(
+                &params,
+                &layer,
+                &x,
+                &free,
+                &origin_of,
+                &mut origin,
+                &mut origin_at,
+                &mut out,
             );
+            assert_eq!(done, stop);
             for (j, &v) in free.iter().enumerate() {
                 let got = &out[3 * v as usize..3 * v as usize + 3];
-                match j < stop {
-                    true => assert_eq!(bits(got), bits(&rows[3 * j..3 * j + 3]), "free vertex {j}"),
-                    false => assert_eq!(got, [7.0; 3], "free vertex {j} is past the stop"),
+                let (own, first) = (origin_of[j], origin_of[j / 16 * 16]);
+                let rows = if first == 3 { &rows_three } else { &rows_two };
+                match (j < stop, own == first) {
+                    (true, true) => assert_eq!(bits(got), bits(&rows[3 * j..3 * j + 3]), "free vertex {j}"),
+                    (true, false) => {
+                        let want = Vector3::from_column_slice(&rows[3 * j..3 * j + 3]) + three - two;
+                        for c in 0..3 {
+                            assert!((got[c] - want[c]).abs() <= 1e-5, "free vertex {j}: {got:?} vs {want:?}");
+                        }
+                    }
+                    (false, _) => assert_eq!(got, [7.0; 3], "free vertex {j} is past the stop"),
                 }
             }
             for v in prescribed {
                 assert_eq!(out[3 * v as usize..3 * v as usize + 3], [7.0; 3], "prescribed {v}");
             }
+            // The transform is left at the last block's origin.
+            assert_eq!(origin, origin_of[stop - 16]);
+            blocks.set_origin(&two);
         }
         // A buffer too short for the last block's vertices is not written past its end.
         let mut short = std::vec![0.0f32; 3 * 60];
-        let done = blocks.placed_vertices(&params, &layer, &x, &free, &std::vec![2; n], 2, &mut short);
-        assert_eq!(done, n / 16 * 16);
+        let all_two = std::vec![2; n];
+        let done = blocks.placed_vertices(&params, &layer, &x, &free, &all_two, &mut 2, &mut origin_at, &mut short);
+        assert_eq!(done, stop);
         let rows_layer = Layer {
             format: WeightFormat::F32,
             ..layer
         };
         let mut out = std::vec![0.0f32; 3 * 120];
-        assert_eq!(
-            blocks.placed_vertices(&case.params, &rows_layer, &x, &free, &[2; 116], 2, &mut out),
-            0
+        let done = blocks.placed_vertices(
+            &case.params,
+            &rows_layer,
+            &x,
+            &free,
+            &all_two,
+            &mut 2,
+            &mut origin_at,
+            &mut out,
         );
+        assert_eq!(done, 0);
     }
 
     /// The pairs of vectors [`WorldBlocks::transform`] permutes are the ones [`gather`] names.
