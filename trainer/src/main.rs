@@ -141,6 +141,10 @@ enum Command {
         /// Keep the decoder (distil only the integrator).
         #[arg(long)]
         keep_decoder: bool,
+        /// Fit the decoder to rod strands as positions when the model encodes them by their
+        /// bends: the decode then skips the strand walk.
+        #[arg(long)]
+        strand_positions: bool,
         /// Frames of each rollout over a training motion, for every fit (default: the scene's
         /// dataset frames).
         #[arg(long)]
@@ -323,6 +327,7 @@ fn run(cli: Cli) -> Result<()> {
             integrator_blocks,
             rounds,
             keep_decoder,
+            strand_positions,
             frames,
         } => Ok(mochi_trainer::cli::distill::run(
             &artifact,
@@ -341,6 +346,7 @@ fn run(cli: Cli) -> Result<()> {
                     },
                 ),
                 frames,
+                strand_positions,
             },
             epochs,
         )?),

@@ -20,6 +20,8 @@ pub struct DistillChoice {
     /// Frames of each rollout over a training motion, for every fit (`None`: the scene's
     /// dataset frames).
     pub frames: Option<usize>,
+    /// Fit the decoder to rod strands as positions ([`DistillOptions::strand_positions`]).
+    pub strand_positions: bool,
 }
 
 /// Distils what `choice` names of the artifact at `path`, each fit trained for `epochs`
@@ -34,6 +36,7 @@ pub fn run(path: &Path, out: &Path, choice: DistillChoice, epochs: usize) -> Tra
     let options = DistillOptions {
         epochs,
         frames: choice.frames,
+        strand_positions: choice.strand_positions,
         progress: true,
         ..DistillOptions::default()
     };
@@ -57,6 +60,9 @@ pub fn run(path: &Path, out: &Path, choice: DistillChoice, epochs: usize) -> Tra
             outcome.fit_error,
             outcome.basis_error,
         );
+        if let Some(rms) = outcome.encoder_error {
+            println!("rod strands now decoded as positions; the encoder fitted to them is {rms:.3e} (RMS) from the held-out latents");
+        }
         artifact = outcome.artifact;
     }
     if let Some(shape) = choice.integrator {

@@ -41,8 +41,8 @@ pub mod sim_bench;
 pub(crate) mod storage;
 
 pub use rollout::{
-    rebuild_problem, roll, rollout, stable_rollout, Divergence, LoadedModel, RolloutMetrics, ACCURACY_FRAMES,
-    OFF_REFERENCE, STABILITY_FRAMES,
+    carried_encoding, rebuild_problem, roll, rollout, stable_rollout, Divergence, LoadedModel, RolloutMetrics,
+    ACCURACY_FRAMES, OFF_REFERENCE, STABILITY_FRAMES,
 };
 
 /// Results of one model on every test sequence.
@@ -175,12 +175,13 @@ pub fn evaluate(
 
     let mut reports = Vec::new();
     for (path, model) in &all {
+        let own = carried_encoding(&model.artifact, &problem)?;
         let mut sequences = Vec::new();
         for ((plan, reference), bc) in tests.iter().zip(&plans) {
             let metrics = rollout(
                 model,
                 &problem,
-                &encoding,
+                &own,
                 bc,
                 options.stability_frames,
                 reference,

@@ -14,7 +14,7 @@ use crate::artifact::Artifact;
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::{decode_world, pack_signals, Encoding};
 use crate::learn::network::{ExportedIntegrator, FrozenDecoder};
-use crate::learn::recipe::Recipe;
+use crate::learn::recipe::{Recipe, RodEncoding};
 
 /// Frames over which accuracy is measured (from the start of each test sequence).
 pub const ACCURACY_FRAMES: usize = 1000;
@@ -44,18 +44,32 @@ impl LoadedModel {
     }
 }
 
-/// Rebuilds the scene an artifact was trained on and checks that its encoding is the same.
+/// Rebuilds the scene an artifact was trained on and checks that the encoding it carries is
+/// that scene's.
 pub fn rebuild_problem(artifact: &Artifact) -> TrainerResult<(BuiltScene, Encoding)> {
     let recipe = Recipe::parse(&artifact.scene_toml, Path::new(&artifact.scene_path))?;
     let problem = recipe.build()?;
-    let encoding = Encoding::new(&problem, recipe.latent.rods)?;
+    let encoding = carried_encoding(artifact, &problem)?;
+    Ok((problem, encoding))
+}
+
+/// The encoding `artifact` carries, built for `problem` (its scene): strand bends when it
+/// carries chains, positions otherwise (a distilled model may decode the strands of a
+/// bend-trained one as positions); an error when it is not that scene's.
+pub fn carried_encoding(artifact: &Artifact, problem: &BuiltScene) -> TrainerResult<Encoding> {
+    let rods = if artifact.encoding.chains.is_empty() {
+        RodEncoding::Positions
+    } else {
+        RodEncoding::Bends
+    };
+    let encoding = Encoding::new(problem, rods)?;
     if crate::artifact::EncodingData::new(&encoding) != artifact.encoding {
         return Err(TrainerError::invalid(format!(
             "the artifact's boundary-condition encoding does not match scene `{}` as rebuilt from it",
             artifact.scene
         )));
     }
-    Ok((problem, encoding))
+    Ok(encoding)
 }
 
 /// A vertex farther than this from the reference (fraction of the rest diagonal) has drifted

@@ -11,7 +11,9 @@
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::network::{Decoder, DecoderShape, FrozenDecoder};
+use super::network::{
+    forward_exported, Decoder, DecoderShape, DenseLayer, ExportedMlp, FrozenDecoder, MlpSpec, ResMlp,
+};
 use super::pca::Pca;
 use super::train::{self, BatchLoss, TrainConfig, TrainError, TrainResult};
 
@@ -39,6 +41,8 @@ pub struct Distilled {
     /// RMS over the held-out latents and output values of the distilled decoder's output
     /// minus the teacher's.
     pub fit_rms: f64,
+    /// The PCA of the outputs whose leading components are the basis.
+    pub pca: Pca,
 }
 
 /// Distils `teacher` into a basis decoder of `shape`, fitted on the latents `train` and
@@ -64,7 +68,28 @@ pub fn distill_decoder(
         )));
     }
     let outputs = teacher_outputs(teacher, train)?;
-    let pca = Pca::fit(&outputs, shape.modes).map_err(invalid)?;
+    let held_outputs = teacher_outputs(teacher, held_out)?;
+    distill_outputs((train, &outputs), (held_out, &held_outputs), shape, config)
+}
+
+/// Fits a basis decoder of `shape` to the outputs `train.1` of the latents `train.0` and
+/// checks it on `held_out` (latents and their outputs), with the training settings `config`:
+/// [`distill_decoder`] with the outputs given instead of a teacher's (e.g. the teacher's
+/// decoding in another encoding).
+pub fn distill_outputs(
+    train: (&[Vec<f32>], &[Vec<f64>]),
+    held_out: (&[Vec<f32>], &[Vec<f64>]),
+    shape: DistillShape,
+    config: &TrainConfig,
+) -> TrainResult<Distilled> {
+    let ((train, outputs), (held_out, held_outputs)) = (train, held_out);
+    let k = train.first().map_or(0, Vec::len);
+    if train.is_empty() || held_out.is_empty() || outputs.len() != train.len() || held_outputs.len() != held_out.len() {
+        return Err(TrainError::Invalid(
+            "distillation needs training and held-out latents, each with its output".into(),
+        ));
+    }
+    let pca = Pca::fit(outputs, shape.modes).map_err(invalid)?;
     let decoder_shape = DecoderShape::Basis {
         modes: shape.modes,
         hidden: shape.hidden,
@@ -80,7 +105,7 @@ pub fn distill_decoder(
     // Each row: the latent, then the coefficients `g` must add to `pad(z)`.
     let rows: Vec<Vec<f32>> = train
         .iter()
-        .zip(&outputs)
+        .zip(outputs)
         .map(|(z, y)| {
             let c = pca.project(y).map_err(invalid)?;
             let mut row = z.clone();
@@ -99,9 +124,8 @@ pub fn distill_decoder(
         BatchLoss::new((g.forward(&z)? - target)?.sqr()?.mean_all()?)
     })?;
     let frozen = decoder.export().map_err(invalid)?;
-    let held_outputs = teacher_outputs(teacher, held_out)?;
     let (mut basis_sum, mut fit_sum, mut count) = (0.0, 0.0, 0usize);
-    for (z, y) in held_out.iter().zip(&held_outputs) {
+    for (z, y) in held_out.iter().zip(held_outputs) {
         let projected = pca.project(y).and_then(|c| pca.reconstruct(&c)).map_err(invalid)?;
         let student = frozen
             .decode::<f64>(&z.iter().map(|&v| v as f64).collect::<Vec<_>>())
@@ -118,7 +142,84 @@ pub fn distill_decoder(
         losses: report.losses,
         basis_rms: rms(basis_sum),
         fit_rms: rms(fit_sum),
+        pca,
     })
+}
+
+/// Fits an encoder (outputs -> latent) to the pairs `train` of a distillation whose basis
+/// came from `pca`: a residual MLP of width `hidden` (one block) learns the latent from the
+/// output's `m` basis coefficients, and the projection onto the basis is then folded into
+/// its input layer, so the encoder reads the output itself. Returns it with the RMS latent
+/// error on `held_out`.
+pub fn distill_encoder(
+    train: (&[Vec<f32>], &[Vec<f64>]),
+    held_out: (&[Vec<f32>], &[Vec<f64>]),
+    pca: &Pca,
+    hidden: usize,
+    config: &TrainConfig,
+) -> TrainResult<(ExportedMlp, f64)> {
+    let (m, n) = (pca.basis.len(), pca.mean.len());
+    let k = train.0.first().map_or(0, Vec::len);
+    if k == 0 || m == 0 || hidden == 0 {
+        return Err(TrainError::Invalid(
+            "an encoder fit needs latents, a basis and a hidden width".into(),
+        ));
+    }
+    let coefficients = |y: &Vec<f64>| pca.project(y).map_err(invalid);
+    // Each row: the coefficients, then the latent.
+    let rows: Vec<Vec<f32>> = train
+        .0
+        .iter()
+        .zip(train.1)
+        .map(|(z, y)| {
+            let mut row: Vec<f32> = coefficients(y)?.iter().map(|&c| c as f32).collect();
+            row.extend_from_slice(z);
+            Ok(row)
+        })
+        .collect::<TrainResult<_>>()?;
+    let spec = MlpSpec {
+        input: m,
+        output: k,
+        hidden,
+        blocks: 1,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+    let mlp = ResMlp::new(spec, &mut rng).map_err(invalid)?;
+    train::train(&mlp.parameters("e"), &rows, config, false, |batch, _| {
+        let c = batch.inputs.narrow(1, 0, m)?;
+        let z = batch.inputs.narrow(1, m, k)?;
+        BatchLoss::new((mlp.forward(&c)? - z)?.sqr()?.mean_all()?)
+    })?;
+    let exported = mlp.export().map_err(invalid)?;
+    // W (B^T (y - mean)) + b = (W B^T) y + (b - W B^T mean).
+    let mut layers = exported.layers().into_iter().cloned().collect::<Vec<DenseLayer>>();
+    let first = &layers[0];
+    let mut weights = vec![0.0f32; first.rows * n];
+    let mut bias = first.bias.clone();
+    for r in 0..first.rows {
+        let row = &mut weights[r * n..(r + 1) * n];
+        for (j, component) in pca.basis.iter().enumerate() {
+            let w = first.weights[r * m + j] as f64;
+            for ((out, &b), &mean) in row.iter_mut().zip(component).zip(&pca.mean) {
+                *out += (w * b) as f32;
+                bias[r] -= (w * b * mean) as f32;
+            }
+        }
+    }
+    layers[0] = DenseLayer {
+        rows: first.rows,
+        cols: n,
+        weights,
+        bias,
+    };
+    let encoder = ExportedMlp::from_layers(layers).map_err(invalid)?;
+    let (mut sum, mut count) = (0.0, 0usize);
+    for (z, y) in held_out.0.iter().zip(held_out.1) {
+        let e = forward_exported(&encoder, &y.iter().map(|&v| v as f32).collect::<Vec<_>>()).map_err(invalid)?;
+        sum += e.iter().zip(z).map(|(a, b)| (a - b).powi(2) as f64).sum::<f64>();
+        count += z.len();
+    }
+    Ok((encoder, (sum / count.max(1) as f64).sqrt()))
 }
 
 /// A network or PCA error as the training's own.

@@ -3,9 +3,10 @@
 //! scene's training motions (the states its integrator visits), the integrator is kept.
 
 use crate::artifact::Artifact;
+use crate::artifact::EncodingData;
 use crate::error::{TrainerError, TrainerResult};
 use crate::eval::rollout::{rebuild_problem, roll, LoadedModel};
-use crate::learn::distill::{distill_decoder, DistillShape, Distilled};
+use crate::learn::distill::{distill_decoder, distill_encoder, distill_outputs, DistillShape, Distilled};
 use crate::learn::distill_integrator::{distill_integrator, DistilledIntegrator, IntegratorDistillShape, Step};
 use crate::learn::encoding::pack_signals;
 use crate::learn::train::{AdamWConfig, TrainConfig};
@@ -30,6 +31,10 @@ pub struct DistillOptions {
     pub hold_out_every: usize,
     /// Seed of the initialisation and the shuffling (default 1).
     pub seed: u64,
+    /// Fit the decoder to rod strands as positions (root-relative, in the handles' frame)
+    /// when the model encodes them by their bends: the runtime's decode then skips the
+    /// strand walk (default false: the model's own encoding).
+    pub strand_positions: bool,
     /// Show progress bars.
     pub progress: bool,
 }
@@ -49,6 +54,7 @@ impl Default for DistillOptions {
             frames: None,
             hold_out_every: 10,
             seed: 1,
+            strand_positions: false,
             progress: false,
         }
     }
@@ -68,7 +74,13 @@ pub struct DistillOutcome {
     pub fit_error: f64,
     /// The same for the teacher's decoding projected onto the basis (the basis' share).
     pub basis_error: f64,
+    /// Where the encoding changed ([`DistillOptions::strand_positions`]): the RMS latent
+    /// error of the encoder fitted to it on the held-out latents.
+    pub encoder_error: Option<f64>,
 }
+
+/// Width of the encoder fitted when a distillation changes the encoding.
+const ENCODER_WIDTH: usize = 32;
 
 /// Distils the decoder of `artifact` (see the module documentation).
 pub fn distill_artifact(artifact: &Artifact, options: &DistillOptions) -> TrainerResult<DistillOutcome> {
@@ -79,30 +91,80 @@ pub fn distill_artifact(artifact: &Artifact, options: &DistillOptions) -> Traine
     let model = LoadedModel::new(artifact.clone())?;
     let spec = &problem.scene.dataset;
     let frames = options.frames.unwrap_or(spec.frames);
-    let (mut train, mut held_out) = (Vec::new(), Vec::new());
+    // The encoding the distilled decoder outputs, and each visited state in it (`None`: the
+    // teacher's own outputs).
+    let student = match options.strand_positions && encoding.strand_bends() {
+        true => Some(encoding.without_strand_bends()),
+        false => None,
+    };
+    let (mut train, mut held_out) = ((Vec::new(), Vec::new()), (Vec::new(), Vec::new()));
     for plan in dataset::plan(spec).iter().filter(|p| p.split == Split::Train) {
         let bc = problem.sequence(&plan.speeds, frames, plan.seed);
-        roll(&model, &problem, &encoding, &bc, frames, |t, z, _, _| {
-            if t % options.hold_out_every == 0 {
-                held_out.push(z.to_vec());
-            } else {
-                train.push(z.to_vec());
-            }
+        let mut failed = None;
+        roll(&model, &problem, &encoding, &bc, frames, |t, z, _, x| {
+            let output = match &student {
+                Some(student) => {
+                    let targets = bc.targets(&problem.handles, t, problem.mesh.dim);
+                    match student.frame(&targets).and_then(|frame| student.encode(x, &frame)) {
+                        Ok(q) => q,
+                        Err(e) => {
+                            failed = Some(e);
+                            return false;
+                        }
+                    }
+                }
+                None => Vec::new(),
+            };
+            let (latents, outputs) = match t % options.hold_out_every == 0 {
+                true => (&mut held_out.0, &mut held_out.1),
+                false => (&mut train.0, &mut train.1),
+            };
+            latents.push(z.to_vec());
+            outputs.push(output);
             true
         })?;
+        if let Some(e) = failed {
+            return Err(e.into());
+        }
     }
     let config = train_config(format!("distill-{}", artifact.scene), options);
-    let distilled = distill_decoder(&model.decoder, &train, &held_out, options.shape, &config)?;
     let mut out = artifact.clone();
+    let mut encoder_error = None;
+    let distilled = match &student {
+        Some(student) => {
+            let (fit, check) = ((&train.0[..], &train.1[..]), (&held_out.0[..], &held_out.1[..]));
+            let distilled = distill_outputs(fit, check, options.shape, &config)?;
+            // The fields in the training encoding follow it into the new one: the PCA of the
+            // outputs (its leading `latent` components) and an encoder fitted to the pairs.
+            let k = artifact.latent as usize;
+            let (encoder, encoder_rms) = distill_encoder(fit, check, &distilled.pca, ENCODER_WIDTH, &config)?;
+            out.encoding = EncodingData::new(student);
+            out.pca_mean = distilled.pca.mean.iter().map(|&v| v as f32).collect();
+            out.pca_basis = distilled.pca.basis[..k].iter().flatten().map(|&v| v as f32).collect();
+            out.encoder = encoder.layers().into_iter().cloned().collect();
+            // The envelope's radius in the new encoding, over the teacher's rollouts.
+            out.summary.max_radius = train
+                .1
+                .iter()
+                .chain(&held_out.1)
+                .flat_map(|q| q.chunks_exact(student.values_per_vertex()))
+                .map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt())
+                .fold(0.0, f64::max);
+            encoder_error = Some(encoder_rms);
+            distilled
+        }
+        None => distill_decoder(&model.decoder, &train.0, &held_out.0, options.shape, &config)?,
+    };
     out.decoder = distilled.decoder.layers().into_iter().cloned().collect();
     out.decoder_basis = true;
-    let per_vertex = (artifact.encoded_len() / artifact.encoding.free_vertices.len().max(1)) as f64;
+    let per_vertex = (out.encoded_len() / out.encoding.free_vertices.len().max(1)) as f64;
     let to_vertex = per_vertex.sqrt() / artifact.diagonal;
     Ok(DistillOutcome {
         fit_error: distilled.fit_rms * to_vertex,
         basis_error: distilled.basis_rms * to_vertex,
         artifact: out,
-        latents: (train.len(), held_out.len()),
+        latents: (train.0.len(), held_out.0.len()),
+        encoder_error,
         distilled,
     })
 }

@@ -179,6 +179,15 @@ impl Encoding {
         Ok(self)
     }
 
+    /// This encoding with rod strands encoded by their positions (root-relative, as
+    /// [`Encoding::from_parts`] makes it).
+    pub fn without_strand_bends(&self) -> Encoding {
+        Encoding {
+            chains: Vec::new(),
+            ..self.clone()
+        }
+    }
+
     /// The strands encoded by their bends (empty for the affine encoding).
     pub fn chains(&self) -> &[Chain] {
         &self.chains
@@ -304,7 +313,7 @@ impl Encoding {
     }
 
     /// Encodes the full state `x` in `frame`: `q_v = R^T (x_v - o_v)` for every encoded vertex.
-    pub(crate) fn encode(&self, x: &[f64], frame: &Frame) -> Result<Vec<f64>, EncodingError> {
+    pub fn encode(&self, x: &[f64], frame: &Frame) -> Result<Vec<f64>, EncodingError> {
         check_len("state", self.state_len(), x.len())?;
         self.check_frame(frame)?;
         if self.strand_bends() {
