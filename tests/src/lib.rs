@@ -30,6 +30,12 @@ pub mod rods {
     include!(concat!(env!("OUT_DIR"), "/rods.rs"));
 }
 
+/// Generated from `artifacts/rods-m8.mochi` (the right-sized rods: `rods.mochi`'s integrator
+/// with its strands decoded as positions by a basis of 8 modes).
+pub mod rods_m8 {
+    include!(concat!(env!("OUT_DIR"), "/rods_m8.rs"));
+}
+
 /// Generated from `artifacts/strands.mochi` (four rods encoded by their bends).
 pub mod strands {
     include!(concat!(env!("OUT_DIR"), "/strands.rs"));

@@ -149,6 +149,24 @@ fn generated_right_sized_beam_model_agrees_with_the_trainer() {
     );
 }
 
+/// The right-sized rods (its strands decoded as positions by a basis of 8 modes, `mochi
+/// distill --strand-positions`) generated into code: root-relative origins, one per strand.
+#[test]
+fn generated_right_sized_rods_model_agrees_with_the_trainer() {
+    use mochi_tests::rods_m8;
+    let model = ValidModel::new(rods_m8::MODEL).unwrap();
+    assert!(model.model().decoder_basis, "rods-m8 ends in a linear basis");
+    assert!(!model.model().bends(), "rods-m8 decodes its strands as positions");
+    let worst = worst_disagreement::<{ rods_m8::LATENT }, { rods_m8::SIGNAL }, { rods_m8::HIDDEN }>(
+        Path::new("artifacts/rods-m8.mochi"),
+        &model,
+    );
+    assert!(
+        worst <= TOLERANCE,
+        "generated rods-m8 model is {worst:.2e} diagonals from the trainer"
+    );
+}
+
 #[test]
 fn beam_model_loaded_from_bytes_agrees_with_the_trainer() {
     with_big_stack(|| {

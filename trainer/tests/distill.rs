@@ -86,6 +86,61 @@ fn a_distilled_model_keeps_the_latents_and_follows_the_original_decoder() {
     storage.load(&bytes).unwrap();
 }
 
+/// The committed four-strand model (strands encoded by their bends) distilled with its
+/// strands as positions: the artifact carries the positions encoding (no chains, the PCA,
+/// encoder and envelope in it), keeps the latents, decodes close to the original along an
+/// unseen motion, and loads in the runtime without a strand walk.
+#[test]
+fn strands_distilled_as_positions_follow_the_bends() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/artifacts/strands.mochi");
+    let original = Artifact::read(&path).unwrap();
+    assert!(!original.encoding.chains.is_empty());
+    let options = DistillOptions {
+        shape: DistillShape {
+            modes: 8,
+            hidden: 32,
+            blocks: 1,
+        },
+        epochs: 6000,
+        strand_positions: true,
+        ..DistillOptions::default()
+    };
+    let outcome = distill_artifact(&original, &options).unwrap();
+    let distilled = &outcome.artifact;
+    assert!(distilled.encoding.chains.is_empty());
+    assert_eq!(distilled.encoding.free_vertices, original.encoding.free_vertices);
+    assert_eq!(distilled.encoded_len(), 3 * original.encoding.free_vertices.len());
+    assert!(distilled.summary.max_radius > 0.0);
+    let encoder_error = outcome.encoder_error.expect("the encoding changed");
+    let latent_spread = original
+        .latent_min
+        .iter()
+        .zip(&original.latent_max)
+        .map(|(a, b)| b - a)
+        .fold(0.0f32, f32::max) as f64;
+    // Measured: the fit 3.3e-3 of the diagonal, the encoder 1.5e-3 of the widest latent range.
+    assert!(outcome.fit_error < 6e-3, "fit {}", outcome.fit_error);
+    assert!(
+        encoder_error < 1e-2 * latent_spread,
+        "encoder {encoder_error} of {latent_spread}"
+    );
+    // The file round-trips, so every check of the reader holds (PCA and encoder lengths).
+    let bytes = distilled.to_bytes().unwrap();
+    assert_eq!(
+        &Artifact::from_bytes(&bytes, Path::new("strands-positions.mochi")).unwrap(),
+        distilled
+    );
+
+    let dim = original.dim as usize;
+    let distance = mean_distance(&rollout(&original), &rollout(distilled), dim, original.diagonal);
+    // Measured: 2.8e-3 of the diagonal.
+    assert!(distance < 6e-3, "mean vertex distance {distance} of the diagonal");
+
+    let mut storage = OwnedModel::default();
+    let model = storage.load(&bytes).unwrap();
+    assert!(!model.model().bends());
+}
+
 /// The mean vertex distance between two rollouts over the diagonal (latents free to differ).
 fn mean_position_distance(a: &[(Vec<f32>, Vec<f64>)], b: &[(Vec<f32>, Vec<f64>)], dim: usize, diagonal: f64) -> f64 {
     let (mut sum, mut count) = (0.0, 0usize);
