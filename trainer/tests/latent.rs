@@ -69,8 +69,15 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     assert_eq!(&reported[..reported.len() - 1], trained.as_slice());
     assert_eq!(&trained[..2], ["dataset (train split)", "pca"]);
     assert!(trained[2].starts_with("autoencoder"), "{trained:?}");
-    // One self-supervised integrator per candidate, then the kept one's supervised twin.
-    assert!(trained[trained.len() - 2].starts_with("integrator ("), "{trained:?}");
+    // One self-supervised integrator per candidate, each followed by the decoders distilled
+    // from it, then the kept one's supervised twin.
+    let integrator = trained.iter().position(|s| s.starts_with("integrator (mlp")).unwrap();
+    assert!(
+        trained[integrator + 1..trained.len() - 1]
+            .iter()
+            .all(|s| s.starts_with("distilled decoder")),
+        "{trained:?}"
+    );
     assert_eq!(trained.last().map(String::as_str), Some("integrator (supervised)"));
 
     let falls = |name: &str, losses: &[f64]| {
@@ -103,9 +110,13 @@ fn tiny_scene_trains_end_to_end_and_losses_fall() {
     );
     assert_eq!(outcome.model.method, Method::SelfSupervised);
     assert_eq!(outcome.baseline.method, Method::Supervised);
+    // One autoencoder serves both, unless the kept model's decoder is a distilled one.
+    let kept_row = summary.candidates.iter().find(|c| c.kept).unwrap();
     assert_eq!(
-        outcome.model.decoder, outcome.baseline.decoder,
-        "one autoencoder serves both"
+        outcome.model.decoder == outcome.baseline.decoder,
+        kept_row.decoder != "distilled",
+        "{:?}",
+        kept_row
     );
 
     // Evaluation runs on the artifacts and measures a stable rollout of the tiny scene.
@@ -196,7 +207,7 @@ fn selection_keeps_the_linear_decoder_where_pca_meets_the_tolerance() {
     println!("{}", mochi_trainer::report::candidates_table(rows));
     let families: Vec<&str> = rows.iter().map(|r| r.decoder.as_str()).collect();
     assert_eq!(families.first(), Some(&"linear"), "{families:?}");
-    for family in ["mlp + basis", "mlp"] {
+    for family in ["mlp + basis", "mlp", "distilled"] {
         assert!(families.contains(&family), "{family} missing from {families:?}");
     }
     let linear = &rows[0];
@@ -242,8 +253,23 @@ fn selection_keeps_the_linear_decoder_where_pca_meets_the_tolerance() {
         assert!(outcome.model.decoder_basis && outcome.model.decoder.len() == 1);
         assert_eq!(outcome.model.latent, 8);
     }
+    // Every mlp candidate gave a distilled one of 8 and of 24 modes, with its integrator.
+    for teacher in rows.iter().filter(|r| r.decoder == "mlp" && r.integrator_width > 0) {
+        let distilled: Vec<u32> = rows
+            .iter()
+            .filter(|r| {
+                r.decoder == "distilled" && (r.latent, r.integrator_width) == (teacher.latent, teacher.integrator_width)
+            })
+            .map(|r| r.modes)
+            .collect();
+        assert_eq!(distilled, [8, 24], "{table}");
+    }
     // The kept model is what the artifact holds, and the runtime runs its decoder.
     assert_eq!(outcome.model.latent, kept.latent);
+    if kept.decoder == "distilled" {
+        let modes = outcome.model.decoder.last().unwrap().cols as u32;
+        assert_eq!(modes, kept.modes, "{table}");
+    }
     assert_eq!(outcome.model.decoder_basis, kept.decoder != "mlp");
     let bytes = outcome.model.to_bytes().unwrap();
     let mut storage = mochi_runtime::OwnedModel::default();

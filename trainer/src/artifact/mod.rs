@@ -145,7 +145,8 @@ pub struct TrainingSummary {
 /// One model `mochi train` tried while selecting over cost (`latent.selection`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CandidateRow {
-    /// Decoder family: `linear`, `mlp + basis` or `mlp`.
+    /// Decoder family: `linear`, `mlp + basis`, `mlp` or `distilled` (a basis decoder fitted
+    /// to an `mlp` candidate's decoder, with that candidate's integrator).
     pub decoder: String,
     /// Latent size.
     pub latent: u32,
@@ -155,7 +156,8 @@ pub struct CandidateRow {
     pub decoder_width: u32,
     /// Hidden width of the integrator (0: none trained, the decoder missed the tolerance).
     pub integrator_width: u32,
-    /// RMS vertex error / diagonal of the decoder's reconstruction of the training frames.
+    /// RMS vertex error / diagonal of the decoder's reconstruction of the training frames
+    /// (a distilled decoder's: of the frames encoded by its teacher's encoder).
     pub reconstruction: f64,
     /// Mean over the validation sequences of the rollout's mean vertex error / diagonal
     /// (infinite when a rollout diverged inside its window or none was run).

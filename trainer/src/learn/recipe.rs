@@ -205,6 +205,35 @@ pub struct SelectionSpec {
     /// How far above the best candidate's mean validation error the kept one may be, relative
     /// (default 0.1).
     pub slack: f64,
+    /// Decoders distilled from every `mlp` candidate (`[latent.selection.distill]`): each a
+    /// candidate of its own, with that candidate's integrator.
+    pub distill: DistillCandidates,
+}
+
+/// The distilled decoders `mochi train` adds to the selection (`[latent.selection.distill]`):
+/// for every candidate with an `mlp` decoder and every number of modes listed, a basis decoder
+/// fitted to that decoder on the latents its integrator visits over the training motions
+/// (`mochi distill`, docs/design.md decision 6). The integrator is the candidate's own.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DistillCandidates {
+    /// Columns of each basis (default `[8, 24]`; empty: none distilled). Counts below the
+    /// latent size or above the encoded length are skipped.
+    pub modes: Vec<usize>,
+    /// Width of the MLP before the basis (default 32, one residual block).
+    pub hidden: usize,
+    /// Training epochs of each fit (default 300).
+    pub epochs: usize,
+}
+
+impl Default for DistillCandidates {
+    fn default() -> Self {
+        DistillCandidates {
+            modes: vec![8, 24],
+            hidden: 32,
+            epochs: 300,
+        }
+    }
 }
 
 impl Default for SelectionSpec {
@@ -217,6 +246,7 @@ impl Default for SelectionSpec {
             ],
             integrator_widths: Vec::new(),
             slack: 0.1,
+            distill: DistillCandidates::default(),
         }
     }
 }
@@ -325,6 +355,13 @@ impl LatentSpec {
             return Err((
                 "selection".into(),
                 "integrator widths must be positive and slack a non-negative number".into(),
+            ));
+        }
+        let distill = &selection.distill;
+        if distill.modes.contains(&0) || distill.hidden == 0 || distill.epochs == 0 {
+            return Err((
+                "selection.distill".into(),
+                "modes, hidden and epochs must be positive".into(),
             ));
         }
         if self.stretch > 0.0 && self.rods == RodEncoding::Bends {

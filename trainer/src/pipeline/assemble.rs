@@ -11,6 +11,7 @@ use crate::learn::network::{Autoencoder, LatentIntegrator};
 use crate::learn::pca::Pca;
 use crate::learn::recipe::Recipe;
 use crate::learn::samples::IntegratorData;
+use crate::pipeline::distill::adopt_decoder;
 use crate::pipeline::stages::{SelectedAutoencoder, StageTimes, TrainedIntegrator, TrainingFrames};
 use mochi_sim::mesh::Elements;
 use mochi_sim::BuiltScene;
@@ -144,15 +145,17 @@ pub(crate) fn summary(trained: &Trained<'_>, integrator: &TrainedIntegrator, tim
 
 /// Stage 5: one artifact per trained integrator, each with the training summary (`times`
 /// so far), written into `out_dir` (the first as the model, the second as its supervised
-/// baseline); returns them in order.
+/// baseline); returns them in order. The model takes the decoder of `distilled` when the
+/// selection kept a distilled candidate; the baseline keeps the autoencoder's.
 pub(crate) fn write_artifacts(
     trained: &Trained<'_>,
     integrators: &[TrainedIntegrator],
     times: &StageTimes,
     candidates: &[CandidateRow],
+    distilled: Option<&Artifact>,
     out_dir: &Path,
 ) -> TrainerResult<Vec<Artifact>> {
-    let mut artifacts = Vec::new();
+    let mut artifacts: Vec<Artifact> = Vec::new();
     for trained_integrator in integrators {
         let summary = TrainingSummary {
             candidates: candidates.to_vec(),
@@ -169,6 +172,9 @@ pub(crate) fn write_artifacts(
             trained_integrator.method,
             summary,
         )?);
+    }
+    if let (Some(model), Some(distilled)) = (artifacts.first_mut(), distilled) {
+        adopt_decoder(model, distilled);
     }
     let (model_path, baseline_path) = artifact_paths(out_dir, &trained.problem.scene.name);
     for (artifact, path) in artifacts.iter().zip([model_path, baseline_path]) {

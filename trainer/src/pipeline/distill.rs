@@ -169,6 +169,19 @@ pub fn distill_artifact(artifact: &Artifact, options: &DistillOptions) -> Traine
     })
 }
 
+/// `artifact` with the decoder of `distilled` (a [`distill_artifact`] of a model with the same
+/// integrator and latent space) and every field that goes with it: the encoding it decodes
+/// into, the PCA, the encoder and the envelope's radius.
+pub(crate) fn adopt_decoder(artifact: &mut Artifact, distilled: &Artifact) {
+    artifact.decoder = distilled.decoder.clone();
+    artifact.decoder_basis = distilled.decoder_basis;
+    artifact.encoding = distilled.encoding.clone();
+    artifact.pca_mean = distilled.pca_mean.clone();
+    artifact.pca_basis = distilled.pca_basis.clone();
+    artifact.encoder = distilled.encoder.clone();
+    artifact.summary.max_radius = distilled.summary.max_radius;
+}
+
 /// Replaces the integrator of `artifact` by one of `shape` distilled from it
 /// ([`crate::learn::distill_integrator`]) on the packed inputs of rollouts over the scene's
 /// training motions; `options` sets the fits (epochs, rates, batch, seed), its decoder shape

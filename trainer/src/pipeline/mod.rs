@@ -9,6 +9,8 @@
 
 pub(crate) mod assemble;
 pub mod distill;
+pub(crate) mod distilled;
+pub(crate) mod measure;
 pub(crate) mod plain_vanilla;
 pub(crate) mod reduced;
 pub(crate) mod selection;
@@ -85,7 +87,7 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
 
     let decoders = selection::train_decoders(problem, spec, &frames, &pca, &sizes, &work, &mut times, report)?;
     let validation = selection::validation_split(problem, &work, report)?;
-    let inputs = selection::SelectionInputs {
+    let inputs = measure::SelectionInputs {
         recipe,
         problem,
         frames: &frames,
@@ -125,7 +127,15 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
         data: &data,
     };
     let integrators = [kept.integrator.clone(), baseline];
-    let mut artifacts = assemble::write_artifacts(&trained, &integrators, &times, &rows, &options.out_dir)?.into_iter();
+    let mut artifacts = assemble::write_artifacts(
+        &trained,
+        &integrators,
+        &times,
+        &rows,
+        kept.distilled.as_ref(),
+        &options.out_dir,
+    )?
+    .into_iter();
     let (Some(model), Some(baseline)) = (artifacts.next(), artifacts.next()) else {
         unreachable!("two integrators make two artifacts");
     };

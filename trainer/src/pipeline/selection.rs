@@ -10,28 +10,22 @@
 //! most `(1 + slack) * best`. When no candidate qualifies, the one that stayed stable the
 //! longest (then the most accurate) is kept, and the training says so.
 
-use std::path::Path;
-
 use crate::artifact::{Artifact, CandidateRow, Method};
 use crate::error::{TrainerError, TrainerResult};
-use crate::eval::rollout::{rollout, LoadedModel};
-use crate::eval::runtime_bench::bench_artifact;
 use crate::learn::network::DecoderShape;
-use crate::learn::recipe::{DecoderCandidate, LatentSpec, Recipe};
+use crate::learn::recipe::{DecoderCandidate, LatentSpec};
 use crate::learn::samples::IntegratorData;
 use crate::pipeline::assemble::{self, build_artifact, Trained};
+use crate::pipeline::distilled::distilled_candidates;
+use crate::pipeline::measure::{measure, SelectionInputs};
 use crate::pipeline::stages::{
     self, DecoderFamily, IntegratorShape, PcaFit, SelectedAutoencoder, StageTimes, TrainedIntegrator, TrainingFrames,
     Workspace,
 };
 use crate::progress::Reporter;
-use mochi_runtime::WeightFormat;
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::trajectory::Trajectory;
 use mochi_sim::BuiltScene;
-
-/// Frames of the runtime timing of each candidate.
-const TIMING_FRAMES: usize = 200;
 
 /// A decoder trained (or fitted) for selection.
 pub(crate) struct DecoderTrial {
@@ -203,22 +197,9 @@ pub(crate) struct Candidate {
     pub(crate) shape: IntegratorShape,
     /// Its row of the candidates table.
     pub(crate) row: CandidateRow,
-}
-
-/// What stage 4 needs besides the decoders.
-pub(crate) struct SelectionInputs<'a> {
-    /// The recipe trained.
-    pub(crate) recipe: &'a Recipe,
-    /// Its scene, built.
-    pub(crate) problem: &'a BuiltScene,
-    /// The encoded training split.
-    pub(crate) frames: &'a TrainingFrames,
-    /// The validation split.
-    pub(crate) validation: &'a [(dataset::SequencePlan, Trajectory)],
-    /// Where training works.
-    pub(crate) work: &'a Workspace,
-    /// Where every candidate's artifact is written (`candidates/` of the output directory).
-    pub(crate) candidates_dir: &'a Path,
+    /// For a distilled candidate, its model: the written artifacts take its decoder
+    /// ([`crate::pipeline::distill::adopt_decoder`]).
+    pub(crate) distilled: Option<Artifact>,
 }
 
 /// Stage 4: a self-supervised integrator of every width for every decoder that meets the
@@ -300,16 +281,13 @@ pub(crate) fn train_candidates(
             )?;
             measure(&artifact, inputs, &mut row)?;
             // Every candidate is kept on disk, so another trade-off can be evaluated and shipped.
-            crate::error::fs::create_dir_all(inputs.candidates_dir)?;
-            artifact.write(&inputs.candidates_dir.join(format!(
-                "{}{}.mochi",
+            let file = format!(
+                "{}{}",
                 inputs.recipe.scene.name,
-                if shape.tag.is_empty() {
-                    "-mlp".to_string()
-                } else {
-                    shape.tag.clone()
-                }
-            )))?;
+                if shape.tag.is_empty() { "-mlp" } else { &shape.tag }
+            );
+            crate::error::fs::create_dir_all(inputs.candidates_dir)?;
+            artifact.write(&inputs.candidates_dir.join(format!("{file}.mochi")))?;
             report.message(&format!(
                 "{}: validation error {:.3}% (stable {} of {} frames), {} multiply-adds, {:.1} µs/frame",
                 decoder_name(trial),
@@ -319,11 +297,30 @@ pub(crate) fn train_candidates(
                 row.multiply_adds,
                 row.storages.first().map_or(f64::NAN, |s| s.2)
             ));
+            let distilled = match trial.family {
+                DecoderCandidate::Mlp => distilled_candidates(&artifact, &row, inputs, times, report)?,
+                _ => Vec::new(),
+            };
+            for (model, row) in distilled {
+                model.write(
+                    &inputs
+                        .candidates_dir
+                        .join(format!("{file}-distilled-m{}.mochi", row.modes)),
+                )?;
+                candidates.push(Candidate {
+                    decoder: d,
+                    integrator: integrator.clone(),
+                    shape: shape.clone(),
+                    row,
+                    distilled: Some(model),
+                });
+            }
             candidates.push(Candidate {
                 decoder: d,
                 integrator,
                 shape,
                 row,
+                distilled: None,
             });
         }
     }
@@ -382,42 +379,6 @@ fn decoder_tag(trial: &DecoderTrial) -> String {
         DecoderShape::Basis { modes, hidden: 0, .. } => format!("linear-m{modes}"),
         DecoderShape::Basis { modes, hidden, .. } => format!("basis{hidden}-m{modes}-k{}", spec.latent),
     }
-}
-
-/// Rolls `artifact` out over the validation sequences and times it in the runtime in every
-/// weight storage, filling in `row`.
-fn measure(artifact: &Artifact, inputs: &SelectionInputs<'_>, row: &mut CandidateRow) -> TrainerResult<()> {
-    let problem = inputs.problem;
-    let model = LoadedModel::new(artifact.clone())?;
-    let mut errors = Vec::new();
-    row.stable_frames = u64::MAX;
-    for (plan, reference) in inputs.validation {
-        let frames = reference.num_frames() - 1;
-        let bc = problem.sequence(&plan.speeds, frames, plan.seed);
-        let metrics = rollout(&model, problem, &inputs.frames.encoding, &bc, frames, reference, frames)?;
-        errors.push(metrics.mean_error);
-        row.stable_frames = row.stable_frames.min(metrics.stable_frames as u64);
-        row.validation_frames = frames as u64;
-    }
-    if errors.is_empty() {
-        return Err(TrainerError::invalid(
-            "model selection needs validation sequences (dataset.validation is 0)",
-        ));
-    }
-    row.validation_error = errors.iter().sum::<f64>() / errors.len() as f64;
-    let bytes = artifact.to_bytes()?;
-    let storages = [WeightFormat::F32, WeightFormat::F16, WeightFormat::Int8];
-    let timings = bench_artifact(artifact, &bytes, Path::new(&artifact.scene), TIMING_FRAMES, &storages)?;
-    for t in &timings {
-        row.storages.push((
-            mochi_codegen::format_name(t.weights).to_string(),
-            t.weight_bytes as u64,
-            1e6 * t.full,
-        ));
-        row.multiply_adds = t.multiply_adds as u64;
-        row.candle_microseconds = 1e6 * t.candle;
-    }
-    Ok(())
 }
 
 #[cfg(test)]

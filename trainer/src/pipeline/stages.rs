@@ -418,6 +418,7 @@ pub(crate) struct TrainedIntegrator {
 
 /// The width of an integrator and the tag of its checkpoints (empty for the scene's own
 /// `latent.integrator` on the MLP decoder; `-w64-linear` and the like for other candidates).
+#[derive(Clone)]
 pub(crate) struct IntegratorShape {
     /// Hidden width.
     pub(crate) width: usize,

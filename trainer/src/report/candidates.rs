@@ -12,6 +12,7 @@ pub fn candidate_name(r: &CandidateRow) -> String {
     let decoder = match r.decoder.as_str() {
         "linear" => format!("linear k={}", r.latent),
         "mlp" => format!("mlp({}) k={}", r.decoder_width, r.latent),
+        "distilled" => format!("distilled mlp({}) + basis({}) k={}", r.decoder_width, r.modes, r.latent),
         _ => format!("mlp({}) + basis({}) k={}", r.decoder_width, r.modes, r.latent),
     };
     if r.integrator_width == 0 {
