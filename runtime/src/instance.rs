@@ -330,6 +330,10 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     pub fn decode_surface_into(&self, model: &ValidModel, out: &mut [f32]) -> Result<(), DecodeError> {
         let (k, s) = self.check_sizes(model).map_err(DecodeError::Model)?;
         let m = model.model();
+        if m.surface_len() == m.state_len() {
+            // Every vertex is drawn (the drawn list ascends and is unique): the full decode.
+            return self.decode_into(model, out);
+        }
         let d = m.dim();
         check_len(out, m.surface_len())?;
         let h = decoder_features::<H>(m, &self.z[..k]);
