@@ -7,7 +7,7 @@ use std::process::Command;
 
 use mochi_runtime::{Model, ValidModel};
 use mochi_target_common::host;
-use mochi_tests::{beam, beam_int8, beam_m8, beam_m8_int8, rods, tiny, tiny_int8};
+use mochi_tests::{beam, beam_int8, beam_m8, beam_m8_int8, rods, rods_m8, tiny, tiny_int8};
 
 /// Runs the firmware for the artifact `name` with `weights` and checks it against `model`
 /// with an `Instance<K, S, H>`; returns the script's output (sizes and rates).
@@ -91,6 +91,20 @@ fn right_sized_beam_runs_at_60_frames_per_second_within_512_kib() {
 fn rods_fit_one_mebibyte_of_flash_and_match_the_host() {
     let output =
         firmware_matches_the_host::<{ rods::LATENT }, { rods::SIGNAL }, { rods::HIDDEN }>("rods", "f32", rods::MODEL);
+    let (flash, ram) = kibibytes(&output);
+    assert!(flash <= 1024.0 && ram <= 64.0, "{flash} KiB of flash, {ram} KiB of RAM");
+}
+
+/// The right-sized rods (`rods-m8`: strands decoded as root-relative positions, one origin per
+/// strand) within 1 MiB of flash and 64 KiB of RAM, within the `f32` tolerance of the host,
+/// whose decode places blocks across strands in one pass.
+#[test]
+fn right_sized_rods_fit_one_mebibyte_of_flash_and_match_the_host() {
+    let output = firmware_matches_the_host::<{ rods_m8::LATENT }, { rods_m8::SIGNAL }, { rods_m8::HIDDEN }>(
+        "rods-m8",
+        "f32",
+        rods_m8::MODEL,
+    );
     let (flash, ram) = kibibytes(&output);
     assert!(flash <= 1024.0 && ram <= 64.0, "{flash} KiB of flash, {ram} KiB of RAM");
 }
