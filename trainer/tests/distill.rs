@@ -220,3 +220,43 @@ fn an_integrator_with_nothing_to_fit_is_refused() {
     let error = distill_artifact_integrator(&original, shape, &options).unwrap_err();
     assert!(error.to_string().contains("visited no input"), "{error}");
 }
+
+/// `mochi train` on the four-strand scene with `strand_positions`: the candidate's decoder is
+/// also distilled into positions, measured like every candidate and written beside them; the
+/// model, if the rule keeps that candidate, carries the positions encoding.
+#[test]
+fn training_with_strand_positions_distils_candidates_into_positions() {
+    use mochi_trainer::{train_scene, Quiet, Recipe, TrainOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/artifacts/strands.toml");
+    let extra = "\n[latent.selection]\ndecoders = [\"mlp\"]\n\n[latent.selection.distill]\nmodes = [8]\nepochs = 1500\nstrand_positions = true\n";
+    let path = dir.path().join("strands.toml");
+    std::fs::write(&path, std::fs::read_to_string(&scene).unwrap() + extra).unwrap();
+    let recipe = Recipe::load(path.to_str().unwrap()).unwrap();
+    let options = TrainOptions {
+        out_dir: dir.path().join("out"),
+        resume: false,
+        latent: None,
+    };
+    let outcome = train_scene(&recipe, &options, &Quiet).unwrap();
+    let rows = &outcome.model.summary.candidates;
+    let table = mochi_trainer::report::candidates_table(rows);
+    let distilled = rows.iter().find(|r| r.decoder == "distilled").expect(&table);
+    assert_eq!(distilled.modes, 8, "{table}");
+    assert!(
+        distilled.validation_frames > 0 && distilled.storages.len() == 3,
+        "{table}"
+    );
+    assert!(distilled.reconstruction.is_finite(), "{table}");
+    let written = Artifact::read(&dir.path().join("out/candidates/strands-mlp-distilled-m8.mochi")).unwrap();
+    assert!(written.encoding.chains.is_empty());
+    assert_eq!(written.encoded_len(), 3 * written.encoding.free_vertices.len());
+    let kept = rows.iter().find(|r| r.kept).unwrap();
+    assert_eq!(
+        outcome.model.encoding.chains.is_empty(),
+        kept.decoder == "distilled",
+        "{table}"
+    );
+    let bytes = outcome.model.to_bytes().unwrap();
+    OwnedModel::default().load(&bytes).unwrap();
+}

@@ -211,9 +211,10 @@ pub struct SelectionSpec {
 }
 
 /// The distilled decoders `mochi train` adds to the selection (`[latent.selection.distill]`):
-/// for every candidate with an `mlp` decoder and every number of modes listed, a basis decoder
-/// fitted to that decoder on the latents its integrator visits over the training motions
-/// (`mochi distill`, docs/design.md decision 6). The integrator is the candidate's own.
+/// for every candidate with an `mlp` decoder (every candidate with `strand_positions`) and
+/// every number of modes listed, a basis decoder fitted to that decoder on the latents its
+/// integrator visits over the training motions (`mochi distill`, docs/design.md decision 6).
+/// The integrator is the candidate's own.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DistillCandidates {
@@ -224,6 +225,10 @@ pub struct DistillCandidates {
     pub hidden: usize,
     /// Training epochs of each fit (default 300).
     pub epochs: usize,
+    /// Fit the decoders to rod strands as positions where the scene encodes them by their
+    /// bends, so the decode skips the strand walk; every candidate, of any decoder family,
+    /// is then distilled (default false).
+    pub strand_positions: bool,
 }
 
 impl Default for DistillCandidates {
@@ -232,6 +237,7 @@ impl Default for DistillCandidates {
             modes: vec![8, 24],
             hidden: 32,
             epochs: 300,
+            strand_positions: false,
         }
     }
 }

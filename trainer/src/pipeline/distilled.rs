@@ -5,13 +5,15 @@
 
 use crate::artifact::{Artifact, CandidateRow};
 use crate::error::TrainerResult;
+use crate::eval::rollout::carried_encoding;
 use crate::learn::distill::DistillShape;
 use crate::learn::network::forward_exported;
-use crate::learn::sequences::decoded_rms_error;
 use crate::pipeline::distill::{distill_artifact, DistillOptions};
 use crate::pipeline::measure::{measure, SelectionInputs};
 use crate::pipeline::stages::{StageTimes, TrainingFrames};
 use crate::progress::Reporter;
+use crate::report::candidates::candidate_name;
+use mochi_sim::BuiltScene;
 
 /// The distilled models of `teacher` (a measured candidate, `teacher_row` its row) for every
 /// number of modes of `latent.selection.distill` between its latent size and its encoded
@@ -27,10 +29,7 @@ pub(crate) fn distilled_candidates(
     let (latent, encoded) = (teacher.latent as usize, teacher.encoded_len());
     let mut out = Vec::new();
     for &modes in spec.modes.iter().filter(|&&m| m >= latent && m <= encoded) {
-        let stage = format!(
-            "distilled decoder ({modes} modes) of mlp({}) k={latent}, integrator {}",
-            teacher_row.decoder_width, teacher_row.integrator_width
-        );
+        let stage = format!("distilled decoder ({modes} modes) of {}", candidate_name(teacher_row));
         report.stage(&stage);
         let clock = std::time::Instant::now();
         let options = DistillOptions {
@@ -40,6 +39,7 @@ pub(crate) fn distilled_candidates(
                 blocks: 1,
             },
             epochs: spec.epochs,
+            strand_positions: spec.strand_positions,
             ..DistillOptions::default()
         };
         let fitted = distill_artifact(teacher, &options);
@@ -56,7 +56,7 @@ pub(crate) fn distilled_candidates(
             decoder: "distilled".into(),
             modes: modes as u32,
             decoder_width: spec.hidden as u32,
-            reconstruction: reconstruction(&artifact, inputs.frames)?,
+            reconstruction: reconstruction(&artifact, inputs.problem, inputs.frames)?,
             validation_error: f64::INFINITY,
             stable_frames: 0,
             storages: Vec::new(),
@@ -67,8 +67,8 @@ pub(crate) fn distilled_candidates(
         };
         measure(&artifact, inputs, &mut row)?;
         report.message(&format!(
-            "distilled({modes}) of mlp({}) k={latent}: validation error {:.3}% (stable {} of {} frames), {} multiply-adds",
-            teacher_row.decoder_width,
+            "distilled({modes}) of {}: validation error {:.3}% (stable {} of {} frames), {} multiply-adds",
+            candidate_name(teacher_row),
             100.0 * row.validation_error,
             row.stable_frames,
             row.validation_frames,
@@ -80,29 +80,21 @@ pub(crate) fn distilled_candidates(
 }
 
 /// RMS vertex error / diagonal of the training frames encoded by `artifact`'s encoder and
-/// decoded by its decoder: the reconstruction column of the candidates table (strands
-/// encoded by their bends compared as decoded positions, as the autoencoders' are).
-fn reconstruction(artifact: &Artifact, frames: &TrainingFrames) -> TrainerResult<f64> {
+/// decoded by its decoder, both in the encoding it carries, against the frames' positions:
+/// the reconstruction column of the candidates table (strands encoded by their bends compared
+/// as decoded positions, as the autoencoders' are).
+fn reconstruction(artifact: &Artifact, problem: &BuiltScene, frames: &TrainingFrames) -> TrainerResult<f64> {
+    let encoding = carried_encoding(artifact, problem)?;
     let (encoder, decoder) = (artifact.encoder()?, artifact.decoder()?);
-    let rebuilt = frames
-        .f64s
-        .iter()
-        .map(|q| Ok(decoder.decode::<f64>(&forward_exported(&encoder, q)?)?))
-        .collect::<TrainerResult<Vec<Vec<f64>>>>()?;
-    let encoding = &frames.encoding;
-    if encoding.strand_bends() {
-        return Ok(decoded_rms_error(
-            encoding,
-            &frames.sequences,
-            &rebuilt,
-            artifact.diagonal,
-        )?);
+    let (mut sum, mut count) = (0.0, 0usize);
+    for sequence in &frames.sequences {
+        for (x, targets) in sequence.trajectory.positions.iter().zip(&sequence.targets) {
+            let q = encoding.encode(x, &encoding.frame(targets)?)?;
+            let rebuilt = decoder.decode::<f64>(&forward_exported(&encoder, &q)?)?;
+            let approx = encoding.decode(&rebuilt, targets)?;
+            sum += approx.iter().zip(x).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+            count += encoding.free_vertices().len();
+        }
     }
-    let (mut sum, mut values) = (0.0, 0usize);
-    for (q, r) in frames.f64s.iter().zip(&rebuilt) {
-        sum += q.iter().zip(r).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
-        values += q.len();
-    }
-    let vertices = (values / encoding.values_per_vertex().max(1)).max(1) as f64;
-    Ok((sum / vertices).sqrt() / artifact.diagonal)
+    Ok((sum / count.max(1) as f64).sqrt() / artifact.diagonal)
 }

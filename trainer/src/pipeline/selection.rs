@@ -297,9 +297,10 @@ pub(crate) fn train_candidates(
                 row.multiply_adds,
                 row.storages.first().map_or(f64::NAN, |s| s.2)
             ));
-            let distilled = match trial.family {
-                DecoderCandidate::Mlp => distilled_candidates(&artifact, &row, inputs, times, report)?,
-                _ => Vec::new(),
+            let distill = &spec.selection.distill;
+            let distilled = match trial.family == DecoderCandidate::Mlp || distill.strand_positions {
+                true => distilled_candidates(&artifact, &row, inputs, times, report)?,
+                false => Vec::new(),
             };
             for (model, row) in distilled {
                 model.write(
