@@ -169,7 +169,8 @@ pub struct CandidateRow {
     /// Per weight storage (`f32`, `f16`, `int8`): bytes of weights and microseconds per frame
     /// (runtime step + full decode, one thread) measured while training.
     pub storages: Vec<(String, u64, f64)>,
-    /// Multiply-adds per frame (integrator + full decode).
+    /// Multiply-adds per frame (integrator + full decode, with a bend-encoded model's strand
+    /// walk, [`mochi_runtime::ChainWalk::STEP_MULTIPLY_ADDS`] per vertex).
     pub multiply_adds: u64,
     /// Microseconds per frame of candle's batch-1 forward of the same networks.
     pub candle_microseconds: f64,
