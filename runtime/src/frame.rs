@@ -299,11 +299,6 @@ pub struct ChainWalk {
 }
 
 impl ChainWalk {
-    /// Multiplications in one [`ChainWalk::step`], for cost reports: `g` 6, `|g|^2` 3, each
-    /// of the three axes 15 (two cross products and the scaled update), the position 3; its
-    /// four divisions are not counted.
-    pub const STEP_MULTIPLY_ADDS: usize = 57;
-
     /// Places the next vertex from its two encoded numbers `q` and the rest length of the edge
     /// that ends at it: turns the axes by the Cayley map of `g = (u q[0] + w q[1]) / length`
     /// (`y + 2 / (1 + |g|^2) (g x y + g x (g x y))`) and steps `length` along the new `d`.

@@ -353,6 +353,16 @@ impl<'a> Model<'a> {
     pub fn bends(&self) -> bool {
         self.chains.len > 0
     }
+    /// Multiplications of a full decode's strand walk, for cost reports: one
+    /// [`crate::ChainWalk::step`] per free vertex of a bend-encoded model (`g` 6, `|g|^2` 3,
+    /// each of the three axes 15 for two cross products and the scaled update, the position
+    /// 3; its four divisions not counted), 0 for a model without strands.
+    pub fn walk_multiply_adds(&self) -> usize {
+        match self.bends() {
+            true => 57 * self.free_vertices().len(),
+            false => 0,
+        }
+    }
     /// Numbers per encoded (free) vertex: `dim`, or 2 for bends.
     pub fn values_per_vertex(&self) -> usize {
         if self.bends() {

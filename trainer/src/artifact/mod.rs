@@ -170,7 +170,7 @@ pub struct CandidateRow {
     /// (runtime step + full decode, one thread) measured while training.
     pub storages: Vec<(String, u64, f64)>,
     /// Multiply-adds per frame (integrator + full decode, with a bend-encoded model's strand
-    /// walk, [`mochi_runtime::ChainWalk::STEP_MULTIPLY_ADDS`] per vertex).
+    /// walk, [`mochi_runtime::Model::walk_multiply_adds`]).
     pub multiply_adds: u64,
     /// Microseconds per frame of candle's batch-1 forward of the same networks.
     pub candle_microseconds: f64,

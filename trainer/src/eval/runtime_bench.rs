@@ -168,10 +168,7 @@ pub(crate) fn bench_artifact(
             // A bend-encoded model's decode also walks every strand, a step per vertex.
             multiply_adds: mochi_runtime::network::multiply_adds(m.integrator)
                 + mochi_runtime::network::multiply_adds(m.decoder)
-                + match m.bends() {
-                    true => m.free_vertices().len() * mochi_runtime::ChainWalk::STEP_MULTIPLY_ADDS,
-                    false => 0,
-                },
+                + m.walk_multiply_adds(),
             weight_bytes: model.model().weight_bytes(),
             state_bytes: measured.state_bytes,
             disagreement: measured.disagreement,

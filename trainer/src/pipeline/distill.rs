@@ -140,7 +140,13 @@ pub fn distill_artifact(artifact: &Artifact, options: &DistillOptions) -> Traine
             let (encoder, encoder_rms) = distill_encoder(fit, check, &distilled.pca, ENCODER_WIDTH, &config)?;
             out.encoding = EncodingData::new(student);
             out.pca_mean = distilled.pca.mean.iter().map(|&v| v as f32).collect();
-            out.pca_basis = distilled.pca.basis[..k].iter().flatten().map(|&v| v as f32).collect();
+            let leading = distilled.pca.basis.get(..k).ok_or_else(|| {
+                TrainerError::invalid(format!(
+                    "a basis of {} modes for a latent of {k}",
+                    distilled.pca.basis.len()
+                ))
+            })?;
+            out.pca_basis = leading.iter().flatten().map(|&v| v as f32).collect();
             out.encoder = encoder.layers().into_iter().cloned().collect();
             // The envelope's radius in the new encoding, over the teacher's rollouts.
             out.summary.max_radius = train
