@@ -142,7 +142,8 @@ enum Command {
         #[arg(long)]
         keep_decoder: bool,
         /// Fit the decoder to rod strands as positions when the model encodes them by their
-        /// bends: the decode then skips the strand walk.
+        /// bends: the decode then skips the strand walk (the fit wants many more epochs than
+        /// the default: rods takes 12,000).
         #[arg(long)]
         strand_positions: bool,
         /// Frames of each rollout over a training motion, for every fit (default: the scene's
