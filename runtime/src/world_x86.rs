@@ -226,16 +226,44 @@ impl WorldBlocks {
             return 0;
         };
         let stride = column_stride(layer.rows as usize);
+        let (free, origin_of) = (&free[..n], &origin_of[..n]);
+        // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; `column_layer`
+        // checked that rows `0..3 n` exist in every column of `w` and in `bias`.
+        unsafe { self.placed_vertices_avx512(w, stride, bias, x, free, origin_of, origin, origin_at, out) }
+    }
+
+    /// The loop of [`WorldBlocks::placed_vertices`], compiled for AVX-512F so that the column
+    /// chains and the block's transform and stores inline into it.
+    ///
+    /// # Safety
+    /// Rows `0..3 free.len()` must exist in `bias` and in each of the `x.len()` columns of
+    /// `w`; `free.len()` a multiple of 16 and equal to `origin_of`'s. (Destinations are
+    /// checked here: a block is stored whole only where its sixteen vertices are
+    /// consecutive and inside `out`.)
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn placed_vertices_avx512(
+        &mut self,
+        w: &[f32],
+        stride: usize,
+        bias: &[f32],
+        x: &[f32],
+        free: &[u32],
+        origin_of: &[u32],
+        origin: &mut u32,
+        origin_at: &mut dyn FnMut(u32) -> Vector3<f32>,
+        out: &mut [f32],
+    ) -> usize {
+        const PER_BLOCK: usize = BLOCK_FLOATS / 3;
         let mut done = 0;
-        for (vertices, origins) in free[..n].chunks_exact(PER_BLOCK).zip(origin_of.chunks_exact(PER_BLOCK)) {
+        for (vertices, origins) in free.chunks_exact(PER_BLOCK).zip(origin_of.chunks_exact(PER_BLOCK)) {
             if origins[0] != *origin {
                 *origin = origins[0];
                 self.set_origin(&origin_at(*origin));
             }
             let r = 3 * done;
-            // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; `column_layer`
-            // checked that rows `0..3 n` exist in every column of `w` and in `bias`, so rows
-            // `r..r + 48`; `origins` holds 16 indices.
+            // SAFETY: rows `r..r + 48` exist in every column and in `bias` (the caller's
+            // promise); `origins` holds 16 indices; AVX-512F is present.
             unsafe {
                 let a = column_chains512::<3>(w.as_ptr().add(r), stride, x);
                 match shares_origin(origins, _mm512_set1_epi32(*origin as i32)) {
