@@ -102,6 +102,7 @@ pub fn stepper_settings(spec: &ReducedSpec, scheme: TimeScheme) -> StepperSettin
             tolerance: spec.tolerance,
             max_iterations: spec.max_iterations,
             warm_start: spec.warm_start,
+            memory: spec.memory,
             ..SolveSettings::default()
         },
         quasi_static: scheme == TimeScheme::QuasiStatic,

@@ -29,6 +29,24 @@ pub enum VanillaNetwork {
     PlainMlp,
 }
 
+/// Which elastic energy the Lipschitz loss (Eq. 9) differentiates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum LipschitzEnergy {
+    /// The cubature fitted on the vanilla subspace (at most `cubature` elements; the
+    /// paper's, Sec. 4.3).
+    #[default]
+    Cubature,
+    /// Every element of the scene's elastic terms: no approximation, about `elements / S`
+    /// times the cost of a cubature step of the loss.
+    Exact,
+    /// Supervised only: every minibatch a fresh uniform draw of `cubature` elements of each
+    /// elastic term, weighted so that the Hessian is an unbiased estimate of the exact one
+    /// (the cost of a cubature step; the decoder cannot hide curvature in elements a fixed
+    /// cubature leaves out).
+    Sampled,
+}
+
 /// The optimiser of each reduced step.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -82,6 +100,10 @@ pub struct ReducedSpec {
     /// other half's latents moved by this fraction of their spread, so Eq. 9 also sees
     /// nearby pairs (default 0: every sample an encoded frame, the paper's).
     pub lipschitz_local: f64,
+    /// The elastic energy whose subspace Hessian the Lipschitz loss regularises (default
+    /// `"cubature"`, the paper's; `"exact"` takes every element, `"sampled"` a fresh draw of
+    /// `cubature` elements per minibatch).
+    pub lipschitz_energy: LipschitzEnergy,
     /// Latent samples of the Lipschitz loss per step (default 8).
     pub samples: usize,
     /// Largest cubature of the elastic energy used for the Lipschitz loss (default 300, the
@@ -96,6 +118,8 @@ pub struct ReducedSpec {
     /// L-BFGS starts each step from the curvature pairs of the previous step instead of
     /// steepest descent (default true).
     pub warm_start: bool,
+    /// Curvature pairs L-BFGS keeps (default 8; 0 is steepest descent).
+    pub memory: usize,
 }
 
 impl Default for ReducedSpec {
@@ -114,12 +138,14 @@ impl Default for ReducedSpec {
             lipschitz_learning_rate: None,
             cubature_refits: 0,
             lipschitz_local: 0.0,
+            lipschitz_energy: LipschitzEnergy::Cubature,
             samples: 8,
             cubature: 300,
             solver: SolverChoice::Lbfgs,
             tolerance: 1e-5,
             max_iterations: 1024,
             warm_start: true,
+            memory: 8,
         }
     }
 }
@@ -171,6 +197,18 @@ impl ReducedSpec {
             return Err((
                 "cubature_refits",
                 "refits apply to a supervised Lipschitz optimisation: it needs subspace = \"supervised\"".into(),
+            ));
+        }
+        if self.lipschitz_energy == LipschitzEnergy::Sampled && self.subspace != SubspaceSource::Supervised {
+            return Err((
+                "lipschitz_energy",
+                "\"sampled\" draws elements per minibatch of a supervised optimisation: it needs subspace = \"supervised\"".into(),
+            ));
+        }
+        if self.cubature_refits > 0 && self.lipschitz_energy != LipschitzEnergy::Cubature {
+            return Err((
+                "cubature_refits",
+                "refits renew the cubature of the Lipschitz loss: they need lipschitz_energy = \"cubature\"".into(),
             ));
         }
         if self.cubature_refits >= self.lipschitz_epochs {
@@ -286,6 +324,22 @@ mod tests {
                     ..Default::default()
                 },
                 "cubature_refits",
+            ),
+            (
+                ReducedSpec {
+                    cubature_refits: 1,
+                    lipschitz_energy: LipschitzEnergy::Exact,
+                    ..Default::default()
+                },
+                "cubature_refits",
+            ),
+            (
+                ReducedSpec {
+                    lipschitz_energy: LipschitzEnergy::Sampled,
+                    subspace: SubspaceSource::DataFree,
+                    ..Default::default()
+                },
+                "lipschitz_energy",
             ),
             (
                 ReducedSpec {

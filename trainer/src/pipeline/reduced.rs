@@ -6,7 +6,7 @@
 
 use std::time::Instant;
 
-use mochi_sim::cubature::CubatureSettings;
+use mochi_sim::cubature::{CubatureEnergy, CubatureSettings};
 use mochi_sim::StencilEnergy;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -19,7 +19,7 @@ use crate::learn::datafree::{normal_latents, train_data_free_model, DataFreeObje
 use crate::learn::encoding::Encoding;
 use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, ExportedMlp};
 use crate::learn::recipe::Recipe;
-use crate::learn::reduced_spec::{ReducedSpec, SubspaceSource, VanillaNetwork};
+use crate::learn::reduced_spec::{LipschitzEnergy, ReducedSpec, SubspaceSource, VanillaNetwork};
 use crate::learn::train::{self, AdamWConfig, CheckpointConfig, TrainConfig};
 use crate::methods::lipschitz::cubature::{cubature_energies, fit_subspace_cubature, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
@@ -68,6 +68,26 @@ fn fit_cubatures(
         });
     }
     Ok(out)
+}
+
+/// The potentials the Lipschitz loss differentiates: the cubature energies `energies`, or
+/// every element of `problem`'s elastic terms when `spec` asks for the exact energy (or
+/// draws from them per minibatch).
+fn lipschitz_potentials<'a>(
+    spec: &ReducedSpec,
+    problem: &'a BuiltScene,
+    energies: &'a [CubatureEnergy<'a>],
+) -> Vec<&'a dyn StencilEnergy> {
+    match spec.lipschitz_energy {
+        LipschitzEnergy::Cubature => energies.iter().map(|e| e as &dyn StencilEnergy).collect(),
+        LipschitzEnergy::Exact | LipschitzEnergy::Sampled => problem
+            .simulator
+            .potentials()
+            .iter()
+            .filter(|p| ELASTIC_TERMS.contains(&p.name()))
+            .map(|p| p.as_ref())
+            .collect(),
+    }
 }
 
 /// The Lipschitz term of `problem`'s body on `potentials`.
@@ -205,7 +225,11 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         } else {
             String::new()
         }
-    );
+    ) + match spec.lipschitz_energy {
+        LipschitzEnergy::Cubature => "",
+        LipschitzEnergy::Exact => "-exact",
+        LipschitzEnergy::Sampled => "-sampled",
+    };
     let tolerance = inputs.recipe.latent.tolerance * problem.mesh.rest_diagonal();
     let mut settings = LipschitzSettings {
         weight: spec.lipschitz,
@@ -214,6 +238,10 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         floor: tolerance * tolerance / problem.mesh.dim as f64,
         lambda: None,
         local: spec.lipschitz_local,
+        resample: match spec.lipschitz_energy {
+            LipschitzEnergy::Sampled => spec.cubature,
+            _ => 0,
+        },
     };
     let rounds = spec.cubature_refits + 1;
     let (mut losses, mut earlier_seconds, mut start) = (Vec::new(), 0.0, None);
@@ -225,7 +253,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
             round_cubatures = fit_cubatures(problem, encoding, current.decoder.as_mlp()?, &samples, spec.cubature)?;
         }
         let energies = cubature_energies(problem, &round_cubatures)?;
-        let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
+        let potentials = lipschitz_potentials(spec, problem, &energies);
         let config = TrainConfig {
             name: if rounds > 1 {
                 format!("{name}-round{round}of{rounds}")
@@ -269,7 +297,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         start.0, start.1, lambda
     ));
     let energies = cubature_energies(problem, &cubatures)?;
-    let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
+    let potentials = lipschitz_potentials(spec, problem, &energies);
     let term = lipschitz_term(problem, encoding, &potentials);
     let ours = optimised.export()?;
 
@@ -339,7 +367,7 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
     let samples = gaussian(CUBATURE_SAMPLES, &mut rng)?;
     let cubatures = fit_cubatures(problem, encoding, &vanilla.decoder, &samples, spec.cubature)?;
     let energies = cubature_energies(problem, &cubatures)?;
-    let potentials: Vec<&dyn StencilEnergy> = energies.iter().map(|e| e as &dyn StencilEnergy).collect();
+    let potentials = lipschitz_potentials(spec, problem, &energies);
     let term = lipschitz_term(problem, encoding, &potentials);
 
     report.stage("reduced: Lipschitz optimisation");
@@ -350,6 +378,7 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
         floor: 0.0,
         lambda: None,
         local: 0.0,
+        resample: 0,
     };
     let (losses, lambda) = optimise_data_free(
         &objective,
@@ -390,4 +419,40 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
         cubature: cubatures,
         lambda,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::learn::datafree::tests::tiny_bar;
+
+    /// The Lipschitz loss sees the cubature's elements, or with `lipschitz_energy = "exact"`
+    /// every element of the scene's elastic terms.
+    #[test]
+    fn the_exact_lipschitz_energy_takes_every_elastic_element() {
+        let dir = tempfile::tempdir().unwrap();
+        let problem = tiny_bar(dir.path());
+        let cubature = [CubatureData {
+            term: "elastic".into(),
+            elements: vec![0, 3],
+            weights: vec![1.0, 2.0],
+            residual: 0.0,
+        }];
+        let energies = cubature_energies(&problem, &cubature).unwrap();
+        let elastic = problem
+            .simulator
+            .potentials()
+            .iter()
+            .find(|p| p.name() == "elastic")
+            .unwrap();
+        let mut spec = ReducedSpec::default();
+        let with_cubature = lipschitz_potentials(&spec, &problem, &energies);
+        assert_eq!(with_cubature.len(), 1);
+        assert_eq!(with_cubature[0].len(), 2);
+        spec.lipschitz_energy = LipschitzEnergy::Exact;
+        let exact = lipschitz_potentials(&spec, &problem, &energies);
+        let names: Vec<&str> = exact.iter().map(|p| p.name()).collect();
+        assert_eq!(names, ["elastic"], "gravity and the other terms are not regularised");
+        assert!(exact[0].len() > 2 && exact[0].len() == elastic.len());
+    }
 }

@@ -111,6 +111,35 @@ pub fn fit_subspace_cubature(
     fit_cubature(&a, settings).map_err(|e| TrainerError::invalid(format!("cubature of `{}`: {e}", energy.name())))
 }
 
+/// A Monte Carlo cubature of each of `potentials`: `size` of its elements drawn uniformly
+/// without replacement, each weighted `len / size` (every element at weight 1 when it has at
+/// most `size`). Its Hessian is an unbiased estimate of the full one, and with one draw for
+/// all samples of a minibatch so is every difference `H_i - H_j` of Eq. 9: a loss on fresh
+/// draws sees every element in turn, where a decoder optimised against one fixed rule can
+/// move its curvature into the elements the rule leaves out.
+pub(crate) fn sampled_cubature<'a>(
+    potentials: &[&'a dyn StencilEnergy],
+    size: usize,
+    rng: &mut impl rand::Rng,
+) -> TrainerResult<Vec<CubatureEnergy<'a>>> {
+    potentials
+        .iter()
+        .map(|&energy| {
+            let len = energy.len();
+            let take = size.min(len);
+            let mut elements = rand::seq::index::sample(rng, len, take).into_vec();
+            elements.sort_unstable();
+            let weight = len as f64 / take.max(1) as f64;
+            let rule = mochi_sim::cubature::Cubature {
+                weights: vec![weight; elements.len()],
+                elements,
+            };
+            CubatureEnergy::new(energy, rule)
+                .map_err(|e| TrainerError::invalid(format!("sampled cubature of `{}`: {e}", energy.name())))
+        })
+        .collect()
+}
+
 /// The potential of the Lipschitz loss: each elastic term through its cubature.
 pub(crate) fn cubature_energies<'a>(
     problem: &'a BuiltScene,

@@ -208,6 +208,7 @@ fn a_tiny_data_free_lipschitz_optimisation_lowers_the_lipschitz_loss() {
         floor: 0.0,
         lambda: None,
         local: 0.0,
+        resample: 0,
     };
     let (losses, lambda) = optimise_data_free(&objective, &model, &settings, &term, &lip, 60, &Quiet).unwrap();
     assert_eq!(losses.len(), 60);
@@ -217,4 +218,73 @@ fn a_tiny_data_free_lipschitz_optimisation_lowers_the_lipschitz_loss() {
         after < 0.7 * before,
         "Lipschitz loss on held-out samples {before:.3e} -> {after:.3e}"
     );
+}
+
+/// A Monte Carlo cubature keeps `size` distinct elements at weight `len / size` (all of them
+/// at weight 1 when `size` covers the term), and its subspace Hessians average to the exact
+/// ones over draws: the sampled Lipschitz loss differentiates an unbiased estimate.
+#[test]
+fn sampled_cubature_hessians_average_to_the_exact_ones() {
+    use super::cubature::{sampled_cubature, ELASTIC_TERMS};
+    let beam = nonlinear_beam();
+    let exported = beam.ae.export().unwrap();
+    let decoder = exported.decoder.as_mlp().unwrap();
+    let seq = &beam.sequences[0];
+    let samples: Vec<LatentSample> = [3, 9]
+        .iter()
+        .map(|&t| {
+            let q: Vec<f32> = seq.encoded[t].iter().map(|&v| v as f32).collect();
+            let z = forward_exported(&exported.encoder, &q).unwrap();
+            LatentSample {
+                z: z.iter().map(|&v| v as f64).collect(),
+                targets: seq.targets[t].clone(),
+            }
+        })
+        .collect();
+    let elastic: Vec<&dyn StencilEnergy> = beam
+        .problem
+        .simulator
+        .potentials()
+        .iter()
+        .filter(|p| ELASTIC_TERMS.contains(&p.name()))
+        .map(|p| p.as_ref())
+        .collect();
+    let hessians = |potentials: &[&dyn StencilEnergy]| {
+        let term = LipschitzTerm {
+            encoding: &beam.encoding,
+            potentials,
+            scale: 1e-3,
+            diagonal: beam.problem.mesh.rest_diagonal(),
+        };
+        term.hessians(decoder, &samples).unwrap()
+    };
+    let exact = hessians(&elastic);
+
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let len = elastic[0].len();
+    let size = len / 4;
+    let whole = sampled_cubature(&elastic, len + 5, &mut rng).unwrap();
+    assert_eq!(whole[0].cubature().elements, (0..len).collect::<Vec<_>>());
+    assert!(whole[0].cubature().weights.iter().all(|&w| w == 1.0));
+
+    let draws = 400;
+    let mut mean = vec![nalgebra::DMatrix::<f64>::zeros(exact[0].nrows(), exact[0].ncols()); samples.len()];
+    for _ in 0..draws {
+        let drawn = sampled_cubature(&elastic, size, &mut rng).unwrap();
+        let rule = drawn[0].cubature();
+        assert_eq!(rule.elements.len(), size);
+        assert!(rule.elements.windows(2).all(|w| w[0] < w[1]), "distinct, sorted");
+        assert!(rule.weights.iter().all(|&w| w == len as f64 / size as f64));
+        let potentials: Vec<&dyn StencilEnergy> = drawn.iter().map(|e| e as &dyn StencilEnergy).collect();
+        for (m, h) in mean.iter_mut().zip(hessians(&potentials)) {
+            *m += h / draws as f64;
+        }
+    }
+    for (m, h) in mean.iter().zip(&exact) {
+        let relative = (m - h).norm() / h.norm();
+        assert!(
+            relative < 0.05,
+            "mean of {draws} draws {relative:.3e} from the exact Hessian"
+        );
+    }
 }

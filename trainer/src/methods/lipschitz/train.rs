@@ -18,6 +18,9 @@ use candle_core::Tensor;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use mochi_sim::energy::StencilEnergy;
+
+use super::cubature::sampled_cubature;
 use super::loss::{LatentSample, LipschitzTerm};
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::datafree::{normal_latents, DataFreeModel, DataFreeObjective, DataFreeSettings};
@@ -44,6 +47,11 @@ pub struct LipschitzSettings {
     /// random direction, so Eq. 9 also sees pairs of nearby latents (the local roughness a
     /// step's solve meets); default 0, every sample an encoded frame (the paper's).
     pub local: f64,
+    /// When positive, each minibatch's Lipschitz term differentiates a fresh Monte Carlo
+    /// cubature of this many elements of each potential of the term
+    /// ([`super::cubature::sampled_cubature`], one draw for the whole minibatch) instead of
+    /// the term's potentials themselves; default 0.
+    pub resample: usize,
 }
 
 impl Default for LipschitzSettings {
@@ -54,6 +62,7 @@ impl Default for LipschitzSettings {
             floor: 0.0,
             lambda: None,
             local: 0.0,
+            resample: 0,
         }
     }
 }
@@ -152,9 +161,23 @@ pub(crate) fn optimise_supervised(
             Autoencoder::reconstruction_loss_of(&autoencoder.reconstruct(&batch.inputs)?, &batch.inputs)?;
         let exported = autoencoder.export().map_err(candle_err)?;
         let samples = samples_of(&exported.encoder, batch.indices)?;
-        let lip = term
-            .batch(decoder, None, exported.decoder.as_mlp().map_err(candle_err)?, &samples)
-            .map_err(candle_err)?;
+        let frozen = exported.decoder.as_mlp().map_err(candle_err)?;
+        let lip = if settings.resample > 0 {
+            // One draw per minibatch, reproducible on a resumed run.
+            let first = batch.indices.first().map_or(0, |&i| i as u64);
+            let mut rng = ChaCha8Rng::seed_from_u64(((batch.epoch as u64) << 32) ^ first);
+            rng.set_stream(11);
+            let drawn = sampled_cubature(term.potentials, settings.resample, &mut rng).map_err(candle_err)?;
+            let potentials: Vec<&dyn StencilEnergy> = drawn.iter().map(|e| e as &dyn StencilEnergy).collect();
+            LipschitzTerm {
+                potentials: &potentials,
+                ..*term
+            }
+            .batch(decoder, None, frozen, &samples)
+        } else {
+            term.batch(decoder, None, frozen, &samples)
+        }
+        .map_err(candle_err)?;
         let value = reconstruction.to_scalar::<f32>()? as f64 + lambda * lip.loss;
         let objective = (reconstruction + lip.surrogate.affine(lambda, 0.0)?)?;
         Ok(BatchLoss { objective, value })
