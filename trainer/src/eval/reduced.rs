@@ -27,7 +27,7 @@ use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{ReducedSpec, SolverChoice};
 use crate::methods::lipschitz::cubature::cubature_energies;
-use crate::methods::lipschitz::cubature::ELASTIC_TERMS;
+use crate::methods::lipschitz::cubature::{elastic_terms, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::reduced::optimize::{Exit, ExitCounts, SolveSettings};
 use crate::methods::reduced::projection::project;
@@ -246,15 +246,6 @@ fn mean_gap(
         return f64::NAN;
     }
     gaps.iter().sum::<f64>() / gaps.len() as f64
-}
-
-/// The elastic terms among `potentials` (those the Lipschitz loss and the cubature cover).
-pub fn elastic_terms<'a>(potentials: &[&'a dyn StencilEnergy]) -> Vec<&'a dyn StencilEnergy> {
-    potentials
-        .iter()
-        .copied()
-        .filter(|p| ELASTIC_TERMS.contains(&p.name()))
-        .collect()
 }
 
 /// Runtime cubature: the elastic terms through `cubatures` (fitted for the Lipschitz loss),

@@ -11,14 +11,12 @@ use std::path::Path;
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::StencilEnergy;
 
-use super::reduced::{
-    elastic_terms, step_sequence, stepper_settings, subspace_runs, with_runtime_cubature, ReducedMetrics,
-};
+use super::reduced::{step_sequence, stepper_settings, subspace_runs, with_runtime_cubature, ReducedMetrics};
 use crate::artifact::reduced::ReducedArtifact;
 use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
-use crate::methods::lipschitz::cubature::cubature_energies;
+use crate::methods::lipschitz::cubature::{cubature_energies, elastic_terms};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::reduced::optimize::Exit;
 use crate::methods::reduced::stepper::scene_objective_scale;

@@ -21,7 +21,7 @@ use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, Expor
 use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{LipschitzEnergy, ReducedSpec, SubspaceSource, VanillaNetwork};
 use crate::learn::train::{self, AdamWConfig, CheckpointConfig, TrainConfig};
-use crate::methods::lipschitz::cubature::{cubature_energies, fit_subspace_cubature, ELASTIC_TERMS};
+use crate::methods::lipschitz::cubature::{cubature_energies, elastic_terms, fit_subspace_cubature, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::lipschitz::train::{optimise_data_free, optimise_supervised, LipschitzSettings};
 use crate::methods::reduced::stepper::scene_objective_scale;
@@ -80,13 +80,10 @@ fn lipschitz_potentials<'a>(
 ) -> Vec<&'a dyn StencilEnergy> {
     match spec.lipschitz_energy {
         LipschitzEnergy::Cubature => energies.iter().map(|e| e as &dyn StencilEnergy).collect(),
-        LipschitzEnergy::Exact | LipschitzEnergy::Sampled => problem
-            .simulator
-            .potentials()
-            .iter()
-            .filter(|p| ELASTIC_TERMS.contains(&p.name()))
-            .map(|p| p.as_ref())
-            .collect(),
+        LipschitzEnergy::Exact | LipschitzEnergy::Sampled => {
+            let all: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+            elastic_terms(&all)
+        }
     }
 }
 

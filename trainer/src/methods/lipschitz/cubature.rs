@@ -22,6 +22,15 @@ use crate::methods::reduced::subspace::DecoderSubspace;
 /// cheap per-vertex terms.
 pub const ELASTIC_TERMS: [&str; 5] = ["elastic", "membrane", "bending", "stretch", "bend"];
 
+/// The elastic terms among `potentials` (those the Lipschitz loss and the cubature cover).
+pub fn elastic_terms<'a>(potentials: &[&'a dyn StencilEnergy]) -> Vec<&'a dyn StencilEnergy> {
+    potentials
+        .iter()
+        .copied()
+        .filter(|p| ELASTIC_TERMS.contains(&p.name()))
+        .collect()
+}
+
 /// Samples decoded: their world states, their Jacobians (`n x r` each) and `r`.
 struct Decoded {
     states: Vec<Vec<f64>>,

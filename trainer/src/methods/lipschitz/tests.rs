@@ -225,7 +225,7 @@ fn a_tiny_data_free_lipschitz_optimisation_lowers_the_lipschitz_loss() {
 /// ones over draws: the sampled Lipschitz loss differentiates an unbiased estimate.
 #[test]
 fn sampled_cubature_hessians_average_to_the_exact_ones() {
-    use super::cubature::{sampled_cubature, ELASTIC_TERMS};
+    use super::cubature::{elastic_terms, sampled_cubature};
     let beam = nonlinear_beam();
     let exported = beam.ae.export().unwrap();
     let decoder = exported.decoder.as_mlp().unwrap();
@@ -241,14 +241,8 @@ fn sampled_cubature_hessians_average_to_the_exact_ones() {
             }
         })
         .collect();
-    let elastic: Vec<&dyn StencilEnergy> = beam
-        .problem
-        .simulator
-        .potentials()
-        .iter()
-        .filter(|p| ELASTIC_TERMS.contains(&p.name()))
-        .map(|p| p.as_ref())
-        .collect();
+    let all: Vec<&dyn StencilEnergy> = beam.problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+    let elastic = elastic_terms(&all);
     let hessians = |potentials: &[&dyn StencilEnergy]| {
         let term = LipschitzTerm {
             encoding: &beam.encoding,
