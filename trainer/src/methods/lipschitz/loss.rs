@@ -33,6 +33,7 @@
 use candle_core::{Device, Tensor};
 use mochi_sim::energy::StencilEnergy;
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 
 use super::physics::PotentialAt;
 use crate::error::{TrainerError, TrainerResult};
@@ -72,24 +73,35 @@ pub struct LipschitzBatch {
     pub surrogate: Tensor,
 }
 
+/// One sample's share of the surrogate's constants: the eigenvectors of `G_i` (`r x r`, one
+/// per row) and the physics vectors `c1`, `c2` (`r x q_len`, one row per eigenvector) and
+/// `c3` (`q_len`), each already weighted by its eigenvalue.
+struct SampleConstants {
+    directions: Vec<f32>,
+    c1: Vec<f32>,
+    c2: Vec<f32>,
+    c3: Vec<f32>,
+}
+
 impl LipschitzTerm<'_> {
     /// The subspace Hessians `H_i` (`r x r`) of the frozen `decoder` at `samples`.
+    ///
+    /// Samples are independent: they are split into one chunk per worker thread (rayon), each
+    /// with its own copy of the subspace, and come back in order.
     pub fn hessians(&self, decoder: &ExportedMlp, samples: &[LatentSample]) -> TrainerResult<Vec<DMatrix<f64>>> {
         let Some(first) = samples.first() else {
             return Ok(Vec::new());
         };
-        let mut subspace = DecoderSubspace::new(decoder, self.encoding, &first.targets)?;
-        let r = subspace.latent_len();
-        let mut buffers = ObjectiveBuffers::new(subspace.state_len(), r);
-        let mut out = Vec::with_capacity(samples.len());
-        for s in samples {
+        let subspace = DecoderSubspace::new(decoder, self.encoding, &first.targets)?;
+        per_sample(&subspace, samples, |subspace, s| {
+            let r = subspace.latent_len();
+            let mut buffers = ObjectiveBuffers::new(subspace.state_len(), r);
             subspace.set_frame(&self.encoding.frame(&s.targets)?, &s.targets);
-            let mut objective = ReducedObjective::new(&mut subspace, self.potentials, None, self.scale, &mut buffers);
+            let mut objective = ReducedObjective::new(subspace, self.potentials, None, self.scale, &mut buffers);
             let (mut grad, mut hess) = (vec![0.0; r], vec![0.0; r * r]);
             objective.exact_hessian(&s.z, &mut grad, &mut hess)?;
-            out.push(DMatrix::from_row_slice(r, r, &hess));
-        }
-        Ok(out)
+            Ok(DMatrix::from_row_slice(r, r, &hess))
+        })
     }
 
     /// The loss and its surrogate for the trainable decoder `mlp` (plus a constant output
@@ -107,46 +119,23 @@ impl LipschitzTerm<'_> {
         let hessians = self.hessians(exported, samples)?;
         let loss = lipschitz_loss(&hessians, samples);
         let weights = loss_gradients(&hessians, samples);
-        let mut subspace = DecoderSubspace::new(exported, self.encoding, &samples[0].targets)?;
-        let (b, r) = (samples.len(), subspace.latent_len());
-        let (n, q_len) = (subspace.state_len(), self.encoding.encoded_len());
+        let subspace = DecoderSubspace::new(exported, self.encoding, &samples[0].targets)?;
+        let (b, r, q_len) = (samples.len(), subspace.latent_len(), self.encoding.encoded_len());
+        let pairs: Vec<(&LatentSample, &DMatrix<f64>)> = samples.iter().zip(&weights).collect();
+        let constants = per_sample(&subspace, &pairs, |subspace, &(s, weight)| {
+            self.sample_constants(subspace, s, weight)
+        })?;
         let mut directions = Vec::with_capacity(b * r * r);
         let (mut c1, mut c2, mut c3) = (
-            vec![0f32; b * r * q_len],
-            vec![0f32; b * r * q_len],
-            vec![0f32; b * q_len],
+            Vec::with_capacity(b * r * q_len),
+            Vec::with_capacity(b * r * q_len),
+            Vec::with_capacity(b * q_len),
         );
-        let (mut x, mut jac) = (vec![0.0; n], vec![0.0; n * r]);
-        let (mut xd, mut xdd) = (vec![0.0; n], vec![0.0; n]);
-        let (mut hxd, mut hxdd, mut third) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        let mut pulled = vec![0.0; q_len];
-        for (i, s) in samples.iter().enumerate() {
-            subspace.set_frame(&self.encoding.frame(&s.targets)?, &s.targets);
-            subspace.positions_and_jacobian(&s.z, &mut x, &mut jac)?;
-            let at = PotentialAt::new(self.potentials, subspace.dim(), &x);
-            let eig = weights[i].clone().symmetric_eigen();
-            for k in 0..r {
-                let v: Vec<f64> = eig.eigenvectors.column(k).iter().copied().collect();
-                let l = eig.eigenvalues[k] * self.scale;
-                directions.extend(v.iter().map(|&c| c as f32));
-                for (row, out) in jac.chunks_exact(r).zip(xd.iter_mut()) {
-                    *out = row.iter().zip(&v).map(|(a, b)| a * b).sum();
-                }
-                subspace.second_directional(&s.z, &v, &mut xdd)?;
-                at.hessian_times(&xd, &mut hxd);
-                at.hessian_times(&xdd, &mut hxdd);
-                let top = xd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-                let h = if top > 0.0 { 1e-4 * self.diagonal / top } else { 1.0 };
-                at.third_times(&xd, h, &mut third);
-                let slot = (i * r + k) * q_len;
-                subspace.pull_back(&hxd, &mut pulled)?;
-                fill(&mut c1[slot..slot + q_len], &pulled, 2.0 * l);
-                subspace.pull_back(&at.grad, &mut pulled)?;
-                fill(&mut c2[slot..slot + q_len], &pulled, l);
-                third.iter_mut().zip(&hxdd).for_each(|(t, h)| *t += h);
-                subspace.pull_back(&third, &mut pulled)?;
-                add(&mut c3[i * q_len..(i + 1) * q_len], &pulled, l);
-            }
+        for c in constants {
+            directions.extend(c.directions);
+            c1.extend(c.c1);
+            c2.extend(c.c2);
+            c3.extend(c.c3);
         }
         let dev = Device::Cpu;
         let z: Vec<f32> = samples.iter().flat_map(|s| s.z.iter().map(|&v| v as f32)).collect();
@@ -164,6 +153,76 @@ impl LipschitzTerm<'_> {
         .add(&(value * Tensor::from_vec(c3, (b, q_len), &dev)?)?.sum_all()?)?;
         Ok(LipschitzBatch { loss, surrogate })
     }
+
+    /// The surrogate's constants at sample `s` whose loss gradient `dL/dH` is `weight`.
+    fn sample_constants(
+        &self,
+        subspace: &mut DecoderSubspace,
+        s: &LatentSample,
+        weight: &DMatrix<f64>,
+    ) -> TrainerResult<SampleConstants> {
+        let (r, n, q_len) = (subspace.latent_len(), subspace.state_len(), self.encoding.encoded_len());
+        let mut out = SampleConstants {
+            directions: Vec::with_capacity(r * r),
+            c1: vec![0f32; r * q_len],
+            c2: vec![0f32; r * q_len],
+            c3: vec![0f32; q_len],
+        };
+        let (mut x, mut jac) = (vec![0.0; n], vec![0.0; n * r]);
+        let (mut xd, mut xdd) = (vec![0.0; n], vec![0.0; n]);
+        let (mut hxd, mut hxdd, mut third) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let mut pulled = vec![0.0; q_len];
+        subspace.set_frame(&self.encoding.frame(&s.targets)?, &s.targets);
+        subspace.positions_and_jacobian(&s.z, &mut x, &mut jac)?;
+        let at = PotentialAt::new(self.potentials, subspace.dim(), &x);
+        let eig = weight.clone().symmetric_eigen();
+        for k in 0..r {
+            let v: Vec<f64> = eig.eigenvectors.column(k).iter().copied().collect();
+            let l = eig.eigenvalues[k] * self.scale;
+            out.directions.extend(v.iter().map(|&c| c as f32));
+            for (row, out) in jac.chunks_exact(r).zip(xd.iter_mut()) {
+                *out = row.iter().zip(&v).map(|(a, b)| a * b).sum();
+            }
+            subspace.second_directional(&s.z, &v, &mut xdd)?;
+            at.hessian_times(&xd, &mut hxd);
+            at.hessian_times(&xdd, &mut hxdd);
+            let top = xd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let h = if top > 0.0 { 1e-4 * self.diagonal / top } else { 1.0 };
+            at.third_times(&xd, h, &mut third);
+            let row = k * q_len..(k + 1) * q_len;
+            subspace.pull_back(&hxd, &mut pulled)?;
+            fill(&mut out.c1[row.clone()], &pulled, 2.0 * l);
+            subspace.pull_back(&at.grad, &mut pulled)?;
+            fill(&mut out.c2[row], &pulled, l);
+            third.iter_mut().zip(&hxdd).for_each(|(t, h)| *t += h);
+            subspace.pull_back(&third, &mut pulled)?;
+            add(&mut out.c3, &pulled, l);
+        }
+        Ok(out)
+    }
+}
+
+/// `work` on every item, in order, split into one chunk per rayon worker, each chunk with its
+/// own copy of `subspace` (the per-sample work of the loss is independent and the subspace
+/// holds the only mutable state, so results do not depend on the thread count).
+fn per_sample<T: Sync, R: Send>(
+    subspace: &DecoderSubspace,
+    items: &[T],
+    work: impl Fn(&mut DecoderSubspace, &T) -> TrainerResult<R> + Sync,
+) -> TrainerResult<Vec<R>> {
+    let chunk = items.len().div_ceil(rayon::current_num_threads().max(1)).max(1);
+    let chunks: Vec<TrainerResult<Vec<R>>> = items
+        .par_chunks(chunk)
+        .map(|chunk| {
+            let mut own = subspace.clone();
+            chunk.iter().map(|item| work(&mut own, item)).collect()
+        })
+        .collect();
+    let mut out = Vec::with_capacity(items.len());
+    for c in chunks {
+        out.extend(c?);
+    }
+    Ok(out)
 }
 
 fn fill(out: &mut [f32], v: &[f64], scale: f64) {

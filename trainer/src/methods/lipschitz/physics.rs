@@ -17,13 +17,14 @@ use mochi_sim::energy::{gather, Local, StencilEnergy, Want, MAX_DOF};
 struct StencilHessian {
     term: usize,
     stencil: usize,
+    /// The state index of each of the stencil's local coordinates.
+    dofs: Vec<usize>,
     hess: Vec<f64>,
 }
 
 /// The potential's gradient and stencil Hessians at one state.
 pub(crate) struct PotentialAt<'a> {
     potentials: &'a [&'a dyn StencilEnergy],
-    dim: usize,
     x: Vec<f64>,
     /// `dP/dx` (world layout).
     pub grad: Vec<f64>,
@@ -37,7 +38,6 @@ impl<'a> PotentialAt<'a> {
     pub(crate) fn new(potentials: &'a [&'a dyn StencilEnergy], dim: usize, x: &[f64]) -> Self {
         let mut at = PotentialAt {
             potentials,
-            dim,
             x: x.to_vec(),
             grad: vec![0.0; x.len()],
             value: 0.0,
@@ -57,6 +57,7 @@ impl<'a> PotentialAt<'a> {
                 at.hessians.push(StencilHessian {
                     term,
                     stencil,
+                    dofs: local_dofs(energy.stencil(stencil), dim),
                     hess: local.hess[..n * n].to_vec(),
                 });
             }
@@ -68,8 +69,7 @@ impl<'a> PotentialAt<'a> {
     pub(crate) fn hessian_times(&self, u: &[f64], out: &mut [f64]) {
         out.fill(0.0);
         for h in &self.hessians {
-            let verts = self.potentials[h.term].stencil(h.stencil);
-            add_local_product(verts, self.dim, &h.hess, u, 1.0, out);
+            add_local_product(&h.dofs, &h.hess, u, 1.0, out);
         }
     }
 
@@ -77,34 +77,33 @@ impl<'a> PotentialAt<'a> {
     /// with step `h` (module documentation).
     pub(crate) fn third_times(&self, u: &[f64], h: f64, out: &mut [f64]) {
         out.fill(0.0);
-        let dim = self.dim;
         let mut local = Local::default();
         let mut xl = [0.0; MAX_DOF];
         for sh in &self.hessians {
             let energy = self.potentials[sh.term];
-            let verts = energy.stencil(sh.stencil);
             for (sign, weight) in [(1.0, 0.5 / h), (-1.0, -0.5 / h)] {
                 let n = gather(energy, sh.stencil, &self.x, &mut xl);
-                for (a, &v) in verts.iter().enumerate() {
-                    for i in 0..dim {
-                        xl[a * dim + i] += sign * h * u[v * dim + i];
-                    }
+                for (x, &k) in xl.iter_mut().zip(&sh.dofs) {
+                    *x += sign * h * u[k];
                 }
                 energy.eval(sh.stencil, &xl[..n], Want::Hessian { project: false }, &mut local);
-                add_local_product(verts, dim, &local.hess[..n * n], u, weight, out);
+                add_local_product(&sh.dofs, &local.hess[..n * n], u, weight, out);
             }
         }
     }
 }
 
-/// `out[verts] += weight * hess * u[verts]` for one stencil's local Hessian.
-fn add_local_product(verts: &[usize], dim: usize, hess: &[f64], u: &[f64], weight: f64, out: &mut [f64]) {
-    let n = verts.len() * dim;
-    let global = |k: usize| verts[k / dim] * dim + k % dim;
-    for i in 0..n {
-        let row = &hess[i * n..(i + 1) * n];
-        let sum: f64 = row.iter().enumerate().map(|(k, h)| h * u[global(k)]).sum();
-        out[global(i)] += weight * sum;
+/// The state index of each local coordinate of a stencil over `verts` (`dim` per vertex).
+fn local_dofs(verts: &[usize], dim: usize) -> Vec<usize> {
+    verts.iter().flat_map(|&v| (0..dim).map(move |i| v * dim + i)).collect()
+}
+
+/// `out[dofs] += weight * hess * u[dofs]` for one stencil's local Hessian.
+fn add_local_product(dofs: &[usize], hess: &[f64], u: &[f64], weight: f64, out: &mut [f64]) {
+    let n = dofs.len();
+    for (row, &i) in hess.chunks_exact(n).zip(dofs) {
+        let sum: f64 = row.iter().zip(dofs).map(|(h, &k)| h * u[k]).sum();
+        out[i] += weight * sum;
     }
 }
 

@@ -1,5 +1,6 @@
-//! The Lipschitz loss's gradient against a finite difference of the loss in one weight; the
-//! cubature of a decoder's subspace against the full energy on held-out samples.
+//! The Lipschitz loss's gradient against a finite difference of the loss in one weight, and
+//! its independence of the thread count; the cubature of a decoder's subspace against the
+//! full energy on held-out samples.
 
 use mochi_sim::energy::StencilEnergy;
 use rand::SeedableRng;
@@ -30,18 +31,15 @@ fn nonlinear_beam() -> TinyBeam {
     beam
 }
 
-#[test]
-fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
-    let beam = nonlinear_beam();
-    let exported = beam.ae.export().unwrap();
-    let params = beam.ae.parameters();
+/// Latents of four frames of the beam's first sequence under `encoder`, spread apart.
+fn encoded_samples(beam: &TinyBeam, encoder: &ExportedMlp) -> Vec<LatentSample> {
     let seq = &beam.sequences[0];
-    let samples: Vec<LatentSample> = [2, 5, 8, 11]
+    [2, 5, 8, 11]
         .iter()
         .enumerate()
         .map(|(k, &t)| {
             let q: Vec<f32> = seq.encoded[t].iter().map(|&v| v as f32).collect();
-            let z = forward_exported(&exported.encoder, &q).unwrap();
+            let z = forward_exported(encoder, &q).unwrap();
             LatentSample {
                 z: z.iter()
                     .enumerate()
@@ -50,7 +48,49 @@ fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
                 targets: seq.targets[t].clone(),
             }
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn the_loss_and_its_surrogate_do_not_depend_on_the_thread_count() {
+    let beam = nonlinear_beam();
+    let exported = beam.ae.export().unwrap();
+    let samples = encoded_samples(&beam, &exported.encoder);
+    let potentials: Vec<&dyn StencilEnergy> = beam.problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+    let term = LipschitzTerm {
+        encoding: &beam.encoding,
+        potentials: &potentials,
+        scale: 1e-3,
+        diagonal: beam.problem.mesh.rest_diagonal(),
+    };
+    let on_threads = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let batch = term
+                .batch(
+                    beam.ae.decoder().as_mlp().unwrap(),
+                    None,
+                    exported.decoder.as_mlp().unwrap(),
+                    &samples,
+                )
+                .unwrap();
+            let hessians = term.hessians(exported.decoder.as_mlp().unwrap(), &samples).unwrap();
+            (batch.loss, batch.surrogate.to_scalar::<f32>().unwrap(), hessians)
+        })
+    };
+    let one = on_threads(1);
+    assert!(one.0 > 0.0 && one.1 != 0.0);
+    for threads in [2, 3] {
+        assert_eq!(on_threads(threads), one, "{threads} threads");
+    }
+}
+
+#[test]
+fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
+    let beam = nonlinear_beam();
+    let exported = beam.ae.export().unwrap();
+    let params = beam.ae.parameters();
+    let samples = encoded_samples(&beam, &exported.encoder);
     let potentials: Vec<&dyn StencilEnergy> = beam.problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
     let term = LipschitzTerm {
         encoding: &beam.encoding,

@@ -17,6 +17,7 @@ use crate::learn::network::derivatives::{Mlp64, Mlp64Workspace};
 use crate::learn::network::ExportedMlp;
 
 /// A decoder in a scene's boundary-condition frame, with the buffers its derivatives need.
+#[derive(Clone)]
 pub struct DecoderSubspace {
     mlp: Mlp64,
     workspace: Mlp64Workspace,
