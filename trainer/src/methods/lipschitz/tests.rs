@@ -3,10 +3,11 @@
 //! full energy on held-out samples.
 
 use mochi_sim::energy::StencilEnergy;
+use nalgebra::DMatrix;
 use rand::SeedableRng;
 
 use super::cubature::fit_subspace_cubature;
-use super::loss::{lipschitz_estimate, lipschitz_loss, LatentSample, LipschitzTerm};
+use super::loss::{lipschitz_estimate, lipschitz_loss, LatentSample, LipschitzBatch, LipschitzTerm};
 use crate::learn::network::test_support::randomise;
 use crate::learn::network::{forward_exported, DenseLayer, ExportedMlp};
 use crate::learn::samples::fixtures::{tiny_beam, TinyBeam};
@@ -51,30 +52,41 @@ fn encoded_samples(beam: &TinyBeam, encoder: &ExportedMlp) -> Vec<LatentSample> 
         .collect()
 }
 
+/// The Lipschitz term of the beam's own potentials.
+fn beam_term<'a>(beam: &'a TinyBeam, potentials: &'a [&'a dyn StencilEnergy]) -> LipschitzTerm<'a> {
+    LipschitzTerm {
+        encoding: &beam.encoding,
+        potentials,
+        scale: 1e-3,
+        diagonal: beam.problem.mesh.rest_diagonal(),
+    }
+}
+
+/// The loss and surrogate of the beam's trainable decoder (frozen as `frozen`) at `samples`,
+/// and the subspace Hessians there.
+fn batch_and_hessians(
+    term: &LipschitzTerm<'_>,
+    beam: &TinyBeam,
+    frozen: &ExportedMlp,
+    samples: &[LatentSample],
+) -> (LipschitzBatch, Vec<DMatrix<f64>>) {
+    let batch = term
+        .batch(beam.ae.decoder().as_mlp().unwrap(), None, frozen, samples)
+        .unwrap();
+    (batch, term.hessians(frozen, samples).unwrap())
+}
+
 #[test]
 fn the_loss_and_its_surrogate_do_not_depend_on_the_thread_count() {
     let beam = nonlinear_beam();
     let exported = beam.ae.export().unwrap();
     let samples = encoded_samples(&beam, &exported.encoder);
     let potentials: Vec<&dyn StencilEnergy> = beam.problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
-    let term = LipschitzTerm {
-        encoding: &beam.encoding,
-        potentials: &potentials,
-        scale: 1e-3,
-        diagonal: beam.problem.mesh.rest_diagonal(),
-    };
+    let term = beam_term(&beam, &potentials);
     let on_threads = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| {
-            let batch = term
-                .batch(
-                    beam.ae.decoder().as_mlp().unwrap(),
-                    None,
-                    exported.decoder.as_mlp().unwrap(),
-                    &samples,
-                )
-                .unwrap();
-            let hessians = term.hessians(exported.decoder.as_mlp().unwrap(), &samples).unwrap();
+            let (batch, hessians) = batch_and_hessians(&term, &beam, exported.decoder.as_mlp().unwrap(), &samples);
             (batch.loss, batch.surrogate.to_scalar::<f32>().unwrap(), hessians)
         })
     };
@@ -92,21 +104,8 @@ fn the_loss_gradient_matches_a_finite_difference_in_one_weight() {
     let params = beam.ae.parameters();
     let samples = encoded_samples(&beam, &exported.encoder);
     let potentials: Vec<&dyn StencilEnergy> = beam.problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
-    let term = LipschitzTerm {
-        encoding: &beam.encoding,
-        potentials: &potentials,
-        scale: 1e-3,
-        diagonal: beam.problem.mesh.rest_diagonal(),
-    };
-    let batch = term
-        .batch(
-            beam.ae.decoder().as_mlp().unwrap(),
-            None,
-            exported.decoder.as_mlp().unwrap(),
-            &samples,
-        )
-        .unwrap();
-    let hessians = term.hessians(exported.decoder.as_mlp().unwrap(), &samples).unwrap();
+    let term = beam_term(&beam, &potentials);
+    let (batch, hessians) = batch_and_hessians(&term, &beam, exported.decoder.as_mlp().unwrap(), &samples);
     assert_eq!(batch.loss, lipschitz_loss(&hessians, &samples));
     assert!(batch.loss > 0.0);
     let grads = batch.surrogate.backward().unwrap();
