@@ -87,6 +87,8 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         assert!(t.evaluations >= t.iterations, "{t:?}");
         assert_eq!(t.converged, 1.0, "{t:?}");
         assert!(t.lipschitz.is_finite() && t.lipschitz > 0.0, "{t:?}");
+        assert!(t.spread.is_finite() && t.spread > 0.0, "{t:?}");
+        assert!(t.condition.is_finite() && t.condition >= 1.0, "{t:?}");
     }
     let table = reduced_bench::table("tiny", 20, false, &timings);
     // Each vanilla row is its own baseline; the Lipschitz rows are timed against them (a

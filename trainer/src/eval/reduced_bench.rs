@@ -17,7 +17,9 @@ use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
 use crate::methods::lipschitz::cubature::{cubature_energies, elastic_terms};
-use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
+use crate::methods::lipschitz::loss::{
+    latent_spread, lipschitz_estimate, median_condition, LatentSample, LipschitzTerm,
+};
 use crate::methods::reduced::optimize::Exit;
 use crate::methods::reduced::stepper::scene_objective_scale;
 use crate::progress::Reporter;
@@ -37,6 +39,11 @@ pub struct ReducedTiming {
     pub converged: f64,
     /// `Lip[d^2 P/dz^2]` (Eq. 7) on every tenth visited latent.
     pub lipschitz: f64,
+    /// The RMS spread of those latents about their mean
+    /// ([`latent_spread`]: `lipschitz * spread^3` does not depend on the latent scale).
+    pub spread: f64,
+    /// The median condition number of the subspace Hessians there ([`median_condition`]).
+    pub condition: f64,
 }
 
 /// Steps every subspace of the `.reduced` file at `path` over the scene's test motions for
@@ -83,14 +90,16 @@ pub fn bench(path: &Path, frames: usize, cold: bool, report: &dyn Reporter) -> T
             scale: scene_objective_scale(&problem),
             diagonal: problem.mesh.rest_diagonal(),
         };
-        let lipschitz = lipschitz_estimate(&term.hessians(&data.decoder()?, &visited)?, &visited);
+        let hessians = term.hessians(&data.decoder()?, &visited)?;
         let timing = ReducedTiming {
             name,
             ms_per_step: mean(&|m| 1e3 * m.step_seconds),
             iterations: mean(&|m| m.iterations),
             evaluations: mean(&|m| m.evaluations),
             converged: mean(&|m| m.exits.fraction(Exit::Converged)),
-            lipschitz,
+            lipschitz: lipschitz_estimate(&hessians, &visited),
+            spread: latent_spread(&visited),
+            condition: median_condition(&hessians),
         };
         report.message(&format!(
             "{}: {name}: {:.3} ms/step, {:.2} iterations, {:.2} evaluations",
@@ -107,19 +116,23 @@ pub fn table(scene: &str, frames: usize, cold: bool, timings: &[ReducedTiming]) 
     let start = if cold { "cold" } else { "as the scene says" };
     let mut s = format!(
         "{scene}: reduced-order solver, {frames} frames of each test motion, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
-         | iterations/step | evaluations/step | converged % | Lip |\n|---|---|---|---|---|---|---|\n"
+         | iterations/step | evaluations/step | converged % | Lip | latent spread | Lip x spread^3 | condition |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n"
     );
     for (k, t) in timings.iter().enumerate() {
         let baseline = &timings[k - k % 2];
         s += &format!(
-            "| {} | {:.3} | {:.2}x | {:.2} | {:.2} | {:.1} | {:.3e} |\n",
+            "| {} | {:.3} | {:.2}x | {:.2} | {:.2} | {:.1} | {:.3e} | {:.3} | {:.3e} | {:.3e} |\n",
             t.name,
             t.ms_per_step,
             baseline.ms_per_step / t.ms_per_step.max(1e-12),
             t.iterations,
             t.evaluations,
             100.0 * t.converged,
-            t.lipschitz
+            t.lipschitz,
+            t.spread,
+            t.lipschitz * t.spread.powi(3),
+            t.condition
         );
     }
     s

@@ -288,3 +288,34 @@ pub fn lipschitz_estimate(hessians: &[DMatrix<f64>], samples: &[LatentSample]) -
     }
     best
 }
+
+/// The RMS distance of the samples' latents from their mean: the subspace's latent scale.
+///
+/// Eq. 7 depends on that scale: a decoder stretched along its latent, `f(z / a)` (with the
+/// encoder `a g(x)`), has the same image and the same solves, `a` times the spread and `a^3`
+/// times less `Lip`. `Lip * spread^3` compares subspaces whatever their latent scale.
+pub fn latent_spread(samples: &[LatentSample]) -> f64 {
+    let Some(first) = samples.first() else {
+        return 0.0;
+    };
+    let count = samples.len() as f64;
+    let mean: Vec<f64> = (0..first.z.len())
+        .map(|k| samples.iter().map(|s| s.z[k]).sum::<f64>() / count)
+        .collect();
+    (samples.iter().map(|s| squared_distance(&s.z, &mean)).sum::<f64>() / count).sqrt()
+}
+
+/// The median over `hessians` of the condition number `max |l| / min |l|` of each (infinite
+/// where an eigenvalue is zero; NaN without Hessians): how far the subspace objective is from
+/// a round bowl, which L-BFGS iterations grow with. It does not depend on the latent scale.
+pub fn median_condition(hessians: &[DMatrix<f64>]) -> f64 {
+    let mut conditions: Vec<f64> = hessians
+        .iter()
+        .map(|h| {
+            let magnitudes = h.symmetric_eigenvalues().map(f64::abs);
+            magnitudes.max() / magnitudes.min()
+        })
+        .collect();
+    conditions.sort_by(f64::total_cmp);
+    conditions.get(conditions.len() / 2).copied().unwrap_or(f64::NAN)
+}

@@ -7,7 +7,9 @@ use nalgebra::DMatrix;
 use rand::SeedableRng;
 
 use super::cubature::fit_subspace_cubature;
-use super::loss::{lipschitz_estimate, lipschitz_loss, LatentSample, LipschitzBatch, LipschitzTerm};
+use super::loss::{
+    latent_spread, lipschitz_estimate, lipschitz_loss, median_condition, LatentSample, LipschitzBatch, LipschitzTerm,
+};
 use crate::learn::network::test_support::randomise;
 use crate::learn::network::{forward_exported, DenseLayer, ExportedMlp};
 use crate::learn::samples::fixtures::{tiny_beam, TinyBeam};
@@ -95,6 +97,49 @@ fn the_loss_and_its_surrogate_do_not_depend_on_the_thread_count() {
     for threads in [2, 3] {
         assert_eq!(on_threads(threads), one, "{threads} threads");
     }
+}
+
+#[test]
+fn lip_times_spread_cubed_and_the_condition_ignore_the_latent_scale() {
+    // Stretching the latent by a = 4 (a power of two: the scaled weights and latents are
+    // exact), f(z / a) at a z, leaves the decoded states and the solves as they were.
+    let a = 4.0;
+    let beam = nonlinear_beam();
+    let exported = beam.ae.export().unwrap();
+    let decoder = exported.decoder.as_mlp().unwrap();
+    let samples = encoded_samples(&beam, &exported.encoder);
+    let mut layers: Vec<DenseLayer> = decoder.layers().into_iter().cloned().collect();
+    layers[0].weights.iter_mut().for_each(|w| *w /= a as f32);
+    let stretched = ExportedMlp::from_layers(layers).unwrap();
+    let stretched_samples: Vec<LatentSample> = samples
+        .iter()
+        .map(|s| LatentSample {
+            z: s.z.iter().map(|v| a * v).collect(),
+            targets: s.targets.clone(),
+        })
+        .collect();
+    let potentials: Vec<&dyn StencilEnergy> = beam.problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+    let term = beam_term(&beam, &potentials);
+    let measures = |decoder: &ExportedMlp, samples: &[LatentSample]| {
+        let hessians = term.hessians(decoder, samples).unwrap();
+        (
+            lipschitz_estimate(&hessians, samples),
+            latent_spread(samples),
+            median_condition(&hessians),
+        )
+    };
+    let (lip, spread, condition) = measures(decoder, &samples);
+    let (lip_a, spread_a, condition_a) = measures(&stretched, &stretched_samples);
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-9 * x.abs().max(y.abs());
+    assert!(lip > 0.0 && spread > 0.0 && condition >= 1.0);
+    assert!(close(spread_a, a * spread), "spread {spread} -> {spread_a}");
+    assert!(close(lip_a, lip / a.powi(3)), "Lip {lip} -> {lip_a}");
+    assert!(close(lip_a * spread_a.powi(3), lip * spread.powi(3)));
+    assert!(close(condition_a, condition), "condition {condition} -> {condition_a}");
+    // The median of max |l| / min |l|: 4, 1 and 3 (an indefinite matrix counts by magnitudes).
+    let conditions =
+        [[1.0, 4.0], [2.0, 2.0], [-3.0, 1.0]].map(|d| DMatrix::from_diagonal(&nalgebra::DVector::from_row_slice(&d)));
+    assert_eq!(median_condition(&conditions), 3.0);
 }
 
 #[test]
