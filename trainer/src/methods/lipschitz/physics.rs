@@ -49,15 +49,14 @@ impl<'a> PotentialAt<'a> {
             for stencil in 0..energy.len() {
                 let n = gather(*energy, stencil, x, &mut xl);
                 at.value += energy.eval(stencil, &xl[..n], Want::Hessian { project: false }, &mut local);
-                for (a, &v) in energy.stencil(stencil).iter().enumerate() {
-                    for i in 0..dim {
-                        at.grad[v * dim + i] += local.grad[a * dim + i];
-                    }
+                let dofs = local_dofs(energy.stencil(stencil), dim);
+                for (&d, g) in dofs.iter().zip(&local.grad) {
+                    at.grad[d] += g;
                 }
                 at.hessians.push(StencilHessian {
                     term,
                     stencil,
-                    dofs: local_dofs(energy.stencil(stencil), dim),
+                    dofs,
                     hess: local.hess[..n * n].to_vec(),
                 });
             }
