@@ -1,0 +1,257 @@
+//! The `mochi` command line: its subcommands, their arguments and defaults (clap).
+
+use clap::{Parser, Subcommand};
+use mochi_trainer::eval;
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "mochi",
+    version,
+    about = "Soft bodies in real time: simulate, learn, freeze, run"
+)]
+pub(crate) struct Cli {
+    #[command(subcommand)]
+    pub(crate) command: Command,
+}
+
+#[derive(Subcommand)]
+pub(crate) enum Command {
+    /// The whole path on one scene: train (or reuse), generate code, compile it against the
+    /// runtime, run it on a held-out script and compare with the full-space solver.
+    Demo {
+        /// Scene name or path.
+        #[arg(default_value = "beam")]
+        scene: String,
+        /// Output directory; default out/SCENE.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Frames of the runtime rollout compared with the full-space solver.
+        #[arg(long, default_value_t = 300)]
+        frames: usize,
+        /// Train again even when the artifact exists.
+        #[arg(long)]
+        retrain: bool,
+    },
+    /// Simulate one boundary-condition sequence of a scene in full space.
+    Simulate {
+        /// Scene name (shipped: see `mochi scenes`) or path to a scene TOML file.
+        scene: String,
+        /// Frames to simulate after the initial one.
+        #[arg(long, default_value_t = 120)]
+        frames: usize,
+        /// Output trajectory (.npz); default out/SCENE/simulate.npz.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Speed level of sampled handle motions (0: bottom, 1: top of the training range).
+        #[arg(long, default_value_t = 0.5)]
+        level: f64,
+        /// Seed of the sampled motion (default: the scene's dataset seed).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Also write surface OBJ files of every k-th frame into this directory.
+        #[arg(long)]
+        obj: Option<PathBuf>,
+        /// Frame stride of the OBJ sequence.
+        #[arg(long, default_value_t = 1)]
+        obj_every: usize,
+        /// Also write a PNG preview of these frames (comma separated).
+        #[arg(long, value_delimiter = ',')]
+        png_frames: Vec<usize>,
+    },
+    /// Generate the train and test trajectories of a scene.
+    Dataset {
+        /// Scene name or path.
+        scene: String,
+        /// Output directory; default out/SCENE/dataset.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Train a latent model: dataset (if missing), autoencoder, integrators, artifact.
+    Train {
+        /// Scene name or path.
+        scene: String,
+        /// Output directory; default out/SCENE.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Continue from the checkpoints of an interrupted run.
+        #[arg(long)]
+        resume: bool,
+        /// Train only this latent size instead of choosing among the scene's candidates.
+        #[arg(long)]
+        latent: Option<usize>,
+    },
+    /// Evaluate trained models on the held-out test sequences (with their supervised baselines).
+    Eval {
+        /// Artifacts (`SCENE.mochi`) of one scene; `SCENE.supervised.mochi` beside each is added.
+        #[arg(required = true)]
+        artifacts: Vec<PathBuf>,
+        /// Output directory for report.md and charts; default: eval/ beside the first artifact.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Frames of the stability rollout.
+        #[arg(long, default_value_t = eval::STABILITY_FRAMES)]
+        frames: usize,
+        /// Frames of accuracy measurement at the start of each test sequence.
+        #[arg(long, default_value_t = eval::ACCURACY_FRAMES)]
+        accuracy_frames: usize,
+        /// Also step the test sequences with the adaptive subspace solver (always for
+        /// scenes whose `[solver]` is adaptive).
+        #[arg(long)]
+        adaptive: bool,
+    },
+    /// Replace a model's decoder by a cheaper one fitted to it (a small MLP before a linear
+    /// basis) on the latents its own rollouts over the scene's training motions visit; the
+    /// integrator is kept, so the latent trajectories do not change. With `--integrator W`
+    /// the integrator is then distilled into width `W` too (its own rollouts added to the fit
+    /// for `--rounds` rounds).
+    Distill {
+        /// Artifact (`SCENE.mochi`).
+        artifact: PathBuf,
+        /// Output artifact.
+        #[arg(long)]
+        out: PathBuf,
+        /// Columns of the basis (at least the latent size).
+        #[arg(long, default_value_t = 8)]
+        modes: usize,
+        /// Width of the MLP before the basis.
+        #[arg(long, default_value_t = 32)]
+        hidden: usize,
+        /// Residual blocks of that MLP.
+        #[arg(long, default_value_t = 1)]
+        blocks: usize,
+        /// Training epochs over the latents.
+        #[arg(long, default_value_t = 300)]
+        epochs: usize,
+        /// Also distil the integrator into this hidden width (0: keep it).
+        #[arg(long, default_value_t = 0)]
+        integrator: usize,
+        /// Residual blocks of the distilled integrator.
+        #[arg(long, default_value_t = 2)]
+        integrator_blocks: usize,
+        /// Rollouts of the distilled integrator whose inputs are added to its fit.
+        #[arg(long, default_value_t = 3)]
+        rounds: usize,
+        /// Keep the decoder (distil only the integrator).
+        #[arg(long)]
+        keep_decoder: bool,
+        /// Fit the decoder to rod strands as positions when the model encodes them by their
+        /// bends: the decode then skips the strand walk (the fit wants many more epochs than
+        /// the default: rods takes 12,000).
+        #[arg(long)]
+        strand_positions: bool,
+        /// Frames of each rollout over a training motion, for every fit (default: the scene's
+        /// dataset frames).
+        #[arg(long)]
+        frames: Option<usize>,
+    },
+    /// Freeze an artifact into a Rust module of static arrays for the runtime.
+    Codegen {
+        /// Artifact (`SCENE.mochi`).
+        artifact: PathBuf,
+        /// Output Rust file.
+        #[arg(short, long)]
+        out: PathBuf,
+        /// Weight storage: f32, f16 or int8 (per-row scales; the integrator stays f16);
+        /// `mochi eval` reports what each costs in accuracy.
+        #[arg(long, default_value = "f32", value_parser = parse_weights)]
+        weights: mochi_runtime::WeightFormat,
+    },
+    /// Rewrite artifacts of an older format (2, 3) in place in the current one; fields
+    /// unchanged, weights too except that values below 2^-40 of their layer's largest weight
+    /// are written as zero (the runtime and codegen read only the current format).
+    Upgrade {
+        /// Artifacts (`SCENE.mochi`).
+        #[arg(required = true)]
+        artifacts: Vec<PathBuf>,
+    },
+    /// Write an artifact's networks as the runtime runs them, with the runtime's rollout of
+    /// the targets' reference script, to a numpy `.npz` archive (for `scripts/bench-jax.sh`).
+    ExportWeights {
+        /// Artifact (`SCENE.mochi`).
+        artifact: PathBuf,
+        /// Output archive (`.npz`).
+        #[arg(long)]
+        out: PathBuf,
+        /// Frames of the reference script.
+        #[arg(long, default_value_t = 1000)]
+        frames: usize,
+        /// Weight storage, as `mochi codegen --weights`.
+        #[arg(long, default_value = "f32", value_parser = parse_weights)]
+        weights: mochi_runtime::WeightFormat,
+    },
+    /// Timings.
+    Bench {
+        #[command(subcommand)]
+        what: Bench,
+    },
+    /// List the shipped scenes.
+    Scenes,
+}
+
+#[derive(Subcommand)]
+pub(crate) enum Bench {
+    /// Full-space simulator: ms per step and Newton iterations per scene.
+    Sim {
+        /// Scenes (default: all shipped).
+        scenes: Vec<String>,
+        /// Frames per scene.
+        #[arg(long, default_value_t = 60)]
+        frames: usize,
+        /// For adaptive scenes: also step full space from each adaptive state and report
+        /// the per-step difference.
+        #[arg(long)]
+        per_step: bool,
+        /// For adaptive scenes: time the model's Schur-complement PCG, faer's sparse
+        /// Cholesky and block-Jacobi PCG on the largest Newton system met (its checks cost
+        /// time inside the timed steps).
+        #[arg(long)]
+        linear_solvers: bool,
+        /// For adaptive scenes: run the comparison for each of `--values` of this setting
+        /// (error, youngs, downdate) and chart it.
+        #[arg(long)]
+        sweep: Option<String>,
+        /// The swept values, comma-separated.
+        #[arg(long, value_delimiter = ',')]
+        values: Vec<f64>,
+        /// Directory for the adaptive tables and sweep charts.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// The no_std runtime (one thread) against candle's batch-1 forward of the same weights.
+    Runtime {
+        /// Artifacts (`SCENE.mochi`).
+        #[arg(required = true)]
+        artifacts: Vec<PathBuf>,
+        /// Frames per timing round (the first test sequence of each scene).
+        #[arg(long, default_value_t = 1000)]
+        frames: usize,
+        /// Also write the table to this markdown file.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Weight storages to time, comma-separated (f32, f16, int8).
+        #[arg(long, default_value = "f32", value_delimiter = ',', value_parser = parse_weights)]
+        weights: Vec<mochi_runtime::WeightFormat>,
+    },
+    /// The reduced-order solver in each subspace of a `.reduced` file (written by `mochi
+    /// train` for scenes with a `[reduced]` table), against the vanilla subspace.
+    Reduced {
+        /// The scene's `SCENE.reduced`.
+        reduced: PathBuf,
+        /// Frames of each test motion.
+        #[arg(long, default_value_t = 300)]
+        frames: usize,
+        /// Start every step's L-BFGS from steepest descent, whatever the scene's
+        /// `reduced.warm_start` says (the paper's solver).
+        #[arg(long)]
+        cold: bool,
+        /// Also write the table to this markdown file.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+/// `--weights` values.
+fn parse_weights(name: &str) -> std::result::Result<mochi_runtime::WeightFormat, String> {
+    mochi_codegen::parse_format(name).ok_or_else(|| format!("`{name}` is not one of f32, f16, int8"))
+}

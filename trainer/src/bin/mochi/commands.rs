@@ -1,0 +1,293 @@
+//! What each `mochi` subcommand does, on the terminal: load the scene or artifact, call the
+//! library, print a summary line and where the output went.
+
+use anyhow::{bail, Context, Result};
+use mochi_sim::dataset::{self, SpeedPlan, Split};
+use mochi_sim::{Progress, Scene};
+use mochi_trainer::eval;
+use mochi_trainer::report::render;
+use mochi_trainer::{artifact_paths, shipped_scene_names, FramesBar, Recipe};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::Terminal;
+
+fn default_out(scene: &Scene, file: &str) -> PathBuf {
+    Path::new("out").join(&scene.name).join(file)
+}
+
+pub(crate) fn simulate(
+    name: &str,
+    frames: usize,
+    out: Option<PathBuf>,
+    level: f64,
+    seed: Option<u64>,
+    obj: Option<PathBuf>,
+    obj_every: usize,
+    png_frames: &[usize],
+) -> Result<()> {
+    if !level.is_finite() || level < 0.0 {
+        bail!("--level must be a non-negative number, got {level}");
+    }
+    let scene = Recipe::load(name)?.scene;
+    let mut problem = scene.build()?;
+    print_warnings(&problem.warnings);
+    let seq = problem.sequence(&SpeedPlan::constant(level), frames, seed.unwrap_or(scene.dataset.seed));
+    let bar = FramesBar::new(&format!("simulate {}", scene.name), true);
+    bar.start(frames as u64);
+    // The adaptive solver's enriched vertices per frame, which previews mark.
+    let mut enriched = vec![Vec::new()];
+    let traj = problem
+        .run_reporting(&seq, &bar, &mut |r| {
+            enriched.push(r.adaptive.as_ref().map(|a| a.enriched.clone()).unwrap_or_default())
+        })
+        .with_context(|| format!("simulating scene `{}`", scene.name))?;
+    bar.finish();
+    let out = out.unwrap_or_else(|| default_out(&scene, "simulate.npz"));
+    if let Some(dir) = out.parent() {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    traj.write_npz(&out)?;
+    let steps = &traj.step_seconds[1..];
+    let iters = &traj.newton_iterations[1..];
+    println!(
+        "{}: {} frames, {} DOF, {:.2} ms/step, {:.2} Newton iterations/step -> {}",
+        scene.name,
+        frames,
+        problem.mesh.rest.len(),
+        1e3 * steps.iter().sum::<f64>() / steps.len().max(1) as f64,
+        iters.iter().sum::<u32>() as f64 / iters.len().max(1) as f64,
+        out.display()
+    );
+    // With obstacle meshes, OBJ files and previews show them next to the body's surface.
+    let view = traj
+        .obstacles
+        .as_ref()
+        .and_then(|o| mochi_trainer::report::scene_view::with_obstacles(&problem.mesh, &traj.positions, o));
+    let (shown_mesh, shown_frames) = match &view {
+        Some((mesh, frames)) => (mesh, frames),
+        None => (&problem.mesh, &traj.positions),
+    };
+    if let Some(dir) = obj {
+        render::write_obj_sequence(&dir, &scene.name, shown_mesh, shown_frames, obj_every.max(1))?;
+        println!("OBJ sequence -> {}", dir.display());
+    }
+    if !png_frames.is_empty() {
+        if let Some(&bad) = png_frames.iter().find(|&&f| f > frames) {
+            bail!("--png-frames: frame {bad} is past the last frame {frames}");
+        }
+        let shown: Vec<&[f64]> = png_frames.iter().map(|&f| shown_frames[f].as_slice()).collect();
+        let png = out.with_extension("png");
+        let opts = render::RenderOptions {
+            title: format!("{}: frames {:?}", scene.name, png_frames),
+            highlight: problem.simulator.fixed_vertices().to_vec(),
+            marked: png_frames.iter().map(|&f| enriched[f].clone()).collect(),
+            framed_vertices: Some(problem.mesh.num_vertices()),
+            ..Default::default()
+        };
+        render::render_png(&png, shown_mesh, &shown, &opts)?;
+        println!("preview -> {}", png.display());
+    }
+    Ok(())
+}
+
+/// Prints each of the scene's warnings on one line of stderr.
+fn print_warnings(warnings: &[String]) {
+    for warning in warnings {
+        eprintln!("warning: {warning}");
+    }
+}
+
+pub(crate) fn make_dataset(name: &str, out: Option<PathBuf>) -> Result<()> {
+    let scene = Recipe::load(name)?.scene;
+    let mut problem = scene.build()?;
+    print_warnings(&problem.warnings);
+    let dir = out.unwrap_or_else(|| default_out(&scene, "dataset"));
+    let report = dataset::generate(&mut problem, &dir, None, true, &FramesBar::new("dataset", true))?;
+    let plans = dataset::plan(&scene.dataset);
+    let count = |s: Split| plans.iter().filter(|p| p.split == s).count();
+    println!(
+        "{}: {} train sequences of {} frames + {} test sequences of {} frames in {:.1} s; {:.2} ms/step, {:.2} Newton iterations/step -> {}",
+        scene.name,
+        count(Split::Train),
+        scene.dataset.frames_of(Split::Train),
+        count(Split::Test),
+        scene.dataset.frames_of(Split::Test),
+        report.seconds,
+        1e3 * mean(&report.step_seconds),
+        mean(&report.newton_iterations),
+        dir.display()
+    );
+    Ok(())
+}
+
+pub(crate) fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, latent_size: Option<usize>) -> Result<()> {
+    let recipe = Recipe::load(name)?;
+    let scene = &recipe.scene;
+    if latent_size == Some(0) {
+        bail!("--latent must be at least 1");
+    }
+    print_warnings(&scene.region_warnings(&scene.build_mesh()?));
+    let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
+    let options = mochi_trainer::TrainOptions {
+        out_dir: out_dir.clone(),
+        resume,
+        latent: latent_size,
+    };
+    let start = Instant::now();
+    let outcome = mochi_trainer::train_scene(&recipe, &options, &Terminal)?;
+    let summary = &outcome.model.summary;
+    println!("\n{}: latent size {}", scene.name, outcome.model.latent);
+    for t in &summary.trials {
+        let ae = t
+            .autoencoder_error
+            .map_or("not trained".to_string(), |e| format!("{e:.2e}"));
+        println!(
+            "  size {:2}: PCA error {:.2e}, autoencoder error {ae}",
+            t.size, t.pca_error
+        );
+    }
+    for (stage, seconds) in &summary.stage_seconds {
+        println!("  {stage:32} {seconds:8.1} s");
+    }
+    let (model, baseline) = artifact_paths(&out_dir, &scene.name);
+    println!(
+        "  total {:.1} s -> {} and {}",
+        start.elapsed().as_secs_f64(),
+        model.display(),
+        baseline.display()
+    );
+    Ok(())
+}
+
+pub(crate) fn eval_models(
+    artifacts: &[PathBuf],
+    out: Option<PathBuf>,
+    frames: usize,
+    accuracy_frames: usize,
+    adaptive: bool,
+) -> Result<()> {
+    if frames == 0 || accuracy_frames == 0 {
+        bail!("--frames and --accuracy-frames must be at least 1");
+    }
+    let out_dir = out.unwrap_or_else(|| artifacts[0].parent().unwrap_or(Path::new(".")).join("eval"));
+    let options = mochi_trainer::EvalOptions {
+        out_dir: out_dir.clone(),
+        stability_frames: frames,
+        accuracy_frames,
+        adaptive,
+    };
+    mochi_trainer::evaluate(artifacts, &options, &Terminal)?;
+    let report = std::fs::read_to_string(out_dir.join("report.md"))?;
+    println!("\n{report}\ncharts and report -> {}", out_dir.display());
+    Ok(())
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
+pub(crate) fn bench_sim(
+    scenes: Vec<String>,
+    frames: usize,
+    per_step: bool,
+    linear_solvers: bool,
+    sweep: Option<String>,
+    values: Vec<f64>,
+    out: Option<PathBuf>,
+) -> Result<()> {
+    let scenes = if scenes.is_empty() {
+        shipped_scene_names()
+    } else {
+        scenes
+    };
+    let scenes = scenes
+        .iter()
+        .map(|name| Ok(Recipe::load(name)?.scene))
+        .collect::<Result<Vec<_>>>()?;
+    let options = eval::sim_bench::SimBenchOptions {
+        frames,
+        per_step,
+        linear_solvers,
+        sweep: sweep
+            .as_deref()
+            .map(eval::adaptive_bench::SweepKey::parse)
+            .transpose()
+            .map_err(anyhow::Error::msg)?,
+        values,
+        out,
+    };
+    eval::sim_bench::bench(&scenes, &options, &mut |line| eprintln!("{line}"))?;
+    Ok(())
+}
+
+pub(crate) fn bench_runtime(
+    artifacts: &[PathBuf],
+    frames: usize,
+    out: Option<PathBuf>,
+    weights: &[mochi_runtime::WeightFormat],
+) -> Result<()> {
+    // Both sides run on one thread: candle reads its thread count from the environment.
+    single_threaded()?;
+    let timings = mochi_trainer::eval::runtime_bench::bench(artifacts, frames, weights)?;
+    let table = mochi_trainer::eval::runtime_bench::table(&timings);
+    println!("{table}");
+    if let Some(out) = out {
+        std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;
+        println!("-> {}", out.display());
+    }
+    Ok(())
+}
+
+pub(crate) fn bench_reduced(path: &Path, frames: usize, cold: bool, out: Option<PathBuf>) -> Result<()> {
+    single_threaded()?;
+    let timings = mochi_trainer::eval::reduced_bench::bench(path, frames, cold, &Terminal)?;
+    let scene = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let table = mochi_trainer::eval::reduced_bench::table(&scene, frames, cold, &timings);
+    println!("{table}");
+    if let Some(out) = out {
+        std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;
+        println!("-> {}", out.display());
+    }
+    Ok(())
+}
+
+/// Re-runs this command with one thread when the thread variable is not set to 1 (candle and
+/// the solvers read it from the environment); returns only when it already is.
+fn single_threaded() -> Result<()> {
+    if std::env::var(mochi_trainer::THREADS_VAR).as_deref() != Ok("1") {
+        let status = std::process::Command::new(std::env::current_exe()?)
+            .args(std::env::args_os().skip(1))
+            .env(mochi_trainer::THREADS_VAR, "1")
+            .status()?;
+        std::process::exit(status.code().unwrap_or(1));
+    }
+    Ok(())
+}
+
+pub(crate) fn demo(name: &str, out: Option<PathBuf>, frames: usize, retrain: bool) -> Result<()> {
+    let scene = Recipe::load(name)?.scene;
+    let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
+    let start = Instant::now();
+    let options = mochi_trainer::DemoOptions {
+        scene: name.to_string(),
+        out_dir: out_dir.clone(),
+        frames,
+        retrain,
+    };
+    let report = mochi_trainer::run_demo(&options, &Terminal)?;
+    println!("\n{}", std::fs::read_to_string(out_dir.join("report.md"))?);
+    println!(
+        "{}: mean error {:.3}% of the diagonal, {:.1} µs/frame in the runtime vs {:.1} ms/frame full space; total {:.0} s -> {}",
+        scene.name,
+        100.0 * report.mean_error,
+        1e6 * report.runtime_seconds,
+        1e3 * report.full_space_seconds,
+        start.elapsed().as_secs_f64(),
+        out_dir.join("report.md").display()
+    );
+    Ok(())
+}
