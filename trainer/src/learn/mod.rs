@@ -2,7 +2,7 @@
 //! (`[latent]`), states encoded relative to their boundary conditions, PCA, candle networks,
 //! the physics loss on the simulator's own energies, the encoded training split
 //! ([`sequences`]), the integrator's samples (`samples.rs`), the self-supervised objective
-//! (`integrator.rs`), the baseline's (`supervised.rs`) and the training loop (`train.rs`).
+//! (`integrator.rs`), the baseline's (`supervised.rs`) and the training loop (`train/`).
 //! `mochi train` runs them as stages in [`crate::pipeline`].
 
 pub mod datafree;

@@ -3,6 +3,7 @@
 use super::procedural::{box_tets, cloth_grid};
 use super::*;
 use crate::error::Location;
+use std::path::Path;
 
 fn unit_tet() -> Mesh {
     Mesh {
