@@ -3,7 +3,7 @@
 //! (every step converged, projections measured), and `mochi bench reduced` times them.
 
 use mochi_trainer::artifact::reduced::{reduced_path, ReducedArtifact};
-use mochi_trainer::eval::reduced_bench;
+use mochi_trainer::eval::reduced_bench::{self, ReducedBenchOptions};
 use mochi_trainer::{artifact_paths, evaluate, train_scene, EvalOptions, Quiet, Recipe, TrainOptions};
 
 /// The tiny cantilever of the latent tests, asking for the reduced method with a short
@@ -80,7 +80,11 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     assert!(dir.path().join("eval/convergence.png").is_file());
 
     // The bench steps the same four runs without a reference.
-    let timings = reduced_bench::bench(&file, 20, false, &Quiet).unwrap();
+    let options = ReducedBenchOptions {
+        frames: 20,
+        ..ReducedBenchOptions::default()
+    };
+    let timings = reduced_bench::bench(&file, &options, &Quiet).unwrap();
     assert_eq!(timings.len(), 4);
     for t in &timings {
         assert!(t.ms_per_step > 0.0 && t.iterations > 0.0, "{t:?}");
@@ -90,7 +94,7 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         assert!(t.spread.is_finite() && t.spread > 0.0, "{t:?}");
         assert!(t.condition.is_finite() && t.condition >= 1.0, "{t:?}");
     }
-    let table = reduced_bench::table("tiny", 20, false, &timings);
+    let table = reduced_bench::table("tiny", &options, &timings);
     // Each vanilla row is its own baseline; the Lipschitz rows are timed against them (a
     // Lipschitz row may also read 1.00x when the two run equally fast).
     for baseline in ["| vanilla |", "| vanilla, runtime cubature |"] {
@@ -99,9 +103,21 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     }
     // Cold solves (the paper's) take at least as many evaluations as warm ones on a whole
     // rollout, where every step after the first inherits curvature.
-    let cold = reduced_bench::bench(&file, 20, true, &Quiet).unwrap();
+    let cold = ReducedBenchOptions { cold: true, ..options };
+    let cold = reduced_bench::bench(&file, &cold, &Quiet).unwrap();
     for (w, c) in timings.iter().zip(&cold) {
         assert_eq!(c.converged, 1.0, "{c:?}");
         assert!(c.evaluations >= w.evaluations, "cold {c:?} warm {w:?}");
     }
+    // Every third frame: the same motions in three times larger steps, each solve starting
+    // farther from its answer.
+    let strided = ReducedBenchOptions { stride: 3, ..options };
+    let table = reduced_bench::table(
+        "tiny",
+        &strided,
+        &reduced_bench::bench(&file, &strided, &Quiet).unwrap(),
+    );
+    assert!(table.contains("20 steps of 3 frames each"), "{table}");
+    let none = ReducedBenchOptions { stride: 0, ..options };
+    assert!(reduced_bench::bench(&file, &none, &Quiet).is_err());
 }

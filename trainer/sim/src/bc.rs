@@ -141,6 +141,31 @@ impl BcSequence {
         out
     }
 
+    /// Every `stride`-th frame of this sequence (`stride` >= 1; frame 0 kept): the same motion
+    /// in `stride` times larger steps, `frames / stride` of them. The velocity over a new step
+    /// is the mean of the velocities over the old steps it spans.
+    pub fn every(&self, stride: usize) -> BcSequence {
+        let stride = stride.max(1);
+        let frames = self.frames / stride;
+        let tracks = self
+            .tracks
+            .iter()
+            .map(|t| Track {
+                poses: (0..=frames).map(|f| t.poses[f * stride]).collect(),
+                velocities: std::iter::once([0.0; 6])
+                    .chain((1..=frames).map(|f| {
+                        let mut v = [0.0; 6];
+                        for old in &t.velocities[(f - 1) * stride + 1..=f * stride] {
+                            v.iter_mut().zip(old).for_each(|(a, b)| *a += b / stride as f64);
+                        }
+                        v
+                    }))
+                    .collect(),
+            })
+            .collect();
+        BcSequence { tracks, frames }
+    }
+
     /// The boundary-condition signal at `frame`: per handle, linear and angular velocity,
     /// translation and rotation vector ([`SIGNAL_PER_HANDLE`] numbers).
     pub fn signal(&self, frame: usize) -> Vec<f64> {
@@ -326,6 +351,40 @@ mod tests {
         let t = seq.targets(&[h], 30, 3);
         assert!((t[0] - (0.3 + 1.2f64.cos())).abs() < 1e-12 && (t[1] - 1.2f64.sin()).abs() < 1e-12);
         assert_eq!(seq.signal(10).len(), SIGNAL_PER_HANDLE);
+    }
+
+    #[test]
+    fn every_keeps_the_poses_of_every_stride_th_frame_and_averages_velocities() {
+        let segments = [
+            Segment {
+                frames: 3,
+                velocity: [0.3, 0.0, 0.0],
+                angular_velocity: [0.0, 0.0, 1.2],
+            },
+            Segment {
+                frames: 4,
+                velocity: [0.0, -0.6, 0.0],
+                angular_velocity: [0.0; 3],
+            },
+        ];
+        let track = Track::from_segments(&segments, 10, 0.1);
+        let seq = BcSequence {
+            tracks: vec![track.clone()],
+            frames: 10,
+        };
+        let strided = seq.every(3);
+        assert_eq!(strided.frames(), 3);
+        let t = &strided.tracks[0];
+        assert_eq!(t.poses, [0, 3, 6, 9].map(|f| track.poses[f]));
+        assert_eq!(t.velocities[0], [0.0; 6]);
+        // Frames 1-3 all move with the first segment; frames 4-6 with the second.
+        let first = [0.3, 0.0, 0.0, 0.0, 0.0, 1.2];
+        assert!(t.velocities[1].iter().zip(first).all(|(a, b)| (a - b).abs() < 1e-15));
+        assert!((t.velocities[2][1] + 0.6).abs() < 1e-15 && t.velocities[2][5] == 0.0);
+        // Frames 7-9: the second segment's last step (7), then standing still (8, 9).
+        assert!((t.velocities[3][1] + 0.2).abs() < 1e-15);
+        assert_eq!(seq.every(1), seq);
+        assert_eq!(seq.every(0), seq);
     }
 
     #[test]

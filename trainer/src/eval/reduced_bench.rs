@@ -13,7 +13,7 @@ use mochi_sim::StencilEnergy;
 
 use super::reduced::{step_sequence, stepper_settings, subspace_runs, with_runtime_cubature, ReducedMetrics};
 use crate::artifact::reduced::ReducedArtifact;
-use crate::error::TrainerResult;
+use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
 use crate::methods::lipschitz::cubature::{cubature_energies, elastic_terms};
@@ -46,10 +46,38 @@ pub struct ReducedTiming {
     pub condition: f64,
 }
 
-/// Steps every subspace of the `.reduced` file at `path` over the scene's test motions for
-/// `frames` frames each; `cold` starts every L-BFGS solve from steepest descent whatever the
-/// scene's `reduced.warm_start` says (the paper's solver).
-pub fn bench(path: &Path, frames: usize, cold: bool, report: &dyn Reporter) -> TrainerResult<Vec<ReducedTiming>> {
+/// What [`bench`] steps, and how.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReducedBenchOptions {
+    /// Steps taken on each test motion (default 300).
+    pub frames: usize,
+    /// Start every L-BFGS solve from steepest descent, whatever the scene's
+    /// `reduced.warm_start` says (the paper's solver; default off).
+    pub cold: bool,
+    /// Step every this many frames of the test motions ([`mochi_sim::bc::BcSequence::every`]): the same
+    /// motions in `stride` times larger steps (default 1).
+    pub stride: usize,
+}
+
+impl Default for ReducedBenchOptions {
+    fn default() -> Self {
+        ReducedBenchOptions {
+            frames: 300,
+            cold: false,
+            stride: 1,
+        }
+    }
+}
+
+/// Steps every subspace of the `.reduced` file at `path` over the scene's test motions as
+/// `options` say.
+pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) -> TrainerResult<Vec<ReducedTiming>> {
+    let ReducedBenchOptions { frames, cold, stride } = *options;
+    if frames == 0 || stride == 0 {
+        return Err(TrainerError::invalid(
+            "bench reduced: --frames and --stride must be at least 1",
+        ));
+    }
     let reduced = ReducedArtifact::load(path)?;
     let recipe = Recipe::parse(&reduced.scene_toml, Path::new(&reduced.scene_path))?;
     let mut spec = recipe.reduced.clone().unwrap_or_default();
@@ -64,7 +92,7 @@ pub fn bench(path: &Path, frames: usize, cold: bool, report: &dyn Reporter) -> T
     let motions: Vec<_> = dataset::plan(&problem.scene.dataset)
         .into_iter()
         .filter(|p| p.split == Split::Test)
-        .map(|p| problem.sequence(&p.speeds, frames, p.seed))
+        .map(|p| problem.sequence(&p.speeds, frames * stride, p.seed).every(stride))
         .collect();
     let mut out = Vec::new();
     for (name, data, terms) in subspace_runs(&reduced, &potentials, &with_cubature) {
@@ -110,12 +138,18 @@ pub fn bench(path: &Path, frames: usize, cold: bool, report: &dyn Reporter) -> T
     Ok(out)
 }
 
-/// A markdown table of `timings` (`cold`: as passed to [`bench`]), each step time also as the vanilla run's (the first row,
-/// or the first cubature row for cubature rows) divided by it.
-pub fn table(scene: &str, frames: usize, cold: bool, timings: &[ReducedTiming]) -> String {
+/// A markdown table of `timings` (made with `options`), each step time also as the vanilla
+/// run's (the first row, or the first cubature row for cubature rows) divided by it.
+pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTiming]) -> String {
+    let ReducedBenchOptions { frames, cold, stride } = *options;
     let start = if cold { "cold" } else { "as the scene says" };
+    let steps = if stride == 1 {
+        format!("{frames} frames of each test motion")
+    } else {
+        format!("{frames} steps of {stride} frames each along each test motion")
+    };
     let mut s = format!(
-        "{scene}: reduced-order solver, {frames} frames of each test motion, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
+        "{scene}: reduced-order solver, {steps}, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
          | iterations/step | evaluations/step | converged % | Lip | latent spread | Lip x spread^3 | condition |\n\
          |---|---|---|---|---|---|---|---|---|---|\n"
     );

@@ -245,6 +245,10 @@ pub(crate) enum Bench {
         /// `reduced.warm_start` says (the paper's solver).
         #[arg(long)]
         cold: bool,
+        /// Step every this many frames of the test motions (the same motions in larger
+        /// steps; `--frames` counts the steps taken).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+        stride: u32,
         /// Also write the table to this markdown file.
         #[arg(long)]
         out: Option<PathBuf>,

@@ -239,14 +239,15 @@ pub(crate) fn bench_runtime(
     Ok(())
 }
 
-pub(crate) fn bench_reduced(path: &Path, frames: usize, cold: bool, out: Option<PathBuf>) -> Result<()> {
+pub(crate) fn bench_reduced(path: &Path, frames: usize, cold: bool, stride: usize, out: Option<PathBuf>) -> Result<()> {
     single_threaded()?;
-    let timings = mochi_trainer::eval::reduced_bench::bench(path, frames, cold, &Terminal)?;
+    let options = eval::reduced_bench::ReducedBenchOptions { frames, cold, stride };
+    let timings = eval::reduced_bench::bench(path, &options, &Terminal)?;
     let scene = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let table = mochi_trainer::eval::reduced_bench::table(&scene, frames, cold, &timings);
+    let table = eval::reduced_bench::table(&scene, &options, &timings);
     println!("{table}");
     if let Some(out) = out {
         std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;

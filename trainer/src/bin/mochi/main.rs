@@ -167,9 +167,10 @@ fn run(cli: Cli) -> Result<()> {
                     reduced,
                     frames,
                     cold,
+                    stride,
                     out,
                 },
-        } => bench_reduced(&reduced, frames, cold, out),
+        } => bench_reduced(&reduced, frames, cold, stride as usize, out),
         Command::Scenes => {
             for name in shipped_scene_names() {
                 let scene = Recipe::load(&name)?.scene;
