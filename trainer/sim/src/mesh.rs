@@ -2,12 +2,14 @@
 //! (triangles in 3D) and rods (polylines).
 
 pub mod io;
+mod mass;
 pub mod parts;
 pub mod procedural;
 mod validate;
 
 use nalgebra::Vector3;
 
+pub(crate) use mass::lumped_masses;
 #[cfg(test)]
 use validate::sorted_with_parity;
 use validate::{Culprit, Naming};

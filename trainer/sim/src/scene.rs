@@ -4,7 +4,6 @@
 
 use crate::bc::Handle;
 use crate::energy::external::{Collision, ConstantForce, Obstacle};
-use crate::energy::inertia::lumped_masses;
 use crate::energy::rod::{RodBend, RodStretch};
 use crate::energy::shell::{ShellBending, ShellMembrane};
 use crate::energy::tet::TetElastic;
@@ -12,6 +11,7 @@ use crate::energy::tri2d::Tri2dElastic;
 use crate::energy::StencilEnergy;
 use crate::error::InputError;
 use crate::material::ElementMaterial;
+use crate::mesh::lumped_masses;
 use crate::mesh::{self, Elements, Mesh};
 use crate::solver::{NewtonSettings, Simulator, SimulatorConfig, TimeScheme};
 use serde::{Deserialize, Serialize};

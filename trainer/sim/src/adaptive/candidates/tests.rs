@@ -3,10 +3,10 @@
 
 use super::linear_modes::RestAssembly;
 use super::*;
-use crate::energy::inertia::lumped_masses;
 use crate::energy::tet::TetElastic;
 use crate::energy::tri2d::Tri2dElastic;
 use crate::material::{ElementMaterial, MaterialLaw};
+use crate::mesh::lumped_masses;
 use crate::mesh::procedural::box_tets;
 use crate::mesh::{Elements, Mesh};
 use crate::scene::Scene;

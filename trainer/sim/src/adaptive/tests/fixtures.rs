@@ -8,8 +8,9 @@ use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::energy::{self, inertia::lumped_masses, tet::TetElastic};
+use crate::energy::{self, tet::TetElastic};
 use crate::material::{ElementMaterial, MaterialLaw};
+use crate::mesh::lumped_masses;
 use crate::mesh::{procedural::box_tets, Elements, Mesh};
 
 /// A seeded generator.
