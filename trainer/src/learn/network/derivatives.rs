@@ -291,6 +291,35 @@ impl Mlp64 {
         Ok(())
     }
 
+    /// `wᵀ ∂y/∂x` (one value per input): the gradient of `φ(x) = wᵀ f(x)` by reverse mode, for
+    /// `w = ∂E/∂y` the gradient of `E(f(x))`. It costs two products with the output layer
+    /// (one forward, one transposed) where [`Mlp64::jacobian`] costs one per input.
+    pub fn pulled_back(&self, x: &[f64], w: &[f64], out: &mut [f64], ws: &mut Mlp64Workspace) -> ModelResult<()> {
+        let n = self.hidden();
+        check_len("input", x.len(), self.input_len())?;
+        check_len("output weights", w.len(), self.output_len())?;
+        check_len("gradient", out.len(), self.input_len())?;
+        ws.fit(self);
+        self.hidden_pass(x, false, ws);
+        let Mlp64Workspace { h, pre, bar, abar, .. } = ws;
+        abar.fill(0.0);
+        self.output.add_transposed(w, abar);
+        for i in 0..n {
+            bar[i] = swish_parts(h[i]).1 * abar[i];
+        }
+        for (j, (inner, outer)) in self.blocks.iter().enumerate().rev() {
+            abar.fill(0.0);
+            outer.add_transposed(bar, abar);
+            for (a, &u) in abar.iter_mut().zip(&pre[j * n..(j + 1) * n]) {
+                *a *= swish_parts(u).1;
+            }
+            inner.add_transposed(abar, bar);
+        }
+        out.fill(0.0);
+        self.input.add_transposed(bar, out);
+        Ok(())
+    }
+
     /// `Σ_i w_i ∂²y_i/∂x∂x` (`input × input`, symmetric, row-major): the second-order term of the
     /// Hessian of `E(f(x))` when `w = ∂E/∂y` (`w` has one value per output).
     pub fn contracted_hessian(

@@ -2,7 +2,8 @@
 //! scene's own energies (one definition of each, summed stencil by stencil on the calling
 //! thread: a reduced step is timed single-threaded).
 //!
-//! - gradient: `J^T grad_x E`, with `J = df/dz` exact (see [`DecoderSubspace`]);
+//! - gradient: `J^T grad_x E`, with `J = df/dz` exact, by reverse mode through the decoder
+//!   (no Jacobian; see [`DecoderSubspace`]);
 //! - Newton's Hessian: `sum_s J_s^T H_s J_s` over stencils `s`, each stencil Hessian `H_s`
 //!   projected onto the PSD cone (positive semi-definite by construction);
 //! - the exact Hessian: the same sum with unprojected `H_s`, plus the map's curvature term
@@ -242,16 +243,16 @@ impl Objective for ReducedObjective<'_> {
     }
 
     fn gradient(&mut self, z: &[f64], grad: &mut [f64]) -> f64 {
-        if self
-            .subspace
-            .positions_and_jacobian(z, &mut self.buf.x, &mut self.buf.jac)
-            .is_err()
-        {
+        if self.subspace.positions(z, &mut self.buf.x).is_err() {
             grad.fill(f64::NAN);
             return f64::NAN;
         }
         let value = self.accumulate(Want::Gradient, None);
-        self.pull_back_gradient(grad);
+        if self.subspace.gradient(z, &self.buf.gx, grad).is_err() {
+            grad.fill(f64::NAN);
+            return f64::NAN;
+        }
+        grad.iter_mut().for_each(|g| *g *= self.scale);
         self.scale * value
     }
 

@@ -4,7 +4,8 @@
 //! [`Encoding::decode_into`](crate::learn::encoding::Encoding::decode_into)).
 //!
 //! Its Jacobian `dx/dz` is exact: forward mode through the decoder ([`Mlp64`]), then the
-//! rotation `R`. Prescribed vertices do not depend on `z`; their rows are zero. The map's
+//! rotation `R`. Prescribed vertices do not depend on `z`; their rows are zero. A gradient
+//! `(dx/dz)^T g` needs no Jacobian: `R^T g`, then reverse mode through the decoder. The map's
 //! second derivatives enter only contracted with a world-space vector `g` (the exact reduced
 //! Hessian's term `sum_i g_i d^2 x_i / dz^2`): since the frame is affine in `q`, that is the
 //! decoder's own contracted Hessian with the pulled-back weights `R^T g`.
@@ -138,6 +139,17 @@ impl DecoderSubspace {
             }
         }
         Ok(())
+    }
+
+    /// `(dx/dz)^T g` (`r` values) at `z` for a world-space vector `g` (`state_len` values):
+    /// the reduced gradient when `g = dE/dx`, by reverse mode through the decoder (prescribed
+    /// vertices do not depend on `z`).
+    pub fn gradient(&mut self, z: &[f64], g: &[f64], out: &mut [f64]) -> TrainerResult<()> {
+        let mut w = std::mem::take(&mut self.w);
+        let pulled = self.pull_back(g, &mut w);
+        let result = pulled.and_then(|()| Ok(self.mlp.pulled_back(z, &w, out, &mut self.workspace)?));
+        self.w = w;
+        result
     }
 
     /// `sum_i g_i d^2 x_i / dz^2` (`r x r`, row-major) at `z` for a world-space vector `g`

@@ -89,6 +89,26 @@ fn jacobian_matches_central_differences() {
 }
 
 #[test]
+fn pulled_back_gradient_matches_the_jacobian_and_differences() {
+    let (_, net, x, mut rng) = setup(7);
+    let w = random_vec(OUT, &mut rng);
+    let mut ws = Mlp64Workspace::default();
+    let mut gradient = vec![0.0; R];
+    net.pulled_back(&x, &w, &mut gradient, &mut ws).unwrap();
+    let (_, jac) = jacobian(&net, &x, &mut ws);
+    let through_jacobian: Vec<f64> = (0..R).map(|k| (0..OUT).map(|o| w[o] * jac[o * R + k]).sum()).collect();
+    let err = relative_error(&gradient, &through_jacobian);
+    assert!(err < 1e-13, "reverse mode differs from wᵀJ by {err}");
+    let phi = |x: &[f64]| vec![value(&net, x).iter().zip(&w).map(|(y, w)| y * w).sum::<f64>()];
+    let err = relative_error(&gradient, &central_differences(&x, 1, 1e-5, phi));
+    assert!(err < 1e-8, "reverse mode differs from finite differences by {err}");
+    let short = &x[..R - 1];
+    assert!(net.pulled_back(short, &w, &mut gradient, &mut ws).is_err());
+    assert!(net.pulled_back(&x, &w[1..], &mut gradient, &mut ws).is_err());
+    assert!(net.pulled_back(&x, &w, &mut gradient[1..], &mut ws).is_err());
+}
+
+#[test]
 fn contracted_hessian_matches_differences_of_the_gradient() {
     let (_, net, x, mut rng) = setup(3);
     let w = random_vec(OUT, &mut rng);
