@@ -15,7 +15,7 @@ use nalgebra::{Matrix3, Vector3};
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::{Encoding, Frame};
 use crate::learn::network::derivatives::{Mlp64, Mlp64Workspace};
-use crate::learn::network::ExportedMlp;
+use crate::learn::network::{ExportedMlp, ModelResult};
 
 /// A decoder in a scene's boundary-condition frame, with the buffers its derivatives need.
 #[derive(Clone)]
@@ -145,19 +145,25 @@ impl DecoderSubspace {
     /// the reduced gradient when `g = dE/dx`, by reverse mode through the decoder (prescribed
     /// vertices do not depend on `z`).
     pub fn gradient(&mut self, z: &[f64], g: &[f64], out: &mut [f64]) -> TrainerResult<()> {
-        let mut w = std::mem::take(&mut self.w);
-        let pulled = self.pull_back(g, &mut w);
-        let result = pulled.and_then(|()| Ok(self.mlp.pulled_back(z, &w, out, &mut self.workspace)?));
-        self.w = w;
-        result
+        self.with_pulled_back(g, |mlp, w, ws| mlp.pulled_back(z, w, out, ws))
     }
 
     /// `sum_i g_i d^2 x_i / dz^2` (`r x r`, row-major) at `z` for a world-space vector `g`
     /// (`state_len` values): the second-order term of the exact reduced Hessian.
     pub fn contracted_hessian(&mut self, z: &[f64], g: &[f64], out: &mut [f64]) -> TrainerResult<()> {
+        self.with_pulled_back(g, |mlp, w, ws| mlp.contracted_hessian(z, w, out, ws))
+    }
+
+    /// Calls `decoder_call` with the decoder, `g` pulled back to the encoded layout (the
+    /// decoder's output weights) and the decoder's workspace.
+    fn with_pulled_back(
+        &mut self,
+        g: &[f64],
+        decoder_call: impl FnOnce(&Mlp64, &[f64], &mut Mlp64Workspace) -> ModelResult<()>,
+    ) -> TrainerResult<()> {
         let mut w = std::mem::take(&mut self.w);
         let pulled = self.pull_back(g, &mut w);
-        let result = pulled.and_then(|()| Ok(self.mlp.contracted_hessian(z, &w, out, &mut self.workspace)?));
+        let result = pulled.and_then(|()| Ok(decoder_call(&self.mlp, &w, &mut self.workspace)?));
         self.w = w;
         result
     }
