@@ -54,8 +54,9 @@ pub struct ReducedBenchOptions {
     /// Start every L-BFGS solve from steepest descent, whatever the scene's
     /// `reduced.warm_start` says (the paper's solver; default off).
     pub cold: bool,
-    /// Step every this many frames of the test motions ([`mochi_sim::bc::BcSequence::every`]): the same
-    /// motions in `stride` times larger steps (default 1).
+    /// Step every this many frames of the test motions
+    /// ([`mochi_sim::bc::BcSequence::every`]): the same motions in `stride` times larger
+    /// steps (default 1).
     pub stride: usize,
 }
 

@@ -2,8 +2,8 @@
 //! scene's own energies (one definition of each, summed stencil by stencil on the calling
 //! thread: a reduced step is timed single-threaded).
 //!
-//! - gradient: `J^T grad_x E`, with `J = df/dz` exact, by reverse mode through the decoder
-//!   (no Jacobian; see [`DecoderSubspace`]);
+//! - gradient: `J^T grad_x E` with `J = df/dz`, exact, by reverse mode through the decoder
+//!   without forming `J` (see [`DecoderSubspace`]);
 //! - Newton's Hessian: `sum_s J_s^T H_s J_s` over stencils `s`, each stencil Hessian `H_s`
 //!   projected onto the PSD cone (positive semi-definite by construction);
 //! - the exact Hessian: the same sum with unprojected `H_s`, plus the map's curvature term
