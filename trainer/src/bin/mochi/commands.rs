@@ -231,12 +231,7 @@ pub(crate) fn bench_runtime(
     single_threaded()?;
     let timings = mochi_trainer::eval::runtime_bench::bench(artifacts, frames, weights)?;
     let table = mochi_trainer::eval::runtime_bench::table(&timings);
-    println!("{table}");
-    if let Some(out) = out {
-        std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;
-        println!("-> {}", out.display());
-    }
-    Ok(())
+    print_table(&table, out)
 }
 
 pub(crate) fn bench_reduced(path: &Path, frames: usize, cold: bool, stride: usize, out: Option<PathBuf>) -> Result<()> {
@@ -248,9 +243,14 @@ pub(crate) fn bench_reduced(path: &Path, frames: usize, cold: bool, stride: usiz
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let table = eval::reduced_bench::table(&scene, &options, &timings);
+    print_table(&table, out)
+}
+
+/// Prints a bench's markdown table, and writes it to `out` when given.
+fn print_table(table: &str, out: Option<PathBuf>) -> Result<()> {
     println!("{table}");
     if let Some(out) = out {
-        std::fs::write(&out, &table).with_context(|| format!("writing {}", out.display()))?;
+        std::fs::write(&out, table).with_context(|| format!("writing {}", out.display()))?;
         println!("-> {}", out.display());
     }
     Ok(())
