@@ -118,6 +118,18 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         &reduced_bench::bench(&file, &strided, &Quiet).unwrap(),
     );
     assert!(table.contains("20 steps of 3 frames each"), "{table}");
+    // Emulated single precision: the same runs, every step ending in one of the exits.
+    let single = ReducedBenchOptions {
+        single: true,
+        ..options
+    };
+    let single_timings = reduced_bench::bench(&file, &single, &Quiet).unwrap();
+    for t in &single_timings {
+        assert!(t.ms_per_step > 0.0 && t.evaluations >= t.iterations, "{t:?}");
+        assert!((0.0..=1.0).contains(&t.converged), "{t:?}");
+    }
+    let table = reduced_bench::table("tiny", &single, &single_timings);
+    assert!(table.contains("in single precision (emulated)"), "{table}");
     let none = ReducedBenchOptions { stride: 0, ..options };
     assert!(reduced_bench::bench(&file, &none, &Quiet).is_err());
 }

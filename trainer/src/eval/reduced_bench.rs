@@ -21,6 +21,7 @@ use crate::methods::lipschitz::loss::{
     latent_spread, lipschitz_estimate, median_condition, LatentSample, LipschitzTerm,
 };
 use crate::methods::reduced::optimize::Exit;
+use crate::methods::reduced::rounding::Rounding;
 use crate::methods::reduced::stepper::scene_objective_scale;
 use crate::progress::Reporter;
 
@@ -58,6 +59,9 @@ pub struct ReducedBenchOptions {
     /// ([`mochi_sim::bc::BcSequence::every`]): the same motions in `stride` times larger
     /// steps (default 1).
     pub stride: usize,
+    /// Solve in single precision, emulated ([`crate::methods::reduced::rounding`]): what each
+    /// subspace costs a solver whose numbers are `f32` (default off).
+    pub single: bool,
 }
 
 impl Default for ReducedBenchOptions {
@@ -66,6 +70,7 @@ impl Default for ReducedBenchOptions {
             frames: 300,
             cold: false,
             stride: 1,
+            single: false,
         }
     }
 }
@@ -73,7 +78,12 @@ impl Default for ReducedBenchOptions {
 /// Steps every subspace of the `.reduced` file at `path` over the scene's test motions as
 /// `options` say.
 pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) -> TrainerResult<Vec<ReducedTiming>> {
-    let ReducedBenchOptions { frames, cold, stride } = *options;
+    let ReducedBenchOptions {
+        frames,
+        cold,
+        stride,
+        single,
+    } = *options;
     if frames == 0 || stride == 0 {
         return Err(TrainerError::invalid(
             "bench reduced: --frames and --stride must be at least 1",
@@ -85,7 +95,10 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
     spec.warm_start &= !cold;
     let problem = recipe.build()?;
     let encoding = Encoding::new(&problem, recipe.latent.rods)?;
-    let settings = stepper_settings(&spec, problem.scene.integrator);
+    let mut settings = stepper_settings(&spec, problem.scene.integrator);
+    if single {
+        settings.solve.rounding = Rounding::Single;
+    }
     let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
     let elastic = elastic_terms(&potentials);
     let cubatures = cubature_energies(&problem, &reduced.cubature)?;
@@ -142,7 +155,13 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
 /// A markdown table of `timings` (made with `options`), each step time also as the vanilla
 /// run's (the first row, or the first cubature row for cubature rows) divided by it.
 pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTiming]) -> String {
-    let ReducedBenchOptions { frames, cold, stride } = *options;
+    let ReducedBenchOptions {
+        frames,
+        cold,
+        stride,
+        single,
+    } = *options;
+    let arithmetic = if single { Rounding::Single } else { Rounding::Double };
     let start = if cold { "cold" } else { "as the scene says" };
     let steps = if stride == 1 {
         format!("{frames} frames of each test motion")
@@ -150,9 +169,10 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
         format!("{frames} steps of {stride} frames each along each test motion")
     };
     let mut s = format!(
-        "{scene}: reduced-order solver, {steps}, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
+        "{scene}: reduced-order solver in {}, {steps}, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
          | iterations/step | evaluations/step | converged % | Lip | latent spread | Lip x spread^3 | condition |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n"
+         |---|---|---|---|---|---|---|---|---|---|\n",
+        arithmetic.name()
     );
     for (k, t) in timings.iter().enumerate() {
         let baseline = &timings[k - k % 2];

@@ -249,6 +249,10 @@ pub(crate) enum Bench {
         /// steps; `--frames` counts the steps taken).
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
         stride: u32,
+        /// Solve in single precision, emulated by rounding at each stage (what the subspaces
+        /// cost a solver whose numbers are f32, as the paper's is).
+        #[arg(long)]
+        single: bool,
         /// Also write the table to this markdown file.
         #[arg(long)]
         out: Option<PathBuf>,

@@ -5,6 +5,7 @@ use anyhow::{bail, Context, Result};
 use mochi_sim::dataset::{self, SpeedPlan, Split};
 use mochi_sim::{Progress, Scene};
 use mochi_trainer::eval;
+use mochi_trainer::eval::reduced_bench::ReducedBenchOptions;
 use mochi_trainer::report::render;
 use mochi_trainer::{artifact_paths, shipped_scene_names, FramesBar, Recipe};
 use std::path::{Path, PathBuf};
@@ -234,15 +235,14 @@ pub(crate) fn bench_runtime(
     print_table(&table, out)
 }
 
-pub(crate) fn bench_reduced(path: &Path, frames: usize, cold: bool, stride: usize, out: Option<PathBuf>) -> Result<()> {
+pub(crate) fn bench_reduced(path: &Path, options: &ReducedBenchOptions, out: Option<PathBuf>) -> Result<()> {
     single_threaded()?;
-    let options = eval::reduced_bench::ReducedBenchOptions { frames, cold, stride };
-    let timings = eval::reduced_bench::bench(path, &options, &Terminal)?;
+    let timings = eval::reduced_bench::bench(path, options, &Terminal)?;
     let scene = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let table = eval::reduced_bench::table(&scene, &options, &timings);
+    let table = eval::reduced_bench::table(&scene, options, &timings);
     print_table(&table, out)
 }
 

@@ -7,6 +7,7 @@ mod commands;
 use anyhow::Result;
 use clap::Parser;
 use mochi_trainer::eval;
+use mochi_trainer::eval::reduced_bench::ReducedBenchOptions;
 use mochi_trainer::{shipped_scene_names, Recipe, Reporter};
 
 use args::{Bench, Cli, Command};
@@ -168,9 +169,18 @@ fn run(cli: Cli) -> Result<()> {
                     frames,
                     cold,
                     stride,
+                    single,
                     out,
                 },
-        } => bench_reduced(&reduced, frames, cold, stride as usize, out),
+        } => {
+            let options = ReducedBenchOptions {
+                frames,
+                cold,
+                stride: stride as usize,
+                single,
+            };
+            bench_reduced(&reduced, &options, out)
+        }
         Command::Scenes => {
             for name in shipped_scene_names() {
                 let scene = Recipe::load(&name)?.scene;

@@ -24,13 +24,16 @@
 //! memory is reset and the step retried along steepest descent `-g`. `Saddle` is reported
 //! when E or the gradient is not finite at the iterate, when even `-g` gives no finite
 //! negative slope, when the steepest-descent line search shrinks the step until
-//! `z + step * d == z`, or when `obj.dim() != z.len()` (then nothing is evaluated and the
-//! objective is NaN). `LineSearchCap` when the steepest-descent line search needs more than
-//! `max_line_search` halvings; `IterationCap` after `max_iterations` accepted steps.
+//! `z + step * d == z`, when `obj.dim() != z.len()` (then nothing is evaluated and the
+//! objective is NaN), or, in emulated single precision ([`super::rounding`]), after an
+//! accepted step that left E unchanged short of the tolerance. `LineSearchCap` when the
+//! steepest-descent line search needs more than `max_line_search` halvings; `IterationCap`
+//! after `max_iterations` accepted steps.
 
 use super::optimize::{
     dot, inf_norm, is_descent, line_search, report, Exit, Objective, Search, SolveReport, SolveSettings,
 };
+use super::rounding::Rounding;
 
 /// Every buffer an L-BFGS solve uses, so that a solve on a sized workspace allocates nothing
 /// (apart from the history, when it is recorded).
@@ -214,7 +217,7 @@ pub fn lbfgs(
             if !is_descent(slope) {
                 return report(Exit::Saddle, iterations, evaluations, f, &ws.g, history);
             }
-            let (outcome, calls) = line_search(z, &ws.d, f, slope, settings.max_line_search, &mut ws.trial, |t| {
+            let (outcome, calls) = line_search(z, &ws.d, f, slope, settings.into(), &mut ws.trial, |t| {
                 let value = obj.gradient(t, &mut ws.g_new);
                 (value, Some(dot(&ws.g_new, &ws.d)))
             });
@@ -233,6 +236,7 @@ pub fn lbfgs(
             return report(exit, iterations, evaluations, f, &ws.g, history);
         };
 
+        let progress = value < f || settings.rounding == Rounding::Double;
         ws.push(z);
         z.copy_from_slice(&ws.trial);
         std::mem::swap(&mut ws.g, &mut ws.g_new);
@@ -240,6 +244,9 @@ pub fn lbfgs(
         iterations += 1;
         if record_history {
             history.push(f);
+        }
+        if !progress && inf_norm(&ws.g) > settings.tolerance {
+            return report(Exit::Saddle, iterations, evaluations, f, &ws.g, history);
         }
     }
 }
@@ -278,6 +285,41 @@ mod tests {
         assert!(report.iterations < 100, "{report:?}");
         assert_near(&z, &[1.0, 1.0], 1e-4);
         assert!(report.history.windows(2).all(|w| w[1] <= w[0]));
+    }
+
+    #[test]
+    fn single_precision_stops_where_rounding_hides_the_decrease() {
+        // Rosenbrock's function lifted by 1000 and rounded to f32: E's spacing there is
+        // 6.1e-5, so along the valley's flat end a step's decrease rounds away while the
+        // gradient is still far above the tolerance. Single precision ends there as a saddle
+        // (each such step accepted at once, not after 128 halvings); double precision
+        // converges on the same function unrounded.
+        let lifted = |round: bool| {
+            let mut problem = rosenbrock();
+            let inner = std::mem::replace(&mut problem.value, Box::new(|_: &[f64]| 0.0));
+            problem.value = Box::new(move |z: &[f64]| {
+                let v = 1000.0 + inner(z);
+                if round {
+                    v as f32 as f64
+                } else {
+                    v
+                }
+            });
+            problem
+        };
+        let single = SolveSettings {
+            rounding: Rounding::Single,
+            ..SolveSettings::default()
+        };
+        let mut z = [-1.2, 1.0];
+        let report = solve(&mut lifted(true), &mut z, &single);
+        assert_eq!(report.exit, Exit::Saddle, "{report:?}");
+        assert!(report.gradient_norm > 1e-5, "{report:?}");
+        assert!(report.evaluations < 4 * report.iterations + 10, "{report:?}");
+        let mut z = [-1.2, 1.0];
+        let report = solve(&mut lifted(false), &mut z, &SolveSettings::default());
+        assert_eq!(report.exit, Exit::Converged, "{report:?}");
+        assert_near(&z, &[1.0, 1.0], 1e-4);
     }
 
     #[test]

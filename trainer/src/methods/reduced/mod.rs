@@ -8,12 +8,13 @@
 //! `lbfgs` (L-BFGS with a weak-Wolfe line search), `newton` (Newton on the PSD-projected
 //! reduced Hessian, Armijo backtracking), `stepper` (one solve per frame over a
 //! boundary-condition script), `projection` (the closest state of a subspace to a given one,
-//! for comparing subspaces).
+//! for comparing subspaces), `rounding` (double precision, or single precision emulated).
 pub mod lbfgs;
 pub mod newton;
 pub mod objective;
 pub mod optimize;
 pub mod projection;
+pub mod rounding;
 pub mod stepper;
 pub mod subspace;
 

@@ -182,7 +182,7 @@ pub fn newton(
             if !is_descent(slope) {
                 return report(Exit::Saddle, iterations, evaluations, f, &ws.g, history);
             }
-            let (outcome, calls) = line_search(z, &ws.d, f, slope, settings.max_line_search, &mut ws.trial, |t| {
+            let (outcome, calls) = line_search(z, &ws.d, f, slope, settings.into(), &mut ws.trial, |t| {
                 (obj.value(t), None)
             });
             evaluations += calls;

@@ -12,11 +12,15 @@
 //! `s` is a fixed scale that makes the objective's gradient tolerance unit-free (chosen by
 //! the caller, e.g. `dt^2 / (total mass * diagonal^2)` for dynamics). Without inertia
 //! (quasi-static steps, potential-only Lipschitz estimates) the first term is left out.
+//!
+//! E and its gradient are computed in double precision, or rounded to single precision at
+//! each stage ([`ReducedObjective::with_rounding`], [`super::rounding`]).
 
 use mochi_sim::energy::inertia::Inertia;
 use mochi_sim::energy::{gather, Local, StencilEnergy, Want, MAX_DOF};
 
 use super::optimize::Objective;
+use super::rounding::Rounding;
 use super::subspace::DecoderSubspace;
 use crate::error::TrainerResult;
 
@@ -80,6 +84,7 @@ pub struct ReducedObjective<'a> {
     potentials: &'a [&'a dyn StencilEnergy],
     inertia: Option<&'a InertiaTerm>,
     scale: f64,
+    rounding: Rounding,
     buf: &'a mut ObjectiveBuffers,
 }
 
@@ -102,8 +107,16 @@ impl<'a> ReducedObjective<'a> {
             potentials,
             inertia,
             scale,
+            rounding: Rounding::Double,
             buf: buffers,
         }
+    }
+
+    /// The same objective with E and its gradient rounded as `rounding` says (value and
+    /// gradient calls; the Hessians stay double).
+    pub fn with_rounding(mut self, rounding: Rounding) -> Self {
+        self.rounding = rounding;
+        self
     }
 
     /// The world state of the last evaluation.
@@ -126,13 +139,16 @@ impl<'a> ReducedObjective<'a> {
         if let Some(h) = hess.as_deref_mut() {
             h.fill(0.0);
         }
+        self.rounding.round_all(&mut self.buf.x);
         let mut total = 0.0;
         if let Some(term) = self.inertia {
-            total += self.accumulate_term(&term.energy, term.weight, want, hess.as_deref_mut());
+            total = self.accumulate_term(&term.energy, term.weight, want, hess.as_deref_mut());
         }
         for k in 0..self.potentials.len() {
             let energy = self.potentials[k];
-            total += self.accumulate_term(energy, 1.0, want, hess.as_deref_mut());
+            total = self
+                .rounding
+                .add(total, self.accumulate_term(energy, 1.0, want, hess.as_deref_mut()));
         }
         total
     }
@@ -146,17 +162,20 @@ impl<'a> ReducedObjective<'a> {
         mut hess: Option<&mut [f64]>,
     ) -> f64 {
         let dim = self.subspace.dim();
+        let rounding = self.rounding;
         let mut total = 0.0;
         for s in 0..energy.len() {
             let verts = energy.stencil(s);
             let nl = gather(energy, s, &self.buf.x, &mut self.buf.local_x);
-            total += weight * energy.eval(s, &self.buf.local_x[..nl], want, &mut self.buf.local);
+            let value = weight * energy.eval(s, &self.buf.local_x[..nl], want, &mut self.buf.local);
+            total = rounding.add(total, value);
             if !want.gradient() {
                 continue;
             }
             for (a, &v) in verts.iter().enumerate() {
                 for i in 0..dim {
-                    self.buf.gx[v * dim + i] += weight * self.buf.local.grad[a * dim + i];
+                    let slot = &mut self.buf.gx[v * dim + i];
+                    *slot = rounding.add(*slot, weight * self.buf.local.grad[a * dim + i]);
                 }
             }
             if let Some(h) = hess.as_deref_mut() {
@@ -239,7 +258,7 @@ impl Objective for ReducedObjective<'_> {
         if self.subspace.positions(z, &mut self.buf.x).is_err() {
             return f64::NAN;
         }
-        self.scale * self.accumulate(Want::Value, None)
+        self.rounding.round(self.scale * self.accumulate(Want::Value, None))
     }
 
     fn gradient(&mut self, z: &[f64], grad: &mut [f64]) -> f64 {
@@ -252,8 +271,8 @@ impl Objective for ReducedObjective<'_> {
             grad.fill(f64::NAN);
             return f64::NAN;
         }
-        grad.iter_mut().for_each(|g| *g *= self.scale);
-        self.scale * value
+        grad.iter_mut().for_each(|g| *g = self.rounding.round(*g * self.scale));
+        self.rounding.round(self.scale * value)
     }
 
     fn hessian(&mut self, z: &[f64], grad: &mut [f64], hess: &mut [f64]) -> f64 {

@@ -3,6 +3,8 @@
 //! [`Exit`] (the four exit conditions of Lyu et al. 2024), an [`ExitCounts`] tally for the
 //! per-step convergence tables, and the backtracking line search both solvers share.
 
+use super::rounding::Rounding;
+
 /// A smooth objective of a small dense vector, as the reduced solvers see it.
 pub trait Objective {
     /// Number of unknowns r.
@@ -63,6 +65,9 @@ pub struct SolveSettings {
     /// L-BFGS starts from the pairs of the previous solve on the same workspace instead of
     /// steepest descent (see [`super::lbfgs`]). Default `true`.
     pub warm_start: bool,
+    /// The arithmetic of the line search's bound and of L-BFGS's no-progress exit (see
+    /// [`super::rounding`]; the objective rounds its own numbers). Default double.
+    pub rounding: Rounding,
 }
 
 impl Default for SolveSettings {
@@ -73,6 +78,7 @@ impl Default for SolveSettings {
             max_line_search: 128,
             memory: 8,
             warm_start: true,
+            rounding: Rounding::Double,
         }
     }
 }
@@ -155,6 +161,36 @@ pub(crate) fn inf_norm(v: &[f64]) -> f64 {
     })
 }
 
+/// The limits of one line search: its halvings and the arithmetic of its bound.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SearchLimits {
+    /// The most trials after the first.
+    pub max_halvings: usize,
+    /// The Armijo bound `f0 + c1 * step * slope` is rounded to this (in single precision a
+    /// step whose decrease rounds away passes with E unchanged, as in an `f32` solver).
+    pub rounding: Rounding,
+}
+
+impl SearchLimits {
+    /// `max_halvings` in double precision.
+    #[cfg(test)]
+    pub fn halvings(max_halvings: usize) -> Self {
+        SearchLimits {
+            max_halvings,
+            rounding: Rounding::Double,
+        }
+    }
+}
+
+impl From<&SolveSettings> for SearchLimits {
+    fn from(settings: &SolveSettings) -> Self {
+        SearchLimits {
+            max_halvings: settings.max_line_search,
+            rounding: settings.rounding,
+        }
+    }
+}
+
 /// How a line search ended.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Search {
@@ -171,7 +207,8 @@ pub(crate) enum Search {
 /// `eval`, which returns E there and, optionally, the slope `grad E(trial) . d`.
 ///
 /// The first trial is step 1. A trial whose value is non-finite or fails the Armijo
-/// condition `E <= f0 + c1 * step * slope` bounds the step from above. Without slopes the
+/// condition `E <= f0 + c1 * step * slope` (the bound rounded as `limits` says) bounds the
+/// step from above. Without slopes the
 /// first trial that passes is accepted: backtracking, halving the step. With slopes the
 /// accepted trial must also meet the weak Wolfe curvature condition
 /// `slope(trial) >= c2 * slope`; a trial that passes Armijo but not it bounds the step from
@@ -192,10 +229,12 @@ pub(crate) fn line_search(
     d: &[f64],
     f0: f64,
     slope: f64,
-    max_halvings: usize,
+    limits: SearchLimits,
     trial: &mut [f64],
     mut eval: impl FnMut(&[f64]) -> (f64, Option<f64>),
 ) -> (Search, usize) {
+    let SearchLimits { max_halvings, rounding } = limits;
+    let armijo = |step: f64| rounding.round(f0 + ARMIJO_C1 * step * slope);
     // The bracket's ends: step, value and slope (NaN where unknown).
     let mut lo = Probe {
         step: 0.0,
@@ -220,7 +259,7 @@ pub(crate) fn line_search(
             value,
             slope: trial_slope.unwrap_or(f64::NAN),
         };
-        if !(value.is_finite() && value <= f0 + ARMIJO_C1 * step * slope) {
+        if !(value.is_finite() && value <= armijo(step)) {
             hi = probe;
         } else if trial_slope.is_some_and(|s| s < WOLFE_C2 * slope) {
             lo = probe;
@@ -233,7 +272,7 @@ pub(crate) fn line_search(
     if lo > 0.0 && place(trial, z, d, lo) {
         let (value, _) = eval(trial);
         evaluations += 1;
-        if value.is_finite() && value <= f0 + ARMIJO_C1 * lo * slope {
+        if value.is_finite() && value <= armijo(lo) {
             return (Search::Accepted(value), evaluations);
         }
     }
@@ -331,7 +370,8 @@ pub(crate) mod problems {
     /// An objective made of closures (E, gradient, Hessian) that records every E it returns.
     pub struct Problem {
         r: usize,
-        value: Value,
+        /// E (replaceable, to wrap a problem's E).
+        pub value: Value,
         grad: Fill,
         hess: Fill,
         /// Every E returned, in order.
@@ -484,11 +524,19 @@ mod tests {
         // domain, the half step does not decrease E and the quarter step reaches 0.
         let mut seen = Vec::new();
         let mut trial = [0.0];
-        let (outcome, evaluations) = line_search(&[0.9], &[-3.6], 0.81, -6.48, 10, &mut trial, |t| {
-            seen.push(t[0]);
-            let value = if t[0].abs() > 1.0 { f64::NAN } else { t[0] * t[0] };
-            (value, None)
-        });
+        let (outcome, evaluations) = line_search(
+            &[0.9],
+            &[-3.6],
+            0.81,
+            -6.48,
+            SearchLimits::halvings(10),
+            &mut trial,
+            |t| {
+                seen.push(t[0]);
+                let value = if t[0].abs() > 1.0 { f64::NAN } else { t[0] * t[0] };
+                (value, None)
+            },
+        );
         assert_eq!(evaluations, 3);
         assert_eq!(seen, vec![0.9 - 3.6, -0.9, 0.0]);
         assert_eq!(outcome, Search::Accepted(0.0));
@@ -498,10 +546,21 @@ mod tests {
     #[test]
     fn line_search_stalls_or_caps_when_nothing_decreases() {
         let mut trial = [0.0];
-        let (outcome, evaluations) = line_search(&[1.0], &[1.0], 1.0, -1.0, 128, &mut trial, |t| (t[0], None));
+        let (outcome, evaluations) = line_search(
+            &[1.0],
+            &[1.0],
+            1.0,
+            -1.0,
+            SearchLimits::halvings(128),
+            &mut trial,
+            |t| (t[0], None),
+        );
         assert_eq!(outcome, Search::Stalled);
         assert!(evaluations <= 60, "{evaluations}");
-        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 0.0, -1.0, 5, &mut trial, |t| (t[0], None));
+        let (outcome, evaluations) =
+            line_search(&[0.0], &[1.0], 0.0, -1.0, SearchLimits::halvings(5), &mut trial, |t| {
+                (t[0], None)
+            });
         assert_eq!(outcome, Search::Capped);
         assert_eq!(evaluations, 6);
     }
@@ -513,16 +572,30 @@ mod tests {
         // is clamped to 10 times the last: there the slope is c2 times the initial one.
         let mut seen = Vec::new();
         let mut trial = [0.0];
-        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 1e4, -200.0, 128, &mut trial, |t| {
-            seen.push(t[0]);
-            ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
-        });
+        let (outcome, evaluations) = line_search(
+            &[0.0],
+            &[1.0],
+            1e4,
+            -200.0,
+            SearchLimits::halvings(128),
+            &mut trial,
+            |t| {
+                seen.push(t[0]);
+                ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
+            },
+        );
         assert_eq!(seen, vec![1.0, 10.0]);
         assert_eq!((outcome, evaluations), (Search::Accepted(8100.0), 2));
         // With no trials left the largest Armijo step is re-evaluated and taken.
-        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 1e4, -200.0, 0, &mut trial, |t| {
-            ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
-        });
+        let (outcome, evaluations) = line_search(
+            &[0.0],
+            &[1.0],
+            1e4,
+            -200.0,
+            SearchLimits::halvings(0),
+            &mut trial,
+            |t| ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0))),
+        );
         assert_eq!((outcome, evaluations), (Search::Accepted(9801.0), 2));
         assert_eq!(trial, [1.0]);
     }
@@ -533,20 +606,36 @@ mod tests {
         // and slopes is the quadratic itself, so the second trial is its minimiser.
         let mut seen = Vec::new();
         let mut trial = [0.0];
-        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 0.09, -0.6, 128, &mut trial, |t| {
-            seen.push(t[0]);
-            ((t[0] - 0.3).powi(2), Some(2.0 * (t[0] - 0.3)))
-        });
+        let (outcome, evaluations) = line_search(
+            &[0.0],
+            &[1.0],
+            0.09,
+            -0.6,
+            SearchLimits::halvings(128),
+            &mut trial,
+            |t| {
+                seen.push(t[0]);
+                ((t[0] - 0.3).powi(2), Some(2.0 * (t[0] - 0.3)))
+            },
+        );
         assert_eq!(evaluations, 2, "{seen:?}");
         assert!((seen[1] - 0.3).abs() < 1e-12, "{seen:?}");
         assert!(matches!(outcome, Search::Accepted(v) if v < 1e-20));
         // A non-finite end cannot be interpolated: the bracket is bisected instead.
         let mut seen = Vec::new();
-        let (outcome, _) = line_search(&[0.0], &[1.0], 0.09, -0.6, 128, &mut trial, |t| {
-            seen.push(t[0]);
-            let e = if t[0] > 0.6 { f64::NAN } else { (t[0] - 0.3).powi(2) };
-            (e, Some(2.0 * (t[0] - 0.3)))
-        });
+        let (outcome, _) = line_search(
+            &[0.0],
+            &[1.0],
+            0.09,
+            -0.6,
+            SearchLimits::halvings(128),
+            &mut trial,
+            |t| {
+                seen.push(t[0]);
+                let e = if t[0] > 0.6 { f64::NAN } else { (t[0] - 0.3).powi(2) };
+                (e, Some(2.0 * (t[0] - 0.3)))
+            },
+        );
         assert_eq!(seen[1], 0.5, "{seen:?}");
         assert!(matches!(outcome, Search::Accepted(_)));
     }

@@ -205,7 +205,8 @@ impl ReducedStepper {
     fn solve(&mut self, potentials: &[&dyn StencilEnergy], dynamic: bool) -> TrainerResult<SolveReport> {
         let inertia = dynamic.then_some(&self.inertia);
         let mut objective =
-            ReducedObjective::new(&mut self.subspace, potentials, inertia, self.scale, &mut self.buffers);
+            ReducedObjective::new(&mut self.subspace, potentials, inertia, self.scale, &mut self.buffers)
+                .with_rounding(self.settings.solve.rounding);
         let record = self.settings.record_history;
         let report = match self.settings.solver {
             ReducedSolver::Lbfgs => lbfgs(
