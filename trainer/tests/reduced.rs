@@ -90,6 +90,9 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         assert!(t.ms_per_step > 0.0 && t.iterations > 0.0, "{t:?}");
         assert!(t.evaluations >= t.iterations, "{t:?}");
         assert_eq!(t.converged, 1.0, "{t:?}");
+        assert_eq!(t.exit_shares, [1.0, 0.0, 0.0, 0.0], "{t:?}");
+        // Converged steps stop at the tolerance or below it.
+        assert!(t.exit_gradient >= 0.0 && t.exit_gradient <= 1e-5, "{t:?}");
         assert!(t.lipschitz.is_finite() && t.lipschitz > 0.0, "{t:?}");
         assert!(t.spread.is_finite() && t.spread > 0.0, "{t:?}");
         assert!(t.condition.is_finite() && t.condition >= 1.0, "{t:?}");
@@ -127,6 +130,8 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     for t in &single_timings {
         assert!(t.ms_per_step > 0.0 && t.evaluations >= t.iterations, "{t:?}");
         assert!((0.0..=1.0).contains(&t.converged), "{t:?}");
+        assert!((t.exit_shares.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{t:?}");
+        assert_eq!(t.exit_shares[0], t.converged, "{t:?}");
     }
     let table = reduced_bench::table("tiny", &single, &single_timings);
     assert!(table.contains("in single precision (emulated)"), "{table}");

@@ -54,6 +54,9 @@ pub struct ReducedMetrics {
     pub evaluations: f64,
     /// How the steps ended.
     pub exits: ExitCounts,
+    /// Mean over steps of the gradient's infinity norm where each solve stopped (the
+    /// paper's mean exit gradient norm).
+    pub exit_gradient: f64,
     /// Frames stepped before a step failed (all of them when none did).
     pub stable_frames: usize,
     /// Objective after each iteration of the tenth step (the convergence chart).
@@ -321,6 +324,7 @@ pub fn step_sequence(
     let mut seconds = 0.0;
     let mut iterations = 0usize;
     let mut evaluations = 0usize;
+    let mut exit_gradients = 0.0;
     for t in 1..=frames {
         let targets = bc.targets(&problem.handles, t, dim);
         let clock = Instant::now();
@@ -336,6 +340,7 @@ pub fn step_sequence(
         };
         iterations += result.iterations;
         evaluations += result.evaluations;
+        exit_gradients += result.gradient_norm;
         m.exits.add(&result);
         if t == 10 {
             m.convergence = result.history.clone();
@@ -356,6 +361,7 @@ pub fn step_sequence(
     m.step_seconds = seconds / done;
     m.iterations = iterations as f64 / done;
     m.evaluations = evaluations as f64 / done;
+    m.exit_gradient = exit_gradients / done;
     m.mean_error = if m.error_curve.len() < measured {
         f64::INFINITY
     } else {

@@ -38,6 +38,10 @@ pub struct ReducedTiming {
     pub evaluations: f64,
     /// Share of steps that converged.
     pub converged: f64,
+    /// Share of steps that ended in each exit, in [`Exit::ALL`]'s order (the paper's I-IV).
+    pub exit_shares: [f64; 4],
+    /// Mean gradient infinity norm where the steps stopped.
+    pub exit_gradient: f64,
     /// `Lip[d^2 P/dz^2]` (Eq. 7) on every tenth visited latent.
     pub lipschitz: f64,
     /// The RMS spread of those latents about their mean
@@ -139,6 +143,8 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
             iterations: mean(&|m| m.iterations),
             evaluations: mean(&|m| m.evaluations),
             converged: mean(&|m| m.exits.fraction(Exit::Converged)),
+            exit_shares: Exit::ALL.map(|exit| mean(&|m| m.exits.fraction(exit))),
+            exit_gradient: mean(&|m| m.exit_gradient),
             lipschitz: lipschitz_estimate(&hessians, &visited),
             spread: latent_spread(&visited),
             condition: median_condition(&hessians),
@@ -170,20 +176,22 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
     };
     let mut s = format!(
         "{scene}: reduced-order solver in {}, {steps}, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
-         | iterations/step | evaluations/step | converged % | Lip | latent spread | Lip x spread^3 | condition |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+         | iterations/step | evaluations/step | converged % | exits I / II / III / IV % | mean exit gradient | Lip \
+         | latent spread | Lip x spread^3 | condition |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         arithmetic.name()
     );
     for (k, t) in timings.iter().enumerate() {
         let baseline = &timings[k - k % 2];
         s += &format!(
-            "| {} | {:.3} | {:.2}x | {:.2} | {:.2} | {:.1} | {:.3e} | {:.3} | {:.3e} | {:.3e} |\n",
+            "| {} | {:.3} | {:.2}x | {:.2} | {:.2} | {:.1} | {} | {:.1e} | {:.3e} | {:.3} | {:.3e} | {:.3e} |\n",
             t.name,
             t.ms_per_step,
             baseline.ms_per_step / t.ms_per_step.max(1e-12),
             t.iterations,
             t.evaluations,
             100.0 * t.converged,
+            t.exit_shares.map(|f| format!("{:.1}", 100.0 * f)).join(" / "),
+            t.exit_gradient,
             t.lipschitz,
             t.spread,
             t.lipschitz * t.spread.powi(3),
