@@ -83,12 +83,27 @@ struct SampleConstants {
     c3: Vec<f32>,
 }
 
+/// A subspace Hessian with the decoded state `x = f(z)` and the Jacobian `df/dz`
+/// (`n x r`, row-major) at its sample.
+struct HessianAt {
+    hessian: DMatrix<f64>,
+    positions: Vec<f64>,
+    jacobian: Vec<f64>,
+}
+
 impl LipschitzTerm<'_> {
     /// The subspace Hessians `H_i` (`r x r`) of the frozen `decoder` at `samples`.
     ///
     /// Samples are independent: they are split into one chunk per worker thread (rayon), each
     /// with its own copy of the subspace, and come back in order.
     pub fn hessians(&self, decoder: &ExportedMlp, samples: &[LatentSample]) -> TrainerResult<Vec<DMatrix<f64>>> {
+        let at_samples = self.hessians_at(decoder, samples)?;
+        Ok(at_samples.into_iter().map(|h| h.hessian).collect())
+    }
+
+    /// [`LipschitzTerm::hessians`], each with the decoded state and the decoder Jacobian it
+    /// was computed from (the surrogate's constants need them again).
+    fn hessians_at(&self, decoder: &ExportedMlp, samples: &[LatentSample]) -> TrainerResult<Vec<HessianAt>> {
         let Some(first) = samples.first() else {
             return Ok(Vec::new());
         };
@@ -100,7 +115,11 @@ impl LipschitzTerm<'_> {
             let mut objective = ReducedObjective::new(subspace, self.potentials, None, self.scale, &mut buffers);
             let (mut grad, mut hess) = (vec![0.0; r], vec![0.0; r * r]);
             objective.exact_hessian(&s.z, &mut grad, &mut hess)?;
-            Ok(DMatrix::from_row_slice(r, r, &hess))
+            Ok(HessianAt {
+                hessian: DMatrix::from_row_slice(r, r, &hess),
+                positions: objective.positions().to_vec(),
+                jacobian: objective.jacobian().to_vec(),
+            })
         })
     }
 
@@ -116,14 +135,15 @@ impl LipschitzTerm<'_> {
         if samples.len() < 2 {
             return Err(TrainerError::invalid("the Lipschitz loss needs at least two samples"));
         }
-        let hessians = self.hessians(exported, samples)?;
+        let at_samples = self.hessians_at(exported, samples)?;
+        let hessians: Vec<DMatrix<f64>> = at_samples.iter().map(|h| h.hessian.clone()).collect();
         let loss = lipschitz_loss(&hessians, samples);
         let weights = loss_gradients(&hessians, samples);
         let subspace = DecoderSubspace::new(exported, self.encoding, &samples[0].targets)?;
         let (b, r, q_len) = (samples.len(), subspace.latent_len(), self.encoding.encoded_len());
-        let pairs: Vec<(&LatentSample, &DMatrix<f64>)> = samples.iter().zip(&weights).collect();
-        let constants = per_sample(&subspace, &pairs, |subspace, &(s, weight)| {
-            self.sample_constants(subspace, s, weight)
+        let items: Vec<_> = samples.iter().zip(&weights).zip(&at_samples).collect();
+        let constants = per_sample(&subspace, &items, |subspace, &((s, weight), state)| {
+            self.sample_constants(subspace, s, weight, state)
         })?;
         let mut directions = Vec::with_capacity(b * r * r);
         let (mut c1, mut c2, mut c3) = (
@@ -154,12 +174,14 @@ impl LipschitzTerm<'_> {
         Ok(LipschitzBatch { loss, surrogate })
     }
 
-    /// The surrogate's constants at sample `s` whose loss gradient `dL/dH` is `weight`.
+    /// The surrogate's constants at sample `s` whose loss gradient `dL/dH` is `weight`, with
+    /// the state and Jacobian there (`state`).
     fn sample_constants(
         &self,
         subspace: &mut DecoderSubspace,
         s: &LatentSample,
         weight: &DMatrix<f64>,
+        state: &HessianAt,
     ) -> TrainerResult<SampleConstants> {
         let (r, n, q_len) = (subspace.latent_len(), subspace.state_len(), self.encoding.encoded_len());
         let mut out = SampleConstants {
@@ -168,13 +190,12 @@ impl LipschitzTerm<'_> {
             c2: vec![0f32; r * q_len],
             c3: vec![0f32; q_len],
         };
-        let (mut x, mut jac) = (vec![0.0; n], vec![0.0; n * r]);
+        let (x, jac) = (&state.positions, &state.jacobian);
         let (mut xd, mut xdd) = (vec![0.0; n], vec![0.0; n]);
         let (mut hxd, mut hxdd, mut third) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         let mut pulled = vec![0.0; q_len];
         subspace.set_frame(&self.encoding.frame(&s.targets)?, &s.targets);
-        subspace.positions_and_jacobian(&s.z, &mut x, &mut jac)?;
-        let at = PotentialAt::new(self.potentials, subspace.dim(), &x);
+        let at = PotentialAt::new(self.potentials, subspace.dim(), x);
         let eig = weight.clone().symmetric_eigen();
         for k in 0..r {
             let v: Vec<f64> = eig.eigenvectors.column(k).iter().copied().collect();

@@ -124,6 +124,11 @@ impl<'a> ReducedObjective<'a> {
         &self.buf.x
     }
 
+    /// The decoder Jacobian `dx/dz` (`n x r`, row-major) of the last Hessian evaluation.
+    pub fn jacobian(&self) -> &[f64] {
+        &self.buf.jac
+    }
+
     /// The subspace map.
     pub fn subspace(&mut self) -> &mut DecoderSubspace {
         self.subspace
