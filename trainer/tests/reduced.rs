@@ -135,6 +135,11 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     }
     let table = reduced_bench::table("tiny", &single, &single_timings);
     assert!(table.contains("in single precision (emulated)"), "{table}");
+    // Below 10 frames no latent is kept for Lip: the table says so instead of printing 0.
+    let short = ReducedBenchOptions { frames: 5, ..options };
+    let table = reduced_bench::table("tiny", &short, &reduced_bench::bench(&file, &short, &Quiet).unwrap());
+    assert!(table.contains("| - | - | - | - |"), "{table}");
+    assert!(table.contains("run 10 frames or more"), "{table}");
     let none = ReducedBenchOptions { stride: 0, ..options };
     assert!(reduced_bench::bench(&file, &none, &Quiet).is_err());
 }
