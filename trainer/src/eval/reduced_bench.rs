@@ -81,14 +81,22 @@ impl Default for ReducedBenchOptions {
     }
 }
 
+impl ReducedBenchOptions {
+    /// The arithmetic the solves run in.
+    pub fn rounding(&self) -> Rounding {
+        if self.single {
+            Rounding::Single
+        } else {
+            Rounding::Double
+        }
+    }
+}
+
 /// Steps every subspace of the `.reduced` file at `path` over the scene's test motions as
 /// `options` say.
 pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) -> TrainerResult<Vec<ReducedTiming>> {
     let ReducedBenchOptions {
-        frames,
-        cold,
-        stride,
-        single,
+        frames, cold, stride, ..
     } = *options;
     if frames == 0 || stride == 0 {
         return Err(TrainerError::invalid(
@@ -102,9 +110,7 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
     let problem = recipe.build()?;
     let encoding = Encoding::new(&problem, recipe.latent.rods)?;
     let mut settings = stepper_settings(&spec, problem.scene.integrator);
-    if single {
-        settings.solve.rounding = Rounding::Single;
-    }
+    settings.solve.rounding = options.rounding();
     let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
     let elastic = elastic_terms(&potentials);
     let cubatures = cubature_energies(&problem, &reduced.cubature)?;
@@ -164,14 +170,8 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
 /// A markdown table of `timings` (made with `options`), each step time also as the vanilla
 /// run's (the first row, or the first cubature row for cubature rows) divided by it.
 pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTiming]) -> String {
-    let ReducedBenchOptions {
-        frames,
-        cold,
-        stride,
-        single,
-    } = *options;
-    let arithmetic = if single { Rounding::Single } else { Rounding::Double };
-    let start = if cold { "cold" } else { "as the scene says" };
+    let ReducedBenchOptions { frames, stride, .. } = *options;
+    let start = if options.cold { "cold" } else { "as the scene says" };
     let steps = if stride == 1 {
         format!("{frames} frames of each test motion")
     } else {
@@ -181,7 +181,7 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
         "{scene}: reduced-order solver in {}, {steps}, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
          | iterations/step | evaluations/step | converged % | exits I / II / III / IV % | mean exit gradient | Lip \
          | latent spread | Lip x spread^3 | condition |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
-        arithmetic.name()
+        options.rounding().name()
     );
     for (k, t) in timings.iter().enumerate() {
         let baseline = &timings[k - k % 2];
