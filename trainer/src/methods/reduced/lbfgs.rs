@@ -31,9 +31,9 @@
 //! after `max_iterations` accepted steps.
 
 use super::optimize::{
-    dot, inf_norm, is_descent, line_search, report, Exit, Objective, Search, SolveReport, SolveSettings,
+    dot, inf_norm, is_descent, line_search, report, rounding_stalled, Exit, Objective, Search, SolveReport,
+    SolveSettings,
 };
-use super::rounding::Rounding;
 
 /// Every buffer an L-BFGS solve uses, so that a solve on a sized workspace allocates nothing
 /// (apart from the history, when it is recorded).
@@ -236,7 +236,7 @@ pub fn lbfgs(
             return report(exit, iterations, evaluations, f, &ws.g, history);
         };
 
-        let progress = value < f || settings.rounding == Rounding::Double;
+        let before = f;
         ws.push(z);
         z.copy_from_slice(&ws.trial);
         std::mem::swap(&mut ws.g, &mut ws.g_new);
@@ -245,7 +245,7 @@ pub fn lbfgs(
         if record_history {
             history.push(f);
         }
-        if !progress && inf_norm(&ws.g) > settings.tolerance {
+        if rounding_stalled(settings, before, f, &ws.g) {
             return report(Exit::Saddle, iterations, evaluations, f, &ws.g, history);
         }
     }
@@ -253,7 +253,10 @@ pub fn lbfgs(
 
 #[cfg(test)]
 mod tests {
-    use super::super::optimize::problems::{ill_conditioned, quadratic, rosenbrock, slope, uphill, walled, Problem};
+    use super::super::optimize::problems::{
+        ill_conditioned, lifted, quadratic, rosenbrock, slope, uphill, walled, Problem,
+    };
+    use super::super::rounding::Rounding;
     use super::*;
 
     fn solve(obj: &mut dyn Objective, z: &mut [f64], settings: &SolveSettings) -> SolveReport {
@@ -289,35 +292,21 @@ mod tests {
 
     #[test]
     fn single_precision_stops_where_rounding_hides_the_decrease() {
-        // Rosenbrock's function lifted by 1000 and rounded to f32: E's spacing there is
-        // 6.1e-5, so along the valley's flat end a step's decrease rounds away while the
-        // gradient is still far above the tolerance. Single precision ends there as a saddle
-        // (each such step accepted at once, not after 128 halvings); double precision
+        // Rosenbrock's function lifted by 1000: along the valley's flat end its decrease
+        // rounds away in f32. Single precision ends where E stops changing, as a saddle above the tolerance,
+        // each such step accepted at once (not after 128 halvings); double precision
         // converges on the same function unrounded.
-        let lifted = |round: bool| {
-            let mut problem = rosenbrock();
-            let inner = std::mem::replace(&mut problem.value, Box::new(|_: &[f64]| 0.0));
-            problem.value = Box::new(move |z: &[f64]| {
-                let v = 1000.0 + inner(z);
-                if round {
-                    v as f32 as f64
-                } else {
-                    v
-                }
-            });
-            problem
-        };
         let single = SolveSettings {
             rounding: Rounding::Single,
             ..SolveSettings::default()
         };
         let mut z = [-1.2, 1.0];
-        let report = solve(&mut lifted(true), &mut z, &single);
+        let report = solve(&mut lifted(rosenbrock(), true), &mut z, &single);
         assert_eq!(report.exit, Exit::Saddle, "{report:?}");
         assert!(report.gradient_norm > 1e-5, "{report:?}");
         assert!(report.evaluations < 4 * report.iterations + 10, "{report:?}");
         let mut z = [-1.2, 1.0];
-        let report = solve(&mut lifted(false), &mut z, &SolveSettings::default());
+        let report = solve(&mut lifted(rosenbrock(), false), &mut z, &SolveSettings::default());
         assert_eq!(report.exit, Exit::Converged, "{report:?}");
         assert_near(&z, &[1.0, 1.0], 1e-4);
     }

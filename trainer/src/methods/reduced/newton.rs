@@ -16,13 +16,15 @@
 //! direction is not a descent direction, or its line search fails, the step is retried
 //! along steepest descent `-g`. `Saddle` is reported when E or the gradient is not finite at
 //! the iterate, when `-g` gives no finite negative slope, when the steepest-descent line
-//! search shrinks the step until `z + step * d == z`, or when `obj.dim() != z.len()`
-//! (nothing is evaluated; the objective is NaN). `LineSearchCap` when the steepest-descent
-//! line search needs more than `max_line_search` halvings; `IterationCap` after
-//! `max_iterations` accepted steps.
+//! search shrinks the step until `z + step * d == z`, when `obj.dim() != z.len()` (nothing
+//! is evaluated; the objective is NaN), or, in emulated single precision
+//! ([`super::rounding`]), after an accepted step that left E unchanged short of the
+//! tolerance. `LineSearchCap` when the steepest-descent line search needs more than
+//! `max_line_search` halvings; `IterationCap` after `max_iterations` accepted steps.
 
 use super::optimize::{
-    dot, inf_norm, is_descent, line_search, report, Exit, Objective, Search, SolveReport, SolveSettings,
+    dot, inf_norm, is_descent, line_search, report, rounding_stalled, Exit, Objective, Search, SolveReport,
+    SolveSettings,
 };
 
 /// How many shifts are tried: `1e-8 s` times 10^0 ..= 10^39.
@@ -178,6 +180,7 @@ pub fn newton(
             slope = ws.steepest();
             steepest = true;
         }
+        let before = f;
         loop {
             if !is_descent(slope) {
                 return report(Exit::Saddle, iterations, evaluations, f, &ws.g, history);
@@ -206,12 +209,16 @@ pub fn newton(
         if record_history {
             history.push(f);
         }
+        if rounding_stalled(settings, before, f, &ws.g) {
+            return report(Exit::Saddle, iterations, evaluations, f, &ws.g, history);
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::super::optimize::problems::{ill_conditioned, quadratic, rosenbrock, slope, uphill, walled};
+    use super::super::optimize::problems::{ill_conditioned, lifted, quadratic, rosenbrock, slope, uphill, walled};
+    use super::super::rounding::Rounding;
     use super::*;
 
     fn solve(obj: &mut dyn Objective, z: &mut [f64], settings: &SolveSettings) -> SolveReport {
@@ -250,6 +257,30 @@ mod tests {
         let report = solve(&mut obj, &mut z, &SolveSettings::default());
         assert_eq!((report.exit, report.iterations), (Exit::Converged, 1));
         assert_near(&z, &minimiser, 1e-10);
+    }
+
+    #[test]
+    fn single_precision_stops_where_rounding_hides_the_decrease() {
+        // A quadratic lifted by 1000 whose Hessian is reported ten times too large: each
+        // Newton step goes a tenth of the way, so its decrease soon rounds away in f32 while
+        // the gradient is still far above the tolerance. Single precision ends there as a
+        // saddle; double precision converges on the same function unrounded.
+        let problem = |round: bool| {
+            let reported = vec![10.0, 0.0, 0.0, 10.0];
+            lifted(quadratic(&[1.0, 1.0], &[1.0, -2.0], Some(reported)), round)
+        };
+        let single = SolveSettings {
+            rounding: Rounding::Single,
+            ..SolveSettings::default()
+        };
+        let mut z = [0.0, 0.0];
+        let report = solve(&mut problem(true), &mut z, &single);
+        assert_eq!(report.exit, Exit::Saddle, "{report:?}");
+        assert!(report.gradient_norm > 1e-5, "{report:?}");
+        let mut z = [0.0, 0.0];
+        let report = solve(&mut problem(false), &mut z, &SolveSettings::default());
+        assert_eq!(report.exit, Exit::Converged, "{report:?}");
+        assert_near(&z, &[1.0, -2.0], 1e-4);
     }
 
     #[test]

@@ -208,17 +208,16 @@ pub(crate) enum Search {
 ///
 /// The first trial is step 1. A trial whose value is non-finite or fails the Armijo
 /// condition `E <= f0 + c1 * step * slope` (the bound rounded as `limits` says) bounds the
-/// step from above. Without slopes the
-/// first trial that passes is accepted: backtracking, halving the step. With slopes the
-/// accepted trial must also meet the weak Wolfe curvature condition
-/// `slope(trial) >= c2 * slope`; a trial that passes Armijo but not it bounds the step from
-/// below. With slopes the next step is interpolated rather than halved or doubled: inside a
+/// step from above. Without slopes the first trial that passes is accepted: backtracking,
+/// halving the step. With slopes the accepted trial must also meet the weak Wolfe curvature
+/// condition `slope(trial) >= c2 * slope`; a trial that passes Armijo but not it bounds the
+/// step from below. With slopes the next step is interpolated rather than halved or doubled: inside a
 /// bracket, the minimiser of the cubic through both ends' values and slopes (Nocedal &
 /// Wright, Eq. 3.59), kept at least a tenth of the bracket from either end; beyond the
 /// last step that was too short, where the slope extrapolates linearly to zero, between
 /// 2 and 10 times that step. Where the cubic is undefined (a non-finite end, no real
 /// minimiser) the bracket is bisected, and without an upper bound the step doubles. Every
-/// trial after the first counts as one halving against `max_halvings`; when they run out
+/// trial after the first counts as one halving against `limits.max_halvings`; when they run out
 /// after some step passed Armijo, the largest such step is re-evaluated and accepted.
 ///
 /// Returns the outcome and the number of `eval` calls. `eval` may compute more than E (the
@@ -333,6 +332,14 @@ fn place(trial: &mut [f64], z: &[f64], d: &[f64], step: f64) -> bool {
         moved |= *t != zi;
     }
     moved
+}
+
+/// Whether a solve in single precision should stop after an accepted step from E = `before`
+/// to E = `after` with gradient `g` there: rounding hid the step's decrease (E did not fall)
+/// and the gradient is still above the tolerance (JAX's L-BFGS stops there too, on
+/// insufficient progress). Never in double precision.
+pub(crate) fn rounding_stalled(settings: &SolveSettings, before: f64, after: f64, g: &[f64]) -> bool {
+    settings.rounding == Rounding::Single && after >= before && inf_norm(g) > settings.tolerance
 }
 
 /// Whether `slope = g . d` makes `d` a usable descent direction.

@@ -8,8 +8,7 @@ type Fill = Box<dyn Fn(&[f64], &mut [f64])>;
 /// An objective made of closures (E, gradient, Hessian) that records every E it returns.
 pub struct Problem {
     r: usize,
-    /// E (replaceable, to wrap a problem's E).
-    pub value: Value,
+    value: Value,
     grad: Fill,
     hess: Fill,
     /// Every E returned, in order.
@@ -93,6 +92,22 @@ pub fn rosenbrock() -> Problem {
         },
         |z, h| h.copy_from_slice(&[2.0 + 800.0 * z[0] * z[0], -400.0 * z[0], -400.0 * z[0], 200.0]),
     )
+}
+
+/// `problem` with E lifted by 1000 and, when `round`, rounded to `f32` (the gradient and
+/// Hessian as they were): E's spacing there is 6.1e-5, so once a step's decrease is smaller
+/// than that it rounds away, while the gradient may still be far above 1e-5.
+pub fn lifted(mut problem: Problem, round: bool) -> Problem {
+    let inner = std::mem::replace(&mut problem.value, Box::new(|_: &[f64]| 0.0));
+    problem.value = Box::new(move |z: &[f64]| {
+        let v = 1000.0 + inner(z);
+        if round {
+            v as f32 as f64
+        } else {
+            v
+        }
+    });
+    problem
 }
 
 /// `0.5 k |z - c|^2` with `c = (0.6, -0.8)`, NaN outside the ball of radius 1.5 about
