@@ -401,6 +401,17 @@ mod tests {
         assert_eq!(inf_norm(&[]), 0.0);
     }
 
+    /// [`line_search`] from 0 along +1 in double precision.
+    fn from_zero(
+        f0: f64,
+        slope: f64,
+        halvings: usize,
+        trial: &mut [f64],
+        eval: impl FnMut(&[f64]) -> (f64, Option<f64>),
+    ) -> (Search, usize) {
+        line_search(&[0.0], &[1.0], f0, slope, SearchLimits::halvings(halvings), trial, eval)
+    }
+
     #[test]
     fn line_search_rejects_non_finite_values_and_halves() {
         // E(x) = x^2 on |x| <= 1, NaN beyond; from 0.9 along -3.6 the full step leaves the
@@ -440,10 +451,7 @@ mod tests {
         );
         assert_eq!(outcome, Search::Stalled);
         assert!(evaluations <= 60, "{evaluations}");
-        let (outcome, evaluations) =
-            line_search(&[0.0], &[1.0], 0.0, -1.0, SearchLimits::halvings(5), &mut trial, |t| {
-                (t[0], None)
-            });
+        let (outcome, evaluations) = from_zero(0.0, -1.0, 5, &mut trial, |t| (t[0], None));
         assert_eq!(outcome, Search::Capped);
         assert_eq!(evaluations, 6);
     }
@@ -455,30 +463,16 @@ mod tests {
         // is clamped to 10 times the last: there the slope is c2 times the initial one.
         let mut seen = Vec::new();
         let mut trial = [0.0];
-        let (outcome, evaluations) = line_search(
-            &[0.0],
-            &[1.0],
-            1e4,
-            -200.0,
-            SearchLimits::halvings(128),
-            &mut trial,
-            |t| {
-                seen.push(t[0]);
-                ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
-            },
-        );
+        let (outcome, evaluations) = from_zero(1e4, -200.0, 128, &mut trial, |t| {
+            seen.push(t[0]);
+            ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
+        });
         assert_eq!(seen, vec![1.0, 10.0]);
         assert_eq!((outcome, evaluations), (Search::Accepted(8100.0), 2));
         // With no trials left the largest Armijo step is re-evaluated and taken.
-        let (outcome, evaluations) = line_search(
-            &[0.0],
-            &[1.0],
-            1e4,
-            -200.0,
-            SearchLimits::halvings(0),
-            &mut trial,
-            |t| ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0))),
-        );
+        let (outcome, evaluations) = from_zero(1e4, -200.0, 0, &mut trial, |t| {
+            ((t[0] - 100.0).powi(2), Some(2.0 * (t[0] - 100.0)))
+        });
         assert_eq!((outcome, evaluations), (Search::Accepted(9801.0), 2));
         assert_eq!(trial, [1.0]);
     }
@@ -489,38 +483,38 @@ mod tests {
         // and slopes is the quadratic itself, so the second trial is its minimiser.
         let mut seen = Vec::new();
         let mut trial = [0.0];
-        let (outcome, evaluations) = line_search(
-            &[0.0],
-            &[1.0],
-            0.09,
-            -0.6,
-            SearchLimits::halvings(128),
-            &mut trial,
-            |t| {
-                seen.push(t[0]);
-                ((t[0] - 0.3).powi(2), Some(2.0 * (t[0] - 0.3)))
-            },
-        );
+        let (outcome, evaluations) = from_zero(0.09, -0.6, 128, &mut trial, |t| {
+            seen.push(t[0]);
+            ((t[0] - 0.3).powi(2), Some(2.0 * (t[0] - 0.3)))
+        });
         assert_eq!(evaluations, 2, "{seen:?}");
         assert!((seen[1] - 0.3).abs() < 1e-12, "{seen:?}");
         assert!(matches!(outcome, Search::Accepted(v) if v < 1e-20));
         // A non-finite end cannot be interpolated: the bracket is bisected instead.
         let mut seen = Vec::new();
-        let (outcome, _) = line_search(
-            &[0.0],
-            &[1.0],
-            0.09,
-            -0.6,
-            SearchLimits::halvings(128),
-            &mut trial,
-            |t| {
-                seen.push(t[0]);
-                let e = if t[0] > 0.6 { f64::NAN } else { (t[0] - 0.3).powi(2) };
-                (e, Some(2.0 * (t[0] - 0.3)))
-            },
-        );
+        let (outcome, _) = from_zero(0.09, -0.6, 128, &mut trial, |t| {
+            seen.push(t[0]);
+            let e = if t[0] > 0.6 { f64::NAN } else { (t[0] - 0.3).powi(2) };
+            (e, Some(2.0 * (t[0] - 0.3)))
+        });
         assert_eq!(seen[1], 0.5, "{seen:?}");
         assert!(matches!(outcome, Search::Accepted(_)));
+    }
+
+    #[test]
+    fn a_rounded_bound_accepts_a_step_whose_decrease_rounds_away() {
+        // E is flat at 1000 and the predicted decrease tiny: in double precision no step
+        // passes Armijo; with the bound rounded to f32 the first one does, E unchanged.
+        let mut trial = [0.0];
+        let flat = |_: &[f64]| (1000.0, None);
+        let (outcome, _) = from_zero(1000.0, -1e-6, 5, &mut trial, flat);
+        assert_eq!(outcome, Search::Capped);
+        let single = SearchLimits {
+            max_halvings: 5,
+            rounding: Rounding::Single,
+        };
+        let (outcome, evaluations) = line_search(&[0.0], &[1.0], 1000.0, -1e-6, single, &mut trial, flat);
+        assert_eq!((outcome, evaluations), (Search::Accepted(1000.0), 1));
     }
 
     #[test]
