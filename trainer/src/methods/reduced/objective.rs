@@ -112,8 +112,8 @@ impl<'a> ReducedObjective<'a> {
         }
     }
 
-    /// The same objective with E and its gradient rounded as `rounding` says (value and
-    /// gradient calls; the Hessians stay double).
+    /// The same objective with E and its gradient rounded as `rounding` says (in every call;
+    /// the Hessians themselves stay double).
     pub fn with_rounding(mut self, rounding: Rounding) -> Self {
         self.rounding = rounding;
         self
@@ -293,6 +293,7 @@ impl Objective for ReducedObjective<'_> {
         let value = self.accumulate(Want::Hessian { project: true }, Some(hess));
         hess.iter_mut().for_each(|h| *h *= self.scale);
         self.pull_back_gradient(grad);
-        self.scale * value
+        self.rounding.round_all(grad);
+        self.rounding.round(self.scale * value)
     }
 }

@@ -6,6 +6,7 @@ use mochi_sim::energy::StencilEnergy;
 
 use super::objective::{InertiaTerm, ObjectiveBuffers, ReducedObjective};
 use super::optimize::{Exit, Objective, SolveSettings};
+use super::rounding::Rounding;
 use super::stepper::{ReducedSolver, ReducedStepper, StepperSettings};
 use super::subspace::DecoderSubspace;
 use crate::learn::network::test_support::randomise;
@@ -132,6 +133,40 @@ fn stepper(beam: &mut TinyBeam, solver: ReducedSolver, quasi_static: bool) -> (R
     let dt = beam.problem.scene.dt;
     let stepper = ReducedStepper::new(subspace, beam.encoding.clone(), masses, diagonal, dt, settings).unwrap();
     (stepper, z0)
+}
+
+#[test]
+fn single_precision_rounds_every_call_alike_and_stays_near_double() {
+    let mut beam = tiny_beam();
+    let (mut subspace, z0) = subspace_at(&mut beam, 6);
+    let z: Vec<f64> = z0.iter().map(|v| v + 0.05).collect();
+    let r = z.len();
+    let masses = beam.problem.simulator.masses().to_vec();
+    let mut inertia = InertiaTerm::new(3, masses, beam.problem.scene.dt);
+    inertia.set_prediction(&beam.sequences[0].trajectory.positions[7]);
+    let pots = potentials(&beam);
+    let mut buffers = ObjectiveBuffers::new(subspace.state_len(), r);
+    let (mut grad, mut hess) = (vec![0.0; r], vec![0.0; r * r]);
+    let mut double = ReducedObjective::new(&mut subspace, &pots, Some(&inertia), 1e-3, &mut buffers);
+    let value = double.gradient(&z, &mut grad);
+    let mut single = double.with_rounding(Rounding::Single);
+    let mut grad_single = vec![0.0; r];
+    let value_single = single.gradient(&z, &mut grad_single);
+    let is_f32 = |v: f64| v as f32 as f64 == v;
+    // Every number a solver compares is an f32, the same from each kind of call (Newton
+    // compares the E of its Hessian calls with that of its line search's value calls).
+    assert!(is_f32(value_single) && grad_single.iter().all(|&g| is_f32(g)));
+    assert_eq!(single.value(&z), value_single);
+    let mut grad_hessian = vec![0.0; r];
+    assert_eq!(single.hessian(&z, &mut grad_hessian, &mut hess), value_single);
+    assert_eq!(grad_hessian, grad_single);
+    // ... and close to double precision, yet not equal to it.
+    assert!(
+        (value_single - value).abs() <= 1e-6 * value.abs(),
+        "{value_single} vs {value}"
+    );
+    assert!(relative(&grad_single, &grad) < 1e-3, "{grad_single:?} vs {grad:?}");
+    assert_ne!(grad_single, grad);
 }
 
 #[test]
