@@ -293,9 +293,9 @@ mod tests {
     #[test]
     fn single_precision_stops_where_rounding_hides_the_decrease() {
         // Rosenbrock's function lifted by 1000: along the valley's flat end its decrease
-        // rounds away in f32. Single precision ends where E stops changing, as a saddle above the tolerance,
-        // each such step accepted at once (not after 128 halvings); double precision
-        // converges on the same function unrounded.
+        // rounds away in f32. Single precision ends where E stops changing, as a saddle
+        // above the tolerance, each such step accepted at once (not after 128 halvings);
+        // double precision converges on the same function unrounded.
         let single = SolveSettings {
             rounding: Rounding::Single,
             ..SolveSettings::default()
