@@ -35,6 +35,7 @@ pub mod model;
 pub mod network;
 #[cfg(feature = "std")]
 pub mod payload;
+pub mod pool;
 #[allow(unsafe_code)]
 mod strand_lanes;
 mod validation;
