@@ -295,12 +295,21 @@ impl Mlp64 {
     /// `w = ∂E/∂y` the gradient of `E(f(x))`. It costs two products with the output layer
     /// (one forward, one transposed) where [`Mlp64::jacobian`] costs one per input.
     pub fn pulled_back(&self, x: &[f64], w: &[f64], out: &mut [f64], ws: &mut Mlp64Workspace) -> ModelResult<()> {
-        let n = self.hidden();
         check_len("input", x.len(), self.input_len())?;
+        ws.fit(self);
+        self.hidden_pass(x, false, ws);
+        self.pulled_back_after_value(w, out, ws)
+    }
+
+    /// [`Mlp64::pulled_back`] at the input of this network's last [`Mlp64::value`] call on
+    /// `ws`, reusing the hidden pass that call left there (bit for bit the same result). The
+    /// caller vouches that no other call has used `ws` since: a workspace does not know which
+    /// network or input it last served.
+    pub fn pulled_back_after_value(&self, w: &[f64], out: &mut [f64], ws: &mut Mlp64Workspace) -> ModelResult<()> {
+        let n = self.hidden();
         check_len("output weights", w.len(), self.output_len())?;
         check_len("gradient", out.len(), self.input_len())?;
         ws.fit(self);
-        self.hidden_pass(x, false, ws);
         let Mlp64Workspace { h, pre, bar, abar, .. } = ws;
         abar.fill(0.0);
         self.output.add_transposed(w, abar);

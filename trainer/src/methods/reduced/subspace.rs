@@ -33,6 +33,10 @@ pub struct DecoderSubspace {
     q: Vec<f64>,
     jq: Vec<f64>,
     w: Vec<f64>,
+    /// The latent of the last [`DecoderSubspace::positions`], and whether the decoder's
+    /// workspace still holds its hidden pass (a gradient there reuses it).
+    decoded_at: Vec<f64>,
+    decoded_fresh: bool,
 }
 
 impl DecoderSubspace {
@@ -73,6 +77,8 @@ impl DecoderSubspace {
             q: vec![0.0; n],
             jq: vec![0.0; n * r],
             w: vec![0.0; n],
+            decoded_at: vec![0.0; r],
+            decoded_fresh: false,
             mlp,
         };
         subspace.set_frame(&encoding.frame(targets)?, targets);
@@ -106,7 +112,11 @@ impl DecoderSubspace {
     /// `x = f(z)`, the world state (`state_len` values).
     pub fn positions(&mut self, z: &[f64], x: &mut [f64]) -> TrainerResult<()> {
         self.check_len("state", self.state_len, x.len())?;
+        self.forget_decoded();
         self.mlp.value(z, &mut self.q, &mut self.workspace)?;
+        self.decoded_at.clear();
+        self.decoded_at.extend_from_slice(z);
+        self.decoded_fresh = true;
         self.place(x);
         Ok(())
     }
@@ -117,6 +127,7 @@ impl DecoderSubspace {
         let r = self.latent_len();
         self.check_len("state", self.state_len, x.len())?;
         self.check_len("Jacobian", self.state_len * r, jac.len())?;
+        self.forget_decoded();
         self.mlp.jacobian(z, &mut self.q, &mut self.jq, &mut self.workspace)?;
         self.place(x);
         let d = self.dim;
@@ -143,14 +154,20 @@ impl DecoderSubspace {
 
     /// `(dx/dz)^T g` (`r` values) at `z` for a world-space vector `g` (`state_len` values):
     /// the reduced gradient when `g = dE/dx`, by reverse mode through the decoder (prescribed
-    /// vertices do not depend on `z`).
+    /// vertices do not depend on `z`). Right after [`DecoderSubspace::positions`] at the same
+    /// `z` (as an objective's gradient call comes), the decoder's hidden pass is not repeated.
     pub fn gradient(&mut self, z: &[f64], g: &[f64], out: &mut [f64]) -> TrainerResult<()> {
-        self.with_pulled_back(g, |mlp, w, ws| mlp.pulled_back(z, w, out, ws))
+        if self.decoded_fresh && self.decoded_at == z {
+            self.with_pulled_back(g, |mlp, w, ws| mlp.pulled_back_after_value(w, out, ws))
+        } else {
+            self.with_pulled_back(g, |mlp, w, ws| mlp.pulled_back(z, w, out, ws))
+        }
     }
 
     /// `sum_i g_i d^2 x_i / dz^2` (`r x r`, row-major) at `z` for a world-space vector `g`
     /// (`state_len` values): the second-order term of the exact reduced Hessian.
     pub fn contracted_hessian(&mut self, z: &[f64], g: &[f64], out: &mut [f64]) -> TrainerResult<()> {
+        self.forget_decoded();
         self.with_pulled_back(g, |mlp, w, ws| mlp.contracted_hessian(z, w, out, ws))
     }
 
@@ -171,6 +188,7 @@ impl DecoderSubspace {
     /// `d^2/dt^2 f(z + t v)` at `t = 0` (`state_len` values; zero for prescribed vertices).
     pub fn second_directional(&mut self, z: &[f64], v: &[f64], out: &mut [f64]) -> TrainerResult<()> {
         self.check_len("state", self.state_len, out.len())?;
+        self.forget_decoded();
         self.mlp.second_directional(z, v, &mut self.w, &mut self.workspace)?;
         let d = self.dim;
         for &h in &self.handle_vertices {
@@ -199,6 +217,12 @@ impl DecoderSubspace {
             out[k * d..(k + 1) * d].copy_from_slice(&pulled.as_slice()[..d]);
         }
         Ok(())
+    }
+
+    /// Marks the decoder's workspace as no longer holding the hidden pass of the last
+    /// [`DecoderSubspace::positions`] (every other decoder call overwrites it).
+    fn forget_decoded(&mut self) {
+        self.decoded_fresh = false;
     }
 
     /// Writes the world state of the encoded state in `self.q`.

@@ -216,6 +216,45 @@ fn a_static_settle_lowers_the_potential_to_a_stationary_point() {
 }
 
 #[test]
+fn a_gradient_after_positions_reuses_the_hidden_pass_only_where_it_holds() {
+    let mut beam = tiny_beam();
+    let (mut subspace, z) = subspace_at(&mut beam, 6);
+    let (n, r) = (subspace.state_len(), z.len());
+    let other: Vec<f64> = z.iter().map(|v| v + 0.2).collect();
+    let g: Vec<f64> = (0..n).map(|i| ((i % 5) as f64 - 2.0) * 0.1).collect();
+    // Each gradient as a fresh subspace computes it (its hidden pass from scratch).
+    let fresh = |at: &[f64]| {
+        let mut out = vec![0.0; r];
+        subspace_at(&mut tiny_beam(), 6).0.gradient(at, &g, &mut out).unwrap();
+        out
+    };
+    let (at_z, at_other) = (fresh(&z), fresh(&other));
+    assert_ne!(at_z, at_other);
+    let (mut x, mut out) = (vec![0.0; n], vec![0.0; r]);
+    // At the latent just decoded (the objective's gradient call): reused, the same bits.
+    subspace.positions(&z, &mut x).unwrap();
+    subspace.gradient(&z, &g, &mut out).unwrap();
+    assert_eq!(out, at_z);
+    // At another latent, or after another decoder call overwrote the pass: computed anew.
+    subspace.gradient(&other, &g, &mut out).unwrap();
+    assert_eq!(out, at_other);
+    subspace.positions(&z, &mut x).unwrap();
+    let mut curvature = vec![0.0; r * r];
+    subspace.contracted_hessian(&other, &g, &mut curvature).unwrap();
+    subspace.gradient(&z, &g, &mut out).unwrap();
+    assert_eq!(out, at_z);
+    subspace.positions(&z, &mut x).unwrap();
+    subspace.second_directional(&other, &other, &mut x).unwrap();
+    subspace.gradient(&z, &g, &mut out).unwrap();
+    assert_eq!(out, at_z);
+    subspace.positions(&z, &mut x).unwrap();
+    let mut jac = vec![0.0; n * r];
+    subspace.positions_and_jacobian(&other, &mut x, &mut jac).unwrap();
+    subspace.gradient(&z, &g, &mut out).unwrap();
+    assert_eq!(out, at_z);
+}
+
+#[test]
 fn wrong_sizes_are_refused() {
     let mut beam = tiny_beam();
     let (mut stepper, z0) = stepper(&mut beam, ReducedSolver::Lbfgs, false);

@@ -102,6 +102,13 @@ fn pulled_back_gradient_matches_the_jacobian_and_differences() {
     let phi = |x: &[f64]| vec![value(&net, x).iter().zip(&w).map(|(y, w)| y * w).sum::<f64>()];
     let err = relative_error(&gradient, &central_differences(&x, 1, 1e-5, phi));
     assert!(err < 1e-8, "reverse mode differs from finite differences by {err}");
+    // After `value` at x, reusing its hidden pass gives the same bits.
+    let mut y = vec![0.0; OUT];
+    net.value(&x, &mut y, &mut ws).unwrap();
+    let mut after_value = vec![0.0; R];
+    net.pulled_back_after_value(&w, &mut after_value, &mut ws).unwrap();
+    assert_eq!(after_value, gradient);
+    assert!(net.pulled_back_after_value(&w[1..], &mut after_value, &mut ws).is_err());
     let short = &x[..R - 1];
     assert!(net.pulled_back(short, &w, &mut gradient, &mut ws).is_err());
     assert!(net.pulled_back(&x, &w[1..], &mut gradient, &mut ws).is_err());
