@@ -97,13 +97,27 @@ impl LipschitzTerm<'_> {
     /// Samples are independent: they are split into one chunk per worker thread (rayon), each
     /// with its own copy of the subspace, and come back in order.
     pub fn hessians(&self, decoder: &ExportedMlp, samples: &[LatentSample]) -> TrainerResult<Vec<DMatrix<f64>>> {
-        let at_samples = self.hessians_at(decoder, samples)?;
-        Ok(at_samples.into_iter().map(|h| h.hessian).collect())
+        self.hessians_with(decoder, samples, |hessian, _| hessian)
     }
 
     /// [`LipschitzTerm::hessians`], each with the decoded state and the decoder Jacobian it
     /// was computed from (the surrogate's constants need them again).
     fn hessians_at(&self, decoder: &ExportedMlp, samples: &[LatentSample]) -> TrainerResult<Vec<HessianAt>> {
+        self.hessians_with(decoder, samples, |hessian, objective| HessianAt {
+            hessian,
+            positions: objective.positions().to_vec(),
+            jacobian: objective.jacobian().to_vec(),
+        })
+    }
+
+    /// What `keep` makes of each sample's subspace Hessian and the objective it was computed
+    /// in, in sample order.
+    fn hessians_with<T: Send>(
+        &self,
+        decoder: &ExportedMlp,
+        samples: &[LatentSample],
+        keep: impl Fn(DMatrix<f64>, &ReducedObjective) -> T + Sync,
+    ) -> TrainerResult<Vec<T>> {
         let Some(first) = samples.first() else {
             return Ok(Vec::new());
         };
@@ -115,11 +129,7 @@ impl LipschitzTerm<'_> {
             let mut objective = ReducedObjective::new(subspace, self.potentials, None, self.scale, &mut buffers);
             let (mut grad, mut hess) = (vec![0.0; r], vec![0.0; r * r]);
             objective.exact_hessian(&s.z, &mut grad, &mut hess)?;
-            Ok(HessianAt {
-                hessian: DMatrix::from_row_slice(r, r, &hess),
-                positions: objective.positions().to_vec(),
-                jacobian: objective.jacobian().to_vec(),
-            })
+            Ok(keep(DMatrix::from_row_slice(r, r, &hess), &objective))
         })
     }
 
