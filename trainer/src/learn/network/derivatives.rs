@@ -64,7 +64,13 @@ impl Dense64 {
 
     /// Calls `sink(i, W_i · x)` for every row `i`.
     #[inline]
-    fn matvec(&self, x: &[f64], mut sink: impl FnMut(usize, f64)) {
+    fn matvec(&self, x: &[f64], sink: impl FnMut(usize, f64)) {
+        wide::matvec(self, x, sink)
+    }
+
+    /// [`Dense64::matvec`] as built, for whichever CPU runs it.
+    #[inline(always)]
+    fn matvec_portable(&self, x: &[f64], mut sink: impl FnMut(usize, f64)) {
         for i in 0..self.rows {
             sink(i, dot(self.row(i), x));
         }
@@ -75,6 +81,12 @@ impl Dense64 {
     /// W a + b` and `out += W t`. `W` is read once, row by row: each row gives its value, then
     /// accumulates `W_ij t_j` over `j` in blocks of up to 8 directions held in registers.
     fn with_tangents(&self, a: &[f64], t: &[f64], value: &mut [f64], out: &mut [f64], add: bool) {
+        wide::with_tangents(self, a, t, value, out, add)
+    }
+
+    /// [`Dense64::with_tangents`] as built.
+    #[inline(always)]
+    fn with_tangents_portable(&self, a: &[f64], t: &[f64], value: &mut [f64], out: &mut [f64], add: bool) {
         let count = t.len() / self.cols;
         for (i, o) in out.chunks_exact_mut(count).enumerate() {
             let row = self.row(i);
@@ -102,6 +114,12 @@ impl Dense64 {
 
     /// `out += Wᵀ v` for `v`: `rows × count` and `out`: `cols × count` (row-major).
     fn add_transposed(&self, v: &[f64], out: &mut [f64]) {
+        wide::add_transposed(self, v, out)
+    }
+
+    /// [`Dense64::add_transposed`] as built.
+    #[inline(always)]
+    fn add_transposed_portable(&self, v: &[f64], out: &mut [f64]) {
         let count = v.len() / self.rows;
         for (row, vi) in self.weights.chunks_exact(self.cols).zip(v.chunks_exact(count)) {
             if count == 1 {
@@ -129,7 +147,7 @@ fn accumulate<const L: usize>(row: &[f64], t: &[f64], k: usize, o: &mut [f64]) {
 }
 
 /// `a · b`, in four interleaved sums so that it vectorises.
-#[inline]
+#[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
     let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
@@ -482,3 +500,5 @@ impl Mlp64 {
 
 #[cfg(test)]
 mod tests;
+#[allow(unsafe_code)]
+mod wide;

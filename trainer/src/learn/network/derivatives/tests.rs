@@ -200,3 +200,40 @@ fn wrong_sizes_are_errors() {
     assert!(net.second_directional(&x, short, &mut y, &mut ws).is_err());
     assert!(net.second_directional(&x, &x, &mut y[1..], &mut ws).is_err());
 }
+
+#[test]
+fn the_wide_products_give_the_portable_bits() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    // Columns off the multiple of four (the dot product's tail) and 1, 3, 4 and 11 directions
+    // (every register block of the tangent products).
+    for (rows, cols) in [(37, 13), (5, 64), (130, 7)] {
+        let layer = Dense64::new(&DenseLayer {
+            rows,
+            cols,
+            weights: (0..rows * cols).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+            bias: (0..rows).map(|_| rng.random_range(-1.0f32..1.0)).collect(),
+        });
+        let x = random_vec(cols, &mut rng);
+        let (mut wide, mut portable) = (vec![0.0; rows], vec![0.0; rows]);
+        layer.matvec(&x, |i, v| wide[i] = v);
+        layer.matvec_portable(&x, |i, v| portable[i] = v);
+        assert_eq!(wide, portable, "{rows} x {cols}");
+        for count in [1, 3, 4, 11] {
+            let t = random_vec(cols * count, &mut rng);
+            let start = random_vec(rows * count, &mut rng);
+            for add in [false, true] {
+                let (mut value_w, mut out_w) = (start[..rows].to_vec(), start.clone());
+                let (mut value_p, mut out_p) = (value_w.clone(), out_w.clone());
+                layer.with_tangents(&x, &t, &mut value_w, &mut out_w, add);
+                layer.with_tangents_portable(&x, &t, &mut value_p, &mut out_p, add);
+                assert_eq!((value_w, out_w), (value_p, out_p), "{rows} x {cols}, {count}");
+            }
+            let v = random_vec(rows * count, &mut rng);
+            let (mut out_w, mut out_p) = (random_vec(cols * count, &mut rng), vec![]);
+            out_p.clone_from(&out_w);
+            layer.add_transposed(&v, &mut out_w);
+            layer.add_transposed_portable(&v, &mut out_p);
+            assert_eq!(out_w, out_p, "{rows} x {cols}, {count}");
+        }
+    }
+}
