@@ -160,6 +160,7 @@ impl DecoderSubspace {
         if self.decoded_fresh && self.decoded_at == z {
             self.with_pulled_back(g, |mlp, w, ws| mlp.pulled_back_after_value(w, out, ws))
         } else {
+            self.forget_decoded();
             self.with_pulled_back(g, |mlp, w, ws| mlp.pulled_back(z, w, out, ws))
         }
     }

@@ -238,6 +238,8 @@ fn a_gradient_after_positions_reuses_the_hidden_pass_only_where_it_holds() {
     // At another latent, or after another decoder call overwrote the pass: computed anew.
     subspace.gradient(&other, &g, &mut out).unwrap();
     assert_eq!(out, at_other);
+    subspace.gradient(&z, &g, &mut out).unwrap();
+    assert_eq!(out, at_z);
     subspace.positions(&z, &mut x).unwrap();
     let mut curvature = vec![0.0; r * r];
     subspace.contracted_hessian(&other, &g, &mut curvature).unwrap();
