@@ -4,6 +4,7 @@
 
 use mochi_trainer::artifact::reduced::{reduced_path, ReducedArtifact};
 use mochi_trainer::eval::reduced_bench::{self, ReducedBenchOptions};
+use mochi_trainer::methods::reduced::rounding::Rounding;
 use mochi_trainer::{artifact_paths, evaluate, train_scene, EvalOptions, Quiet, Recipe, TrainOptions};
 
 /// The tiny cantilever of the latent tests, asking for the reduced method with a short
@@ -123,7 +124,7 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     assert!(table.contains("20 steps of 3 frames each"), "{table}");
     // Emulated single precision: the same runs, every step ending in one of the exits.
     let single = ReducedBenchOptions {
-        single: true,
+        rounding: Rounding::Single,
         ..options
     };
     let single_timings = reduced_bench::bench(&file, &single, &Quiet).unwrap();

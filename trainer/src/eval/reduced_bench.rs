@@ -63,9 +63,10 @@ pub struct ReducedBenchOptions {
     /// ([`mochi_sim::bc::BcSequence::every`]): the same motions in `stride` times larger
     /// steps (default 1).
     pub stride: usize,
-    /// Solve in single precision, emulated ([`crate::methods::reduced::rounding`]): what each
-    /// subspace costs a solver whose numbers are `f32` (default off).
-    pub single: bool,
+    /// The solves' arithmetic: double precision (default), or single precision emulated
+    /// ([`crate::methods::reduced::rounding`]): what each subspace costs a solver whose numbers
+    /// are `f32`.
+    pub rounding: Rounding,
 }
 
 impl Default for ReducedBenchOptions {
@@ -74,7 +75,7 @@ impl Default for ReducedBenchOptions {
             frames: 300,
             cold: false,
             stride: 1,
-            single: false,
+            rounding: Rounding::Double,
         }
     }
 }
@@ -83,17 +84,6 @@ impl ReducedTiming {
     /// Share of steps that converged (exit I).
     pub fn converged(&self) -> f64 {
         self.exit_shares[Exit::Converged as usize]
-    }
-}
-
-impl ReducedBenchOptions {
-    /// The arithmetic the solves run in.
-    pub fn rounding(&self) -> Rounding {
-        if self.single {
-            Rounding::Single
-        } else {
-            Rounding::Double
-        }
     }
 }
 
@@ -115,7 +105,7 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
     let problem = recipe.build()?;
     let encoding = Encoding::new(&problem, recipe.latent.rods)?;
     let mut settings = stepper_settings(&spec, problem.scene.integrator);
-    settings.solve.rounding = options.rounding();
+    settings.solve.rounding = options.rounding;
     let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
     let elastic = elastic_terms(&potentials);
     let cubatures = cubature_energies(&problem, &reduced.cubature)?;
@@ -185,7 +175,7 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
         "{scene}: reduced-order solver in {}, {steps}, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
          | iterations/step | evaluations/step | converged % | exits I / II / III / IV % | mean exit gradient | Lip \
          | latent spread | Lip x spread^3 | condition |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
-        options.rounding().name()
+        options.rounding.name()
     );
     for (k, t) in timings.iter().enumerate() {
         let baseline = &timings[k - k % 2];

@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::Parser;
 use mochi_trainer::eval;
 use mochi_trainer::eval::reduced_bench::ReducedBenchOptions;
+use mochi_trainer::methods::reduced::rounding::Rounding;
 use mochi_trainer::{shipped_scene_names, Recipe, Reporter};
 
 use args::{Bench, Cli, Command};
@@ -177,7 +178,7 @@ fn run(cli: Cli) -> Result<()> {
                 frames,
                 cold,
                 stride: stride as usize,
-                single,
+                rounding: if single { Rounding::Single } else { Rounding::Double },
             };
             bench_reduced(&reduced, &options, out)
         }
