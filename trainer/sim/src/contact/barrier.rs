@@ -20,17 +20,21 @@ pub fn barrier(d: f64, dhat: f64) -> f64 {
     -(d - dhat) * (d - dhat) * (d / dhat).ln()
 }
 
-/// `b'(d) = (dhat - d) (2 ln(d / dhat) - dhat / d + 1)`; zero for `d >= dhat`.
+/// `b'(d) = (dhat - d) (2 ln(d / dhat) - dhat / d + 1)`; zero for `d >= dhat`, and zero at
+/// contact (`d <= 0`), as in IPC's toolkit: there the value is infinite and no derivative
+/// exists, and zero keeps every product with it (the contact force, the gradient and Hessian
+/// of the potential, friction's normal force) a number instead of `0 * inf`.
 pub fn barrier_first_derivative(d: f64, dhat: f64) -> f64 {
-    if d >= dhat {
+    if d >= dhat || d <= 0.0 {
         return 0.0;
     }
     (dhat - d) * (2.0 * (d / dhat).ln() - dhat / d + 1.0)
 }
 
-/// `b''(d) = (dhat / d + 3)(dhat / d - 1) - 2 ln(d / dhat)`; zero for `d >= dhat`.
+/// `b''(d) = (dhat / d + 3)(dhat / d - 1) - 2 ln(d / dhat)`; zero for `d >= dhat` and at
+/// contact (`d <= 0`, as [`barrier_first_derivative`]).
 pub fn barrier_second_derivative(d: f64, dhat: f64) -> f64 {
-    if d >= dhat {
+    if d >= dhat || d <= 0.0 {
         return 0.0;
     }
     let q = dhat / d;

@@ -1,8 +1,9 @@
 //! Edge-edge squared distance (3D) and its closest-feature classification.
 
 use super::kernels;
+use super::point_edge::point_line;
 use super::point_edge::{point_edge_type, PointEdgeType};
-use super::reduced::{cross, dot, sub, vertex};
+use super::reduced::{cross_accurate, difference, dot, sub, vertex};
 use crate::energy::{Local, Want};
 
 /// Which features of the edges `a = [ea0, ea1]` and `b = [eb0, eb1]` are closest.
@@ -28,62 +29,83 @@ pub enum EdgeEdgeType {
     AB,
 }
 
-/// Edges whose squared cross-product norm is below this fraction of
-/// `max(1, |a|^2 |b|^2)` are treated as parallel.
-const PARALLEL_THRESHOLD: f64 = 1e-20;
+/// Edges whose squared cross-product norm is below this fraction of `|a|^2 |b|^2` (the
+/// squared sine of their angle: under `1e-10` rad) are treated as parallel. Relative to the
+/// edges' lengths, so short edges are classified as long ones of the same shape; treating
+/// such edges as parallel moves their distance by at most `1e-10` times the shorter edge.
+pub const PARALLEL_THRESHOLD: f64 = 1e-20;
 
 /// Classifies `x = [ea0, ea1, eb0, eb1]`. The closest points of the two lines, at parameters
 /// `s` on `a` and `t` on `b`, are clamped to the segments in turn (the classic
 /// segment-segment algorithm): `s` first, then `t` for that `s`, then `s` again if `t` had to
-/// be clamped. Degenerate (zero-length) edges fall back to their first endpoint; parallel
-/// edges to [`parallel_type`].
+/// be clamped. A zero-length edge is its one point, classified against the other edge; parallel
+/// edges to [`parallel_type`]. The lines' parameters are ratios of cross products, each
+/// component computed with one rounding ([`cross_accurate`]), instead of the Gram
+/// determinant `|a|^2 |b|^2 - (a.b)^2`, which cancels for nearly parallel edges.
 pub fn edge_edge_type(x: &[f64]) -> EdgeEdgeType {
     use EdgeEdgeType::*;
     let v = [0, 1, 2, 3].map(|a| vertex(x, 3, a));
     let u = sub(v[1], v[0]);
     let w = sub(v[3], v[2]);
     let r = sub(v[0], v[2]);
-    let (a, b, c, d, e) = (dot(u, u), dot(u, w), dot(w, w), dot(u, r), dot(w, r));
-    let den = a * c - b * b;
+    let (a, c) = (dot(u, u), dot(w, w));
     match (a == 0.0, c == 0.0) {
         (true, true) => return A0B0,
-        (true, false) => return A0B,
-        (false, true) => return AB0,
+        (true, false) => return point_type(x, 0, [A0B0, A0B1, A0B]),
+        (false, true) => return point_type(x, 2, [A0B0, A1B0, AB0]),
         _ => {}
     }
-    let n = cross(u, w);
-    if dot(n, n) < PARALLEL_THRESHOLD * (a * c).max(1.0) {
+    let n = cross_accurate(u, w);
+    let den = dot(n, n);
+    if den.is_nan() || den < PARALLEL_THRESHOLD * a * c {
         return parallel_type(x);
     }
-    // s = s_num / den on a; t = t_num / t_den on b.
-    let s_num = b * e - c * d;
+    // By Lagrange's identity, s = n.(w x r) / |n|^2 on a; t = t_num / t_den on b.
+    let s_num = dot(n, cross_accurate(w, r));
     let (t_num, t_den, interior) = if s_num <= 0.0 {
-        (e, c, A0B)
+        (dot(w, r), c, A0B)
     } else if s_num >= den {
-        (e + b, c, A1B)
+        (dot(w, sub(v[1], v[2])), c, A1B)
     } else {
-        (a * e - b * d, den, AB)
+        (dot(n, cross_accurate(u, r)), den, AB)
     };
     if t_num <= 0.0 {
-        // t = 0: closest point of a to eb0, at s = -d / a.
-        if -d <= 0.0 {
+        // t = 0: closest point of a to eb0, at s = (eb0 - ea0).u / a.
+        let s = dot(u, sub(v[2], v[0]));
+        if s <= 0.0 {
             A0B0
-        } else if -d >= a {
+        } else if s >= a {
             A1B0
         } else {
             AB0
         }
     } else if t_num >= t_den {
-        // t = 1: closest point of a to eb1, at s = (b - d) / a.
-        if b - d <= 0.0 {
+        // t = 1: closest point of a to eb1, at s = (eb1 - ea0).u / a.
+        let s = dot(u, sub(v[3], v[0]));
+        if s <= 0.0 {
             A0B1
-        } else if b - d >= a {
+        } else if s >= a {
             A1B1
         } else {
             AB1
         }
     } else {
         interior
+    }
+}
+
+/// The type of the endpoint `x[p]` of a zero-length edge against the other edge, as
+/// `[at its first end, at its second end, in its interior]`.
+fn point_type(x: &[f64], p: usize, types: [EdgeEdgeType; 3]) -> EdgeEdgeType {
+    let other = if p == 0 { [2, 3] } else { [0, 1] };
+    let mut local = [0.0; 9];
+    for (k, a) in [p, other[0], other[1]].into_iter().enumerate() {
+        local[3 * k..3 * k + 3].copy_from_slice(&x[3 * a..3 * a + 3]);
+    }
+    match point_edge_type(&local, 3) {
+        PointEdgeType::E0 => types[0],
+        PointEdgeType::E1 => types[1],
+        PointEdgeType::Interior => types[2],
     }
 }
 
@@ -131,18 +153,14 @@ pub fn edge_edge_distance_typed(x: &[f64], ty: EdgeEdgeType, want: Want, out: &m
     use EdgeEdgeType::*;
     let v = [0, 1, 2, 3].map(|a| vertex(x, 3, a));
     let hess = want.hessian().is_some();
-    let diff = |a: usize, b: usize| {
-        let mut c = [0.0; 4];
-        c[a] = 1.0;
-        c[b] = -1.0;
-        c
-    };
+    let diff = difference;
     let point_point = |a: usize, b: usize, out: &mut Local| {
         kernels::point_point(sub(v[a], v[b]), hess).scatter(&[diff(a, b)], 4, 3, want, out)
     };
     // Point `p` against the line of the edge `[s, t]`.
     let point_line = |p: usize, s: usize, t: usize, out: &mut Local| {
-        kernels::point_line(sub(v[p], v[s]), sub(v[t], v[s]), hess).scatter(&[diff(p, s), diff(t, s)], 4, 3, want, out)
+        let (kernel, coef) = point_line(&v, p, s, t, hess);
+        kernel.scatter(&coef, 4, 3, want, out)
     };
     match ty {
         A0B0 => point_point(0, 2, out),

@@ -16,7 +16,7 @@
 //!   `(u, v)` block (and `[g]x` to `(v, u)`) for `g = d_n`.
 //! - cross squared norm, `x = n.n`: `x_n = 2n`, `H_nn = 2I`, chained as above.
 
-use super::reduced::{cross, cross_matrix, dot, mat_mul, scale, scale_matrix, transpose, Reduced};
+use super::reduced::{cross, cross_accurate, cross_matrix, dot, mat_mul, scale, scale_matrix, transpose, Reduced};
 
 /// `d = |r|^2` in the reduced vector `r` (index 0).
 pub fn point_point(r: [f64; 3], hessian: bool) -> Reduced {
@@ -33,9 +33,10 @@ pub fn point_point(r: [f64; 3], hessian: bool) -> Reduced {
 
 /// Squared distance from `p` to the line through `e0` along `e`, with `r = p - e0` (index 0)
 /// and `e = e1 - e0` (index 1), as `|r x e|^2 / e.e` (no cancellation near the line; 2D
-/// embeds with `z = 0`).
+/// embeds with `z = 0`). `r` may start at either endpoint (the value is the same): callers
+/// take the endpoint nearer `p`, where `r x e` keeps its relative accuracy.
 pub fn point_line(r: [f64; 3], e: [f64; 3], hessian: bool) -> Reduced {
-    let n = cross(r, e);
+    let n = cross_accurate(r, e);
     let m = dot(n, n);
     let c = dot(e, e);
     let mut out = Reduced {
@@ -92,7 +93,7 @@ fn chain_cross(
 /// (`r = p - t0`, `u = t1 - t0`, `v = t2 - t0`) or between two lines (`r = eb0 - ea0`,
 /// `u = ea1 - ea0`, `v = eb1 - eb0`). Indices: `r` 0, `u` 1, `v` 2.
 pub fn plane(r: [f64; 3], u: [f64; 3], v: [f64; 3], hessian: bool) -> Reduced {
-    let n = cross(u, v);
+    let n = cross_accurate(u, v);
     let q = dot(r, n);
     let m = dot(n, n);
     let mut out = Reduced {

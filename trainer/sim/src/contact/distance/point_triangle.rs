@@ -1,7 +1,8 @@
 //! Point-triangle squared distance (3D) and its closest-feature classification.
 
 use super::kernels;
-use super::reduced::{cross, dot, sub, vertex};
+use super::point_edge::{point_edge_distance_typed, point_edge_type, point_line, PointEdgeType};
+use super::reduced::{cross, cross_accurate, difference, dot, sub, vertex};
 use crate::energy::{Local, Want};
 
 /// Which features of the triangle `[t0, t1, t2]` are closest to the point.
@@ -35,14 +36,28 @@ fn edge_frame(t: [[f64; 3]; 3], normal: [f64; 3], i: usize, p: [f64; 3]) -> [f64
     ]
 }
 
+/// Triangles whose squared double area is at most this fraction of their longest edge's
+/// length to the fourth (heights up to `1e-10` of that edge) are degenerate: they have no
+/// interior, and the point's closest feature is found among their edges.
+pub const DEGENERATE_TRIANGLE: f64 = 1e-20;
+
 /// Classifies `x = [p, t0, t1, t2]`: the point's projection onto the triangle's plane is
 /// compared with each edge (the fraction along it and the side of it). An edge is closest
 /// when the projection lies outside it and strictly between its endpoints; a vertex when
-/// the projection is past the ends of both its edges; otherwise the interior.
+/// the projection is past the ends of both its edges; otherwise the interior. A degenerate
+/// triangle (see [`DEGENERATE_TRIANGLE`]: collinear or coincident vertices) is the union of
+/// its edges, so the closest of them, classified by [`point_edge_type`], decides.
 pub fn point_triangle_type(x: &[f64]) -> PointTriangleType {
     let p = vertex(x, 3, 0);
     let t = [1, 2, 3].map(|a| vertex(x, 3, a));
-    let normal = cross(sub(t[1], t[0]), sub(t[2], t[0]));
+    let normal = cross_accurate(sub(t[1], t[0]), sub(t[2], t[0]));
+    let longest = (0..3)
+        .map(|i| dot(sub(t[(i + 1) % 3], t[i]), sub(t[(i + 1) % 3], t[i])))
+        .fold(0.0, f64::max);
+    let area2 = dot(normal, normal);
+    if area2.is_nan() || area2 <= DEGENERATE_TRIANGLE * longest * longest {
+        return closest_edge_type(x);
+    }
     let mut frame = [[0.0; 2]; 3];
     const EDGES: [PointTriangleType; 3] = [PointTriangleType::E0, PointTriangleType::E1, PointTriangleType::E2];
     for i in 0..3 {
@@ -63,6 +78,34 @@ pub fn point_triangle_type(x: &[f64]) -> PointTriangleType {
     }
 }
 
+/// The type of the closest of the three edges of `x = [p, t0, t1, t2]` to `p`, each
+/// classified by [`point_edge_type`] (a zero-length edge as its one point).
+fn closest_edge_type(x: &[f64]) -> PointTriangleType {
+    use PointTriangleType::*;
+    const EDGES: [(usize, usize, PointTriangleType, PointTriangleType, PointTriangleType); 3] =
+        [(1, 2, T0, T1, E0), (2, 3, T1, T2, E1), (3, 1, T2, T0, E2)];
+    let mut best = (f64::INFINITY, Interior);
+    let mut scratch = Local::default();
+    for (s, t, at_s, at_t, interior) in EDGES {
+        let mut local = [0.0; 9];
+        for (k, a) in [0, s, t].into_iter().enumerate() {
+            local[3 * k..3 * k + 3].copy_from_slice(&x[3 * a..3 * a + 3]);
+        }
+        let ty = point_edge_type(&local, 3);
+        let d = point_edge_distance_typed(&local, 3, ty, Want::Value, &mut scratch);
+        let ty = match ty {
+            PointEdgeType::E0 => at_s,
+            PointEdgeType::E1 => at_t,
+            PointEdgeType::Interior => interior,
+        };
+        // The first edge always names a type, so non-finite input still gets one.
+        if d < best.0 || best.1 == Interior {
+            best = (d, ty);
+        }
+    }
+    best.1
+}
+
 /// Squared distance from `p` to the triangle of `x = [p, t0, t1, t2]`, classified by
 /// [`point_triangle_type`].
 pub fn point_triangle_distance(x: &[f64], want: Want, out: &mut Local) -> f64 {
@@ -73,13 +116,7 @@ pub fn point_triangle_distance(x: &[f64], want: Want, out: &mut Local) -> f64 {
 pub fn point_triangle_distance_typed(x: &[f64], ty: PointTriangleType, want: Want, out: &mut Local) -> f64 {
     let v = [0, 1, 2, 3].map(|a| vertex(x, 3, a));
     let hess = want.hessian().is_some();
-    // Coefficients of `v[a] - v[b]` over the stencil's four vertices.
-    let diff = |a: usize, b: usize| {
-        let mut c = [0.0; 4];
-        c[a] = 1.0;
-        c[b] = -1.0;
-        c
-    };
+    let diff = difference;
     let (vertex_of, edge_of) = match ty {
         PointTriangleType::T0 => (Some(1), None),
         PointTriangleType::T1 => (Some(2), None),
@@ -93,13 +130,8 @@ pub fn point_triangle_distance_typed(x: &[f64], ty: PointTriangleType, want: Wan
         return kernels::point_point(sub(v[0], v[a]), hess).scatter(&[diff(0, a)], 4, 3, want, out);
     }
     if let Some((a, b)) = edge_of {
-        return kernels::point_line(sub(v[0], v[a]), sub(v[b], v[a]), hess).scatter(
-            &[diff(0, a), diff(b, a)],
-            4,
-            3,
-            want,
-            out,
-        );
+        let (kernel, coef) = point_line(&v, 0, a, b, hess);
+        return kernel.scatter(&coef, 4, 3, want, out);
     }
     kernels::plane(sub(v[0], v[1]), sub(v[2], v[1]), sub(v[3], v[1]), hess).scatter(
         &[diff(0, 1), diff(2, 1), diff(3, 1)],

@@ -12,8 +12,15 @@ pub struct TangentBasis {
     pub columns: [[f64; 3]; 2],
 }
 
+/// `v / |v|`, or `v` itself when it is zero (as Eigen's `normalized`, so the toolkit's
+/// conventions hold): a pair at distance zero, or parallel edges, has no tangent direction,
+/// and a zero column makes its tangential velocity, and so its friction, zero.
 fn normalized(v: [f64; 3]) -> [f64; 3] {
-    scale(1.0 / dot(v, v).sqrt(), v)
+    let norm2 = dot(v, v);
+    if norm2 == 0.0 {
+        return v;
+    }
+    scale(1.0 / norm2.sqrt(), v)
 }
 
 impl TangentBasis {

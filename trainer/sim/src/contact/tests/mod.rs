@@ -4,7 +4,9 @@
 mod barrier;
 mod broad_phase;
 mod ccd;
+mod ccd_near_parallel;
 mod closest_point;
+mod degenerate;
 mod distance;
 mod friction;
 mod intersection;
