@@ -12,9 +12,13 @@ denominator also includes mu N f1(|tau|)/|tau| max |P^T P|, the size of the two 
 cancel along a sliding direction. A row passes when its worst error over the
 well-conditioned cases (see `conditioned`) is at most 1e-10; the worst error over all cases
 is printed beside it. A second table compares the times of impact of additive CCD on
-random motions of every pair (`ipctk_ccd.py` beside this script).
+random motions of every pair (`ipctk_ccd.py` beside this script). A third checks families
+of hard cases against exact references (`ipctk_families.py`: short nearly parallel edges
+with their CCD, degenerate primitives, distance 0, points near an edge's endpoints, CCD of
+degenerate primitives), n cases per family and pair.
 
-Usage: check_ipctk.py CONTACT_CASES_BINARY WORK_DIR [--cases N] [--seed S] [--only primitives|ccd]
+Usage: check_ipctk.py CONTACT_CASES_BINARY WORK_DIR [--cases N] [--seed S]
+       [--only primitives|ccd|families] [--families NAME,...]
 """
 
 import argparse
@@ -26,6 +30,7 @@ import numpy as np
 import ipctk
 
 import ipctk_ccd
+import ipctk_families
 
 TOL = 1e-10
 EPS_V = 1e-2
@@ -159,61 +164,68 @@ def scatter(values, verts, dim, n, hessian):
 
 
 def reference(key, xs, dhats, vs, epsx):
+    """ipctk's values of every quantity on the cases of one pair (arrays over the cases)."""
+    rows = [reference_one(key, x, dhats[c], vs[c], None if epsx is None else epsx[c]) for c, x in enumerate(xs)]
+    return {k: np.array([r[k] for r in rows]) for k in rows[0]}
+
+
+def reference_one(key, x, dhat, vel, epsx):
+    """ipctk's values on one case of `key`: positions x, activation distance dhat,
+    velocities vel, edge-edge mollifier threshold epsx."""
     dim, _ = PAIRS[key]
     friction = ipctk.FrictionPotential(EPS_V)
     barrier = ipctk.ClampedLogBarrier()
-    out = {name: [] for name in ["d", "type", "g", "h", "b", "bg", "bh", "T", "cp", "cpj", "G", "N", "Nfr", "f", "fg", "fh", "fhp", "m", "mg", "mh"]}
-    for c, x in enumerate(xs):
-        v = split(x, dim)
-        n = len(x)
-        if key.startswith("pp"):
-            d, g, h, ty = ipctk.point_point_distance(*v), ipctk.point_point_distance_gradient(*v), ipctk.point_point_distance_hessian(*v), 0
-            own, tangential = ipctk.VertexVertexNormalCollision(0, 1), ipctk.VertexVertexTangentialCollision
-        elif key.startswith("pe"):
-            ty = int(ipctk.point_edge_distance_type(*v))
-            d, g, h = ipctk.point_edge_distance(*v), ipctk.point_edge_distance_gradient(*v), ipctk.point_edge_distance_hessian(*v)
-            own, tangential = ipctk.EdgeVertexNormalCollision(0, 0), ipctk.EdgeVertexTangentialCollision
-        elif key == "pt":
-            ty = int(ipctk.point_triangle_distance_type(*v))
-            d, g, h = ipctk.point_triangle_distance(*v), ipctk.point_triangle_distance_gradient(*v), ipctk.point_triangle_distance_hessian(*v)
-            own, tangential = ipctk.FaceVertexNormalCollision(0, 0), ipctk.FaceVertexTangentialCollision
-        else:
-            ty = int(ipctk.edge_edge_distance_type(*v))
-            d, g, h = ipctk.edge_edge_distance(*v), ipctk.edge_edge_distance_gradient(*v), ipctk.edge_edge_distance_hessian(*v)
-            own, tangential = ipctk.EdgeEdgeNormalCollision(0, 1, epsx[c]), ipctk.EdgeEdgeTangentialCollision
-            out["m"].append(ipctk.edge_edge_mollifier(*v, epsx[c]))
-            out["mg"].append(ipctk.edge_edge_mollifier_gradient(*v, epsx[c]))
-            out["mh"].append(ipctk.edge_edge_mollifier_hessian(*v, epsx[c]))
-        out["d"].append(d)
-        out["type"].append(ty)
-        out["g"].append(g)
-        out["h"].append(h)
-        # Barrier b(d^2, dhat^2) with stiffness one, on the collision ipctk would build.
-        potential = ipctk.BarrierPotential(dhats[c], 1.0)
-        if key == "ee":
-            collision, verts = own, [0, 1, 2, 3]  # typed by ipctk itself (AUTO), mollified
-        else:
-            collision, verts = typed_collision(key, ty)
-        xsub = np.concatenate([v[i] for i in verts])
-        out["b"].append(potential(collision, xsub))
-        out["bg"].append(scatter(potential.gradient(collision, xsub), verts, dim, n, False))
-        out["bh"].append(scatter(potential.hessian(collision, xsub), verts, dim, n, True))
-        out["N"].append(ipctk.barrier_force_magnitude(d, barrier, dhats[c], KAPPA))
-        # Friction on the pair's own stencil: lagged frame, normal force and potential.
-        t = tangential(own, x, ipctk.BarrierPotential(dhats[c], KAPPA))
-        t.mu_s = t.mu_k = MU
-        t.mu_s_effective_lagged = t.mu_k_effective_lagged = MU
-        out["T"].append(t.tangent_basis)
-        if not key.startswith("pp"):
-            out["cp"].append(np.atleast_1d(t.closest_point))
-            out["cpj"].append(np.atleast_2d(t.compute_closest_point_jacobian(x)))
-        out["G"].append(t.relative_velocity_jacobian())
-        out["Nfr"].append(t.normal_force_magnitude)
-        out["f"].append(friction(t, vs[c]))
-        out["fg"].append(friction.gradient(t, vs[c]))
-        out["fh"].append(friction.hessian(t, vs[c], ipctk.PSDProjectionMethod.NONE))
-        out["fhp"].append(friction.hessian(t, vs[c], ipctk.PSDProjectionMethod.CLAMP))
-    return {k: np.array(v) for k, v in out.items() if v}
+    out = {}
+    v = split(x, dim)
+    n = len(x)
+    if key.startswith("pp"):
+        d, g, h, ty = ipctk.point_point_distance(*v), ipctk.point_point_distance_gradient(*v), ipctk.point_point_distance_hessian(*v), 0
+        own, tangential = ipctk.VertexVertexNormalCollision(0, 1), ipctk.VertexVertexTangentialCollision
+    elif key.startswith("pe"):
+        ty = int(ipctk.point_edge_distance_type(*v))
+        d, g, h = ipctk.point_edge_distance(*v), ipctk.point_edge_distance_gradient(*v), ipctk.point_edge_distance_hessian(*v)
+        own, tangential = ipctk.EdgeVertexNormalCollision(0, 0), ipctk.EdgeVertexTangentialCollision
+    elif key == "pt":
+        ty = int(ipctk.point_triangle_distance_type(*v))
+        d, g, h = ipctk.point_triangle_distance(*v), ipctk.point_triangle_distance_gradient(*v), ipctk.point_triangle_distance_hessian(*v)
+        own, tangential = ipctk.FaceVertexNormalCollision(0, 0), ipctk.FaceVertexTangentialCollision
+    else:
+        ty = int(ipctk.edge_edge_distance_type(*v))
+        d, g, h = ipctk.edge_edge_distance(*v), ipctk.edge_edge_distance_gradient(*v), ipctk.edge_edge_distance_hessian(*v)
+        own, tangential = ipctk.EdgeEdgeNormalCollision(0, 1, epsx), ipctk.EdgeEdgeTangentialCollision
+        out["m"] = ipctk.edge_edge_mollifier(*v, epsx)
+        out["mg"] = ipctk.edge_edge_mollifier_gradient(*v, epsx)
+        out["mh"] = ipctk.edge_edge_mollifier_hessian(*v, epsx)
+    out.update(d=d, type=ty, g=g, h=h)
+    # Barrier b(d^2, dhat^2) with stiffness one, on the collision ipctk would build.
+    potential = ipctk.BarrierPotential(dhat, 1.0)
+    if key == "ee":
+        collision, verts = own, [0, 1, 2, 3]  # typed by ipctk itself (AUTO), mollified
+    else:
+        collision, verts = typed_collision(key, ty)
+    xsub = np.concatenate([v[i] for i in verts])
+    out["b"] = potential(collision, xsub)
+    out["bg"] = scatter(potential.gradient(collision, xsub), verts, dim, n, False)
+    out["bh"] = scatter(potential.hessian(collision, xsub), verts, dim, n, True)
+    out["N"] = ipctk.barrier_force_magnitude(d, barrier, dhat, KAPPA)
+    # Friction on the pair's own stencil: lagged frame, normal force and potential.
+    t = tangential(own, x, ipctk.BarrierPotential(dhat, KAPPA))
+    t.mu_s = t.mu_k = MU
+    t.mu_s_effective_lagged = t.mu_k_effective_lagged = MU
+    out["T"] = t.tangent_basis
+    if not key.startswith("pp"):
+        out["cp"] = np.atleast_1d(t.closest_point)
+        out["cpj"] = np.atleast_2d(t.compute_closest_point_jacobian(x))
+    out["G"] = t.relative_velocity_jacobian()
+    out["Nfr"] = t.normal_force_magnitude
+    out["f"] = friction(t, vel)
+    out["fg"] = friction.gradient(t, vel)
+    out["fh"] = friction.hessian(t, vel, ipctk.PSDProjectionMethod.NONE)
+    try:
+        out["fhp"] = friction.hessian(t, vel, ipctk.PSDProjectionMethod.CLAMP)
+    except RuntimeError:  # "unable to project matrix onto positive semi-definite cone" (a NaN Hessian)
+        out["fhp"] = np.full_like(out["fh"], np.nan)
+    return out
 
 
 def case_errors(ours, ref, scale=None):
@@ -359,17 +371,28 @@ def main():
     ap.add_argument("work")
     ap.add_argument("--cases", type=int, default=10000)
     ap.add_argument("--seed", type=int, default=2020)
-    ap.add_argument("--only", choices=["primitives", "ccd"], help="check only the primitives or only CCD")
+    ap.add_argument("--only", choices=["primitives", "ccd", "families"], help="check only the primitives, CCD or the families")
+    ap.add_argument("--families", default=",".join(ipctk_families.FAMILIES),
+                    help="comma-separated families to check (default all: " + ", ".join(ipctk_families.FAMILIES) + ")")
     args = ap.parse_args()
+    families = [f for f in args.families.split(",") if f]
+    unknown = set(families) - set(ipctk_families.FAMILIES)
+    if unknown:
+        ap.error(f"unknown families {sorted(unknown)}")
     rng = np.random.default_rng(args.seed)
     n = args.cases
     os.makedirs(args.work, exist_ok=True)
-    inputs, refs, ccd_refs = {}, {}, {}
-    if args.only != "ccd":
+    inputs, refs, ccd_refs, fam_refs = {}, {}, {}, {}
+    if args.only in (None, "primitives"):
         inputs, refs = primitive_cases(rng, n)
-    if args.only != "primitives":
+    if args.only in (None, "ccd"):
         ccd_inputs, ccd_refs = ipctk_ccd.inputs(rng, n)
         inputs.update(ccd_inputs)
+    if args.only in (None, "families"):
+        # Their own generator: the other tables' cases stay those of earlier seeds.
+        fam_rng = np.random.default_rng([args.seed, 1])
+        fam_inputs, fam_refs = ipctk_families.inputs(fam_rng, n, families, reference_one, ipctk_ccd.reference)
+        inputs.update({k: v for k, v in fam_inputs.items() if k not in inputs})
 
     in_path, out_path = os.path.join(args.work, "cases.npz"), os.path.join(args.work, "ours.npz")
     np.savez(in_path, **inputs)
@@ -386,6 +409,14 @@ def main():
         print(f"\nCCD passes: {'yes' if ccd_ok else 'NO'} (ipctk only = 0, ours after ipctk's = 0, "
               f"min ours / ipctk >= {ipctk_ccd.MIN_RATIO} over the cases both find with ipctk's time > 0).")
         ok &= ccd_ok
+    if fam_refs:
+        lines, fam_ok = ipctk_families.table(fam_refs, ours)
+        print(f"\nFamilies against exact references (CCD floor {ipctk_families.CCD_FLOOR:g}, bound {ipctk_families.TOL:g}):\n")
+        print("\n".join(lines))
+        print(f"\nFamilies pass: {'yes' if fam_ok else 'NO'} (no NaN; distances, and gradients of degenerate, distance-0 and "
+              "near-endpoint cases, within the bound; at distance 0 zero where ipctk's is zero; no CCD miss or time after the "
+              "exact one above the floor).")
+        ok &= fam_ok
     return 0 if ok else 1
 
 

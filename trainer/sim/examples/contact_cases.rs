@@ -9,7 +9,9 @@
 //! `ccd_K_x0`, `ccd_K_x1` (cases x dofs) the positions at the start and end of a linear step
 //! and `ccd_K_xi` (cases) the minimum separations; out come `ccd_K_hit` (1 or 0) and
 //! `ccd_K_toi`, additive CCD's time of impact with default parameters and `tmax = 1`. Either
-//! group of inputs may be absent.
+//! group of inputs may be absent. Every pair's and CCD's arrays may also come under a prefix
+//! (`P K_x`, `P ee_epsx`, `P ccd_K_x0`, ..., e.g. `fam_degenerate_pt_x`, the case families
+//! of `scripts/ipctk_families.py`); their outputs get the same prefix.
 
 use std::error::Error;
 use std::path::Path;
@@ -116,32 +118,39 @@ fn friction_frame(key: &str, x: &[f64]) -> (TangentBasis, Vec<f64>, Vec<f64>, Re
 
 fn run_pair(
     npz: &mut Archive,
-    key: &str,
+    prefix: &str,
+    pair: &str,
     eps_v: f64,
     mu: f64,
     kappa: f64,
     cols: &mut Columns,
 ) -> Result<(), Box<dyn Error>> {
+    // `pair` picks the functions, `key` names the arrays.
+    let key = format!("{prefix}{pair}");
     let (shape, xs) = read(npz, &format!("{key}_x"))?;
     let (_, dhats) = read(npz, &format!("{key}_dhat"))?;
     let (_, vs) = read(npz, &format!("{key}_v"))?;
     let (_, lagged_forces) = read(npz, &format!("{key}_Nfr"))?;
-    let epsx = if key == "ee" { read(npz, "ee_epsx")?.1 } else { vec![] };
+    let epsx = if pair == "ee" {
+        read(npz, &format!("{prefix}ee_epsx"))?.1
+    } else {
+        vec![]
+    };
+    let dim = if pair.ends_with('2') { 2 } else { 3 };
     let (cases, n) = (shape[0] as usize, shape[1] as usize);
-    let dim = if key.ends_with('2') { 2 } else { 3 };
     let nu = n as u64;
     let exact = Want::Hessian { project: false };
     let mut out = Local::default();
     for c in 0..cases {
         let x = &xs[c * n..(c + 1) * n];
-        let (d2, ty) = distance(key, x, exact, &mut out);
+        let (d2, ty) = distance(pair, x, exact, &mut out);
         cols.push(&format!("{key}_d"), &[], &[d2]);
         cols.push(&format!("{key}_type"), &[], &[ty]);
         cols.push(&format!("{key}_g"), &[nu], &out.grad[..n]);
         cols.push(&format!("{key}_h"), &[nu, nu], &out.hess[..n * n]);
         // Barrier b(d^2, dhat^2) (mollified for edge-edge).
         let dhat = dhats[c];
-        let b = if key == "ee" {
+        let b = if pair == "ee" {
             edge_edge_barrier(x, epsx[c], dhat, exact, &mut out)
         } else {
             barrier_of_squared_distance(d2, n, dhat, exact, &mut out)
@@ -149,14 +158,14 @@ fn run_pair(
         cols.push(&format!("{key}_b"), &[], &[b]);
         cols.push(&format!("{key}_bg"), &[nu], &out.grad[..n]);
         cols.push(&format!("{key}_bh"), &[nu, nu], &out.hess[..n * n]);
-        if key == "ee" {
+        if pair == "ee" {
             let m = edge_edge_mollifier(x, epsx[c], exact, &mut out);
-            cols.push("ee_m", &[], &[m]);
-            cols.push("ee_mg", &[nu], &out.grad[..n]);
-            cols.push("ee_mh", &[nu, nu], &out.hess[..n * n]);
+            cols.push(&format!("{key}_m"), &[], &[m]);
+            cols.push(&format!("{key}_mg"), &[nu], &out.grad[..n]);
+            cols.push(&format!("{key}_mh"), &[nu, nu], &out.hess[..n * n]);
         }
         // Friction: lagged frame and normal force at x, potential at velocities v.
-        let (basis, coords, jac, relative) = friction_frame(key, x);
+        let (basis, coords, jac, relative) = friction_frame(pair, x);
         let m = (dim - 1) as u64;
         let t: Vec<f64> = (0..dim)
             .flat_map(|i| (0..dim - 1).map(move |k| (i, k)))
@@ -193,13 +202,13 @@ fn run_pair(
 }
 
 /// Additive CCD on the motions `ccd_{key}_x0` to `ccd_{key}_x1`, if the archive has them.
-fn run_ccd(npz: &mut Archive, key: &str, cols: &mut Columns) -> Result<(), Box<dyn Error>> {
-    if npz.by_name(&format!("ccd_{key}_x0"))?.is_none() {
+fn run_ccd(npz: &mut Archive, prefix: &str, key: &str, cols: &mut Columns) -> Result<(), Box<dyn Error>> {
+    if npz.by_name(&format!("{prefix}ccd_{key}_x0"))?.is_none() {
         return Ok(());
     }
-    let (shape, x0s) = read(npz, &format!("ccd_{key}_x0"))?;
-    let (_, x1s) = read(npz, &format!("ccd_{key}_x1"))?;
-    let (_, xis) = read(npz, &format!("ccd_{key}_xi"))?;
+    let (shape, x0s) = read(npz, &format!("{prefix}ccd_{key}_x0"))?;
+    let (_, x1s) = read(npz, &format!("{prefix}ccd_{key}_x1"))?;
+    let (_, xis) = read(npz, &format!("{prefix}ccd_{key}_xi"))?;
     let (cases, n) = (shape[0] as usize, shape[1] as usize);
     let dim = if key.ends_with('2') { 2 } else { 3 };
     let ccd = AdditiveCcd::default();
@@ -212,10 +221,33 @@ fn run_ccd(npz: &mut Archive, key: &str, cols: &mut Columns) -> Result<(), Box<d
             "ee" => ccd.edge_edge(x0, x1, xi, 1.0),
             _ => unreachable!("unknown pair {key}"),
         };
-        cols.push(&format!("ccd_{key}_hit"), &[], &[if toi.is_some() { 1.0 } else { 0.0 }]);
-        cols.push(&format!("ccd_{key}_toi"), &[], &[toi.unwrap_or(1.0)]);
+        cols.push(
+            &format!("{prefix}ccd_{key}_hit"),
+            &[],
+            &[if toi.is_some() { 1.0 } else { 0.0 }],
+        );
+        cols.push(&format!("{prefix}ccd_{key}_toi"), &[], &[toi.unwrap_or(1.0)]);
     }
     Ok(())
+}
+
+const KEYS: [&str; 6] = ["pp2", "pp3", "pe2", "pe3", "pt", "ee"];
+
+/// The prefixes under which the archive holds arrays ending in one of `suffixes` (one per
+/// pair key), in order of first appearance.
+fn prefixes(npz: &Archive, suffix: impl Fn(&str) -> String) -> Vec<String> {
+    let mut out: Vec<String> = vec![];
+    for name in npz.array_names() {
+        for key in KEYS {
+            let tail = suffix(key);
+            if let Some(p) = name.strip_suffix(tail.as_str()) {
+                if (p.is_empty() || p.ends_with('_')) && !out.iter().any(|q| q == p) {
+                    out.push(p.to_string());
+                }
+            }
+        }
+    }
+    out
 }
 
 fn main() -> Result<(), Box<dyn Error>> {
@@ -225,8 +257,10 @@ fn main() -> Result<(), Box<dyn Error>> {
     }
     let mut npz = NpzArchive::open(&args[1])?;
     let mut cols = Columns::default();
-    for key in ["pp2", "pp3", "pe2", "pe3", "pt", "ee"] {
-        run_ccd(&mut npz, key, &mut cols)?;
+    for prefix in prefixes(&npz, |key| format!("ccd_{key}_x0")) {
+        for key in KEYS {
+            run_ccd(&mut npz, &prefix, key, &mut cols)?;
+        }
     }
     if npz.by_name("eps_v")?.is_none() {
         return write(&cols, &args[2]);
@@ -237,8 +271,15 @@ fn main() -> Result<(), Box<dyn Error>> {
         scalar(&mut npz, "mu")?,
         scalar(&mut npz, "kappa")?,
     );
-    for key in ["pp2", "pp3", "pe2", "pe3", "pt", "ee"] {
-        run_pair(&mut npz, key, eps_v, mu, kappa, &mut cols)?;
+    for prefix in prefixes(&npz, |key| format!("{key}_x")) {
+        for key in KEYS {
+            if npz.by_name(&format!("{prefix}{key}_x"))?.is_some() {
+                run_pair(&mut npz, &prefix, key, eps_v, mu, kappa, &mut cols)?;
+            }
+        }
+    }
+    if npz.by_name("bar_d")?.is_none() {
+        return write(&cols, &args[2]);
     }
     let (_, d) = read(&mut npz, "bar_d")?;
     let (_, dhat) = read(&mut npz, "bar_dhat")?;
