@@ -223,6 +223,40 @@ density = 1000.0
 }
 
 #[test]
+fn an_obstacle_file_with_a_zero_area_face_is_refused_naming_the_file_and_face() {
+    // Degenerate faces are refused at load (the body's and the obstacles' alike); faces that
+    // collapse during a step are contact primitives like any other (their closest edges).
+    let dir = tempfile::tempdir().unwrap();
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 0 1\nv 2 0 0\nf 1 2 3\nf 1 2 4\n";
+    std::fs::write(dir.path().join("sliver.obj"), obj).unwrap();
+    let text = r#"
+name = "sliver"
+[mesh]
+type = "box"
+min = [0.0, 0.1, 0.0]
+max = [0.2, 0.3, 0.2]
+cells = [1, 1, 1]
+[material]
+youngs = 1e5
+poisson = 0.4
+density = 1000.0
+[contact]
+[[contact.obstacles]]
+type = "file"
+path = "sliver.obj"
+"#;
+    let scene_file = dir.path().join("sliver.toml");
+    let err = Scene::parse(text, &scene_file)
+        .and_then(|s| s.build().map(|_| s))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("sliver.obj") && err.contains('6') && err.contains("triangle is degenerate"),
+        "{err}"
+    );
+}
+
+#[test]
 fn two_small_cubes_collide_and_stack_without_intersecting() {
     check_stack(&shipped("two-cubes", Some([2, 2, 2])), 60);
 }
