@@ -109,8 +109,16 @@ fn bad_values_name_the_field() {
         ("youngs = 1e5", "youngs = nan", "material.youngs"),
         ("density = 1000.0", "density = -1.0", "material.density"),
         ("name = \"ok\"", "name = \"ok\"\ndt = 0.0", "dt"),
-        ("name = \"ok\"", "name = \"ok\"\ngravity = [0.0, inf, 0.0]", "gravity"),
-        ("end = \"min\"", "end = \"min\", tolerance = -1.0", "handles[0].select"),
+        (
+            "name = \"ok\"",
+            "name = \"ok\"\ngravity = [0.0, inf, 0.0]",
+            "gravity[1]",
+        ),
+        (
+            "end = \"min\"",
+            "end = \"min\", tolerance = -1.0",
+            "handles[0].select.side.tolerance",
+        ),
         (
             "select = { side = { axis = 0, end = \"min\" } }",
             "select = { indices = [0, 99] }",

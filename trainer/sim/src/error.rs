@@ -115,10 +115,39 @@ pub enum StepError {
         got: usize,
     },
     /// The state became NaN or infinite (e.g. a singular system).
-    #[error("the solver produced a non-finite state at Newton iteration {iteration}")]
+    #[error("frame {frame}: the solver produced a non-finite state at Newton iteration {iteration}")]
     Diverged {
+        /// The frame the step was computing (0: the initial static equilibrium).
+        frame: usize,
         /// Iteration at which it happened.
         iteration: usize,
+    },
+    /// The objective, its gradient or its Hessian held a NaN or an infinity: a material,
+    /// load or state too large for `f64`. The step stops there rather than searching on.
+    #[error(
+        "frame {frame}, Newton iteration {iteration}: the {quantity} is not finite (NaN or \
+         infinite); a material parameter, load or velocity is too large for the solver"
+    )]
+    NonFinite {
+        /// The frame the step was computing (0: the initial static equilibrium).
+        frame: usize,
+        /// Iteration at which it happened.
+        iteration: usize,
+        /// Which quantity.
+        quantity: Quantity,
+    },
+    /// The Hessian stayed indefinite through every diagonal shift the factorisation tries.
+    #[error(
+        "frame {frame}, Newton iteration {iteration}: the Hessian could not be factorised, \
+         not even with a diagonal shift of {shift:e}"
+    )]
+    Unfactorisable {
+        /// The frame the step was computing (0: the initial static equilibrium).
+        frame: usize,
+        /// Iteration at which it happened.
+        iteration: usize,
+        /// The largest shift tried.
+        shift: f64,
     },
     /// The adaptive model could not be updated or its system solved.
     #[error("adaptive solver, Newton iteration {iteration}: {message}")]
@@ -128,4 +157,25 @@ pub enum StepError {
         /// What went wrong.
         message: String,
     },
+}
+
+/// A quantity of Newton's objective that [`StepError::NonFinite`] names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Quantity {
+    /// The objective (incremental potential: inertia, elastic and external energies).
+    Energy,
+    /// Its gradient.
+    Gradient,
+    /// Its assembled Hessian.
+    Hessian,
+}
+
+impl fmt::Display for Quantity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Quantity::Energy => "energy",
+            Quantity::Gradient => "energy gradient",
+            Quantity::Hessian => "Hessian",
+        })
+    }
 }

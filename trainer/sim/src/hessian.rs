@@ -198,12 +198,23 @@ impl HessianPattern {
         }
     }
 
+    /// Whether every assembled value is finite (a NaN or infinite entry, from a material or
+    /// load too large for `f64`, would make every factorisation fail).
+    pub(crate) fn is_finite(&self) -> bool {
+        self.values.iter().all(|v| v.is_finite())
+    }
+
     /// Solves `H d = rhs` in place with a sparse Cholesky factorisation of the assembled
     /// values. If `H` is not numerically positive definite, a growing multiple of the
-    /// identity (relative to the largest diagonal entry) is added until it is.
-    pub(crate) fn solve(&mut self, rhs: &mut [f64]) {
+    /// identity (relative to the largest diagonal entry, times 100 per try) is added until it
+    /// is, at most [`MAX_SHIFTS`] times. A non-finite `H`, or one still not factorised after
+    /// the last shift, is an error and leaves `rhs` untouched.
+    pub(crate) fn solve(&mut self, rhs: &mut [f64]) -> Result<(), Unfactorised> {
+        if !self.is_finite() {
+            return Err(Unfactorised::NonFinite);
+        }
         if self.try_solve(rhs) {
-            return;
+            return Ok(());
         }
         let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
         let diag_max = (0..self.n)
@@ -212,7 +223,7 @@ impl HessianPattern {
             .max(f64::MIN_POSITIVE);
         let mut shift = 1e-10 * diag_max;
         let mut values = self.values.clone();
-        loop {
+        for _ in 0..MAX_SHIFTS {
             values.copy_from_slice(&self.values);
             for c in 0..self.n {
                 values[self.col_ptr[c] as usize] += shift;
@@ -220,9 +231,63 @@ impl HessianPattern {
             let matrix = SparseColMatRef::new(pattern, &values);
             if let Ok(llt) = Llt::try_new_with_symbolic(self.symbolic.clone(), matrix, Side::Lower) {
                 llt.solve_in_place(MatMut::from_column_major_slice_mut(rhs, self.n, 1));
-                return;
+                return Ok(());
             }
             shift *= 100.0;
+            if !shift.is_finite() {
+                break;
+            }
         }
+        Err(Unfactorised::Indefinite { shift })
+    }
+}
+
+/// Diagonal shifts [`HessianPattern::solve`] tries before it gives up: 16, from 1e-10 to
+/// 1e20 times the largest diagonal entry. Past 1e16 times it the shifted matrix is, to
+/// `f64`'s precision, the shift times the identity plus off-diagonal entries too small to
+/// spoil its definiteness, so a finite matrix is always factorised by then.
+pub(crate) const MAX_SHIFTS: usize = 16;
+
+/// Why [`HessianPattern::solve`] found no direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Unfactorised {
+    /// The assembled matrix holds a NaN or infinite entry.
+    NonFinite,
+    /// Not positive definite even with the largest diagonal shift tried (`shift`).
+    Indefinite {
+        /// The last shift tried.
+        shift: f64,
+    },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::energy::inertia::Inertia;
+
+    /// The pattern of two free 1D vertices' inertia (a diagonal 2 x 2 matrix).
+    fn diagonal() -> HessianPattern {
+        let inertia = Inertia::new(1, vec![1.0, 1.0]);
+        HessianPattern::new(&[&inertia as &dyn StencilEnergy], &[0, 1], 2, &[])
+    }
+
+    #[test]
+    fn a_non_finite_matrix_is_an_error_not_an_endless_shift() {
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut h = diagonal();
+            h.values.copy_from_slice(&[1.0, bad]);
+            let mut rhs = [1.0, 2.0];
+            assert_eq!(h.solve(&mut rhs), Err(Unfactorised::NonFinite));
+            assert_eq!(rhs, [1.0, 2.0], "rhs untouched");
+        }
+    }
+
+    #[test]
+    fn an_indefinite_finite_matrix_is_shifted_until_it_factorises() {
+        let mut h = diagonal();
+        h.values.copy_from_slice(&[-1.0, -1e300]);
+        let mut rhs = [1.0, 2.0];
+        h.solve(&mut rhs).unwrap();
+        assert!(rhs.iter().all(|d| d.is_finite() && *d > 0.0), "{rhs:?}");
     }
 }

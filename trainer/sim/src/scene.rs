@@ -10,13 +10,13 @@ use crate::energy::tet::TetElastic;
 use crate::energy::tri2d::Tri2dElastic;
 use crate::energy::StencilEnergy;
 use crate::error::InputError;
-use crate::material::ElementMaterial;
 use crate::mesh::lumped_masses;
 use crate::mesh::{self, Elements, Mesh};
 use crate::solver::{NewtonSettings, Simulator, SimulatorConfig, TimeScheme};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+mod checks;
 mod contact;
 #[cfg(test)]
 mod contact_tests;
@@ -24,6 +24,7 @@ mod document;
 mod regions;
 mod solver;
 mod spec;
+pub use checks::{MAX_LENGTH, MAX_MAGNITUDE, MAX_MATERIAL, MAX_ROTATION, MIN_MATERIAL, MIN_SIZE};
 pub use contact::{box_triangles, ContactSpec, ObstacleMesh};
 pub use document::{read_text, SceneDocument};
 pub use solver::SolverSpec;
@@ -110,84 +111,6 @@ impl Scene {
 
     fn field_error(&self, field: impl Into<String>, message: impl Into<String>) -> InputError {
         InputError::field(&self.source, field, message)
-    }
-
-    /// Checks values that TOML types cannot: ranges, finiteness, required fields.
-    pub fn validate(&self) -> Result<(), InputError> {
-        let positive = |v: f64| v.is_finite() && v > 0.0;
-        if !positive(self.dt) {
-            return Err(self.field_error("dt", format!("must be positive and finite, got {}", self.dt)));
-        }
-        if !self.gravity.iter().all(|g| g.is_finite()) {
-            return Err(self.field_error("gravity", "must be finite"));
-        }
-        if !positive(self.newton.tolerance) || self.newton.max_iterations == 0 {
-            return Err(self.field_error("newton", "tolerance must be positive and max_iterations at least 1"));
-        }
-        if let Some((f, msg)) = self.solver.invalid() {
-            return Err(self.field_error(f, msg));
-        }
-        let m = &self.material;
-        check_material(m.youngs, m.poisson, m.density)
-            .map_err(|(f, msg)| self.field_error(format!("material.{f}"), msg))?;
-        regions::check_selectors(m).map_err(|(f, msg)| self.field_error(f, msg))?;
-        for (k, r) in m.regions.iter().enumerate() {
-            let e = ElementMaterial {
-                youngs: r.youngs.unwrap_or(m.youngs),
-                poisson: r.poisson.unwrap_or(m.poisson),
-                density: r.density.unwrap_or(m.density),
-            };
-            check_material(e.youngs, e.poisson, e.density)
-                .map_err(|(f, msg)| self.field_error(format!("material.regions[{k}].{f}"), msg))?;
-        }
-        if self.mesh.any(&|s| matches!(s, MeshSpec::ClothGrid { .. })) && !m.thickness.is_some_and(positive) {
-            return Err(self.field_error("material.thickness", "cloth needs a positive thickness"));
-        }
-        if self.mesh.any(&|s| matches!(s, MeshSpec::Rods { .. })) && !m.radius.is_some_and(positive) {
-            return Err(self.field_error("material.radius", "rods need a positive radius"));
-        }
-        if !(positive(self.collision.stiffness) && self.collision.margin.is_finite() && self.collision.margin >= 0.0) {
-            return Err(self.field_error("collision", "stiffness must be positive and margin non-negative"));
-        }
-        if let Some(c) = &self.contact {
-            c.validate().map_err(|(f, msg)| self.field_error(f, msg))?;
-        }
-        if self.initial_velocity.is_some_and(|v| !v.iter().all(|c| c.is_finite())) {
-            return Err(self.field_error("initial_velocity", "must be finite"));
-        }
-        for (k, o) in self.obstacles.iter().enumerate() {
-            o.validate()
-                .map_err(|msg| self.field_error(format!("obstacles[{k}]"), msg))?;
-        }
-        for (k, h) in self.handles.iter().enumerate() {
-            if let Some(motion) = &h.motion {
-                motion
-                    .validate()
-                    .map_err(|(f, msg)| self.field_error(format!("handles[{k}].motion.{f}"), msg))?;
-            }
-            let finite = |v: &[f64]| v.iter().all(|c| c.is_finite());
-            if h.reference_scale.is_some_and(|s| !finite(&s)) || h.pivot.is_some_and(|p| !finite(&p)) {
-                return Err(self.field_error(format!("handles[{k}]"), "reference_scale and pivot must be finite"));
-            }
-            for (j, s) in h.script.iter().enumerate() {
-                if !finite(&s.velocity) || !finite(&s.angular_velocity) {
-                    return Err(self.field_error(format!("handles[{k}].script[{j}]"), "velocities must be finite"));
-                }
-            }
-        }
-        for (k, l) in self.loads.iter().enumerate() {
-            if !l.force.iter().all(|c| c.is_finite()) {
-                return Err(self.field_error(format!("loads[{k}].force"), "must be finite"));
-            }
-        }
-        let d = &self.dataset;
-        if d.train == 0 || d.frames == 0 || !(d.beyond.is_finite() && d.beyond >= 1.0) {
-            return Err(self.field_error("dataset", "needs train >= 1, frames >= 1 and beyond >= 1"));
-        }
-        if d.test_frames == Some(0) {
-            return Err(self.field_error("dataset.test_frames", "must be at least 1"));
-        }
-        Ok(())
     }
 
     /// Builds the mesh described by the scene.
@@ -376,19 +299,6 @@ impl Scene {
         }
         Ok(handles)
     }
-}
-
-fn check_material(youngs: f64, poisson: f64, density: f64) -> Result<(), (&'static str, String)> {
-    if !(youngs.is_finite() && youngs > 0.0) {
-        return Err(("youngs", format!("must be positive and finite, got {youngs}")));
-    }
-    if !(poisson.is_finite() && poisson > -1.0 && poisson < 0.5) {
-        return Err(("poisson", format!("must be in (-1, 0.5), got {poisson}")));
-    }
-    if !(density.is_finite() && density > 0.0) {
-        return Err(("density", format!("must be positive and finite, got {density}")));
-    }
-    Ok(())
 }
 
 /// The mesh `spec` describes; errors name the field under `field` (`mesh`,

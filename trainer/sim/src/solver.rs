@@ -18,7 +18,7 @@ mod state;
 
 pub(crate) use crate::dofs::{free_dof_index, NOT_FREE};
 use crate::energy::{self, inertia::Inertia, StencilEnergy};
-pub use crate::error::StepError;
+pub use crate::error::{Quantity, StepError};
 use crate::hessian::HessianPattern;
 use contact::Contact;
 pub use contact::{ContactConfig, ContactObstacle, ContactSettings};
@@ -269,7 +269,8 @@ impl Simulator {
         if let Some(a) = &mut self.adaptive {
             a.begin_step();
         }
-        let mut report = self.minimize(&mut x, 1.0, weight, h * self.length_scale, Some(h))?;
+        let frame = self.steps + 1;
+        let mut report = self.minimize(&mut x, 1.0, weight, h * self.length_scale, Some(h), frame)?;
         report.adaptive = self.adaptive.as_mut().map(|a| a.end_step(&x_start, &x, h));
         let v_new: Vec<f64> = if bdf2 {
             (0..x.len())
@@ -292,7 +293,7 @@ impl Simulator {
         let start = Instant::now();
         let mut x = self.x.clone();
         place_fixed(&self.fixed_vertices, self.dim, &mut x, targets);
-        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale, None)?;
+        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale, None, 0)?;
         self.reset(&x);
         report.seconds = start.elapsed().as_secs_f64();
         Ok(report)
@@ -311,7 +312,8 @@ impl Simulator {
         if let Some(a) = &mut self.adaptive {
             a.begin_step();
         }
-        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale, Some(dt))?;
+        let frame = self.steps + 1;
+        let mut report = self.minimize(&mut x, 0.0, 1.0, self.length_scale, Some(dt), frame)?;
         report.adaptive = self.adaptive.as_mut().map(|a| a.end_step(&x_start, &x, dt));
         let v_new: Vec<f64> = x.iter().zip(&self.x).map(|(a, b)| (a - b) / self.dt).collect();
         self.x_prev = std::mem::replace(&mut self.x, x);
@@ -352,7 +354,9 @@ impl Simulator {
         incremental_potential(&self.inertia, &self.potentials, w_inertia, w_potential, x, grad)
     }
 
-    /// Newton with backtracking line search over the free DOF of `x`.
+    /// Newton with backtracking line search over the free DOF of `x`, for the step to
+    /// `frame` (0: the initial static equilibrium), which errors name. A NaN or infinite
+    /// objective, gradient or Hessian stops it with [`StepError::NonFinite`].
     fn minimize(
         &mut self,
         x: &mut [f64],
@@ -360,6 +364,7 @@ impl Simulator {
         w_potential: f64,
         norm_scale: f64,
         friction_dt: Option<f64>,
+        frame: usize,
     ) -> Result<StepReport, StepError> {
         let mut report = StepReport::default();
         let mut grad = Vec::new();
@@ -374,8 +379,16 @@ impl Simulator {
         }
         for iteration in 0..self.settings.max_iterations {
             let e = self.objective(x, w_inertia, w_potential, Some(&mut grad));
+            let non_finite = |quantity| StepError::NonFinite {
+                frame,
+                iteration,
+                quantity,
+            };
             if !e.is_finite() {
-                return Err(StepError::Diverged { iteration });
+                return Err(non_finite(Quantity::Energy));
+            }
+            if grad.iter().any(|g| !g.is_finite()) {
+                return Err(non_finite(Quantity::Gradient));
             }
             report.objective = e;
             if self.num_free == 0 {
@@ -395,11 +408,12 @@ impl Simulator {
                     rhs[f] = -grad[k] - push.get(k).copied().unwrap_or(0.0);
                 }
             }
-            self.newton_direction(x, &grad, &mut rhs, (w_inertia, w_potential), iteration, &mut report)?;
+            let at = (frame, iteration);
+            self.newton_direction(x, &grad, &mut rhs, (w_inertia, w_potential), at, &mut report)?;
             let dir = &rhs;
             let step_norm = dir.iter().fold(0.0f64, |m, d| m.max(d.abs())) / norm_scale;
             if !step_norm.is_finite() {
-                return Err(StepError::Diverged { iteration });
+                return Err(StepError::Diverged { frame, iteration });
             }
             report.step_norms.push(step_norm);
             report.iterations = iteration + 1;
@@ -480,6 +494,7 @@ impl Simulator {
         }
         if x.iter().any(|c| !c.is_finite()) {
             return Err(StepError::Diverged {
+                frame,
                 iteration: report.iterations,
             });
         }

@@ -10,7 +10,8 @@ use crate::adaptive::solver::{AdaptiveSolver, Iterate};
 use crate::adaptive::SolveError;
 use crate::energy::inertia::Inertia;
 use crate::energy::StencilEnergy;
-use crate::error::StepError;
+use crate::error::{Quantity, StepError};
+use crate::hessian::Unfactorised;
 
 /// Halvings the oracle's line search tries before it takes no step.
 const ORACLE_HALVINGS: usize = 30;
@@ -34,14 +35,16 @@ impl Simulator {
     }
 
     /// Replaces `rhs` (the free dofs' `-g`, and a moving obstacle's push) by Newton's
-    /// direction at `x`, whose full gradient is `grad`.
+    /// direction at `x`, whose full gradient is `grad`, at Newton iteration `iteration` of
+    /// the step to `frame` (which errors name). A Hessian with a NaN or infinite entry is
+    /// an error, and so is one no diagonal shift makes factorisable.
     pub(super) fn newton_direction(
         &mut self,
         x: &[f64],
         grad: &[f64],
         rhs: &mut [f64],
         weights: (f64, f64),
-        iteration: usize,
+        (frame, iteration): (usize, usize),
         report: &mut StepReport,
     ) -> Result<(), StepError> {
         let (w_inertia, w_potential) = weights;
@@ -51,6 +54,14 @@ impl Simulator {
         let clock = Instant::now();
         self.assemble(x, w_inertia, w_potential, !exact_first);
         report.phases.assembly += clock.elapsed().as_secs_f64();
+        let non_finite = StepError::NonFinite {
+            frame,
+            iteration,
+            quantity: Quantity::Hessian,
+        };
+        if !self.hessian.is_finite() {
+            return Err(non_finite);
+        }
         if self.adaptive.is_some() {
             return self.adaptive_direction(x, grad, rhs, weights, exact_first, iteration, report);
         }
@@ -65,8 +76,16 @@ impl Simulator {
                 report.projected_iterations += 1;
             }
             let clock = Instant::now();
-            self.hessian.solve(rhs);
+            let solved = self.hessian.solve(rhs);
             report.phases.linear_solve += clock.elapsed().as_secs_f64();
+            solved.map_err(|e| match e {
+                Unfactorised::NonFinite => non_finite,
+                Unfactorised::Indefinite { shift } => StepError::Unfactorisable {
+                    frame,
+                    iteration,
+                    shift,
+                },
+            })?;
         }
         Ok(())
     }
