@@ -452,7 +452,7 @@ def ccd_family(family, key, x0, x1, toi, start, ccd_reference, arrays, refs, ipc
     hit, itoi = np.full(len(x0), np.nan), np.full(len(x0), np.nan)
     hit[:k], itoi[:k] = ccd_reference(key, x0[:k], x1[:k], xi[:k])
     ipctk.set_logger_level(ipctk.LoggerLevel.off)  # (ccd_reference sets it to error)
-    refs[(family, "ccd " + key)] = {"kind": "ccd", "pre": pre, "toi": toi, "start": start, "ipc": (hit > 0.5, itoi)}
+    refs[(family, "ccd " + key)] = {"kind": "ccd", "pre": pre, "toi": toi, "start": start, "ipc": (hit, itoi)}
 
 
 def inputs(rng, n, families, reference_one, ccd_reference):
