@@ -24,6 +24,7 @@ pub mod progress;
 pub mod scene;
 pub mod solver;
 pub mod trajectory;
+pub mod vbd;
 
 pub use adaptive::AdaptiveSettings;
 pub use bc::Handle;
@@ -37,3 +38,4 @@ pub use progress::{Progress, Silent};
 pub use scene::{BuiltScene, Scene, SceneDocument, SolverSpec};
 pub use solver::{Simulator, SimulatorConfig, TimeScheme};
 pub use trajectory::Trajectory;
+pub use vbd::VbdSettings;

@@ -54,8 +54,8 @@ pub struct Scene {
     /// Newton settings.
     #[serde(default)]
     pub newton: NewtonSettings,
-    /// Which solver steps the scene (`[solver]`, `kind = "full-space"` by default, or
-    /// `"adaptive"` with its settings).
+    /// Which solver steps the scene (`[solver]`, `kind = "full-space"` by default,
+    /// `"adaptive"` or `"vbd"` with their settings).
     #[serde(default)]
     pub solver: SolverSpec,
     /// Geometry.
@@ -143,6 +143,7 @@ impl Scene {
         let simulator = match &self.solver {
             SolverSpec::FullSpace => simulator,
             SolverSpec::Adaptive(settings) => simulator.with_adaptive(self.build_adaptive(settings, &mesh, &fixed)?),
+            SolverSpec::Vbd(settings) => self.with_vbd(simulator, settings)?,
         };
         let warnings = self.region_warnings(&mesh);
         Ok(BuiltScene {

@@ -15,6 +15,7 @@ mod prescribed;
 mod report;
 mod settings;
 mod state;
+mod vbd;
 
 pub(crate) use crate::dofs::{free_dof_index, NOT_FREE};
 use crate::energy::{self, inertia::Inertia, StencilEnergy};
@@ -27,6 +28,7 @@ pub use report::{SolvePhases, StepReport};
 pub use settings::{HessianMode, NewtonSettings, TimeScheme};
 pub use state::SimState;
 use std::time::Instant;
+pub use vbd::VbdUnsupported;
 
 /// A full-space simulator of one body.
 pub struct Simulator {
@@ -46,6 +48,8 @@ pub struct Simulator {
     contact: Option<Contact>,
     /// The adaptive model that gives each Newton direction, if attached.
     adaptive: Option<crate::adaptive::solver::AdaptiveSolver>,
+    /// Vertex Block Descent, which steps instead of Newton, if attached.
+    vbd: Option<crate::vbd::VertexBlockDescent>,
     x: Vec<f64>,
     v: Vec<f64>,
     x_prev: Vec<f64>,
@@ -116,6 +120,7 @@ impl Simulator {
             extra_couplings: Vec::new(),
             contact,
             adaptive: None,
+            vbd: None,
             v: vec![0.0; n],
             x_prev: x0.clone(),
             v_prev: vec![0.0; n],
@@ -233,6 +238,9 @@ impl Simulator {
     /// (`dim` numbers per vertex of [`Simulator::fixed_vertices`]).
     pub fn step(&mut self, targets: &[f64]) -> Result<StepReport, StepError> {
         check_targets(&self.fixed_vertices, self.dim, targets)?;
+        if self.vbd.is_some() {
+            return self.step_vbd(targets, None);
+        }
         if self.integrator == TimeScheme::QuasiStatic {
             return self.step_quasi_static(targets);
         }

@@ -40,7 +40,7 @@ pub fn evaluate_adaptive(
 ) -> TrainerResult<(AdaptiveSettings, Vec<(SequencePlan, AdaptiveMetrics)>)> {
     let settings = match &problem.scene.solver {
         SolverSpec::Adaptive(s) => s.clone(),
-        SolverSpec::FullSpace => AdaptiveSettings::default(),
+        SolverSpec::FullSpace | SolverSpec::Vbd(_) => AdaptiveSettings::default(),
     };
     let mut scene = problem.scene.clone();
     scene.solver = SolverSpec::Adaptive(settings.clone());

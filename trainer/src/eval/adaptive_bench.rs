@@ -355,7 +355,7 @@ pub fn charts(dir: &Path, scene: &str, key: SweepKey, rows: &[Comparison]) -> Tr
 pub fn adaptive_settings(scene: &Scene) -> Option<&AdaptiveSettings> {
     match &scene.solver {
         SolverSpec::Adaptive(s) => Some(s),
-        SolverSpec::FullSpace => None,
+        SolverSpec::FullSpace | SolverSpec::Vbd(_) => None,
     }
 }
 

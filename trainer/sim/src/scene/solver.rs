@@ -1,5 +1,6 @@
-//! Which solver steps a scene (`[solver]`): the full-space Newton solver, or the same
-//! Newton loop with each direction from the adaptive subspace model.
+//! Which solver steps a scene (`[solver]`): the full-space Newton solver, the same
+//! Newton loop with each direction from the adaptive subspace model, or Vertex Block
+//! Descent.
 
 use serde::{Deserialize, Serialize};
 
@@ -14,7 +15,9 @@ use crate::adaptive::{AdaptiveSettings, AdaptiveSolver, SubspaceHessian};
 use crate::energy::StencilEnergy;
 use crate::error::InputError;
 use crate::mesh::Mesh;
+use crate::solver::{Simulator, VbdUnsupported};
 use crate::trajectory::Trajectory;
+use crate::vbd::VbdSettings;
 
 /// The solver of a scene (default: full space).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
@@ -25,6 +28,9 @@ pub enum SolverSpec {
     FullSpace,
     /// The adaptive subspace model of Trusty et al. (its settings, every one optional).
     Adaptive(AdaptiveSettings),
+    /// Vertex Block Descent (Chen et al. 2024; its settings, every one optional). Implicit
+    /// Euler without IPC contact only.
+    Vbd(VbdSettings),
 }
 
 impl SolverSpec {
@@ -33,11 +39,24 @@ impl SolverSpec {
         match self {
             SolverSpec::FullSpace => None,
             SolverSpec::Adaptive(s) => s.invalid().map(|(f, m)| (format!("solver.{f}"), m)),
+            SolverSpec::Vbd(s) => s.invalid().map(|(f, m)| (format!("solver.{f}"), m)),
         }
     }
 }
 
 impl Scene {
+    /// `simulator` stepping with VBD, or an error naming the field that rules it out
+    /// (`solver.kind` with `[contact]`, `integrator` with another scheme).
+    pub(super) fn with_vbd(&self, simulator: Simulator, settings: &VbdSettings) -> Result<Simulator, InputError> {
+        simulator.with_vbd(settings.clone()).map_err(|why| {
+            let field = match why {
+                VbdUnsupported::Contact => "solver.kind",
+                VbdUnsupported::Scheme(_) => "integrator",
+            };
+            InputError::field(&self.source, field, why.to_string())
+        })
+    }
+
     /// The candidates of a scene's body: its mesh, elastic terms and lumped masses as
     /// [`Scene::build_elastic_energies`] makes them, its handles' vertices prescribed.
     pub fn candidate_set(&self, spec: &CandidateSpec) -> Result<CandidateSet, CandidateError> {

@@ -51,8 +51,12 @@ pub(crate) fn simulate(
     traj.write_npz(&out)?;
     let steps = &traj.step_seconds[1..];
     let iters = &traj.newton_iterations[1..];
+    let solver = match scene.solver {
+        mochi_sim::SolverSpec::Vbd(_) => "VBD",
+        _ => "Newton",
+    };
     println!(
-        "{}: {} frames, {} DOF, {:.2} ms/step, {:.2} Newton iterations/step -> {}",
+        "{}: {} frames, {} DOF, {:.2} ms/step, {:.2} {solver} iterations/step -> {}",
         scene.name,
         frames,
         problem.mesh.rest.len(),
