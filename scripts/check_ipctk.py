@@ -411,7 +411,9 @@ def main():
         ok &= ccd_ok
     if fam_refs:
         lines, fam_ok = ipctk_families.table(fam_refs, ours)
-        print(f"\nFamilies against exact references (CCD floor {ipctk_families.CCD_FLOOR:g}, bound {ipctk_families.TOL:g}):\n")
+        print(f"\nFamilies against exact references (CCD floor {ipctk_families.CCD_FLOOR_ULPS:g} eps of the coordinates; "
+              f"distances within {ipctk_families.TOL:g} relative or {ipctk_families.DISTANCE_FLOOR_ULPS:g} eps of the "
+              f"stencil's diameter):\n")
         print("\n".join(lines))
         print(f"\nFamilies pass: {'yes' if fam_ok else 'NO'} (no NaN; distances, and gradients of degenerate, distance-0 and "
               "near-endpoint cases, within the bound; at distance 0 zero where ipctk's is zero; no CCD miss or time after the "

@@ -82,6 +82,12 @@ pub fn edge_edge_barrier(x: &[f64], eps_x: f64, dhat: f64, want: Want, out: &mut
         out.clear(N);
         return 0.0;
     }
+    if b == f64::INFINITY {
+        // At contact: infinite, with zero derivatives as the unmollified barrier's (the
+        // mollifier's derivatives times an infinite barrier would be `0 * inf`).
+        out.clear(N);
+        return f64::INFINITY;
+    }
     let mut mol = Local::default();
     let m = edge_edge_mollifier(x, eps_x, exact, &mut mol);
     if let Some(project) = want.hessian() {
