@@ -228,7 +228,12 @@ fn solver_table_parses_and_bad_fields_name_the_file_and_field() {
         initial_guess: InitialGuess::Inertia,
     };
     assert_eq!(scene.solver, SolverSpec::Vbd(want));
-    assert_eq!(scene.build().unwrap().simulator.vbd().unwrap().settings().iterations, 7);
+    // `Simulator::step` steps with VBD, the scene's iteration count.
+    let mut problem = scene.build().unwrap();
+    let targets = clamp_targets(&problem);
+    let report = problem.simulator.step(&targets).unwrap();
+    assert_eq!((report.iterations, report.step_norms.len()), (7, 7), "{report:?}");
+    assert!(report.seconds > 0.0 && report.objective.is_finite(), "{report:?}");
     for (table, field) in [
         ("iterations = 0", "solver.iterations"),
         ("rho = 1.0", "solver.rho"),
