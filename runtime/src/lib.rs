@@ -16,6 +16,10 @@
 //! feature only adds desktop conveniences (`std::error::Error`, `Vec`-backed storage, the
 //! run-time choice of the AVX2 kernel); `capi` adds the C ABI (module `capi`, no_std too).
 #![no_std]
+// Armv7E-M with an FPU (`armv7em` feature, `eabihf`): half-precision weights are converted by
+// the FPU through the language's `f16` (`network/armv7em.rs`), still unstable; such builds
+// use a toolchain that builds `core` anyway (`-Zbuild-std`).
+#![cfg_attr(all(target_arch = "arm", feature = "armv7em", target_abi = "eabihf"), feature(f16))]
 
 #[cfg(feature = "std")]
 extern crate std;

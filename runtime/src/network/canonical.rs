@@ -23,10 +23,14 @@ impl Stored for f32 {
     }
 }
 
-/// Half-precision bit pattern (an exact conversion: every `f16` is an `f32`).
+/// Half-precision bit pattern (an exact conversion: every `f16` is an `f32`), converted by the
+/// FPU where it can (`network/armv7em.rs`), in software elsewhere.
 impl Stored for u16 {
     #[inline(always)]
     fn value(self) -> f32 {
+        #[cfg(all(target_arch = "arm", feature = "armv7em", target_abi = "eabihf"))]
+        return super::armv7em::f16_to_f32(self);
+        #[allow(unreachable_code)]
         half::f16::from_bits(self).to_f32()
     }
 }
@@ -86,31 +90,41 @@ fn rows_general<T: Stored>(params: &[f32], layer: &Layer, w: &[T], parts: &[&[f3
     }
 }
 
-/// Rows four at a time, `x` loaded once for all four (a matrix-vector product is limited by
-/// loads; this halves them). `x.len() == cols`, a multiple of 8. Returns the leading rows of
-/// `out` written (a multiple of 4).
+/// Rows [`rows_blocked`] computes together: four where vector registers hold their lanes;
+/// two on the Cortex-M4, whose 32 single-precision registers hold two rows' eight lanes with
+/// room for the input and the weights (four rows' lanes would be spilled to the stack).
+#[cfg(not(target_arch = "arm"))]
+const ROW_BLOCK: usize = 4;
+#[cfg(target_arch = "arm")]
+const ROW_BLOCK: usize = 2;
+
+/// Rows [`ROW_BLOCK`] at a time, `x` loaded once for all of them (a matrix-vector product is
+/// limited by loads; this divides them). `x.len() == cols`, a multiple of 8. Returns the
+/// leading rows of `out` written (a multiple of the block).
 #[inline(always)]
 fn rows_blocked<T: Stored>(params: &[f32], layer: &Layer, w: &[T], x: &[f32], first: usize, out: &mut [f32]) -> usize {
     let cols = layer.cols as usize;
     let (xc, _) = x.as_chunks::<LANES>();
     let row = |r: usize| w.get(r * cols..(r + 1) * cols).unwrap_or(&[]).as_chunks::<LANES>().0;
     let mut done = 0;
-    for (block, o) in out.chunks_exact_mut(4).enumerate() {
-        let r = first + 4 * block;
-        let [w0, w1, w2, w3] = [r, r + 1, r + 2, r + 3].map(row);
-        let mut acc = [[0.0f32; LANES]; 4];
-        for ((((xv, a), b), c), d) in xc.iter().zip(w0).zip(w1).zip(w2).zip(w3) {
-            for l in 0..LANES {
-                acc[0][l] += a[l].value() * xv[l];
-                acc[1][l] += b[l].value() * xv[l];
-                acc[2][l] += c[l].value() * xv[l];
-                acc[3][l] += d[l].value() * xv[l];
+    for (block, o) in out.chunks_exact_mut(ROW_BLOCK).enumerate() {
+        let r = first + ROW_BLOCK * block;
+        let rows: [&[[T; LANES]]; ROW_BLOCK] = core::array::from_fn(|k| row(r + k));
+        // A row missing from `w` stops the whole block (its rows give their biases).
+        let groups = rows.iter().fold(xc.len(), |n, w| n.min(w.len()));
+        let (xc, rows) = (&xc[..groups], rows.map(|w| &w[..groups]));
+        let mut acc = [[0.0f32; LANES]; ROW_BLOCK];
+        for g in 0..groups {
+            for (acc, w) in acc.iter_mut().zip(&rows) {
+                for l in 0..LANES {
+                    acc[l] += w[g][l].value() * xc[g][l];
+                }
             }
         }
         for (k, (o, lanes)) in o.iter_mut().zip(&acc).enumerate() {
             *o = finish(params, layer, r + k, fold(lanes));
         }
-        done += 4;
+        done += ROW_BLOCK;
     }
     done
 }

@@ -13,7 +13,7 @@
 //! - wasm with `simd128`: `i32x4.dot_i16x8_s` on 8 weights at a time;
 //! - Armv7E-M (Cortex-M4, the `armv7em` feature): `SMLAD`, two 16-bit multiply-accumulates per
 //!   instruction, on weight pairs unpacked by `SXTB16` (the activations are stored
-//!   pair-interleaved to match);
+//!   pair-interleaved to match; `network/armv7em.rs`);
 //! - anywhere else: a plain loop.
 //!
 //! An input with a NaN or infinity gives NaN rows (the instance then reports a non-finite
@@ -102,6 +102,21 @@ pub fn rows(params: &[f32], layer: &Layer, w: &[i8], parts: &[&[f32]], first: us
 /// quantises once.
 pub fn quantized_rows(params: &[f32], layer: &Layer, w: &[i8], x: &Quantized, first: usize, out: &mut [f32]) {
     let cols = layer.cols as usize;
+    let n = out.len();
+    let span = |start: u32| params.get(start as usize + first..start as usize + first + n);
+    // Every row, bias and scale present (a valid model): one pass without per-row lookups.
+    if let (Some(w), Some(bias), Some(scale), true) = (
+        w.get(first * cols..(first + n) * cols),
+        span(layer.bias),
+        span(layer.scales),
+        cols > 0 && x.cols == cols,
+    ) {
+        let q = &x.q[..cols];
+        for (((o, row), &b), &s) in out.iter_mut().zip(w.chunks_exact(cols)).zip(bias).zip(scale) {
+            *o = b + s * (dot(row, q) as f32 * x.scale);
+        }
+        return;
+    }
     for (i, o) in out.iter_mut().enumerate() {
         let r = first + i;
         let acc = w.get(r * cols..(r + 1) * cols).map_or(0, |row| x.dot(row));
@@ -132,7 +147,7 @@ fn dot(w: &[i8], q: &[i16]) -> i32 {
     #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
     return wasm::dot(w, q);
     #[cfg(all(target_arch = "arm", feature = "armv7em"))]
-    return arm::dot(w, q);
+    return super::armv7em::dot_i8(w, q);
     #[allow(unreachable_code)]
     dot_portable(w, q)
 }
@@ -171,37 +186,6 @@ mod wasm {
             .wrapping_add(i32x4_extract_lane::<2>(acc))
             .wrapping_add(i32x4_extract_lane::<3>(acc));
         lanes.wrapping_add(super::dot_portable(&w[c..n], &q[c..n]))
-    }
-}
-
-#[cfg(all(target_arch = "arm", feature = "armv7em"))]
-#[allow(unsafe_code)]
-mod arm {
-    use core::arch::asm;
-
-    /// Four weights per word: `SXTB16` gives (w0, w2) and, rotated by 8, (w1, w3); two
-    /// `SMLAD`s multiply them with the interleaved activations (q0, q2) and (q1, q3).
-    #[inline]
-    pub fn dot(w: &[i8], q: &[i16]) -> i32 {
-        let n = w.len().min(q.len());
-        let (wg, _) = w[..n].as_chunks::<4>();
-        let (qg, _) = q[..n].as_chunks::<4>();
-        let mut acc: i32 = 0;
-        for (w4, q4) in wg.iter().zip(qg) {
-            let word = u32::from_le_bytes(w4.map(|b| b as u8));
-            let pair = |a: i16, b: i16| u32::from(a as u16) | (u32::from(b as u16) << 16);
-            let (q02, q13) = (pair(q4[0], q4[1]), pair(q4[2], q4[3]));
-            let (w02, w13): (u32, u32);
-            // SAFETY: register-only DSP instructions of Armv7E-M (the `armv7em` feature).
-            unsafe {
-                asm!("sxtb16 {0}, {1}", out(reg) w02, in(reg) word, options(pure, nomem, nostack));
-                asm!("sxtb16 {0}, {1}, ror #8", out(reg) w13, in(reg) word, options(pure, nomem, nostack));
-                asm!("smlad {0}, {1}, {2}, {0}", inout(reg) acc, in(reg) w02, in(reg) q02, options(pure, nomem, nostack));
-                asm!("smlad {0}, {1}, {2}, {0}", inout(reg) acc, in(reg) w13, in(reg) q13, options(pure, nomem, nostack));
-            }
-        }
-        let tail = n - n % 4;
-        acc.wrapping_add(super::dot_portable(&w[tail..n], &q[tail..n]))
     }
 }
 

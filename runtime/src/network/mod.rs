@@ -30,6 +30,9 @@
 //! subset of a layer's rows ([`dense_rows`]) and get the same bits as a whole-layer call.
 
 pub mod activation;
+#[cfg(all(target_arch = "arm", feature = "armv7em"))]
+#[allow(unsafe_code)]
+mod armv7em;
 pub mod canonical;
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
