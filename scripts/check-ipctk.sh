@@ -14,5 +14,5 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 "$venv/bin/python" -c 'import ipctk, numpy, mpmath' 2>/dev/null || "$venv/bin/pip" install --quiet ipctk numpy mpmath
 "$venv/bin/python" -c 'import ipctk; print("ipctk", getattr(ipctk, "__version__", "(version unknown)"))' || true
-cargo build --quiet -p mochi-sim --example contact_cases
-"$venv/bin/python" scripts/check_ipctk.py "$target/debug/examples/contact_cases" target/ipctk-check "$@"
+cargo build --quiet --release -p mochi-sim --example contact_cases
+"$venv/bin/python" scripts/check_ipctk.py "$target/release/examples/contact_cases" target/ipctk-check "$@"
