@@ -84,16 +84,7 @@ pub fn edge_edge_closest_point(x: &[f64]) -> ([f64; 2], [[f64; 12]; 2]) {
 /// points (parallel or of zero length), from [`edge_edge_type`].
 fn edge_edge_feature_coordinates(x: &[f64], v: &[[f64; 3]; 4]) -> [f64; 2] {
     use EdgeEdgeType::*;
-    // Parameter of the point `p` projected on the segment `[s, t]` (zero for a zero-length one).
-    let on = |p: usize, s: usize, t: usize| {
-        let e = sub(v[t], v[s]);
-        let c = dot(e, e);
-        if c > 0.0 {
-            (dot(sub(v[p], v[s]), e) / c).clamp(0.0, 1.0)
-        } else {
-            0.0
-        }
-    };
+    let on = |p, s, t| segment_parameter(v, p, s, t);
     match edge_edge_type(x) {
         A0B0 | AB => [0.0, 0.0],
         A0B1 => [0.0, 1.0],
@@ -134,15 +125,7 @@ pub fn point_triangle_closest_point(x: &[f64]) -> ([f64; 2], [[f64; 12]; 2]) {
 /// [`point_triangle_type`] (which takes such a triangle as its three edges).
 fn triangle_feature_coordinates(x: &[f64], v: &[[f64; 3]; 4]) -> [f64; 2] {
     use PointTriangleType::*;
-    let on = |s: usize, t: usize| {
-        let e = sub(v[t], v[s]);
-        let c = dot(e, e);
-        if c > 0.0 {
-            (dot(sub(v[0], v[s]), e) / c).clamp(0.0, 1.0)
-        } else {
-            0.0
-        }
-    };
+    let on = |s, t| segment_parameter(v, 0, s, t);
     match point_triangle_type(x) {
         T0 | Interior => [0.0, 0.0],
         T1 => [1.0, 0.0],
@@ -195,5 +178,17 @@ impl RelativeVelocity {
             verts: 4,
             weights: [1.0, beta + gamma - 1.0, -beta, -gamma],
         }
+    }
+}
+
+/// Parameter of vertex `p` projected on the segment `[s, t]` of `v`, clamped to it (zero
+/// for a zero-length segment).
+fn segment_parameter(v: &[[f64; 3]; 4], p: usize, s: usize, t: usize) -> f64 {
+    let e = sub(v[t], v[s]);
+    let c = dot(e, e);
+    if c > 0.0 {
+        (dot(sub(v[p], v[s]), e) / c).clamp(0.0, 1.0)
+    } else {
+        0.0
     }
 }

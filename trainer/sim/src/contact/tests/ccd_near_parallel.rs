@@ -50,6 +50,21 @@ impl Crossing {
     }
 }
 
+/// Edges of length 1e-3 at 5e-5 rad, 1e-7 apart, crossing at t = 1/2 at their midpoints,
+/// placed at `origin`.
+fn short_crossing(origin: [f64; 3]) -> Crossing {
+    Crossing {
+        length: 1e-3,
+        angle: 5e-5,
+        gap: 1e-7,
+        toi: 0.5,
+        along_a: 0.0,
+        along_b: 0.0,
+        frame: [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]],
+        origin,
+    }
+}
+
 /// A random orthonormal frame.
 fn random_frame(rng: &mut impl Rng) -> [[f64; 3]; 3] {
     let mut unit = || {
@@ -66,17 +81,7 @@ fn random_frame(rng: &mut impl Rng) -> [[f64; 3]; 3] {
 fn short_nearly_parallel_edges_are_not_classified_parallel() {
     // Length 1e-3 at 5e-5 rad: |a x b|^2 = 2.5e-27, below an absolute 1e-20 but a sine far
     // above the relative threshold. The distance is the lines' (1e-7), not an endpoint's.
-    let crossing = Crossing {
-        length: 1e-3,
-        angle: 5e-5,
-        gap: 1e-7,
-        toi: 0.5,
-        along_a: 0.0,
-        along_b: 0.0,
-        frame: [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]],
-        origin: [0.0; 3],
-    };
-    let (x0, _) = crossing.motion();
+    let (x0, _) = short_crossing([0.0; 3]).motion();
     assert_eq!(edge_edge_type(&x0), EdgeEdgeType::AB);
     let d = edge_edge_distance(&x0, Want::Value, &mut Local::default()).sqrt();
     assert!((d - 1e-7).abs() < 1e-7 * 1e-12, "distance {d:e}");
@@ -86,17 +91,7 @@ fn short_nearly_parallel_edges_are_not_classified_parallel() {
 fn short_nearly_parallel_edges_crossing_mid_step_are_caught() {
     // Length 1e-3, angle 5e-5 rad, start gap 1e-7, crossing at t = 1/2: the toolkit reports
     // 0.45 (0.9 of the distance closed at a relative speed of twice the gap).
-    let crossing = Crossing {
-        length: 1e-3,
-        angle: 5e-5,
-        gap: 1e-7,
-        toi: 0.5,
-        along_a: 0.0,
-        along_b: 0.0,
-        frame: [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]],
-        origin: [0.3, -0.2, 0.7],
-    };
-    let (x0, x1) = crossing.motion();
+    let (x0, x1) = short_crossing([0.3, -0.2, 0.7]).motion();
     let toi = AdditiveCcd::default().edge_edge(&x0, &x1, 0.0, 1.0);
     let toi = toi.expect("the edges cross at t = 0.5");
     assert!((0.44..0.5).contains(&toi), "toi {toi}");
