@@ -272,7 +272,7 @@ def gen_short_parallel(rng, n):
     L = log_uniform(rng, -4, -1, m)
     lb = L * rng.uniform(0.5, 1.5, m)
     theta = log_uniform(rng, -8, -2, m)
-    gap = L * log_uniform(rng, -10, -2, m)
+    gap = L * log_uniform(rng, -9, -2, m)
     tstar = rng.uniform(0.05, 0.95, m)
     s, u = rng.uniform(0.15, 0.85, (2, m))
     loc = np.zeros((m, 4, 3))
