@@ -27,6 +27,7 @@ use mochi_sim::contact::stiffness::{initial_barrier_stiffness, update_barrier_st
 use mochi_sim::energy::{Local, Want};
 use mochi_sim::npz::NpzOut;
 use npyz::npz::NpzArchive;
+use rayon::prelude::*;
 
 type Archive = NpzArchive<std::io::BufReader<std::fs::File>>;
 
@@ -212,15 +213,22 @@ fn run_ccd(npz: &mut Archive, prefix: &str, key: &str, cols: &mut Columns) -> Re
     let (cases, n) = (shape[0] as usize, shape[1] as usize);
     let dim = if key.ends_with('2') { 2 } else { 3 };
     let ccd = AdditiveCcd::default();
-    for c in 0..cases {
-        let (x0, x1, xi) = (&x0s[c * n..(c + 1) * n], &x1s[c * n..(c + 1) * n], xis[c]);
-        let toi = match key {
-            "pp2" | "pp3" => ccd.point_point(x0, x1, dim, xi, 1.0),
-            "pe2" | "pe3" => ccd.point_edge(x0, x1, dim, xi, 1.0),
-            "pt" => ccd.point_triangle(x0, x1, xi, 1.0),
-            "ee" => ccd.edge_edge(x0, x1, xi, 1.0),
-            _ => unreachable!("unknown pair {key}"),
-        };
+    // Cases in parallel: pairs sliding along each other at a tiny distance take millions of
+    // advances each.
+    let tois: Vec<Option<f64>> = (0..cases)
+        .into_par_iter()
+        .map(|c| {
+            let (x0, x1, xi) = (&x0s[c * n..(c + 1) * n], &x1s[c * n..(c + 1) * n], xis[c]);
+            match key {
+                "pp2" | "pp3" => ccd.point_point(x0, x1, dim, xi, 1.0),
+                "pe2" | "pe3" => ccd.point_edge(x0, x1, dim, xi, 1.0),
+                "pt" => ccd.point_triangle(x0, x1, xi, 1.0),
+                "ee" => ccd.edge_edge(x0, x1, xi, 1.0),
+                _ => unreachable!("unknown pair {key}"),
+            }
+        })
+        .collect();
+    for toi in tois {
         cols.push(
             &format!("{prefix}ccd_{key}_hit"),
             &[],

@@ -169,7 +169,6 @@ impl AdditiveCcd {
             return None;
         }
         let mut x = [0.0; MAX_STENCIL];
-        x[..n].copy_from_slice(x0);
         let eta = self.conservative_rescaling;
         let mut d = d2.sqrt();
         let mut excess = d2 - xi2; // d^2 - xi^2
@@ -180,8 +179,12 @@ impl AdditiveCcd {
         let mut t = 0.0;
         for k in 0..self.max_iterations {
             let advance = eta * excess / ((d + min_distance) * lp);
-            for (xk, dk) in x.iter_mut().zip(&dx).take(n) {
-                *xk += advance * dk;
+            // The positions at the new time from the start, not by adding the advances up:
+            // over millions of advances (edges sliding along each other at a tiny distance)
+            // the sum's rounding drifts by more than the gap.
+            let next = t + advance;
+            for ((xk, start), dk) in x.iter_mut().zip(x0).zip(&dx).take(n) {
+                *xk = start + next * dk;
             }
             let d2 = pair.squared_distance(&x[..n], dim, &mut scratch);
             d = d2.sqrt();
@@ -191,7 +194,7 @@ impl AdditiveCcd {
             if (t > 0.0 && excess / (d + min_distance) < gap) || excess.is_nan() || excess <= 0.0 {
                 return lowered(t, k + 1);
             }
-            t += advance;
+            t = next;
             if t > tmax {
                 return None;
             }
