@@ -144,8 +144,8 @@ fn no_crossing_of_short_nearly_parallel_edges_is_missed() {
 
 #[test]
 fn edges_sliding_along_each_other_are_caught_after_a_million_advances() {
-    // Edge b also slides along a by a tenth of the length while closing a gap of 1e-9 ..
-    // 1e-8 of it: about a million conservative advances before the crossing. Positions
+    // Edge b also slides along a by a tenth of the length while closing a gap of 3e-8 ..
+    // 1e-7 of it: about a million conservative advances before the crossing. Positions
     // built by adding the advances up drift by the sum's rounding, as much as the gap.
     let mut rng = rng(4646);
     let ccd = AdditiveCcd::default();
