@@ -1,8 +1,7 @@
 //! Edge-edge squared distance (3D) and its closest-feature classification.
 
 use super::kernels;
-use super::point_edge::point_line;
-use super::point_edge::{point_edge_type, PointEdgeType};
+use super::point_edge::{point_line, sub_point_edge};
 use super::reduced::{cross_accurate, difference, dot, sub, vertex};
 use crate::energy::{Local, Want};
 
@@ -97,46 +96,26 @@ pub fn edge_edge_type(x: &[f64]) -> EdgeEdgeType {
 /// The type of the endpoint `x[p]` of a zero-length edge against the other edge, as
 /// `[at its first end, at its second end, in its interior]`.
 fn point_type(x: &[f64], p: usize, types: [EdgeEdgeType; 3]) -> EdgeEdgeType {
-    let other = if p == 0 { [2, 3] } else { [0, 1] };
-    let mut local = [0.0; 9];
-    for (k, a) in [p, other[0], other[1]].into_iter().enumerate() {
-        local[3 * k..3 * k + 3].copy_from_slice(&x[3 * a..3 * a + 3]);
-    }
-    match point_edge_type(&local, 3) {
-        PointEdgeType::E0 => types[0],
-        PointEdgeType::E1 => types[1],
-        PointEdgeType::Interior => types[2],
-    }
+    let [s, t] = if p == 0 { [2, 3] } else { [0, 1] };
+    sub_point_edge(x, [p, s, t], types).1
 }
 
 /// Classification of parallel edges: the closest of the four endpoint-to-other-edge
 /// distances (an endpoint always attains the minimum for parallel segments).
 pub fn parallel_type(x: &[f64]) -> EdgeEdgeType {
     use EdgeEdgeType::*;
-    let v = [0, 1, 2, 3].map(|a| vertex(x, 3, a));
-    // (point, edge start, edge end, type if interior, type at edge start, type at edge end)
+    // (point, edge start, edge end) and the types at the edge's start, end and interior.
     let cases = [
-        (2, 0, 1, AB0, A0B0, A1B0),
-        (3, 0, 1, AB1, A0B1, A1B1),
-        (0, 2, 3, A0B, A0B0, A0B1),
-        (1, 2, 3, A1B, A1B0, A1B1),
+        ([2, 0, 1], [A0B0, A1B0, AB0]),
+        ([3, 0, 1], [A0B1, A1B1, AB1]),
+        ([0, 2, 3], [A0B0, A0B1, A0B]),
+        ([1, 2, 3], [A1B0, A1B1, A1B]),
     ];
     let mut best = (f64::INFINITY, AB);
-    let mut out = Local::default();
-    for (p, s, t, interior, at_s, at_t) in cases {
-        let mut local = [0.0; 9];
-        for (k, a) in [p, s, t].into_iter().enumerate() {
-            local[3 * k..3 * k + 3].copy_from_slice(&v[a]);
-        }
-        let ty = point_edge_type(&local, 3);
-        let d = super::point_edge_distance_typed(&local, 3, ty, Want::Value, &mut out);
-        let ee = match ty {
-            PointEdgeType::E0 => at_s,
-            PointEdgeType::E1 => at_t,
-            PointEdgeType::Interior => interior,
-        };
+    for (stencil, types) in cases {
+        let (d, ty) = sub_point_edge(x, stencil, types);
         if d < best.0 {
-            best = (d, ee);
+            best = (d, ty);
         }
     }
     best.1

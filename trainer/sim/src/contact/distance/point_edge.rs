@@ -69,3 +69,21 @@ pub(super) fn point_line(v: &[[f64; 3]], p: usize, s: usize, t: usize, hessian: 
     let kernel = kernels::point_line(sub(v[p], v[near]), sub(v[t], v[s]), hessian);
     (kernel, [difference(p, near), difference(t, s)])
 }
+
+/// Vertex `p` of the 3D stencil `x` against the stencil's edge `[s, t]`: the squared
+/// distance and the closest feature, named from `names` as `[at s, at t, in the interior]`
+/// (how edge-edge and degenerate point-triangle pairs reduce to their sub-primitives).
+pub(super) fn sub_point_edge<T: Copy>(x: &[f64], [p, s, t]: [usize; 3], names: [T; 3]) -> (f64, T) {
+    let mut local = [0.0; 9];
+    for (k, a) in [p, s, t].into_iter().enumerate() {
+        local[3 * k..3 * k + 3].copy_from_slice(&x[3 * a..3 * a + 3]);
+    }
+    let ty = point_edge_type(&local, 3);
+    let d = point_edge_distance_typed(&local, 3, ty, Want::Value, &mut Local::default());
+    let name = match ty {
+        PointEdgeType::E0 => names[0],
+        PointEdgeType::E1 => names[1],
+        PointEdgeType::Interior => names[2],
+    };
+    (d, name)
+}

@@ -1,7 +1,7 @@
 //! Point-triangle squared distance (3D) and its closest-feature classification.
 
 use super::kernels;
-use super::point_edge::{point_edge_distance_typed, point_edge_type, point_line, PointEdgeType};
+use super::point_edge::{point_line, sub_point_edge};
 use super::reduced::{cross, cross_accurate, difference, dot, sub, vertex};
 use crate::energy::{Local, Want};
 
@@ -82,22 +82,14 @@ pub fn point_triangle_type(x: &[f64]) -> PointTriangleType {
 /// classified by [`point_edge_type`] (a zero-length edge as its one point).
 fn closest_edge_type(x: &[f64]) -> PointTriangleType {
     use PointTriangleType::*;
-    const EDGES: [(usize, usize, PointTriangleType, PointTriangleType, PointTriangleType); 3] =
-        [(1, 2, T0, T1, E0), (2, 3, T1, T2, E1), (3, 1, T2, T0, E2)];
+    const EDGES: [([usize; 3], [PointTriangleType; 3]); 3] = [
+        ([0, 1, 2], [T0, T1, E0]),
+        ([0, 2, 3], [T1, T2, E1]),
+        ([0, 3, 1], [T2, T0, E2]),
+    ];
     let mut best = (f64::INFINITY, Interior);
-    let mut scratch = Local::default();
-    for (s, t, at_s, at_t, interior) in EDGES {
-        let mut local = [0.0; 9];
-        for (k, a) in [0, s, t].into_iter().enumerate() {
-            local[3 * k..3 * k + 3].copy_from_slice(&x[3 * a..3 * a + 3]);
-        }
-        let ty = point_edge_type(&local, 3);
-        let d = point_edge_distance_typed(&local, 3, ty, Want::Value, &mut scratch);
-        let ty = match ty {
-            PointEdgeType::E0 => at_s,
-            PointEdgeType::E1 => at_t,
-            PointEdgeType::Interior => interior,
-        };
+    for (stencil, types) in EDGES {
+        let (d, ty) = sub_point_edge(x, stencil, types);
         // The first edge always names a type, so non-finite input still gets one.
         if d < best.0 || best.1 == Interior {
             best = (d, ty);
