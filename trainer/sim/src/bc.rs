@@ -166,6 +166,42 @@ impl BcSequence {
         BcSequence { tracks, frames }
     }
 
+    /// This sequence in `factor` times smaller steps (the inverse of [`Self::every`]): each
+    /// step of `dt` seconds becomes `factor` steps of `dt / factor` with the same velocities,
+    /// so the poses at every `factor`-th new frame are this sequence's (rotations about one
+    /// axis compose exactly) and `frames * factor` frames follow frame 0.
+    pub fn refined(&self, factor: usize, dt: f64) -> BcSequence {
+        let factor = factor.max(1);
+        let small = dt / factor as f64;
+        let tracks = self
+            .tracks
+            .iter()
+            .map(|t| {
+                let mut poses = vec![t.poses[0]];
+                let mut velocities = vec![[0.0; 6]];
+                for f in 1..=self.frames {
+                    let v = t.velocities[f];
+                    let segment = Segment {
+                        frames: 1,
+                        velocity: [v[0], v[1], v[2]],
+                        angular_velocity: [v[3], v[4], v[5]],
+                    };
+                    for _ in 0..factor {
+                        poses.push(poses.last().expect("starts non-empty").advanced(&segment, small));
+                        velocities.push(v);
+                    }
+                    // Back onto the coarse pose, so that rounding does not accumulate.
+                    *poses.last_mut().expect("just pushed") = t.poses[f];
+                }
+                Track { poses, velocities }
+            })
+            .collect();
+        BcSequence {
+            tracks,
+            frames: self.frames * factor,
+        }
+    }
+
     /// The boundary-condition signal at `frame`: per handle, linear and angular velocity,
     /// translation and rotation vector ([`SIGNAL_PER_HANDLE`] numbers).
     pub fn signal(&self, frame: usize) -> Vec<f64> {
@@ -385,6 +421,47 @@ mod tests {
         assert!((t.velocities[3][1] + 0.2).abs() < 1e-15);
         assert_eq!(seq.every(1), seq);
         assert_eq!(seq.every(0), seq);
+    }
+
+    #[test]
+    fn refined_steps_the_same_motion_in_smaller_steps() {
+        let segments = [
+            Segment {
+                frames: 3,
+                velocity: [0.3, 0.1, 0.0],
+                angular_velocity: [0.2, 0.0, 1.2],
+            },
+            Segment {
+                frames: 4,
+                velocity: [0.0, -0.6, 0.0],
+                angular_velocity: [0.0, 0.5, 0.0],
+            },
+        ];
+        let dt = 0.1;
+        let seq = BcSequence {
+            tracks: vec![Track::from_segments(&segments, 10, dt)],
+            frames: 10,
+        };
+        let fine = seq.refined(4, dt);
+        assert_eq!(fine.frames(), 40);
+        // The fine track integrated directly from the segments at dt / 4 (each segment's
+        // frames times four) has the same poses up to rounding.
+        let direct = Track::from_segments(
+            &segments.map(|s| Segment {
+                frames: 4 * s.frames,
+                ..s
+            }),
+            40,
+            dt / 4.0,
+        );
+        for (a, b) in fine.tracks[0].poses.iter().zip(&direct.poses) {
+            assert!((a.translation - b.translation).norm() < 1e-12);
+            assert!(a.rotation.angle_to(&b.rotation) < 1e-12);
+        }
+        assert_eq!(fine.tracks[0].velocities, direct.velocities);
+        // Every fourth frame is the coarse sequence's, exactly.
+        assert_eq!(fine.every(4).tracks[0].poses, seq.tracks[0].poses);
+        assert_eq!(seq.refined(1, dt), seq);
     }
 
     #[test]
