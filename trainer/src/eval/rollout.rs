@@ -4,7 +4,6 @@
 use std::path::Path;
 use std::time::Instant;
 
-use mochi_runtime::{HandleMotion, SIGNAL_PER_HANDLE};
 use mochi_sim::bc::BcSequence;
 use mochi_sim::measure::{kinetic_energy, mean_and_max_error};
 use mochi_sim::trajectory::Trajectory;
@@ -300,14 +299,4 @@ pub fn rollout(
     Ok(metrics)
 }
 
-/// The handle motions of frame `t` of `bc`, as the runtime takes them.
-pub fn motions(bc: &BcSequence, t: usize) -> Vec<HandleMotion> {
-    bc.signal(t)
-        .chunks_exact(SIGNAL_PER_HANDLE)
-        .map(|c| {
-            let mut s = [0.0f32; SIGNAL_PER_HANDLE];
-            s.iter_mut().zip(c).for_each(|(s, &v)| *s = v as f32);
-            HandleMotion::from_signal(&s)
-        })
-        .collect()
-}
+pub use crate::methods::learned::motions;

@@ -89,6 +89,55 @@ impl MeshSpec {
             other => is(other),
         }
     }
+
+    /// The same body with about half the cells along each axis (at least one; rods and cloth
+    /// keep their end vertices): the coarse-mesh method of `mochi compare`. `None` for a mesh
+    /// read from a file, which has no resolution to change.
+    pub fn coarsened(&self) -> Option<MeshSpec> {
+        let half = |cells: usize| cells.div_ceil(2).max(1);
+        Some(match self {
+            MeshSpec::Box { min, max, cells } => MeshSpec::Box {
+                min: *min,
+                max: *max,
+                cells: cells.map(half),
+            },
+            MeshSpec::Ball { center, radius, cells } => MeshSpec::Ball {
+                center: *center,
+                radius: *radius,
+                cells: half(*cells),
+            },
+            MeshSpec::ClothGrid {
+                size,
+                verts,
+                origin,
+                axes,
+            } => MeshSpec::ClothGrid {
+                size: *size,
+                verts: verts.map(|v| half(v.saturating_sub(1)) + 1),
+                origin: *origin,
+                axes: *axes,
+            },
+            MeshSpec::Rods {
+                count,
+                verts_per_rod,
+                length,
+                spacing,
+                direction,
+                origin,
+            } => MeshSpec::Rods {
+                count: *count,
+                verts_per_rod: half(verts_per_rod.saturating_sub(1)) + 1,
+                length: *length,
+                spacing: *spacing,
+                direction: *direction,
+                origin: *origin,
+            },
+            MeshSpec::File { .. } => return None,
+            MeshSpec::Parts { parts } => MeshSpec::Parts {
+                parts: parts.iter().map(MeshSpec::coarsened).collect::<Option<_>>()?,
+            },
+        })
+    }
 }
 
 fn default_ball_cells() -> usize {

@@ -2,7 +2,10 @@
 
 use super::*;
 use crate::npz::entry_options;
+use npyz::zip;
 use npyz::WriterBuilder;
+use std::fs::File;
+use std::io::Cursor;
 use std::process::Command;
 
 fn sample() -> Trajectory {

@@ -10,6 +10,7 @@
 //! boundary-condition script), `projection` (the closest state of a subspace to a given one,
 //! for comparing subspaces), `rounding` (double precision, or single precision emulated).
 pub mod lbfgs;
+pub mod method;
 pub mod newton;
 pub mod objective;
 pub mod optimize;
