@@ -2,7 +2,8 @@
 # The README's test command: installs what the target tests need when it is missing (Debian's
 # rustc-web, rust-web-src, rust-web-llvm and lld for cross-compiling; QEMU, Chromium, node), then runs every
 # test of the workspace, the Cortex-M4 firmware under QEMU, the wasm module in node and in
-# headless Chromium, and the C program among them. Prints one closing tally line.
+# headless Chromium, and the C program among them, then the XPBD peer's self-check. Prints one
+# closing tally line.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-cross.sh
@@ -11,8 +12,12 @@ trap 'rm -f "$log"' EXIT
 set +e
 cargo test --workspace "$@" 2>&1 | tee "$log"
 status=${PIPESTATUS[0]}
+# The XPBD peer's self-check (pypbd from PyPI into target/pbd-venv once, then about a second).
+scripts/xpbd.sh self-check 2>&1 | tee -a "$log"
+[ "${PIPESTATUS[0]}" -eq 0 ] || status=1
 set -e
-# One closing line over every test binary (cargo prints one result line per binary).
-awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($i ~ /^passed;?$/) p += $(i-1); if ($i ~ /^failed;?$/) f += $(i-1) } }
+# One closing line over every test binary (cargo prints one result line per binary) and the
+# XPBD self-check.
+awk '/^(test result|xpbd self-check):/ { for (i = 1; i <= NF; i++) { if ($i ~ /^passed[;,]?$/) p += $(i-1); if ($i ~ /^failed[;,]?$/) f += $(i-1) } }
      END { printf "tests: %d passed, %d failed\n", p, f }' "$log"
 exit "$status"
