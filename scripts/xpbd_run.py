@@ -52,6 +52,15 @@ Constraints per body kind (all XPBD, i.e. with compliance alpha = 1 / (k h^2), h
   strain about 1e6 times smaller (the sum grows as 1 / mass_scale). Gravity cannot be scaled
   through the API, which is why lengths are not. The tet constraint is also skipped for a
   Poisson ratio above 0.49 (refused here).
+  Iterations: the constraint's first iteration in a substep is exact XPBD (its multiplier
+  starts at 0). From the second on, the multiplier it carries is the sum of the steps
+  Delta lambda / C rather than Delta lambda (XPBD.cpp, `multiplier += lambda` with
+  lambda = -C (C + alpha multiplier) / (...), since 2.2.1), which with C = sqrt(2 U / E) of order
+  1e-6 overweights alpha * multiplier by about 1 / C: more than one iteration per substep
+  diverges on beam within a few frames at 4 or more substeps (measured, the sweep's table).
+  The library's own default is one iteration (`maxIterations` = 1) with substeps, the regime
+  of Macklin et al. 2019 ("Small steps in physics simulation"); the sweep adds 64, 128 and 256
+  substeps at one iteration.
 - cloth: XPBD distance constraints on every edge, spring constant
   k_e = 2 E t / (1 - nu) * (A_e / |e|^2), A_e a third of the rest area of the edge's triangles.
   This gives a uniformly stretched sheet the energy of the StVK membrane under the same strain,
@@ -95,8 +104,9 @@ SWEEP_ITERATIONS = [1, 2, 5, 10, 20]
 SWEEP_EXTRA = [(64, 1), (128, 1), (256, 1)]
 # A run stops once a vertex is this many rest diagonals off the reference (or non-finite).
 DIVERGED = 10.0
-# Tuned bending stiffnesses (see docs/results/methods.md, `--bending` sweep), before mass_scale.
-DEFAULT_BENDING = {"cloth": 1e3, "rod": 1.0}
+# Bending stiffnesses tuned on a sequence other than the test ones (`mochi simulate` at level
+# 0.5, 60 frames, 32 substeps x 1 iteration; docs/notes/2026-11-28-xpbd-peer.md), before mass_scale.
+DEFAULT_BENDING = {"cloth": 1.0, "rod": 1.0}
 
 
 def scalar(d, key, default=None):
