@@ -15,8 +15,10 @@
 # docstring describes the result files and how the library is driven.
 #
 # A result RESULT.npz holds positions (frames+1, n, 3), step_seconds (frames,), solver_seconds
-# (frames,), substeps, iterations, mass_scale, bending, error_percent (frames+1,),
-# frames_completed, constraint (description), pypbd_version.
+# (frames,), cpu_seconds (frames,), substeps, iterations (0-d int64), mass_scale, bending,
+# error_percent (frames+1,), frames_completed, constraint (description), pypbd_version. A run
+# that diverges (a vertex 10 rest diagonals off the reference, or non-finite) stops there: its
+# positions and times after frames_completed are NaN.
 #
 # 1. a virtual environment target/pbd-venv with pypbd and numpy from PyPI (made once);
 # 2. scripts/xpbd_run.py pinned to core $CORE (default 0) with OpenMP on one thread.
