@@ -199,7 +199,7 @@ def fem_threshold_fraction(case, positions, h, mass_scale):
 class Peer:
     """One pypbd simulation of a case at one setting."""
 
-    def __init__(self, case, substeps, iterations, mass_scale=MASS_SCALE, bending=None):
+    def __init__(self, case, substeps, iterations, mass_scale=MASS_SCALE, bending=None, velocity_order=1):
         import pypbd as pbd
 
         self.pbd = pbd
@@ -219,6 +219,8 @@ class Peer:
         ts.setValueUInt(pbd.TimeStepController.NUM_SUB_STEPS, 1)
         ts.setValueUInt(pbd.TimeStepController.MAX_ITERATIONS, iterations)
         ts.setValueUInt(pbd.TimeStepController.MAX_ITERATIONS_V, 0)
+        # 0: first-order velocity update v = (x - x_old) / h (the library's default), 1: second order.
+        ts.setValueInt(pbd.TimeStepController.VELOCITY_UPDATE_METHOD, velocity_order - 1)
         self.h = case["dt"] / substeps
         pbd.TimeManager.getCurrent().setTimeStepSize(self.h)
 
@@ -351,7 +353,7 @@ def errors(case, positions):
 
 
 def run_one(case, args, out):
-    peer = Peer(case, args.substeps, args.iterations, args.mass_scale, args.bending)
+    peer = Peer(case, args.substeps, args.iterations, args.mass_scale, args.bending, args.velocity_order)
     limit = DIVERGED * case["diagonal"]
     ref = case["reference"]
     positions, step_s, solver_s = peer.run(
@@ -411,6 +413,7 @@ def sweep(case_path, args):
             cmd += ["--bending", repr(args.bending)]
         if args.frames is not None:
             cmd += ["--frames", str(args.frames)]
+        cmd += ["--velocity-order", str(args.velocity_order)]
         line = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
         row = json.loads(line)
         rows.append(row)
@@ -548,6 +551,8 @@ def main():
     p.add_argument("--frames", type=int, help="simulate only the first FRAMES frames")
     p.add_argument("--mass-scale", type=float, default=MASS_SCALE)
     p.add_argument("--bending", type=float, help="cloth/rod bending stiffness (before mass scale)")
+    p.add_argument("--velocity-order", type=int, choices=[1, 2], default=1,
+                   help="the library's velocity update: first order (its default) or second order")
     p.add_argument("--threshold-report", action="store_true",
                    help="solid: fraction of (tet, frame) of the reference where the library would skip the tet")
     p.add_argument("--self-check", action="store_true")
