@@ -32,6 +32,7 @@ use crate::report::chart::{self, LabelledPoint, Series};
 
 pub mod adaptive;
 pub mod adaptive_bench;
+pub mod compare;
 pub mod network_export;
 pub mod reduced;
 pub mod reduced_bench;

@@ -95,7 +95,8 @@ impl SequenceRun {
 /// Steps `method` over frames `1..=frames` of `bc` and measures it against each of
 /// `references` (positions of frames `0..`, each as long as it is; frames beyond a reference
 /// are stepped for stability only). The positions of a mesh of `dim` coordinates per vertex
-/// and rest diagonal `diagonal`.
+/// and rest diagonal `diagonal`. With `keep`, the positions of frames `0..` (up to the first
+/// blow-up) are pushed into it, at most `keep.1` of them.
 pub fn run_sequence(
     method: &mut dyn Method,
     bc: &BcSequence,
@@ -103,6 +104,7 @@ pub fn run_sequence(
     references: &[&[Vec<f64>]],
     dim: usize,
     diagonal: f64,
+    mut keep: Option<(&mut Vec<Vec<f64>>, usize)>,
 ) -> TrainerResult<SequenceRun> {
     let frames = frames.min(bc.frames());
     let mut run = SequenceRun {
@@ -113,6 +115,14 @@ pub fn run_sequence(
     };
     method.reset(bc)?;
     let mut last = method.positions().to_vec();
+    let mut record = |x: &[f64]| {
+        if let Some((kept, most)) = keep.as_mut() {
+            if kept.len() < *most {
+                kept.push(x.to_vec());
+            }
+        }
+    };
+    record(&last);
     let (mut seconds, mut iterations, mut macs) = (0.0, 0.0, 0.0);
     for frame in 1..=frames {
         let clock = Instant::now();
@@ -159,6 +169,7 @@ pub fn run_sequence(
                 curve.push(mean_and_max_error(x, r, dim, diagonal).0);
             }
         }
+        record(x);
         last.copy_from_slice(x);
     }
     let stepped = run.stable_frames.max(1) as f64;

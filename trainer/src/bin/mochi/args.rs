@@ -100,6 +100,44 @@ pub(crate) enum Command {
         #[arg(long)]
         adaptive: bool,
     },
+    /// Every method that applies to a scene on one chart (time per frame against error, against
+    /// implicit Euler and a time-converged reference) and a stability matrix: full space, a
+    /// coarse mesh, the adaptive solver, VBD, the reduced solver, the learned runtime in each
+    /// weight storage, and peers' recordings (`scripts/xpbd.sh`). Writes `OUT/SCENE.md`.
+    Compare {
+        /// Scene name or path (the model's scene when `--model` is given).
+        scene: String,
+        /// The learned model (`SCENE.mochi`); its supervised twin beside it is added.
+        #[arg(long)]
+        model: Option<PathBuf>,
+        /// The scene's `.reduced` file.
+        #[arg(long)]
+        reduced: Option<PathBuf>,
+        /// Peers' recordings (`DIR/CASE/*.npz`, from `scripts/xpbd.sh`).
+        #[arg(long)]
+        peers: Option<PathBuf>,
+        /// Write the peers' cases (`DIR/CASE.npz`) here.
+        #[arg(long)]
+        cases: Option<PathBuf>,
+        /// Output directory of the page and charts.
+        #[arg(long, default_value = "docs/results/methods")]
+        out: PathBuf,
+        /// Test sequences on the chart.
+        #[arg(long, default_value_t = 2)]
+        sequences: usize,
+        /// Frames of each chart sequence.
+        #[arg(long, default_value_t = 150)]
+        frames: usize,
+        /// Frames of each stability condition (0: no matrix).
+        #[arg(long, default_value_t = 300)]
+        matrix_frames: usize,
+        /// Frames of the long stability condition.
+        #[arg(long, default_value_t = 10_000)]
+        long_frames: usize,
+        /// Most substeps per frame of the time-converged reference.
+        #[arg(long, default_value_t = 32)]
+        max_substeps: usize,
+    },
     /// Replace a model's decoder by a cheaper one fitted to it (a small MLP before a linear
     /// basis) on the latents its own rollouts over the scene's training motions visit; the
     /// integrator is kept, so the latent trajectories do not change. With `--integrator W`

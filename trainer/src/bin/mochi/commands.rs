@@ -188,6 +188,20 @@ pub(crate) fn eval_models(
     Ok(())
 }
 
+pub(crate) fn compare(scene: &str, out: PathBuf, options: mochi_trainer::eval::compare::CompareOptions) -> Result<()> {
+    if options.frames == 0 || options.sequences == 0 {
+        bail!("--frames and --sequences must be at least 1");
+    }
+    let comparison = mochi_trainer::eval::compare::compare(scene, &options, &Terminal)?;
+    let command = format!("mochi {}", std::env::args().skip(1).collect::<Vec<_>>().join(" "));
+    mochi_trainer::eval::compare::page::write(&out, &comparison, &command)?;
+    println!(
+        "page and charts -> {}",
+        out.join(format!("{}.md", comparison.scene)).display()
+    );
+    Ok(())
+}
+
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }

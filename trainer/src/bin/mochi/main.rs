@@ -12,7 +12,9 @@ use mochi_trainer::methods::reduced::rounding::Rounding;
 use mochi_trainer::{shipped_scene_names, Recipe, Reporter};
 
 use args::{Bench, Cli, Command};
-use commands::{bench_reduced, bench_runtime, bench_sim, demo, eval_models, make_dataset, simulate, train_scene};
+use commands::{
+    bench_reduced, bench_runtime, bench_sim, compare, demo, eval_models, make_dataset, simulate, train_scene,
+};
 
 /// Reports on the terminal: stages and messages as lines on stdout, progress as bars.
 struct Terminal;
@@ -69,6 +71,35 @@ fn run(cli: Cli) -> Result<()> {
             accuracy_frames,
             adaptive,
         } => eval_models(&artifacts, out, frames, accuracy_frames, adaptive),
+        Command::Compare {
+            scene,
+            model,
+            reduced,
+            peers,
+            cases,
+            out,
+            sequences,
+            frames,
+            matrix_frames,
+            long_frames,
+            max_substeps,
+        } => compare(
+            &scene,
+            out,
+            mochi_trainer::eval::compare::CompareOptions {
+                model,
+                reduced,
+                peers,
+                cases,
+                sequences,
+                frames,
+                matrix: (matrix_frames > 0).then_some(mochi_trainer::eval::compare::conditions::MatrixSpan {
+                    frames: matrix_frames,
+                    long_frames,
+                }),
+                max_substeps,
+            },
+        ),
         Command::Distill {
             artifact,
             out,

@@ -1,0 +1,245 @@
+//! Which methods `mochi compare` runs, at which budgets, on a scene: the simulator's solvers
+//! (full space, a coarse mesh, the adaptive solver, VBD), the reduced solver in each subspace
+//! of the scene's `.reduced` file, the learned integrator in the runtime in each weight
+//! storage (and its supervised twin), and the peers' recordings. What a method cannot take
+//! (a learned model at another time step or stiffness, VBD with contact) comes back as a
+//! reason instead of a method.
+
+use std::path::{Path, PathBuf};
+
+use mochi_runtime::ValidModel;
+use mochi_sim::energy::StencilEnergy;
+use mochi_sim::{AdaptiveSettings, BuiltScene, Scene, SolverSpec, VbdSettings};
+
+use super::conditions::RunTimeChange;
+use crate::error::TrainerResult;
+use crate::learn::encoding::Encoding;
+use crate::learn::network::ExportedMlp;
+use crate::methods::learned::LearnedRuntime;
+use crate::methods::method::Method;
+use crate::methods::peer::PeerRecording;
+use crate::methods::reduced::method::ReducedMethod;
+use crate::methods::reduced::stepper::StepperSettings;
+use crate::methods::simulated::Simulated;
+
+/// A learned model in one storage, ready for the runtime.
+pub struct LearnedModel<'m> {
+    /// "learned (runtime)" or "supervised (runtime)".
+    pub family: &'static str,
+    /// Latent size and storage ("k=8, int8").
+    pub setting: String,
+    /// The validated model.
+    pub model: ValidModel<'m>,
+}
+
+/// A reduced subspace and the energies it steps with.
+pub struct ReducedSubspace<'a> {
+    /// "vanilla", "Lipschitz", with ", runtime cubature" where the elastic terms are.
+    pub name: String,
+    /// Its decoder.
+    pub decoder: ExportedMlp,
+    /// The latent of the scene's start.
+    pub initial_latent: Vec<f64>,
+    /// The energies it steps with: `None` for the condition's exact energies, `Some` for a
+    /// fixed set (runtime cubature, fitted to the scene as trained).
+    pub energies: Option<Vec<&'a dyn StencilEnergy>>,
+}
+
+/// Everything trained for the scene that the lineup can run.
+pub struct Trained<'a> {
+    /// The learned models, each storage.
+    pub learned: Vec<LearnedModel<'a>>,
+    /// The reduced subspaces.
+    pub reduced: Vec<ReducedSubspace<'a>>,
+    /// The positions encoding of the reduced subspaces.
+    pub encoding: Option<Encoding>,
+    /// The reduced solver's settings (the scene's `[reduced]` table).
+    pub reduced_settings: StepperSettings,
+    /// Directory of peers' recordings (`DIR/CASE/*.npz`).
+    pub peers: Option<PathBuf>,
+}
+
+/// A method, or why the family cannot take the condition.
+pub enum Entry<'a> {
+    /// Runs.
+    Runs(Box<dyn Method + 'a>),
+    /// Cannot, with the reason ("needs retraining", ...).
+    Cannot {
+        /// The family.
+        family: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// The budgets of the chart, or one representative setting per family (the matrix).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Budgets {
+    /// Several per family.
+    Sweep,
+    /// One per family.
+    One,
+}
+
+/// The simulator's solvers on `scene` (whose reference run is `reference`): full space (one
+/// step per frame and, in a sweep, two), the coarse mesh, the adaptive solver and VBD.
+pub fn simulated<'a>(scene: &Scene, reference: &BuiltScene, budgets: Budgets) -> Vec<Entry<'a>> {
+    let mut out = Vec::new();
+    let mut full = scene.clone();
+    full.solver = SolverSpec::FullSpace;
+    let substeps: &[usize] = match budgets {
+        Budgets::Sweep => &[1, 2],
+        Budgets::One => &[1],
+    };
+    for &k in substeps {
+        out.push(entry(
+            "full space",
+            Simulated::new(&full, k, format!("{k} step(s) per frame")),
+        ));
+    }
+    out.push(entry("coarse mesh", Simulated::coarse(&full, reference)));
+    let adaptive = match &scene.solver {
+        SolverSpec::Adaptive(s) => s.clone(),
+        _ => AdaptiveSettings::default(),
+    };
+    let thresholds: &[f64] = match budgets {
+        Budgets::Sweep => &[0.1, 1.0, 4.0],
+        Budgets::One => &[1.0],
+    };
+    for &t in thresholds {
+        let mut s = scene.clone();
+        let settings = AdaptiveSettings {
+            modal_error: adaptive.modal_error * t,
+            nodal_error: adaptive.nodal_error * t,
+            ..adaptive.clone()
+        };
+        let setting = format!("error thresholds {} / {}", settings.modal_error, settings.nodal_error);
+        s.solver = SolverSpec::Adaptive(settings);
+        out.push(entry("adaptive", Simulated::new(&s, 1, setting)));
+    }
+    let iterations: &[usize] = match budgets {
+        Budgets::Sweep => &[5, 20, 80],
+        Budgets::One => &[20],
+    };
+    for &n in iterations {
+        let mut s = scene.clone();
+        s.solver = SolverSpec::Vbd(VbdSettings {
+            iterations: n,
+            ..VbdSettings::default()
+        });
+        out.push(entry("VBD", Simulated::new(&s, 1, format!("{n} iterations"))));
+    }
+    out
+}
+
+fn entry<'a>(family: &str, method: TrainerResult<Simulated>) -> Entry<'a> {
+    match method {
+        Ok(m) => Entry::Runs(Box::new(m)),
+        Err(e) => Entry::Cannot {
+            family: family.into(),
+            reason: e.to_string(),
+        },
+    }
+}
+
+/// The reduced subspaces on `problem` (the condition's scene) at time step `dt`.
+pub fn reduced<'a>(trained: &'a Trained<'a>, problem: &'a BuiltScene, change: RunTimeChange) -> Vec<Entry<'a>> {
+    let Some(encoding) = &trained.encoding else {
+        return Vec::new();
+    };
+    trained
+        .reduced
+        .iter()
+        .map(|s| {
+            let family = format!("reduced, {}", s.name);
+            if s.energies.is_some() && matches!(change, RunTimeChange::Stiffness(_)) {
+                return Entry::Cannot {
+                    family,
+                    reason: "needs refitting (cubature of the trained material)".into(),
+                };
+            }
+            let energies = s
+                .energies
+                .clone()
+                .unwrap_or_else(|| problem.simulator.potentials().iter().map(|p| p.as_ref()).collect());
+            Entry::Runs(Box::new(ReducedMethod::new(
+                family,
+                format!("r={}", s.initial_latent.len()),
+                problem,
+                &s.decoder,
+                &s.initial_latent,
+                encoding,
+                energies,
+                trained.reduced_settings.clone(),
+                problem.scene.dt,
+            )))
+        })
+        .collect()
+}
+
+/// The learned models in the runtime, unless the condition changes what they were trained
+/// for.
+pub fn learned<'a>(trained: &'a Trained<'a>, change: RunTimeChange, budgets: Budgets) -> Vec<Entry<'a>> {
+    let models: Vec<&LearnedModel> = match budgets {
+        Budgets::Sweep => trained.learned.iter().collect(),
+        // The f32 and the int8 storage of the kept model.
+        Budgets::One => trained
+            .learned
+            .iter()
+            .filter(|m| m.family.starts_with("learned") && !m.setting.ends_with("f16"))
+            .collect(),
+    };
+    models
+        .into_iter()
+        .map(|m| match change {
+            RunTimeChange::None => match LearnedRuntime::new(&m.model, m.family, m.setting.clone()) {
+                Ok(r) => Entry::Runs(Box::new(r)),
+                Err(e) => Entry::Cannot {
+                    family: m.family.into(),
+                    reason: e.to_string(),
+                },
+            },
+            RunTimeChange::TimeStep(_) => Entry::Cannot {
+                family: format!("{} {}", m.family, m.setting),
+                reason: "needs retraining (trained at one time step)".into(),
+            },
+            RunTimeChange::Stiffness(_) => Entry::Cannot {
+                family: format!("{} {}", m.family, m.setting),
+                reason: "needs retraining (trained on one material)".into(),
+            },
+        })
+        .collect()
+}
+
+/// The peers' recordings of case `case` (`DIR/CASE/*.npz`), in file-name order.
+pub fn peers<'a>(trained: &Trained, case: &str, vertices: usize, dim: usize) -> Vec<Entry<'a>> {
+    let Some(dir) = &trained.peers else {
+        return Vec::new();
+    };
+    let dir = dir.join(case);
+    let Ok(read) = std::fs::read_dir(&dir) else {
+        return vec![Entry::Cannot {
+            family: "XPBD (pypbd)".into(),
+            reason: format!("no recordings in {}", dir.display()),
+        }];
+    };
+    let mut files: Vec<PathBuf> = read
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "npz"))
+        .collect();
+    files.sort();
+    files
+        .iter()
+        .map(|p| match PeerRecording::read(p, "XPBD (pypbd)", vertices, dim) {
+            Ok(r) => Entry::Runs(Box::new(r)),
+            Err(e) => Entry::Cannot {
+                family: "XPBD (pypbd)".into(),
+                reason: format!("{}: {e}", display(p)),
+            },
+        })
+        .collect()
+}
+
+fn display(p: &Path) -> String {
+    p.display().to_string()
+}

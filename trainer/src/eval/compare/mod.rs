@@ -1,0 +1,492 @@
+//! `mochi compare SCENE`: every method that applies to a scene, on one scale (docs/design.md,
+//! "Methods"). Each runs through the one interface of [`crate::methods::method`] and the one
+//! measuring loop, timed on one thread in one process:
+//!
+//! - **The chart**: the scene's first test sequences, each method at several budgets
+//!   ([`lineup`]), time per frame against mean vertex error (% of the rest diagonal) against
+//!   two references: the scene's own implicit Euler at its frame time (full-space Newton,
+//!   what the learned models imitate) and a time-converged one (the same, with the step
+//!   halved until halving it again moves the positions by less than
+//!   [`CONVERGED_CHANGE`] of the diagonal, averaged over vertices, at every frame).
+//! - **The stability matrix** ([`conditions`]): one setting per family under each condition,
+//!   each cell its stable frames and mean error against full space under that condition;
+//!   a family that cannot take a condition says why.
+//!
+//! Peers run outside (`scripts/xpbd.sh`) on the cases this command writes (`--cases`), and
+//! their recordings come back in with `--peers`.
+
+use std::path::{Path, PathBuf};
+
+use mochi_codegen::{format_name, Options, Quantized};
+use mochi_runtime::{OwnedModel, ValidModel, WeightFormat};
+use mochi_sim::bc::BcSequence;
+use mochi_sim::dataset::SequencePlan;
+use mochi_sim::energy::StencilEnergy;
+use mochi_sim::{BuiltScene, SolverSpec};
+
+use crate::artifact::reduced::ReducedArtifact;
+use crate::artifact::Artifact;
+use crate::error::{fs, Context, TrainerError, TrainerResult};
+use crate::eval::reduced::{stepper_settings, with_runtime_cubature};
+use crate::learn::encoding::Encoding;
+use crate::learn::recipe::Recipe;
+use crate::learn::recipe::RodEncoding;
+use crate::methods::lipschitz::cubature::cubature_energies;
+use crate::methods::method::{run_sequence, SequenceRun};
+use crate::methods::reduced::stepper::StepperSettings;
+use crate::methods::simulated::Simulated;
+use crate::progress::Reporter;
+
+pub mod case;
+pub mod conditions;
+pub mod lineup;
+pub mod page;
+
+use conditions::{Condition, MatrixSpan, RunTimeChange};
+use lineup::{Budgets, Entry, LearnedModel, ReducedSubspace, Trained};
+
+/// The time-converged reference stops halving the step once the positions move by less than
+/// this fraction of the rest diagonal (mean over vertices, largest over frames).
+pub const CONVERGED_CHANGE: f64 = 1e-3;
+
+/// Options of `mochi compare`.
+#[derive(Clone, Debug)]
+pub struct CompareOptions {
+    /// The learned model (`SCENE.mochi`; its supervised twin beside it is added), whose scene
+    /// is the one compared. Without it, the scene named on the command line.
+    pub model: Option<PathBuf>,
+    /// The scene's `.reduced` file, when there is one.
+    pub reduced: Option<PathBuf>,
+    /// Peers' recordings (`DIR/CASE/*.npz`).
+    pub peers: Option<PathBuf>,
+    /// Where to write the peers' cases (`DIR/CASE.npz`).
+    pub cases: Option<PathBuf>,
+    /// Test sequences of the chart.
+    pub sequences: usize,
+    /// Frames of each chart sequence.
+    pub frames: usize,
+    /// The stability matrix's frames (`None`: no matrix).
+    pub matrix: Option<MatrixSpan>,
+    /// Most substeps per frame the time-converged reference may take.
+    pub max_substeps: usize,
+}
+
+/// One method at one budget on the chart, averaged over the sequences.
+#[derive(Clone, Debug)]
+pub struct ChartPoint {
+    /// Family.
+    pub family: String,
+    /// Budget.
+    pub setting: String,
+    /// Per sequence.
+    pub runs: Vec<SequenceRun>,
+}
+
+impl ChartPoint {
+    /// Mean seconds per frame over the sequences.
+    pub fn seconds(&self) -> f64 {
+        self.runs.iter().map(|r| r.seconds).sum::<f64>() / self.runs.len().max(1) as f64
+    }
+    /// Mean over sequences of the mean error against reference `r` (0: implicit Euler, 1:
+    /// time-converged); infinite if one blew up inside the measured frames.
+    pub fn error(&self, r: usize) -> f64 {
+        self.runs.iter().map(|s| s.mean_error(r, s.frames)).sum::<f64>() / self.runs.len().max(1) as f64
+    }
+    /// Mean iterations per frame.
+    pub fn iterations(&self) -> f64 {
+        self.runs.iter().map(|r| r.iterations).sum::<f64>() / self.runs.len().max(1) as f64
+    }
+}
+
+/// The time-converged reference of one chart sequence.
+#[derive(Clone, Debug)]
+pub struct Converged {
+    /// Sequence name.
+    pub sequence: String,
+    /// Substeps per frame of the reference kept.
+    pub substeps: usize,
+    /// Largest over frames of the mean vertex distance / diagonal between it and the run
+    /// with half as many substeps.
+    pub change: f64,
+}
+
+/// One cell of the stability matrix.
+#[derive(Clone, Debug)]
+pub struct Cell {
+    /// Family and budget.
+    pub method: String,
+    /// What it did: `stable frames / frames, mean error %`, or why it cannot.
+    pub text: String,
+}
+
+/// One row of the matrix.
+#[derive(Clone, Debug)]
+pub struct MatrixRow {
+    /// The condition.
+    pub condition: String,
+    /// Frames of the condition, and measured against the reference.
+    pub frames: (usize, usize),
+    /// Its cells.
+    pub cells: Vec<Cell>,
+}
+
+/// Everything `mochi compare` measured on a scene.
+#[derive(Clone, Debug)]
+pub struct Comparison {
+    /// The scene.
+    pub scene: String,
+    /// Vertices of its mesh.
+    pub vertices: usize,
+    /// The chart's sequences.
+    pub sequences: Vec<SequencePlan>,
+    /// Frames of each.
+    pub frames: usize,
+    /// Their time-converged references.
+    pub converged: Vec<Converged>,
+    /// The chart.
+    pub points: Vec<ChartPoint>,
+    /// Families that could not run on the chart, and why.
+    pub unavailable: Vec<Cell>,
+    /// The stability matrix.
+    pub matrix: Vec<MatrixRow>,
+}
+
+/// Compares every method on the scene of `options.model` (or `scene`, a name or path, when
+/// no model is given).
+pub fn compare(scene: &str, options: &CompareOptions, report: &dyn Reporter) -> TrainerResult<Comparison> {
+    // The learned models, each storage; their scene is the one compared.
+    let mut bytes = Vec::new();
+    if let Some(path) = &options.model {
+        bytes.push(("learned (runtime)", fs::read(path)?, path.clone()));
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if let Some(stem) = name.strip_suffix(".mochi") {
+            let twin = path.with_file_name(format!("{stem}.supervised.mochi"));
+            if twin.is_file() {
+                bytes.push(("supervised (runtime)", fs::read(&twin)?, twin));
+            }
+        }
+    }
+    let recipe = match &options.model {
+        Some(path) => {
+            let artifact = Artifact::read(path)?;
+            Recipe::parse(&artifact.scene_toml, Path::new(&artifact.scene_path))?
+        }
+        None => Recipe::load(scene)?,
+    };
+    let problem = recipe.build()?;
+    let mut owned: Vec<OwnedModel> = bytes.iter().map(|_| OwnedModel::default()).collect();
+    let mut bases = Vec::new();
+    for ((_, b, path), o) in bytes.iter().zip(owned.iter_mut()) {
+        let model = *o
+            .load(b)
+            .with_context(|| format!("{}: runtime refused the artifact", path.display()))?
+            .model();
+        bases.push(model);
+    }
+    let formats = [WeightFormat::F32, WeightFormat::F16, WeightFormat::Int8];
+    let quantized: Vec<(usize, WeightFormat, Quantized)> = bases
+        .iter()
+        .enumerate()
+        .flat_map(|(i, base)| {
+            let kept: &[WeightFormat] = if i == 0 { &formats } else { &formats[..1] };
+            kept.iter().map(move |&f| {
+                let o = Options::weights(f);
+                (i, f, Quantized::split(base, o.decoder, o.integrator))
+            })
+        })
+        .collect();
+    let mut learned = Vec::new();
+    for (i, f, q) in &quantized {
+        let base = &bases[*i];
+        learned.push(LearnedModel {
+            family: bytes[*i].0,
+            setting: format!("k={}, {}", base.latent, format_name(*f)),
+            model: ValidModel::new(q.model(base)).map_err(|e| TrainerError::invalid(format!("{e:?}")))?,
+        });
+    }
+    // The reduced subspaces, with the scene's energies and with runtime cubature.
+    let reduced_file = options.reduced.as_ref().map(|p| ReducedArtifact::load(p)).transpose()?;
+    let cubatures = match &reduced_file {
+        Some(r) => cubature_energies(&problem, &r.cubature)?,
+        None => Vec::new(),
+    };
+    let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+    let with_cubature = with_runtime_cubature(&potentials, &cubatures);
+    let mut reduced = Vec::new();
+    let mut reduced_settings = StepperSettings::default();
+    if let Some(r) = &reduced_file {
+        let spec = Recipe::parse(&r.scene_toml, Path::new(&r.scene_path))?
+            .reduced
+            .unwrap_or_default();
+        reduced_settings = stepper_settings(&spec, problem.scene.integrator);
+        for (name, data, cubature) in [
+            ("vanilla", &r.vanilla, false),
+            ("Lipschitz", &r.lipschitz, false),
+            ("vanilla, runtime cubature", &r.vanilla, true),
+            ("Lipschitz, runtime cubature", &r.lipschitz, true),
+        ] {
+            reduced.push(ReducedSubspace {
+                name: name.into(),
+                decoder: data.decoder()?,
+                initial_latent: data.initial_latent.clone(),
+                energies: cubature.then(|| with_cubature.clone()),
+            });
+        }
+    }
+    let trained = Trained {
+        learned,
+        encoding: match &reduced_file {
+            Some(_) => Some(Encoding::new(&problem, RodEncoding::Positions)?),
+            None => None,
+        },
+        reduced,
+        reduced_settings,
+        peers: options.peers.clone(),
+    };
+    let mut comparison = chart(&problem, &trained, options, report)?;
+    if let Some(span) = options.matrix {
+        for condition in conditions::conditions(&problem, span) {
+            let row = matrix_row(&condition, &trained, options, report)?;
+            comparison.matrix.push(row);
+        }
+    }
+    Ok(comparison)
+}
+
+/// The chart: every method at every budget on the first test sequences.
+fn chart(
+    problem: &BuiltScene,
+    trained: &Trained,
+    options: &CompareOptions,
+    report: &dyn Reporter,
+) -> TrainerResult<Comparison> {
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let sequences = conditions::chart_sequences(problem, options.sequences, options.frames);
+    let mut comparison = Comparison {
+        scene: problem.scene.name.clone(),
+        vertices: problem.mesh.num_vertices(),
+        sequences: sequences.iter().map(|(p, _)| p.clone()).collect(),
+        frames: options.frames,
+        converged: Vec::new(),
+        points: Vec::new(),
+        unavailable: Vec::new(),
+        matrix: Vec::new(),
+    };
+    for (plan, bc) in &sequences {
+        let implicit = reference(problem, 1, bc, options.frames)?;
+        let (converged, info) = converged_reference(problem, bc, options.frames, options.max_substeps, &implicit)?;
+        report.message(&format!(
+            "{} {}: time-converged reference at {} substeps (last halving moved it {:.4}%)",
+            problem.scene.name,
+            plan.name,
+            info.0,
+            100.0 * info.1
+        ));
+        comparison.converged.push(Converged {
+            sequence: plan.name.clone(),
+            substeps: info.0,
+            change: info.1,
+        });
+        if let Some(dir) = &options.cases {
+            fs::create_dir_all(dir)?;
+            case::write_case(&dir.join(format!("{}.npz", plan.name)), problem, bc, &implicit)?;
+        }
+        let mut entries = lineup::simulated(&problem.scene, problem, Budgets::Sweep);
+        entries.extend(lineup::reduced(trained, problem, RunTimeChange::None));
+        entries.extend(lineup::learned(trained, RunTimeChange::None, Budgets::Sweep));
+        entries.extend(lineup::peers(trained, &plan.name, problem.mesh.num_vertices(), dim));
+        for entry in entries {
+            let mut method = match entry {
+                Entry::Runs(m) => m,
+                Entry::Cannot { family, reason } => {
+                    if !comparison.unavailable.iter().any(|c| c.method == family) {
+                        comparison.unavailable.push(Cell {
+                            method: family,
+                            text: reason,
+                        });
+                    }
+                    continue;
+                }
+            };
+            let refs: [&[Vec<f64>]; 2] = [&implicit, &converged];
+            let run = run_sequence(method.as_mut(), bc, options.frames, &refs, dim, diagonal, None)?;
+            report.message(&format!(
+                "{} {}: {} {}: {:.3} ms/frame, error {:.3}% (implicit Euler), {:.3}% (converged){}",
+                problem.scene.name,
+                plan.name,
+                method.family(),
+                method.setting(),
+                1e3 * run.seconds,
+                100.0 * run.mean_error(0, run.frames),
+                100.0 * run.mean_error(1, run.frames),
+                run.failure
+                    .as_ref()
+                    .map_or(String::new(), |f| format!(", stopped at {f}"))
+            ));
+            let (family, setting) = (method.family(), method.setting());
+            match comparison
+                .points
+                .iter_mut()
+                .find(|p| p.family == family && p.setting == setting)
+            {
+                Some(p) => p.runs.push(run),
+                None => comparison.points.push(ChartPoint {
+                    family,
+                    setting,
+                    runs: vec![run],
+                }),
+            }
+        }
+    }
+    Ok(comparison)
+}
+
+/// Full-space positions of frames `0..=frames` of `bc` with `substeps` steps per frame.
+fn reference(problem: &BuiltScene, substeps: usize, bc: &BcSequence, frames: usize) -> TrainerResult<Vec<Vec<f64>>> {
+    let mut scene = problem.scene.clone();
+    scene.solver = SolverSpec::FullSpace;
+    let mut method = Simulated::new(&scene, substeps, String::new())?;
+    let mut kept = Vec::new();
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let run = run_sequence(
+        &mut method,
+        bc,
+        frames,
+        &[],
+        dim,
+        diagonal,
+        Some((&mut kept, frames + 1)),
+    )?;
+    if let Some(failure) = run.failure {
+        return Err(TrainerError::invalid(format!(
+            "scene `{}`: the full-space reference at {substeps} substeps failed at {failure}",
+            problem.scene.name
+        )));
+    }
+    Ok(kept)
+}
+
+/// The time-converged reference (module documentation), starting from `implicit` (one step
+/// per frame): positions, substeps, and the last halving's change.
+fn converged_reference(
+    problem: &BuiltScene,
+    bc: &BcSequence,
+    frames: usize,
+    max_substeps: usize,
+    implicit: &[Vec<f64>],
+) -> TrainerResult<(Vec<Vec<f64>>, (usize, f64))> {
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let mut last = implicit.to_vec();
+    let mut substeps = 1;
+    loop {
+        substeps *= 2;
+        let next = reference(problem, substeps, bc, frames)?;
+        let change = next
+            .iter()
+            .zip(&last)
+            .map(|(a, b)| mochi_sim::measure::mean_and_max_error(a, b, dim, diagonal).0)
+            .fold(0.0, f64::max);
+        if change < CONVERGED_CHANGE || 2 * substeps > max_substeps {
+            return Ok((next, (substeps, change)));
+        }
+        last = next;
+    }
+}
+
+/// One condition of the matrix: the full-space reference under it, then one setting per
+/// family.
+fn matrix_row(
+    condition: &Condition,
+    trained: &Trained,
+    options: &CompareOptions,
+    report: &dyn Reporter,
+) -> TrainerResult<MatrixRow> {
+    let mut reference_scene = condition.scene.clone();
+    reference_scene.solver = SolverSpec::FullSpace;
+    let problem = reference_scene.build()?;
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let frames = condition.bc.frames();
+    let mut cells = Vec::new();
+    let mut full = Simulated::new(&reference_scene, 1, "1 step(s) per frame")?;
+    let mut reference = Vec::new();
+    let run = run_sequence(
+        &mut full,
+        &condition.bc,
+        frames,
+        &[],
+        dim,
+        diagonal,
+        Some((&mut reference, condition.measured + 1)),
+    )?;
+    cells.push(Cell {
+        method: "full space".into(),
+        text: format!("{} / {frames} (the reference)", run.stable_frames),
+    });
+    if let Some(dir) = &options.cases {
+        let name = slug(&condition.name);
+        case::write_case(&dir.join(format!("{name}.npz")), &problem, &condition.bc, &reference)?;
+    }
+    // The other methods on the condition's scene with the scene's own solver.
+    let scene = &condition.scene;
+    let on_condition = scene.build()?;
+    let mut entries: Vec<Entry> = lineup::simulated(scene, &problem, Budgets::One)
+        .into_iter()
+        .skip(1)
+        .collect();
+    entries.extend(lineup::reduced(trained, &on_condition, condition.change));
+    entries.extend(lineup::learned(trained, condition.change, Budgets::One));
+    entries.extend(lineup::peers(
+        trained,
+        &slug(&condition.name),
+        problem.mesh.num_vertices(),
+        dim,
+    ));
+    for entry in entries {
+        let cell = match entry {
+            Entry::Cannot { family, reason } => Cell {
+                method: family,
+                text: reason,
+            },
+            Entry::Runs(mut method) => {
+                let refs: [&[Vec<f64>]; 1] = [&reference];
+                let run = run_sequence(method.as_mut(), &condition.bc, frames, &refs, dim, diagonal, None)?;
+                let error = run.mean_error(0, condition.measured);
+                Cell {
+                    method: format!("{} {}", method.family(), method.setting()),
+                    text: format!(
+                        "{} / {frames}, {}",
+                        run.stable_frames,
+                        if error.is_finite() {
+                            format!("{:.3}%", 100.0 * error)
+                        } else {
+                            "blew up".into()
+                        }
+                    ),
+                }
+            }
+        };
+        report.message(&format!(
+            "{} {}: {}: {}",
+            problem.scene.name, condition.name, cell.method, cell.text
+        ));
+        cells.push(cell);
+    }
+    Ok(MatrixRow {
+        condition: condition.name.clone(),
+        frames: (frames, condition.measured),
+        cells,
+    })
+}
+
+/// A condition's name as a file stem.
+pub fn slug(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '-'
+            }
+        })
+        .collect()
+}
