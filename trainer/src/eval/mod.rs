@@ -39,7 +39,7 @@ pub mod reduced_bench;
 pub mod rollout;
 pub mod runtime_bench;
 pub mod sim_bench;
-pub(crate) mod storage;
+pub mod storage;
 
 pub use rollout::{
     carried_encoding, rebuild_problem, roll, rollout, stable_rollout, Divergence, LoadedModel, RolloutMetrics,

@@ -78,7 +78,7 @@ pub(crate) fn storage_name(storage: &Storage) -> String {
 
 /// One format's results over the test sequences.
 #[derive(Clone, Debug, PartialEq)]
-pub(crate) struct StorageReport {
+pub struct StorageReport {
     /// The weight storage.
     pub storage: Storage,
     /// Bytes of weights, biases and scales.

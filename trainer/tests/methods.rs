@@ -1,0 +1,219 @@
+//! The one interface for a method (`methods::method`) on the tiny cantilever: the simulator
+//! through it is the simulator, substeps converge, the coarse mesh's handles follow the
+//! scene's, the learned runtime through it gives `mochi eval`'s storage numbers, a peer's
+//! recording replays, and `mochi compare` runs every family into its page.
+
+use std::path::PathBuf;
+
+use mochi_runtime::{OwnedModel, ValidModel};
+use mochi_sim::dataset::{self, Split};
+use mochi_sim::measure::mean_and_max_error;
+use mochi_sim::npz::NpzOut;
+use mochi_sim::SpeedPlan;
+use mochi_trainer::eval::compare::conditions::MatrixSpan;
+use mochi_trainer::eval::compare::{compare, page, CompareOptions};
+use mochi_trainer::eval::storage;
+use mochi_trainer::methods::learned::LearnedRuntime;
+use mochi_trainer::methods::method::{run_sequence, Method};
+use mochi_trainer::methods::peer::PeerRecording;
+use mochi_trainer::methods::simulated::Simulated;
+use mochi_trainer::{Artifact, Quiet, Recipe};
+
+fn artifacts() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/artifacts")
+}
+
+fn tiny() -> Recipe {
+    let artifact = Artifact::read(&artifacts().join("tiny.mochi")).unwrap();
+    Recipe::parse(&artifact.scene_toml, std::path::Path::new(&artifact.scene_path)).unwrap()
+}
+
+#[test]
+fn the_simulator_through_the_interface_is_the_simulator() {
+    // One thread: the energies' parallel sums follow the threads, so only then are two runs
+    // the same bits.
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    pool.install(|| {
+        let mut problem = tiny().build().unwrap();
+        let bc = problem.sequence(&SpeedPlan::constant(0.8), 30, 5);
+        let direct = problem.run(&bc, &mochi_sim::Silent).unwrap();
+        let mut method = Simulated::new(&problem.scene, 1, "").unwrap();
+        let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+        let mut kept = Vec::new();
+        let run = run_sequence(
+            &mut method,
+            &bc,
+            30,
+            &[&direct.positions],
+            dim,
+            diagonal,
+            Some((&mut kept, 31)),
+        )
+        .unwrap();
+        assert!(
+            kept == direct.positions,
+            "the interface's positions differ from the simulator's"
+        );
+        assert!(run.stable() && run.stable_frames == 30);
+        assert!(run.error_curves[0].iter().all(|&e| e == 0.0));
+        assert!(run.iterations >= 1.0 && run.seconds > 0.0);
+    });
+}
+
+#[test]
+fn substeps_converge_and_the_coarse_mesh_follows_the_handles() {
+    let problem = tiny().build().unwrap();
+    let bc = problem.sequence(&SpeedPlan::constant(1.0), 20, 3);
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let positions = |k: usize| {
+        let mut m = Simulated::new(&problem.scene, k, "").unwrap();
+        let mut kept = Vec::new();
+        run_sequence(&mut m, &bc, 20, &[], dim, diagonal, Some((&mut kept, 21))).unwrap();
+        kept
+    };
+    let (one, two, eight) = (positions(1), positions(2), positions(8));
+    let gap = |a: &[Vec<f64>], b: &[Vec<f64>]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| mean_and_max_error(x, y, dim, diagonal).0)
+            .fold(0.0, f64::max)
+    };
+    // Implicit Euler is first order: halving the step about halves the distance to a much
+    // finer one.
+    let (coarse_gap, fine_gap) = (gap(&one, &eight), gap(&two, &eight));
+    assert!(fine_gap < 0.7 * coarse_gap, "{fine_gap} vs {coarse_gap}");
+    assert!(coarse_gap > 0.0);
+
+    let mut coarse = Simulated::coarse(&problem.scene, &problem).unwrap();
+    assert!(coarse.problem().mesh.num_vertices() < problem.mesh.num_vertices());
+    coarse.reset(&bc).unwrap();
+    let handles: Vec<usize> = problem.handles.iter().flat_map(|h| h.vertices.clone()).collect();
+    for frame in 1..=20 {
+        coarse.step(&bc, frame).unwrap();
+        let targets = bc.targets(&problem.handles, frame, dim);
+        for (i, &v) in handles.iter().enumerate() {
+            for c in 0..dim {
+                let d = coarse.positions()[dim * v + c] - targets[dim * i + c];
+                assert!(d.abs() < 1e-12 * diagonal.max(1.0), "frame {frame} vertex {v}: {d}");
+            }
+        }
+    }
+}
+
+#[test]
+fn the_learned_runtime_through_the_interface_gives_evals_storage_numbers() {
+    let mut problem = tiny().build().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    dataset::generate(&mut problem, dir.path(), Some(Split::Test), false, &mochi_sim::Silent).unwrap();
+    let tests = dataset::load(&problem, dir.path(), Split::Test).unwrap();
+    let path = artifacts().join("tiny.mochi");
+    let bytes = std::fs::read(&path).unwrap();
+    let frames = 50;
+    let reports = storage::evaluate(&bytes, &path, &problem, &tests, frames).unwrap();
+
+    let mut owned = OwnedModel::default();
+    let model: ValidModel = owned.load(&bytes).unwrap();
+    let mut method = LearnedRuntime::new(&model, "learned (runtime)", "f32".into()).unwrap();
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let mut mean = 0.0;
+    for (plan, reference) in &tests {
+        let measured = frames.min(reference.num_frames() - 1);
+        let bc = problem.sequence(&plan.speeds, measured, plan.seed);
+        let run = run_sequence(&mut method, &bc, measured, &[&reference.positions], dim, diagonal, None).unwrap();
+        assert!(run.multiply_adds > 0.0);
+        mean += run.mean_error(0, measured) / tests.len() as f64;
+    }
+    // The runtime decodes in f32 with the model's own diagonal; the interface measures in
+    // f64 with the mesh's: the same numbers to rounding.
+    let want = reports[0].mean_error;
+    assert!((mean - want).abs() <= 1e-6 * want, "{mean} vs {want}");
+}
+
+#[test]
+fn compare_runs_every_family_and_replays_a_peer() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = dir.path().join("cases");
+    let peers = dir.path().join("peers");
+    let base = CompareOptions {
+        model: Some(artifacts().join("tiny.mochi")),
+        reduced: None,
+        peers: None,
+        cases: Some(cases.clone()),
+        sequences: 1,
+        frames: 12,
+        matrix: None,
+        max_substeps: 4,
+    };
+    let first = compare("tiny", &base, &Quiet).unwrap();
+    assert!(cases.join("test-00.npz").is_file());
+    // A "peer" that recorded the implicit-Euler reference itself: error 0, its own times.
+    let problem = tiny().build().unwrap();
+    let full = first
+        .points
+        .iter()
+        .find(|p| p.family == "full space" && p.setting.starts_with('1'))
+        .unwrap();
+    assert!(full.error(0) < 1e-12);
+    let mut simulated = Simulated::new(&problem.scene, 1, "").unwrap();
+    let bc = mochi_trainer::eval::compare::conditions::chart_sequences(&problem, 1, 12)
+        .remove(0)
+        .1;
+    let mut kept = Vec::new();
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    run_sequence(&mut simulated, &bc, 12, &[], dim, diagonal, Some((&mut kept, 13))).unwrap();
+    std::fs::create_dir_all(peers.join("test-00")).unwrap();
+    let recording = peers.join("test-00/xpbd-s1-i1.npz");
+    let mut npz = NpzOut::create(&recording).unwrap();
+    let n = problem.mesh.num_vertices() as u64;
+    npz.array("positions", &[13, n, 3], kept.iter().flatten().copied())
+        .unwrap();
+    npz.array("step_seconds", &[12], [2e-3; 12]).unwrap();
+    npz.array("substeps", &[], [1i64]).unwrap();
+    npz.array("iterations", &[], [1i64]).unwrap();
+    npz.finish().unwrap();
+    assert_eq!(
+        PeerRecording::read(&recording, "XPBD (pypbd)", n as usize, dim)
+            .unwrap()
+            .frames(),
+        12
+    );
+
+    let options = CompareOptions {
+        peers: Some(peers),
+        cases: None,
+        matrix: Some(MatrixSpan {
+            frames: 8,
+            long_frames: 16,
+        }),
+        ..base
+    };
+    let c = compare("tiny", &options, &Quiet).unwrap();
+    for family in [
+        "full space",
+        "coarse mesh",
+        "adaptive",
+        "VBD",
+        "learned (runtime)",
+        "XPBD (pypbd)",
+    ] {
+        assert!(c.points.iter().any(|p| p.family == family), "{family} missing");
+    }
+    let peer = c.points.iter().find(|p| p.family == "XPBD (pypbd)").unwrap();
+    assert!(peer.error(0) < 1e-12);
+    assert!((peer.seconds() - 2e-3).abs() < 1e-15);
+    let learned = c.points.iter().filter(|p| p.family == "learned (runtime)").count();
+    assert_eq!(learned, 3, "f32, f16 and int8");
+    assert!(c.points.iter().all(|p| p.runs.iter().all(|r| r.stable())));
+    // Nine conditions but contact (tiny has none); the learned model says what it cannot take.
+    assert_eq!(c.matrix.len(), 8);
+    let halved = c.matrix.iter().find(|r| r.condition == "dt halved").unwrap();
+    assert_eq!(halved.frames.0, 16);
+    assert!(halved
+        .cells
+        .iter()
+        .any(|cell| cell.method.starts_with("learned") && cell.text.starts_with("needs retraining")));
+    page::write(dir.path(), &c, "mochi compare tiny").unwrap();
+    let text = std::fs::read_to_string(dir.path().join("tiny.md")).unwrap();
+    assert!(text.contains("## Stability matrix") && text.contains("XPBD (pypbd)"));
+    assert!(dir.path().join("tiny/speed-accuracy-converged.png").is_file());
+}
