@@ -64,14 +64,14 @@ impl Method for LearnedRuntime<'_> {
 
     fn step(&mut self, bc: &BcSequence, frame: usize) -> TrainerResult<StepCost> {
         let motion = motions(bc, frame);
-        let clock = std::time::Instant::now();
+        let clock = super::clock::Stopwatch::start();
         self.body
             .step(self.model, &motion)
             .map_err(|e| TrainerError::invalid(format!("runtime step refused: {e:?}")))?;
         self.body
             .decode_into(self.model, &mut self.x32)
             .map_err(|e| TrainerError::invalid(format!("runtime decode refused: {e:?}")))?;
-        let seconds = clock.elapsed().as_secs_f64();
+        let seconds = clock.seconds();
         self.x.iter_mut().zip(&self.x32).for_each(|(x, &v)| *x = v as f64);
         Ok(StepCost {
             seconds,

@@ -5,18 +5,17 @@
 //! integrator in the runtime and the peers' recorded runs all implement it, and
 //! [`run_sequence`] is the one loop that measures any of them.
 
-use std::time::Instant;
-
 use mochi_sim::bc::BcSequence;
 use mochi_sim::measure::mean_and_max_error;
 
+use super::clock::Stopwatch;
 use crate::error::TrainerResult;
 
 /// What one step cost.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepCost {
-    /// Wall-clock seconds of the step (and of the decode to positions, where there is one),
-    /// one thread.
+    /// Seconds of the step (and of the decode to positions, where there is one) on
+    /// [`super::clock`], one thread; NaN to let [`run_sequence`] time the whole call.
     pub seconds: f64,
     /// Solver iterations of the step (Newton, VBD sweeps, L-BFGS); NaN where the method has
     /// none.
@@ -125,9 +124,9 @@ pub fn run_sequence(
     record(&last);
     let (mut seconds, mut iterations, mut macs) = (0.0, 0.0, 0.0);
     for frame in 1..=frames {
-        let clock = Instant::now();
+        let clock = Stopwatch::start();
         let cost = method.step(bc, frame);
-        let elapsed = clock.elapsed().as_secs_f64();
+        let elapsed = clock.seconds();
         let cost = match cost {
             Ok(c) => c,
             Err(e) => {

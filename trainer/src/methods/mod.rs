@@ -4,7 +4,8 @@
 //! inside a subspace every step, the Lipschitz optimisation of its subspaces
 //! ([`lipschitz`]), the simulator's own solvers and a coarser mesh ([`simulated`]), the
 //! learned integrator as the runtime steps it ([`learned`]), and peers' recorded runs
-//! ([`peer`]).
+//! ([`peer`]); [`clock`] is what they are all timed with.
+pub mod clock;
 pub mod learned;
 pub mod lipschitz;
 pub mod method;

@@ -4,8 +4,10 @@
 //! the time each frame took on one core. Replaying the recording puts the peer through the
 //! same measuring loop as every other method; its cost is the time it recorded.
 //!
-//! A recording is an `.npz` with `positions` (frames + 1, vertices, 3; float64),
-//! `step_seconds` (frames; float64), `substeps` and `iterations` (0-d integers).
+//! A recording is an `.npz` with `positions` (frames + 1, vertices, 3; float64; NaN after a
+//! run that diverged), `step_seconds` (frames; float64, wall time) and optionally
+//! `cpu_seconds` (frames; the thread's CPU time, the cost used when present, as
+//! [`super::clock`] times every other method), `substeps` and `iterations` (0-d integers).
 
 use std::path::Path;
 
@@ -44,7 +46,12 @@ impl PeerRecording {
             .chunks_exact(n * 3)
             .map(|f| f.chunks_exact(3).flat_map(|p| p[..dim].to_vec()).collect())
             .collect();
-        let seconds = npz.array("step_seconds")?;
+        let name = if npz.has("cpu_seconds") {
+            "cpu_seconds"
+        } else {
+            "step_seconds"
+        };
+        let seconds = npz.array(name)?;
         seconds.expect_shape(&[frames as u64 - 1])?;
         let step_seconds = seconds.into_vec::<f64>("float64")?;
         let substeps = scalar(&mut npz, "substeps")?;

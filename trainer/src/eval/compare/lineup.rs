@@ -98,36 +98,59 @@ pub fn simulated<'a>(scene: &Scene, reference: &BuiltScene, budgets: Budgets) ->
         ));
     }
     out.push(entry("coarse mesh", Simulated::coarse(&full, reference)));
+    // The error thresholds: the solver's default, and two where it enriches (the scene's own
+    // when its solver is adaptive).
     let adaptive = match &scene.solver {
-        SolverSpec::Adaptive(s) => s.clone(),
-        _ => AdaptiveSettings::default(),
+        SolverSpec::Adaptive(s) => vec![s.clone()],
+        _ => match budgets {
+            Budgets::Sweep => [AdaptiveSettings::default().modal_error, 1e-3, 1e-4]
+                .map(|e| AdaptiveSettings {
+                    modal_error: e,
+                    nodal_error: e,
+                    ..AdaptiveSettings::default()
+                })
+                .to_vec(),
+            Budgets::One => vec![AdaptiveSettings {
+                modal_error: 1e-3,
+                nodal_error: 1e-3,
+                ..AdaptiveSettings::default()
+            }],
+        },
     };
-    let thresholds: &[f64] = match budgets {
-        Budgets::Sweep => &[0.1, 1.0, 4.0],
-        Budgets::One => &[1.0],
-    };
-    for &t in thresholds {
+    for settings in adaptive {
         let mut s = scene.clone();
-        let settings = AdaptiveSettings {
-            modal_error: adaptive.modal_error * t,
-            nodal_error: adaptive.nodal_error * t,
-            ..adaptive.clone()
-        };
         let setting = format!("error thresholds {} / {}", settings.modal_error, settings.nodal_error);
         s.solver = SolverSpec::Adaptive(settings);
         out.push(entry("adaptive", Simulated::new(&s, 1, setting)));
     }
-    let iterations: &[usize] = match budgets {
-        Budgets::Sweep => &[5, 20, 80],
-        Budgets::One => &[20],
+    // VBD as games run it: a few iterations in several substeps, with and without the
+    // Chebyshev acceleration, or many iterations in one step.
+    let vbd: &[(usize, usize, Option<f64>)] = match budgets {
+        Budgets::Sweep => &[
+            (1, 5, None),
+            (1, 20, None),
+            (1, 80, None),
+            (1, 20, Some(0.0)),
+            (4, 5, None),
+            (4, 10, Some(0.0)),
+            (16, 5, None),
+        ],
+        Budgets::One => &[(4, 5, None)],
     };
-    for &n in iterations {
+    for &(substeps, iterations, rho) in vbd {
         let mut s = scene.clone();
-        s.solver = SolverSpec::Vbd(VbdSettings {
-            iterations: n,
-            ..VbdSettings::default()
-        });
-        out.push(entry("VBD", Simulated::new(&s, 1, format!("{n} iterations"))));
+        let defaults = VbdSettings::default();
+        let settings = VbdSettings {
+            iterations,
+            rho: rho.unwrap_or(defaults.rho),
+            ..defaults
+        };
+        let setting = format!(
+            "{substeps} x {iterations} iterations{}",
+            if settings.rho == 0.0 { ", no acceleration" } else { "" }
+        );
+        s.solver = SolverSpec::Vbd(settings);
+        out.push(entry("VBD", Simulated::new(&s, substeps, setting)));
     }
     out
 }

@@ -5,9 +5,10 @@
 //! - **The chart**: the scene's first test sequences, each method at several budgets
 //!   ([`lineup`]), time per frame against mean vertex error (% of the rest diagonal) against
 //!   two references: the scene's own implicit Euler at its frame time (full-space Newton,
-//!   what the learned models imitate) and a time-converged one (the same, with the step
-//!   halved until halving it again moves the positions by less than
-//!   [`CONVERGED_CHANGE`] of the diagonal, averaged over vertices, at every frame).
+//!   what the learned models imitate) and a time-converged one (the second-order BDF2 on
+//!   the same scene, with the step halved until halving it again moves the positions by
+//!   less than [`CONVERGED_CHANGE`] of the diagonal, averaged over vertices, at every
+//!   frame).
 //! - **The stability matrix** ([`conditions`]): one setting per family under each condition,
 //!   each cell its stable frames and mean error against full space under that condition;
 //!   a family that cannot take a condition says why.
@@ -22,7 +23,7 @@ use mochi_runtime::{OwnedModel, ValidModel, WeightFormat};
 use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::SequencePlan;
 use mochi_sim::energy::StencilEnergy;
-use mochi_sim::{BuiltScene, SolverSpec};
+use mochi_sim::{BuiltScene, SolverSpec, TimeScheme};
 
 use crate::artifact::reduced::ReducedArtifact;
 use crate::artifact::Artifact;
@@ -152,8 +153,18 @@ pub struct Comparison {
 }
 
 /// Compares every method on the scene of `options.model` (or `scene`, a name or path, when
-/// no model is given).
+/// no model is given), on one thread: everything runs in a one-thread pool, so the
+/// simulator's parallel sums run on the thread whose CPU time [`crate::methods::clock`]
+/// reads.
 pub fn compare(scene: &str, options: &CompareOptions, report: &dyn Reporter) -> TrainerResult<Comparison> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| TrainerError::invalid(format!("cannot start a one-thread pool: {e}")))?;
+    pool.install(|| compare_on_this_thread(scene, options, report))
+}
+
+fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Reporter) -> TrainerResult<Comparison> {
     // The learned models, each storage; their scene is the one compared.
     let mut bytes = Vec::new();
     if let Some(path) = &options.model {
@@ -273,7 +284,7 @@ fn chart(
         matrix: Vec::new(),
     };
     for (plan, bc) in &sequences {
-        let implicit = reference(problem, 1, bc, options.frames)?;
+        let implicit = reference(problem, 1, None, bc, options.frames)?;
         let (converged, info) = converged_reference(problem, bc, options.frames, options.max_substeps, &implicit)?;
         report.message(&format!(
             "{} {}: time-converged reference at {} substeps (last halving moved it {:.4}%)",
@@ -341,10 +352,20 @@ fn chart(
     Ok(comparison)
 }
 
-/// Full-space positions of frames `0..=frames` of `bc` with `substeps` steps per frame.
-fn reference(problem: &BuiltScene, substeps: usize, bc: &BcSequence, frames: usize) -> TrainerResult<Vec<Vec<f64>>> {
+/// Full-space positions of frames `0..=frames` of `bc` with `substeps` steps per frame, by
+/// the scene's own time scheme or by `scheme`.
+fn reference(
+    problem: &BuiltScene,
+    substeps: usize,
+    scheme: Option<TimeScheme>,
+    bc: &BcSequence,
+    frames: usize,
+) -> TrainerResult<Vec<Vec<f64>>> {
     let mut scene = problem.scene.clone();
     scene.solver = SolverSpec::FullSpace;
+    if let Some(scheme) = scheme {
+        scene.integrator = scheme;
+    }
     let mut method = Simulated::new(&scene, substeps, String::new())?;
     let mut kept = Vec::new();
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
@@ -366,8 +387,9 @@ fn reference(problem: &BuiltScene, substeps: usize, bc: &BcSequence, frames: usi
     Ok(kept)
 }
 
-/// The time-converged reference (module documentation), starting from `implicit` (one step
-/// per frame): positions, substeps, and the last halving's change.
+/// The time-converged reference (module documentation): positions, substeps, and the last
+/// halving's change. A quasi-static scene has no time to converge in: its reference is
+/// `implicit` itself.
 fn converged_reference(
     problem: &BuiltScene,
     bc: &BcSequence,
@@ -375,12 +397,15 @@ fn converged_reference(
     max_substeps: usize,
     implicit: &[Vec<f64>],
 ) -> TrainerResult<(Vec<Vec<f64>>, (usize, f64))> {
+    if problem.scene.integrator == TimeScheme::QuasiStatic {
+        return Ok((implicit.to_vec(), (1, 0.0)));
+    }
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
-    let mut last = implicit.to_vec();
     let mut substeps = 1;
+    let mut last = reference(problem, substeps, Some(TimeScheme::Bdf2), bc, frames)?;
     loop {
         substeps *= 2;
-        let next = reference(problem, substeps, bc, frames)?;
+        let next = reference(problem, substeps, Some(TimeScheme::Bdf2), bc, frames)?;
         let change = next
             .iter()
             .zip(&last)
