@@ -1,4 +1,4 @@
-//! One interface for every way of stepping a scene (docs/design.md, "Methods"): reset to
+//! One interface for every way of stepping a scene (docs/design.md, "Methods side by side"): reset to
 //! the scene's initial state for a boundary-condition sequence, step to a frame, give the
 //! positions of the scene's own mesh, and say what the step cost. Full-space Newton, the
 //! adaptive solver, Vertex Block Descent, a coarser mesh, the reduced solver, the learned

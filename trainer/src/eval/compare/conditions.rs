@@ -1,4 +1,4 @@
-//! The conditions of the stability matrix (docs/design.md, "Methods"): each is a scene (the
+//! The conditions of the stability matrix (docs/design.md, "Methods side by side"): each is a scene (the
 //! material ten times stiffer, or the time step halved or doubled at run time) and a
 //! boundary-condition sequence in that scene's time step.
 
