@@ -1,6 +1,6 @@
-//! One interface for every way of stepping a scene (docs/design.md, "Methods side by side"): reset to
-//! the scene's initial state for a boundary-condition sequence, step to a frame, give the
-//! positions of the scene's own mesh, and say what the step cost. Full-space Newton, the
+//! One interface for every way of stepping a scene (docs/design.md, "Methods side by side"):
+//! reset to the scene's initial state for a boundary-condition sequence, step to a frame, give
+//! the positions of the scene's own mesh, and say what the step cost. Full-space Newton, the
 //! adaptive solver, Vertex Block Descent, a coarser mesh, the reduced solver, the learned
 //! integrator in the runtime and the peers' recorded runs all implement it, and
 //! [`run_sequence`] is the one loop that measures any of them.

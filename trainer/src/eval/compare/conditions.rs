@@ -1,5 +1,5 @@
-//! The conditions of the stability matrix (docs/design.md, "Methods side by side"): each is a scene (the
-//! material ten times stiffer, or the time step halved or doubled at run time) and a
+//! The conditions of the stability matrix (docs/design.md, "Methods side by side"): each is a
+//! scene (the material ten times stiffer, or the time step halved or doubled at run time) and a
 //! boundary-condition sequence in that scene's time step.
 
 use mochi_sim::bc::BcSequence;

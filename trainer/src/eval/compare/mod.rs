@@ -1,6 +1,7 @@
 //! `mochi compare SCENE`: every method that applies to a scene, on one scale (docs/design.md,
-//! "Methods"). Each runs through the one interface of [`crate::methods::method`] and the one
-//! measuring loop, timed on one thread in one process:
+//! "Methods side by side"). Each runs through the one interface of
+//! [`crate::methods::method`] and the one measuring loop, timed on one thread in one
+//! process:
 //!
 //! - **The chart**: the scene's first test sequences, each method at several budgets
 //!   ([`lineup`]), time per frame against mean vertex error (% of the rest diagonal) against
