@@ -5,10 +5,11 @@
 #   scripts/xpbd.sh sweep CASE.npz OUTDIR [--frames N] [--substeps-list 1,4 --iterations-list 1,5]
 #       every setting of substeps {1,2,4,8,16,32} x iterations {1,2,5,10,20}, plus 64, 128 and
 #       256 substeps at 1 iteration -> OUTDIR/s{S}-i{I}.npz (one result per setting),
-#       OUTDIR/sweep.md (table and Pareto front), OUTDIR/sweep.json (the same rows)
+#       OUTDIR/sweep.md (table, Pareto front by thread CPU time), OUTDIR/sweep.json (the same rows)
 #   scripts/xpbd.sh run CASE.npz RESULT.npz [--substeps 32] [--iterations 1] [--frames N]
 #   scripts/xpbd.sh self-check        # seconds: the tiny hanging bar of scripts/xpbd_run.py
 #   scripts/xpbd.sh threshold CASE.npz   # solid: share of tets the library's skip test turns off
+#   scripts/xpbd.sh table OUTDIR      # rewrite OUTDIR/sweep.md from OUTDIR/sweep.json
 #   scripts/xpbd.sh setup             # only make the virtual environment
 #
 # Further options (--mass-scale, --bending) pass through to scripts/xpbd_run.py, whose
@@ -65,6 +66,10 @@ case "$cmd" in
   threshold)
     [ $# -ge 1 ] || usage
     "${run[@]}" "$1" --threshold-report
+    ;;
+  table)
+    [ $# -ge 1 ] || usage
+    "$venv/bin/python" scripts/xpbd_run.py --table "$1"
     ;;
   *) usage ;;
 esac
