@@ -151,7 +151,7 @@ pub fn run_sequence(
             .map(|(a, b)| a.iter().zip(b).map(|(a, b)| (a - b) * (a - b)).sum::<f64>())
             .fold(0.0f64, |m, d| if d.is_nan() { f64::INFINITY } else { m.max(d) })
             .sqrt();
-        if !(jump <= BLOW_UP_DIAGONALS * diagonal) {
+        if jump > BLOW_UP_DIAGONALS * diagonal {
             run.stable_frames = frame - 1;
             run.failure = Some(format!(
                 "frame {frame}: a vertex moved {} in one frame",

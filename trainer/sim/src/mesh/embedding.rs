@@ -227,7 +227,7 @@ mod tests {
         assert!(e.max_distance() < 1e-12, "{}", e.max_distance());
         for a in &e.anchors {
             assert!((a.weights.iter().sum::<f64>() - 1.0).abs() < 1e-12);
-            assert!(a.weights.iter().all(|&w| w >= -1e-9 && w <= 1.0 + 1e-9), "{a:?}");
+            assert!(a.weights.iter().all(|w| (-1e-9..=1.0 + 1e-9).contains(w)), "{a:?}");
         }
         let map = |p: &[f64]| {
             [

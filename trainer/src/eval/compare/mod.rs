@@ -388,16 +388,19 @@ fn reference(
     Ok(kept)
 }
 
-/// The time-converged reference (module documentation): positions, substeps, and the last
-/// halving's change. A quasi-static scene has no time to converge in: its reference is
-/// `implicit` itself.
+/// Positions of a reference run, its substeps per frame, and how far the last halving of its
+/// step moved it.
+type ConvergedRun = (Vec<Vec<f64>>, (usize, f64));
+
+/// The time-converged reference (module documentation). A quasi-static scene has no time to
+/// converge in: its reference is `implicit` itself.
 fn converged_reference(
     problem: &BuiltScene,
     bc: &BcSequence,
     frames: usize,
     max_substeps: usize,
     implicit: &[Vec<f64>],
-) -> TrainerResult<(Vec<Vec<f64>>, (usize, f64))> {
+) -> TrainerResult<ConvergedRun> {
     if problem.scene.integrator == TimeScheme::QuasiStatic {
         return Ok((implicit.to_vec(), (1, 0.0)));
     }

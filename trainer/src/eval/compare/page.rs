@@ -48,7 +48,7 @@ pub fn write(dir: &Path, c: &Comparison, command: &str) -> TrainerResult<()> {
             true,
         )?;
     }
-    fs::write(&dir.join(format!("{}.md", c.scene)), &markdown(c, command))?;
+    fs::write(&dir.join(format!("{}.md", c.scene)), markdown(c, command))?;
     Ok(())
 }
 
