@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Builds the runtime without std for a bare-metal target (default: Cortex-M4F). Only `core` is
-# built for the target (-Zbuild-std=core), so the build fails if the runtime links `alloc`.
+# Builds the runtime without std for a bare-metal target (default: Cortex-M4F), or for an OS
+# target whose app links the static library (aarch64-linux-android: a phone or headset app).
+# Only `core` is built for the target (-Zbuild-std=core), so the build fails if the runtime
+# links `alloc`.
 set -euo pipefail
 cd "$(dirname "$0")/../runtime"
 target="${1:-thumbv7em-none-eabihf}"

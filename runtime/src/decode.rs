@@ -352,7 +352,16 @@ pub(crate) fn place_run(d: usize, run: &mut [f32], origin_of: &[u32], origins: &
     } else {
         0
     };
-    #[cfg(not(target_arch = "x86_64"))]
+    #[cfg(target_arch = "aarch64")]
+    let done = {
+        let frame = &origins.place.frame;
+        match (d, origins.vector, network::vector_kernels()) {
+            (3, true, true) => network::aarch64::place::<true>(frame, run, origin_of, |o| origins.get(o)),
+            (3, false, true) => network::aarch64::place::<false>(frame, run, origin_of, |o| origins.get(o)),
+            _ => 0,
+        }
+    };
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     let done = 0;
     let frame = origins.place.frame;
     for (q, &o) in run.chunks_exact_mut(d).zip(origin_of).skip(done) {

@@ -13,10 +13,20 @@
 
 use core::arch::asm;
 
-/// `sum w[c] * q[c]` in `i32` for `w.len() == q.len()`, each group of four activations stored
-/// as (0, 2, 1, 3) ([`super::integer`] arranges them so).
+/// Stores each group of four activations as (0, 2, 1, 3), the order [`dot_i8`] reads them:
+/// `SXTB16` unpacks bytes 0 and 2 of a weight word into one register and bytes 1 and 3 into
+/// another.
+#[inline(always)]
+pub fn arrange(q: &mut [i16]) {
+    for g in q.chunks_exact_mut(4) {
+        g.swap(1, 2);
+    }
+}
+
+/// `sum w[c] * q[c]` in `i32` over the leading whole fours of columns (`q` as [`arrange`]
+/// left it), and how many columns that is; the caller adds the rest.
 #[inline]
-pub fn dot_i8(w: &[i8], q: &[i16]) -> i32 {
+pub fn dot_i8(w: &[i8], q: &[i16]) -> (i32, usize) {
     let n = w.len().min(q.len());
     let groups = n / 4;
     // Two sums so that consecutive `SMLAD`s do not wait on each other.
@@ -34,9 +44,7 @@ pub fn dot_i8(w: &[i8], q: &[i16]) -> i32 {
         a = smlad(sxtb16(w4), q02, a);
         b = smlad(sxtb16_ror8(w4), q13, b);
     }
-    let tail = 4 * groups;
-    a.wrapping_add(b)
-        .wrapping_add(super::integer::dot_portable(&w[tail..n], &q[tail..n]))
+    (a.wrapping_add(b), 4 * groups)
 }
 
 /// Bytes 0 and 2 of `x`, sign-extended to the two halves.

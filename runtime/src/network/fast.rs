@@ -3,18 +3,25 @@
 //!
 //! x86-64: AVX-512F where present, else AVX2 + FMA; chosen once at run time under `std`
 //! (`is_x86_feature_detected!` caches its answer), and by the compiled target features
-//! without it (`-C target-cpu=native`, or `-C target-feature=+avx512f`). Elsewhere, and on
-//! x86-64 CPUs with neither, no rows are computed here and the caller runs the canonical sum.
+//! without it (`-C target-cpu=native`, or `-C target-feature=+avx512f`). AArch64: NEON (every
+//! such CPU has it). Elsewhere, and on x86-64 CPUs with neither, no rows are computed here and
+//! the caller runs the canonical sum.
 
 use super::Width;
 use crate::model::Layer;
 
-/// The kernel [`rows`] uses on this CPU.
+/// The kernel [`rows`] uses on this CPU ([`Width::Canonical`] while
+/// [`super::use_vector_kernels`] turned them off).
 pub fn width() -> Width {
     #[cfg(target_arch = "x86_64")]
     let width = super::x86::width();
-    #[cfg(not(target_arch = "x86_64"))]
+    #[cfg(target_arch = "aarch64")]
+    let width = Width::Neon;
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
     let width = Width::Canonical;
+    if width != Width::Canonical && !super::vector_kernels() {
+        return Width::Canonical;
+    }
     width
 }
 
@@ -23,24 +30,22 @@ pub fn width() -> Width {
 /// returns how many rows were written (0 where this CPU has no wide kernel: the caller
 /// computes the rest).
 pub fn rows(params: &[f32], layer: &Layer, x: &[f32], first: usize, out: &mut [f32]) -> usize {
-    if x.len() != layer.cols as usize || x.is_empty() {
-        return 0;
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    if x.len() == layer.cols as usize && !x.is_empty() && super::vector_kernels() {
+        // The whole matrix in its layout, or empty when it does not fit the pool.
+        let w = super::matrix(params, layer);
+        if w.is_empty() {
+            return 0;
+        }
+        let rows = out.len().min((layer.rows as usize).saturating_sub(first));
+        let out = &mut out[..rows];
+        #[cfg(target_arch = "x86_64")]
+        return super::x86::rows_f32(params, layer, w, x, first, out);
+        #[cfg(target_arch = "aarch64")]
+        return super::aarch64::rows_f32(params, layer, w, x, first, out);
     }
-    // The whole matrix in its layout, or empty when it does not fit the pool.
-    let w = super::matrix(params, layer);
-    if w.is_empty() {
-        return 0;
-    }
-    let rows = out.len().min((layer.rows as usize).saturating_sub(first));
-    let out = &mut out[..rows];
-    #[cfg(target_arch = "x86_64")]
-    let done = super::x86::rows_f32(params, layer, w, x, first, out);
-    #[cfg(not(target_arch = "x86_64"))]
-    let done = {
-        let _ = (params, first, out);
-        0
-    };
-    done
+    let _ = (params, layer, x, first, out);
+    0
 }
 
 #[cfg(all(test, feature = "std"))]

@@ -14,7 +14,11 @@
 //! - Armv7E-M (Cortex-M4, the `armv7em` feature): `SMLAD`, two 16-bit multiply-accumulates per
 //!   instruction, on weight pairs unpacked by `SXTB16` (the activations are stored
 //!   pair-interleaved to match; `network/armv7em.rs`);
+//! - AArch64: `SDOT` on the activations split into bytes where the CPU has the dot-product
+//!   extension, `SMLAL` without it (`network/aarch64.rs`);
 //! - anywhere else: a plain loop.
+//!
+//! Each target's kernel sums the leading columns it takes; the plain loop adds the rest.
 //!
 //! An input with a NaN or infinity gives NaN rows (the instance then reports a non-finite
 //! state, as the float kernels' NaN would).
@@ -112,7 +116,12 @@ pub fn quantized_rows(params: &[f32], layer: &Layer, w: &[i8], x: &Quantized, fi
         cols > 0 && x.cols == cols,
     ) {
         let q = &x.q[..cols];
-        for (((o, row), &b), &s) in out.iter_mut().zip(w.chunks_exact(cols)).zip(bias).zip(scale) {
+        #[cfg(target_arch = "aarch64")]
+        let done = super::aarch64::rows_i8(w, q, x.scale, bias, scale, out);
+        #[cfg(not(target_arch = "aarch64"))]
+        let done = 0;
+        let rows = out.iter_mut().zip(w.chunks_exact(cols)).zip(bias).zip(scale);
+        for (((o, row), &b), &s) in rows.skip(done) {
             *o = b + s * (dot(row, q) as f32 * x.scale);
         }
         return;
@@ -127,17 +136,15 @@ pub fn quantized_rows(params: &[f32], layer: &Layer, w: &[i8], x: &Quantized, fi
 /// Puts the quantised activations in the order this target's [`dot`] reads them.
 #[inline(always)]
 fn arrange(q: &mut [i16]) {
-    // SMLAD pairs: `SXTB16` unpacks bytes 0 and 2 of a weight word into one register and bytes
-    // 1 and 3 into another, so each group of four activations is stored as (0, 2, 1, 3).
     #[cfg(all(target_arch = "arm", feature = "armv7em"))]
-    for g in q.chunks_exact_mut(4) {
-        g.swap(1, 2);
-    }
-    #[cfg(not(all(target_arch = "arm", feature = "armv7em")))]
+    super::armv7em::arrange(q);
+    #[cfg(target_arch = "aarch64")]
+    super::aarch64::arrange(q);
     let _ = q;
 }
 
-/// `sum w[c] * q[c]` in `i32` (`w.len() == q.len()`, `q` as [`arrange`] left it).
+/// `sum w[c] * q[c]` in `i32` (`w.len() == q.len()`, `q` as [`arrange`] left it): the
+/// target's vector kernel over the leading columns it takes, the plain loop over the rest.
 #[inline]
 fn dot(w: &[i8], q: &[i16]) -> i32 {
     #[cfg(target_arch = "x86_64")]
@@ -145,11 +152,20 @@ fn dot(w: &[i8], q: &[i16]) -> i32 {
         return sum;
     }
     #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
-    return wasm::dot(w, q);
+    let (head, done) = wasm::dot(w, q);
     #[cfg(all(target_arch = "arm", feature = "armv7em"))]
-    return super::armv7em::dot_i8(w, q);
-    #[allow(unreachable_code)]
-    dot_portable(w, q)
+    let (head, done) = super::armv7em::dot_i8(w, q);
+    #[cfg(target_arch = "aarch64")]
+    let (head, done) = super::aarch64::dot_i8(w, q);
+    #[cfg(not(any(
+        all(target_arch = "wasm32", target_feature = "simd128"),
+        all(target_arch = "arm", feature = "armv7em"),
+        target_arch = "aarch64"
+    )))]
+    let (head, done) = (0i32, 0usize);
+    let n = w.len().min(q.len());
+    let done = done.min(n);
+    head.wrapping_add(dot_portable(&w[done..n], &q[done..n]))
 }
 
 /// The plain loop (any `q` order that matches `w`).
@@ -165,9 +181,10 @@ pub fn dot_portable(w: &[i8], q: &[i16]) -> i32 {
 mod wasm {
     use core::arch::wasm32::*;
 
-    /// Eight weights at a time: widened to `i16`, `i32x4.dot_i16x8_s` with the activations.
+    /// Eight weights at a time: widened to `i16`, `i32x4.dot_i16x8_s` with the activations;
+    /// the sum over the leading whole eights, and how many columns that is.
     #[inline]
-    pub fn dot(w: &[i8], q: &[i16]) -> i32 {
+    pub fn dot(w: &[i8], q: &[i16]) -> (i32, usize) {
         let n = w.len().min(q.len());
         let mut acc = i32x4_splat(0);
         let mut c = 0;
@@ -185,7 +202,7 @@ mod wasm {
             .wrapping_add(i32x4_extract_lane::<1>(acc))
             .wrapping_add(i32x4_extract_lane::<2>(acc))
             .wrapping_add(i32x4_extract_lane::<3>(acc));
-        lanes.wrapping_add(super::dot_portable(&w[c..n], &q[c..n]))
+        (lanes, c)
     }
 }
 

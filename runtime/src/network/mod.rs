@@ -29,6 +29,9 @@
 //! Every row is computed the same way whichever call computes it, so a caller may compute any
 //! subset of a layer's rows ([`dense_rows`]) and get the same bits as a whole-layer call.
 
+#[cfg(target_arch = "aarch64")]
+#[allow(unsafe_code)]
+pub(crate) mod aarch64;
 pub mod activation;
 #[cfg(all(target_arch = "arm", feature = "armv7em"))]
 #[allow(unsafe_code)]
@@ -55,12 +58,31 @@ pub enum Width {
     Avx512,
     /// 8 lanes, AVX2 with FMA.
     Avx2,
+    /// 4 lanes, AArch64 NEON.
+    Neon,
     /// No wide kernel: the canonical sum.
     Canonical,
 }
 
 pub use activation::swish;
 use activation::swish_all;
+
+/// Whether the hand-written vector kernels run ([`use_vector_kernels`]).
+static VECTOR_KERNELS: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(true);
+
+/// Turns the hand-written vector kernels of the dense layers on (the default) or off for the
+/// whole process; off, every layer runs the canonical code (the portable loops as the compiler
+/// makes them), which is what a frame costs without them. int8 and `f16` layers give the same
+/// bits either way, `f32` layers agree within the `f32` tolerance.
+pub fn use_vector_kernels(on: bool) {
+    VECTOR_KERNELS.store(on, core::sync::atomic::Ordering::Relaxed);
+}
+
+/// Whether the hand-written vector kernels run ([`use_vector_kernels`]).
+#[inline(always)]
+pub fn vector_kernels() -> bool {
+    VECTOR_KERNELS.load(core::sync::atomic::Ordering::Relaxed)
+}
 
 /// `b[r] + s[r] * sum` for row `r` of `layer` (`s[r] = 1` unless the layer is int8).
 #[inline(always)]
@@ -126,7 +148,15 @@ pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usi
                 [x] => x86::rows_f16(weights, layer, x, first, out),
                 _ => 0,
             };
-            #[cfg(not(target_arch = "x86_64"))]
+            #[cfg(target_arch = "aarch64")]
+            let done = match vector_kernels() {
+                true => joined(parts, |x| match x.len() == layer.cols as usize {
+                    true => aarch64::rows_f16(p, layer, matrix(weights.halves, layer), x, first, out),
+                    false => 0,
+                }),
+                false => 0,
+            };
+            #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
             let done = 0;
             let (first, out) = (first + done, &mut out[done..]);
             canonical::rows(p, layer, matrix(weights.halves, layer), parts, first, out);
@@ -174,31 +204,37 @@ impl<'x> LayerInput<'x> {
 }
 
 /// Longest input that [`joined_rows`] gathers on the stack.
-#[cfg(target_arch = "x86_64")]
 const JOINED_MAX: usize = 256;
 
 /// The wide `f32` kernel ([`fast::rows`]) for an input given in `parts` (an integrator's
 /// latents and signals), gathered into one stack buffer first; returns the rows written (0
 /// when the input is longer than [`JOINED_MAX`] or the CPU has no wide kernel).
-#[cfg(target_arch = "x86_64")]
 fn joined_rows(p: &[f32], layer: &Layer, parts: &[&[f32]], first: usize, out: &mut [f32]) -> usize {
-    let total: usize = parts.iter().map(|x| x.len()).sum();
-    if total > JOINED_MAX || fast::width() == Width::Canonical {
+    if fast::width() == Width::Canonical {
         return 0;
     }
-    let mut joined = [0.0f32; JOINED_MAX];
-    let mut at = 0;
-    for x in parts {
-        joined[at..at + x.len()].copy_from_slice(x);
-        at += x.len();
-    }
-    fast::rows(p, layer, &joined[..total], first, out)
+    joined(parts, |x| fast::rows(p, layer, x, first, out))
 }
 
-/// Elsewhere no wide `f32` kernel exists: nothing to gather.
-#[cfg(not(target_arch = "x86_64"))]
-fn joined_rows(_: &[f32], _: &Layer, _: &[&[f32]], _: usize, _: &mut [f32]) -> usize {
-    0
+/// `kernel` applied to the concatenation of `parts`: the one part itself, or the parts
+/// gathered into a stack buffer; 0 without calling it when they are longer than
+/// [`JOINED_MAX`].
+#[inline(always)]
+fn joined(parts: &[&[f32]], kernel: impl FnOnce(&[f32]) -> usize) -> usize {
+    if let [x] = parts {
+        return kernel(x);
+    }
+    let total: usize = parts.iter().map(|x| x.len()).sum();
+    if total > JOINED_MAX {
+        return 0;
+    }
+    let mut buffer = [0.0f32; JOINED_MAX];
+    let mut at = 0;
+    for x in parts {
+        buffer[at..at + x.len()].copy_from_slice(x);
+        at += x.len();
+    }
+    kernel(&buffer[..total])
 }
 
 /// The last hidden activation `swish(h)` of a network for the input `parts`, written into

@@ -85,7 +85,7 @@ pub(super) fn rows_f32(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], firs
             Width::Avx512 if x.len() <= super::narrow::MAX_COLS => super::narrow::rows(params, layer, w, x, first, out),
             Width::Avx512 => rows_f32_avx512(params, layer, w, x, first, out),
             Width::Avx2 => rows_f32_avx2(params, layer, w, x, first, out),
-            Width::Canonical => 0,
+            Width::Canonical | Width::Neon => 0,
         }
     }
 }
