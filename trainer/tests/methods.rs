@@ -217,3 +217,54 @@ fn compare_runs_every_family_and_replays_a_peer() {
     assert!(text.contains("## Stability matrix") && text.contains("XPBD (pypbd)"));
     assert!(dir.path().join("tiny/speed-accuracy-converged.png").is_file());
 }
+
+/// `mochi eval --adaptive` steps through the interface: its errors, iterations and enriched
+/// share are those of the adaptive solver stepped directly (one thread, the same bits).
+#[test]
+fn eval_of_the_adaptive_solver_gives_the_direct_numbers() {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    pool.install(|| {
+        let problem = tiny().build().unwrap();
+        let plan = dataset::plan(&problem.scene.dataset)
+            .into_iter()
+            .find(|p| p.split == Split::Test)
+            .unwrap();
+        let bc = problem.sequence(&plan.speeds, 25, plan.seed);
+        let mut full = problem.scene.clone().build().unwrap();
+        let reference = full.run(&bc, &mochi_sim::Silent).unwrap();
+        let (_, rows) = mochi_trainer::eval::adaptive::evaluate_adaptive(
+            &problem,
+            &[(plan.clone(), reference.clone())],
+            std::slice::from_ref(&bc),
+            25,
+            &Quiet,
+        )
+        .unwrap();
+
+        let mut scene = problem.scene.clone();
+        scene.solver = mochi_sim::SolverSpec::Adaptive(mochi_sim::AdaptiveSettings::default());
+        let mut adaptive = scene.build().unwrap();
+        let mut traj = adaptive.start(&bc).unwrap();
+        let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+        let (mut mean, mut max, mut iterations, mut enriched) = (0.0, 0.0f64, 0.0, 0.0);
+        for frame in 1..=25 {
+            let step = adaptive.advance(&bc, frame, &mut traj).unwrap();
+            let (m, x) = mean_and_max_error(&traj.positions[frame], &reference.positions[frame], dim, diagonal);
+            mean += m / 25.0;
+            max = max.max(x);
+            iterations += step.iterations as f64 / 25.0;
+            let a = step.adaptive.unwrap();
+            enriched += a.enriched_vertices as f64 / a.free_vertices.max(1) as f64 / 25.0;
+        }
+        let got = &rows[0].1;
+        assert!(
+            (got.mean_error - mean).abs() <= 1e-12 * mean.max(1e-300),
+            "{} vs {mean}",
+            got.mean_error
+        );
+        assert_eq!(got.max_error, max);
+        assert!((got.iterations - iterations).abs() < 1e-12);
+        assert!((got.enriched - enriched).abs() < 1e-12);
+        assert!(mean > 0.0);
+    });
+}

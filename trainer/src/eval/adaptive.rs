@@ -1,18 +1,18 @@
 //! The adaptive subspace solver on the test sequences (`mochi eval --adaptive`): each
 //! sequence stepped by the adaptive solver from the scene's start (the scene's own
 //! `[solver]` settings when it is adaptive, the defaults otherwise), against the reference
-//! frames. Measured per sequence: mean and max vertex error (fraction of the rest
-//! diagonal), seconds per step, and the enriched share of the free vertices.
-
-use std::time::Instant;
+//! frames, through the one interface of every method ([`crate::methods::method`]). Measured
+//! per sequence: mean and max vertex error (fraction of the rest diagonal), seconds per step
+//! (the process's CPU time), and the enriched share of the free vertices.
 
 use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::SequencePlan;
-use mochi_sim::measure::mean_and_max_error;
 use mochi_sim::trajectory::Trajectory;
 use mochi_sim::{AdaptiveSettings, BuiltScene, SolverSpec};
 
-use crate::error::TrainerResult;
+use crate::error::{TrainerError, TrainerResult};
+use crate::methods::method::run_sequence;
+use crate::methods::simulated::Simulated;
 use crate::progress::Reporter;
 
 /// The adaptive solver on one test sequence.
@@ -44,33 +44,24 @@ pub fn evaluate_adaptive(
     };
     let mut scene = problem.scene.clone();
     scene.solver = SolverSpec::Adaptive(settings.clone());
-    let mut adaptive = scene.build()?;
-    let (dim, diagonal) = (adaptive.mesh.dim, adaptive.mesh.rest_diagonal());
+    let mut adaptive = Simulated::new(&scene, 1, "")?;
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
     let mut out = Vec::new();
     for ((plan, reference), bc) in tests.iter().zip(plans) {
         let count = frames.min(reference.positions.len().saturating_sub(1)).min(bc.frames());
-        let mut traj = adaptive.start(bc)?;
-        let (mut seconds, mut enriched, mut iterations) = (0.0, 0.0, 0.0);
-        let (mut mean, mut max) = (0.0, 0.0f64);
-        for frame in 1..=count {
-            let clock = Instant::now();
-            let step = adaptive.advance(bc, frame, &mut traj)?;
-            seconds += clock.elapsed().as_secs_f64();
-            iterations += step.iterations as f64;
-            if let Some(a) = &step.adaptive {
-                enriched += a.enriched_vertices as f64 / a.free_vertices.max(1) as f64;
-            }
-            let (m, x) = mean_and_max_error(&traj.positions[frame], &reference.positions[frame], dim, diagonal);
-            mean += m;
-            max = max.max(x);
+        let run = run_sequence(&mut adaptive, bc, count, &[&reference.positions], dim, diagonal, None)?;
+        if let Some(failure) = &run.failure {
+            return Err(TrainerError::invalid(format!(
+                "{} adaptive solver on {}: {failure}",
+                scene.name, plan.name
+            )));
         }
-        let n = count.max(1) as f64;
         let metrics = AdaptiveMetrics {
-            mean_error: mean / n,
-            max_error: max,
-            step_seconds: seconds / n,
-            enriched: enriched / n,
-            iterations: iterations / n,
+            mean_error: run.mean_error(0, count),
+            max_error: run.max_errors[0],
+            step_seconds: run.seconds,
+            enriched: adaptive.enriched_share(),
+            iterations: run.iterations,
         };
         report.message(&format!(
             "{} adaptive solver on {}: mean error {:.3}%, max {:.2}%, {:.2} ms/step, {:.1}% enriched",

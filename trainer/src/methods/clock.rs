@@ -1,8 +1,8 @@
-//! The clock every method is timed with: the CPU time of the calling thread where the
-//! platform has one (unix), so that other work on the machine does not count in a method's
-//! cost, wall-clock time elsewhere. `mochi compare` steps every method on one thread (a
-//! one-thread pool, so that the simulator's parallel sums run on the same thread) and reads
-//! this clock around each step.
+//! The clock every method is timed with: the CPU time of the process where the platform has
+//! one (unix): the work a step took on all of the process's threads (the simulator's sums
+//! may run on several), and not the other work on the machine. Wall-clock time elsewhere.
+//! `mochi compare` steps every method on a one-thread pool, so the figure is also the time
+//! one core takes.
 
 /// A point in time on the clock.
 #[derive(Clone, Copy, Debug)]
@@ -18,7 +18,7 @@ impl Stopwatch {
     pub fn start() -> Self {
         Stopwatch {
             #[cfg(unix)]
-            start: thread_seconds(),
+            start: process_seconds(),
             #[cfg(not(unix))]
             start: std::time::Instant::now(),
         }
@@ -27,15 +27,15 @@ impl Stopwatch {
     /// Seconds since [`Stopwatch::start`].
     pub fn seconds(&self) -> f64 {
         #[cfg(unix)]
-        return thread_seconds() - self.start;
+        return process_seconds() - self.start;
         #[cfg(not(unix))]
         return self.start.elapsed().as_secs_f64();
     }
 }
 
 #[cfg(unix)]
-fn thread_seconds() -> f64 {
-    let t = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
+fn process_seconds() -> f64 {
+    let t = rustix::time::clock_gettime(rustix::time::ClockId::ProcessCPUTime);
     t.tv_sec as f64 + 1e-9 * t.tv_nsec as f64
 }
 

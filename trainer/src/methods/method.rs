@@ -60,6 +60,8 @@ pub struct SequenceRun {
     /// Per reference, the mean vertex distance / diagonal of every measured frame (frames
     /// `1..=n`, `n` the fewer of the reference's frames and the stable frames).
     pub error_curves: Vec<Vec<f64>>,
+    /// Per reference, the largest vertex distance / diagonal over the measured frames.
+    pub max_errors: Vec<f64>,
     /// Frames stepped before a blow-up (all of them when none).
     pub stable_frames: usize,
     /// Frames asked for.
@@ -108,6 +110,7 @@ pub fn run_sequence(
     let frames = frames.min(bc.frames());
     let mut run = SequenceRun {
         error_curves: vec![Vec::new(); references.len()],
+        max_errors: vec![0.0; references.len()],
         stable_frames: frames,
         frames,
         ..SequenceRun::default()
@@ -163,9 +166,11 @@ pub fn run_sequence(
             ));
             break;
         }
-        for (curve, reference) in run.error_curves.iter_mut().zip(references) {
+        for ((curve, worst), reference) in run.error_curves.iter_mut().zip(&mut run.max_errors).zip(references) {
             if let Some(r) = reference.get(frame) {
-                curve.push(mean_and_max_error(x, r, dim, diagonal).0);
+                let (mean, max) = mean_and_max_error(x, r, dim, diagonal);
+                curve.push(mean);
+                *worst = worst.max(max);
             }
         }
         record(x);

@@ -20,6 +20,9 @@ pub struct Simulated {
     fine: BcSequence,
     /// The scene mesh's vertices in a coarse mesh, and their positions.
     embedded: Option<(Embedding, Vec<f64>)>,
+    /// The adaptive solver's enriched share of the free vertices, summed over the steps since
+    /// the last reset, and the steps.
+    enriched: (f64, usize),
 }
 
 impl Simulated {
@@ -39,6 +42,7 @@ impl Simulated {
                 frames: 0,
             },
             embedded: None,
+            enriched: (0.0, 0),
         })
     }
 
@@ -82,12 +86,19 @@ impl Simulated {
                 frames: 0,
             },
             embedded: Some((embedding, out)),
+            enriched: (0.0, 0),
         })
     }
 
     /// The built scene it steps.
     pub fn problem(&self) -> &BuiltScene {
         &self.problem
+    }
+
+    /// Mean over the steps since the last reset of the adaptive solver's enriched share of the
+    /// free vertices (0 for the other solvers).
+    pub fn enriched_share(&self) -> f64 {
+        self.enriched.0 / self.enriched.1.max(1) as f64
     }
 
     fn embed(&mut self) {
@@ -118,6 +129,7 @@ impl Method for Simulated {
     fn reset(&mut self, bc: &BcSequence) -> TrainerResult<()> {
         self.fine = bc.refined(self.substeps, self.problem.scene.dt * self.substeps as f64);
         self.problem.start(&self.fine)?;
+        self.enriched = (0.0, 0);
         self.embed();
         Ok(())
     }
@@ -129,7 +141,12 @@ impl Method for Simulated {
             let targets = self
                 .fine
                 .targets(&self.problem.handles, (frame - 1) * self.substeps + sub, dim);
-            iterations += self.problem.simulator.step(&targets)?.iterations;
+            let report = self.problem.simulator.step(&targets)?;
+            iterations += report.iterations;
+            if let Some(a) = &report.adaptive {
+                self.enriched.0 += a.enriched_vertices as f64 / a.free_vertices.max(1) as f64;
+            }
+            self.enriched.1 += 1;
         }
         self.embed();
         Ok(StepCost::iterated(f64::NAN, iterations as f64))

@@ -154,9 +154,8 @@ pub struct Comparison {
 }
 
 /// Compares every method on the scene of `options.model` (or `scene`, a name or path, when
-/// no model is given), on one thread: everything runs in a one-thread pool, so the
-/// simulator's parallel sums run on the thread whose CPU time [`crate::methods::clock`]
-/// reads.
+/// no model is given), on one thread: everything runs in a one-thread pool, so a method's
+/// CPU time ([`crate::methods::clock`]) is also what one core takes.
 pub fn compare(scene: &str, options: &CompareOptions, report: &dyn Reporter) -> TrainerResult<Comparison> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
