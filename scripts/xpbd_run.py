@@ -1,10 +1,10 @@
 """XPBD peer: Bender's PositionBasedDynamics (PyPI `pypbd`) driven on a case `.npz` written by
-`mochi export-case` (rest shape, cells, lumped masses, handles and their targets, material, the
-scene's implicit-Euler reference). Run by scripts/xpbd.sh, which makes its virtual environment and
+`mochi compare SCENE --cases DIR` (rest shape, cells, lumped masses, handles and their targets,
+material, the scene's implicit-Euler reference; layout in trainer/src/eval/compare/case.rs). Run by scripts/xpbd.sh, which makes its virtual environment and
 pins it to one core:
 
     python xpbd_run.py CASE.npz --substeps S --iterations I --out RESULT.npz
-    python xpbd_run.py CASE.npz --sweep OUTDIR [--substeps 1,2,4 --iterations 1,5]
+    python xpbd_run.py CASE.npz --sweep OUTDIR [--substeps-list 1,2,4 --iterations-list 1,5]
     python xpbd_run.py --self-check
 
 Result `.npz` (one per setting):
@@ -48,8 +48,8 @@ Constraints per body kind (all XPBD, i.e. with compliance alpha = 1 / (k h^2), h
   whose sum_i w_i |grad U/E|^2 + C^2 alpha is below 1e-6 (`eps` in XPBD.cpp). That sum is
   dimensional (m^4 / kg with time unchanged) and quadratic in the strain: on beam's tets (about
   3e-6 m^3, 14 g per vertex) it is below 1e-6 for every strain the beam reaches, so every
-  constraint is skipped and the beam free-falls (measured: `--self-check` and the note
-  docs/notes/2026-11-28-xpbd-peer.md). Masses and moduli are therefore multiplied by one factor
+  constraint is skipped and the beam falls until its tets are grossly strained (measured:
+  `--threshold-report`, `--self-check` and the note docs/notes/2026-11-28-xpbd-peer.md). Masses and moduli are therefore multiplied by one factor
   `mass_scale` (default 1e-12): with lengths and time unchanged, the equations of motion depend
   only on E / rho and g, so the motion is the same, and the threshold then bites only below a
   strain about 1e6 times smaller (the sum grows as 1 / mass_scale). Gravity cannot be scaled
@@ -59,8 +59,9 @@ Constraints per body kind (all XPBD, i.e. with compliance alpha = 1 / (k h^2), h
   starts at 0). From the second on, the multiplier it carries is the sum of the steps
   Delta lambda / C rather than Delta lambda (XPBD.cpp, `multiplier += lambda` with
   lambda = -C (C + alpha multiplier) / (...), since 2.2.1), which with C = sqrt(2 U / E) of order
-  1e-6 overweights alpha * multiplier by about 1 / C: more than one iteration per substep
-  diverges on beam within a few frames at 4 or more substeps (measured, the sweep's table).
+  1e-6 overweights alpha * multiplier by about 1 / C: on beam 5 or more iterations per
+  substep diverge within a few frames at 2 or more substeps and 2 iterations stay above 56 %
+  error (measured, docs/results/methods.md).
   The library's own default is one iteration (`maxIterations` = 1) with substeps, the regime
   of Macklin et al. 2019 ("Small steps in physics simulation"); the sweep adds 64, 128 and 256
   substeps at one iteration.
@@ -95,7 +96,6 @@ import math
 import os
 import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -135,7 +135,7 @@ def load_case(path):
     case["cells"] = case["cells"].astype(np.int64)
     case["handles"] = case["handles"].astype(np.int64)
     if case["kind"] not in ("solid", "cloth", "rod"):
-        sys.exit(f"{path}: kind {case['kind']!r}, expected solid, cloth or rod")
+        sys.exit(f"{path}: kind {case['kind']!r}: this peer drives solid, cloth and rod cases only")
     if not np.allclose(case["gravity"], [0.0, -9.81, 0.0]):
         sys.exit(f"{path}: gravity {case['gravity']} is not pypbd's fixed (0, -9.81, 0)")
     return case
@@ -148,12 +148,6 @@ def interior_hinges(tris):
         for a, b, c in ((t[0], t[1], t[2]), (t[1], t[2], t[0]), (t[2], t[0], t[1])):
             faces.setdefault((min(a, b), max(a, b)), []).append(c)
     return [(o[0], o[1], e[0], e[1]) for e, o in faces.items() if len(o) == 2]
-
-
-def unique_edges(cells):
-    k = cells.shape[1]
-    pairs = np.concatenate([cells[:, [i, j]] for i in range(k) for j in range(i + 1, k)])
-    return np.unique(np.sort(pairs, axis=1), axis=0)
 
 
 def strands(edges, n):
