@@ -318,16 +318,16 @@ pub(super) fn arrange(q: &mut [i16]) {
     }
 }
 
-/// `sum w[c] * q[c]` in `i32` (`q` as [`arrange`] left it), and the columns summed (all of
-/// them; none while the vector kernels are off).
+/// `sum w[c] * q[c]` in `i32` (`q` as [`arrange`] left it), and the columns left to the
+/// caller (none; all of them while the vector kernels are off).
 #[inline]
-pub(super) fn dot_i8(w: &[i8], q: &[i16]) -> (i32, usize) {
+pub(super) fn dot_i8<'a, 'b>(w: &'a [i8], q: &'b [i16]) -> (i32, &'a [i8], &'b [i16]) {
     if !super::vector_kernels() {
-        return (0, 0);
+        return (0, w, q);
     }
     let n = w.len().min(q.len());
     let [sum] = sums::<1>(&w[..n], &q[..n]);
-    (sum, n)
+    (sum, &[], &[])
 }
 
 /// Rows of an int8 layer: `out[k] = bias[k] + scale[k] * (sum_k * scale_x)` with `sum_k` the

@@ -24,9 +24,9 @@ pub fn arrange(q: &mut [i16]) {
 }
 
 /// `sum w[c] * q[c]` in `i32` over the leading whole fours of columns (`q` as [`arrange`]
-/// left it), and how many columns that is; the caller adds the rest.
+/// left it), and the columns after them, which the caller adds.
 #[inline]
-pub fn dot_i8(w: &[i8], q: &[i16]) -> (i32, usize) {
+pub fn dot_i8<'a, 'b>(w: &'a [i8], q: &'b [i16]) -> (i32, &'a [i8], &'b [i16]) {
     let n = w.len().min(q.len());
     let groups = n / 4;
     // Two sums so that consecutive `SMLAD`s do not wait on each other.
@@ -44,7 +44,7 @@ pub fn dot_i8(w: &[i8], q: &[i16]) -> (i32, usize) {
         a = smlad(sxtb16(w4), q02, a);
         b = smlad(sxtb16_ror8(w4), q13, b);
     }
-    (a.wrapping_add(b), 4 * groups)
+    (a.wrapping_add(b), &w[4 * groups..n], &q[4 * groups..n])
 }
 
 /// Bytes 0 and 2 of `x`, sign-extended to the two halves.

@@ -28,10 +28,7 @@ impl Stored for f32 {
 impl Stored for u16 {
     #[inline(always)]
     fn value(self) -> f32 {
-        #[cfg(all(target_arch = "arm", feature = "armv7em", target_abi = "eabihf"))]
-        return super::armv7em::f16_to_f32(self);
-        #[allow(unreachable_code)]
-        half::f16::from_bits(self).to_f32()
+        super::isa_f16_to_f32(self)
     }
 }
 
@@ -90,13 +87,9 @@ fn rows_general<T: Stored>(params: &[f32], layer: &Layer, w: &[T], parts: &[&[f3
     }
 }
 
-/// Rows [`rows_blocked`] computes together: four where vector registers hold their lanes;
-/// two on the Cortex-M4, whose 32 single-precision registers hold two rows' eight lanes with
-/// room for the input and the weights (four rows' lanes would be spilled to the stack).
-#[cfg(not(target_arch = "arm"))]
-const ROW_BLOCK: usize = 4;
-#[cfg(target_arch = "arm")]
-const ROW_BLOCK: usize = 2;
+/// Rows [`rows_blocked`] computes together (four where vector registers hold their lanes,
+/// two on the Cortex-M4: see [`super`]'s `ISA_ROW_BLOCK`).
+const ROW_BLOCK: usize = super::ISA_ROW_BLOCK;
 
 /// Rows [`ROW_BLOCK`] at a time, `x` loaded once for all of them (a matrix-vector product is
 /// limited by loads; this divides them). `x.len() == cols`, a multiple of 8. Returns the

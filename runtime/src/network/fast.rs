@@ -13,12 +13,7 @@ use crate::model::Layer;
 /// The kernel [`rows`] uses on this CPU ([`Width::Canonical`] while
 /// [`super::use_vector_kernels`] turned them off).
 pub fn width() -> Width {
-    #[cfg(target_arch = "x86_64")]
-    let width = super::x86::width();
-    #[cfg(target_arch = "aarch64")]
-    let width = Width::Neon;
-    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-    let width = Width::Canonical;
+    let width = super::isa_width();
     if width != Width::Canonical && !super::vector_kernels() {
         return Width::Canonical;
     }
@@ -30,22 +25,19 @@ pub fn width() -> Width {
 /// returns how many rows were written (0 where this CPU has no wide kernel: the caller
 /// computes the rest).
 pub fn rows(params: &[f32], layer: &Layer, x: &[f32], first: usize, out: &mut [f32]) -> usize {
-    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
-    if x.len() == layer.cols as usize && !x.is_empty() && super::vector_kernels() {
-        // The whole matrix in its layout, or empty when it does not fit the pool.
-        let w = super::matrix(params, layer);
-        if w.is_empty() {
-            return 0;
-        }
-        let rows = out.len().min((layer.rows as usize).saturating_sub(first));
-        let out = &mut out[..rows];
-        #[cfg(target_arch = "x86_64")]
-        return super::x86::rows_f32(params, layer, w, x, first, out);
-        #[cfg(target_arch = "aarch64")]
-        return super::aarch64::rows_f32(params, layer, w, x, first, out);
+    if super::isa_width() == Width::Canonical || x.len() != layer.cols as usize || x.is_empty() {
+        return 0;
     }
-    let _ = (params, layer, x, first, out);
-    0
+    if !super::vector_kernels() {
+        return 0;
+    }
+    // The whole matrix in its layout, or empty when it does not fit the pool.
+    let w = super::matrix(params, layer);
+    if w.is_empty() {
+        return 0;
+    }
+    let rows = out.len().min((layer.rows as usize).saturating_sub(first));
+    super::isa_rows_f32(params, layer, w, x, first, &mut out[..rows])
 }
 
 #[cfg(all(test, feature = "std"))]

@@ -10,7 +10,7 @@
 //! - x86-64: `vpmaddwd` on 16 (AVX2) or 32 (AVX-512BW) weights at a time, or `vpdpwssd`
 //!   where the CPU has AVX-512 VNNI; chosen at run time under `std`, by target features
 //!   without it;
-//! - wasm with `simd128`: `i32x4.dot_i16x8_s` on 8 weights at a time;
+//! - wasm with `simd128`: `i32x4.dot_i16x8_s` on 8 weights at a time (`network/wasm.rs`);
 //! - Armv7E-M (Cortex-M4, the `armv7em` feature): `SMLAD`, two 16-bit multiply-accumulates per
 //!   instruction, on weight pairs unpacked by `SXTB16` (the activations are stored
 //!   pair-interleaved to match; `network/armv7em.rs`);
@@ -19,6 +19,7 @@
 //! - anywhere else: a plain loop.
 //!
 //! Each target's kernel sums the leading columns it takes; the plain loop adds the rest.
+//! Which kernel runs is chosen in one place ([`super`]'s `isa_` functions).
 //!
 //! An input with a NaN or infinity gives NaN rows (the instance then reports a non-finite
 //! state, as the float kernels' NaN would).
@@ -116,10 +117,7 @@ pub fn quantized_rows(params: &[f32], layer: &Layer, w: &[i8], x: &Quantized, fi
         cols > 0 && x.cols == cols,
     ) {
         let q = &x.q[..cols];
-        #[cfg(target_arch = "aarch64")]
-        let done = super::aarch64::rows_i8(w, q, x.scale, bias, scale, out);
-        #[cfg(not(target_arch = "aarch64"))]
-        let done = 0;
+        let done = super::isa_rows_i8(w, q, x.scale, bias, scale, out);
         let rows = out.iter_mut().zip(w.chunks_exact(cols)).zip(bias).zip(scale);
         for (((o, row), &b), &s) in rows.skip(done) {
             *o = b + s * (dot(row, q) as f32 * x.scale);
@@ -136,36 +134,15 @@ pub fn quantized_rows(params: &[f32], layer: &Layer, w: &[i8], x: &Quantized, fi
 /// Puts the quantised activations in the order this target's [`dot`] reads them.
 #[inline(always)]
 fn arrange(q: &mut [i16]) {
-    #[cfg(all(target_arch = "arm", feature = "armv7em"))]
-    super::armv7em::arrange(q);
-    #[cfg(target_arch = "aarch64")]
-    super::aarch64::arrange(q);
-    let _ = q;
+    super::isa_arrange_i8(q);
 }
 
 /// `sum w[c] * q[c]` in `i32` (`w.len() == q.len()`, `q` as [`arrange`] left it): the
 /// target's vector kernel over the leading columns it takes, the plain loop over the rest.
 #[inline]
 fn dot(w: &[i8], q: &[i16]) -> i32 {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(sum) = super::x86::dot_i8(w, q) {
-        return sum;
-    }
-    #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
-    let (head, done) = wasm::dot(w, q);
-    #[cfg(all(target_arch = "arm", feature = "armv7em"))]
-    let (head, done) = super::armv7em::dot_i8(w, q);
-    #[cfg(target_arch = "aarch64")]
-    let (head, done) = super::aarch64::dot_i8(w, q);
-    #[cfg(not(any(
-        all(target_arch = "wasm32", target_feature = "simd128"),
-        all(target_arch = "arm", feature = "armv7em"),
-        target_arch = "aarch64"
-    )))]
-    let (head, done) = (0i32, 0usize);
-    let n = w.len().min(q.len());
-    let done = done.min(n);
-    head.wrapping_add(dot_portable(&w[done..n], &q[done..n]))
+    let (head, w, q) = super::isa_dot_i8(w, q);
+    head.wrapping_add(dot_portable(w, q))
 }
 
 /// The plain loop (any `q` order that matches `w`).
@@ -174,36 +151,6 @@ pub fn dot_portable(w: &[i8], q: &[i16]) -> i32 {
     w.iter()
         .zip(q)
         .fold(0i32, |acc, (&w, &q)| acc.wrapping_add(i32::from(w) * i32::from(q)))
-}
-
-#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
-#[allow(unsafe_code)]
-mod wasm {
-    use core::arch::wasm32::*;
-
-    /// Eight weights at a time: widened to `i16`, `i32x4.dot_i16x8_s` with the activations;
-    /// the sum over the leading whole eights, and how many columns that is.
-    #[inline]
-    pub fn dot(w: &[i8], q: &[i16]) -> (i32, usize) {
-        let n = w.len().min(q.len());
-        let mut acc = i32x4_splat(0);
-        let mut c = 0;
-        while c + 8 <= n {
-            // SAFETY: c + 8 <= n, so 8 bytes of `w` and 8 halves of `q` are readable; wasm
-            // loads need no alignment.
-            unsafe {
-                let wv = i16x8_load_extend_i8x8(w.as_ptr().add(c).cast());
-                let qv = v128_load(q.as_ptr().add(c).cast());
-                acc = i32x4_add(acc, i32x4_dot_i16x8(wv, qv));
-            }
-            c += 8;
-        }
-        let lanes = i32x4_extract_lane::<0>(acc)
-            .wrapping_add(i32x4_extract_lane::<1>(acc))
-            .wrapping_add(i32x4_extract_lane::<2>(acc))
-            .wrapping_add(i32x4_extract_lane::<3>(acc));
-        (lanes, c)
-    }
 }
 
 #[cfg(all(test, feature = "std"))]

@@ -45,11 +45,122 @@ pub mod integer;
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod narrow;
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+#[allow(unsafe_code)]
+mod wasm;
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod x86;
 
 use crate::model::{Layer, WeightFormat, Weights};
+
+// The instruction set: which ISA module each kernel comes from is chosen here, at compile
+// time where the target fixes it (and by run-time detection inside the x86-64 and AArch64
+// modules); the generic kernels (`fast`, `canonical`, `integer`) call these and name no
+// instruction set.
+
+/// The wide `f32` kernel this CPU has, whether or not [`use_vector_kernels`] turned it off.
+#[inline(always)]
+fn isa_width() -> Width {
+    #[cfg(target_arch = "x86_64")]
+    return x86::width();
+    #[cfg(target_arch = "aarch64")]
+    return Width::Neon;
+    #[allow(unreachable_code)]
+    Width::Canonical
+}
+
+/// The wide `f32` kernel's rows (see [`fast::rows`]); 0 where there is none.
+#[inline(always)]
+fn isa_rows_f32(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], first: usize, out: &mut [f32]) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    return x86::rows_f32(params, layer, w, x, first, out);
+    #[cfg(target_arch = "aarch64")]
+    return aarch64::rows_f32(params, layer, w, x, first, out);
+    #[allow(unreachable_code)]
+    {
+        let _ = (params, layer, w, x, first, out);
+        0
+    }
+}
+
+/// The canonical `f16` sum's leading rows with this CPU's vectors (AVX2 + F16C, NEON);
+/// 0 where the portable code does them.
+#[inline(always)]
+fn isa_rows_f16(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usize, out: &mut [f32]) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    return match parts {
+        [x] => x86::rows_f16(weights, layer, x, first, out),
+        _ => 0,
+    };
+    #[cfg(target_arch = "aarch64")]
+    return match vector_kernels() {
+        true => joined(parts, |x| match x.len() == layer.cols as usize {
+            true => aarch64::rows_f16(weights.params, layer, matrix(weights.halves, layer), x, first, out),
+            false => 0,
+        }),
+        false => 0,
+    };
+    #[allow(unreachable_code)]
+    {
+        let _ = (weights, layer, parts, first, out);
+        0
+    }
+}
+
+/// Puts int8 activations in the order this target's [`isa_dot_i8`] reads them.
+#[inline(always)]
+fn isa_arrange_i8(q: &mut [i16]) {
+    #[cfg(all(target_arch = "arm", feature = "armv7em"))]
+    armv7em::arrange(q);
+    #[cfg(target_arch = "aarch64")]
+    aarch64::arrange(q);
+    let _ = q;
+}
+
+/// The int8 dot product's sum over the leading columns this target's kernel takes, and the
+/// columns it leaves (which the caller adds).
+#[inline(always)]
+fn isa_dot_i8<'a, 'b>(w: &'a [i8], q: &'b [i16]) -> (i32, &'a [i8], &'b [i16]) {
+    #[cfg(target_arch = "x86_64")]
+    return x86::dot_i8(w, q).map_or((0, w, q), |sum| (sum, &[], &[]));
+    #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+    return wasm::dot_i8(w, q);
+    #[cfg(all(target_arch = "arm", feature = "armv7em"))]
+    return armv7em::dot_i8(w, q);
+    #[cfg(target_arch = "aarch64")]
+    return aarch64::dot_i8(w, q);
+    #[allow(unreachable_code)]
+    (0, w, q)
+}
+
+/// Leading rows of an int8 layer computed several at a time (see `aarch64::rows_i8`); 0 where
+/// the caller's row-by-row loop does them.
+#[inline(always)]
+fn isa_rows_i8(w: &[i8], q: &[i16], scale_x: f32, bias: &[f32], scale: &[f32], out: &mut [f32]) -> usize {
+    #[cfg(target_arch = "aarch64")]
+    return aarch64::rows_i8(w, q, scale_x, bias, scale, out);
+    #[allow(unreachable_code)]
+    {
+        let _ = (w, q, scale_x, bias, scale, out);
+        0
+    }
+}
+
+/// The `f16` with bits `h` as `f32` (exact): the FPU's `VCVTB` on Armv7E-M with an FPU, the
+/// `half` crate elsewhere.
+#[inline(always)]
+fn isa_f16_to_f32(h: u16) -> f32 {
+    #[cfg(all(target_arch = "arm", feature = "armv7em", target_abi = "eabihf"))]
+    return armv7em::f16_to_f32(h);
+    #[allow(unreachable_code)]
+    half::f16::from_bits(h).to_f32()
+}
+
+/// Rows the canonical sum computes together: four where vector registers hold their lanes;
+/// two on the Cortex-M4, whose 32 single-precision registers hold two rows' eight lanes with
+/// room for the input and the weights (four rows' lanes would be spilled to the stack).
+const ISA_ROW_BLOCK: usize = if cfg!(target_arch = "arm") { 2 } else { 4 };
 
 /// Which wide `f32` kernel this CPU runs ([`fast::width`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -143,21 +254,7 @@ pub fn dense_rows(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usi
             }
         }
         WeightFormat::F16 => {
-            #[cfg(target_arch = "x86_64")]
-            let done = match parts {
-                [x] => x86::rows_f16(weights, layer, x, first, out),
-                _ => 0,
-            };
-            #[cfg(target_arch = "aarch64")]
-            let done = match vector_kernels() {
-                true => joined(parts, |x| match x.len() == layer.cols as usize {
-                    true => aarch64::rows_f16(p, layer, matrix(weights.halves, layer), x, first, out),
-                    false => 0,
-                }),
-                false => 0,
-            };
-            #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-            let done = 0;
+            let done = isa_rows_f16(weights, layer, parts, first, out);
             let (first, out) = (first + done, &mut out[done..]);
             canonical::rows(p, layer, matrix(weights.halves, layer), parts, first, out);
         }
