@@ -139,13 +139,14 @@ fn compare_runs_every_family_and_replays_a_peer() {
         reduced: None,
         peers: None,
         cases: Some(cases.clone()),
+        cases_only: false,
         sequences: 1,
         frames: 12,
         matrix: None,
         max_substeps: 4,
     };
     let first = compare("tiny", &base, &Quiet).unwrap();
-    assert!(cases.join("test-00.npz").is_file());
+    assert!(cases.join("test-02.npz").is_file());
     // A "peer" that recorded the implicit-Euler reference itself: error 0, its own times.
     let problem = tiny().build().unwrap();
     let full = first
@@ -161,8 +162,8 @@ fn compare_runs_every_family_and_replays_a_peer() {
     let mut kept = Vec::new();
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
     run_sequence(&mut simulated, &bc, 12, &[], dim, diagonal, Some((&mut kept, 13))).unwrap();
-    std::fs::create_dir_all(peers.join("test-00")).unwrap();
-    let recording = peers.join("test-00/xpbd-s1-i1.npz");
+    std::fs::create_dir_all(peers.join("test-02")).unwrap();
+    let recording = peers.join("test-02/xpbd-s1-i1.npz");
     let mut npz = NpzOut::create(&recording).unwrap();
     let n = problem.mesh.num_vertices() as u64;
     npz.array("positions", &[13, n, 3], kept.iter().flatten().copied())

@@ -119,6 +119,9 @@ pub(crate) enum Command {
         /// Write the peers' cases (`DIR/CASE.npz`) here.
         #[arg(long)]
         cases: Option<PathBuf>,
+        /// Only write the cases (with `--cases`), measure nothing.
+        #[arg(long, requires = "cases")]
+        cases_only: bool,
         /// Output directory of the page and charts.
         #[arg(long, default_value = "docs/results/methods")]
         out: PathBuf,

@@ -193,6 +193,13 @@ pub(crate) fn compare(scene: &str, out: PathBuf, options: mochi_trainer::eval::c
         bail!("--frames and --sequences must be at least 1");
     }
     let comparison = mochi_trainer::eval::compare::compare(scene, &options, &Terminal)?;
+    if options.cases_only {
+        println!(
+            "cases -> {}",
+            options.cases.as_deref().unwrap_or(Path::new(".")).display()
+        );
+        return Ok(());
+    }
     let command = format!("mochi {}", std::env::args().skip(1).collect::<Vec<_>>().join(" "));
     mochi_trainer::eval::compare::page::write(&out, &comparison, &command)?;
     println!(

@@ -77,6 +77,7 @@ fn run(cli: Cli) -> Result<()> {
             reduced,
             peers,
             cases,
+            cases_only,
             out,
             sequences,
             frames,
@@ -91,6 +92,7 @@ fn run(cli: Cli) -> Result<()> {
                 reduced,
                 peers,
                 cases,
+                cases_only,
                 sequences,
                 frames,
                 matrix: (matrix_frames > 0).then_some(mochi_trainer::eval::compare::conditions::MatrixSpan {

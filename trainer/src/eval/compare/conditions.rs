@@ -43,9 +43,11 @@ pub struct MatrixSpan {
 }
 
 /// The matrix's conditions for `problem`'s scene: in range (the scene's middle training
-/// speed), 1.5x and 2x the top training speed, a sudden stop from the top speed, the in-range
-/// motion over `long_frames`, the time step halved and doubled at run time, the material ten
-/// times stiffer, and contact when the scene has it (its in-range motion with contact on).
+/// speed), 1.5x and 2x the top training speed and a sudden stop from the top speed (only
+/// where a handle's motion is sampled from speeds: a scripted motion has one speed), the
+/// in-range motion over `long_frames`, the time step halved and doubled at run time, the
+/// material ten times stiffer, and contact when the scene has it (its in-range motion with
+/// contact on).
 pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
     let scene = &problem.scene;
     let seed = scene.dataset.seed.wrapping_mul(7_777).wrapping_add(1);
@@ -55,41 +57,29 @@ pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
         steady: None,
     };
     let in_range = problem.sequence(&at(0.5, 1.0), frames, seed);
-    let mut out = vec![
-        plain("in range", scene, in_range.clone(), frames),
-        plain(
-            "1.5x top speed",
-            scene,
-            problem.sequence(&at(1.0, 1.5), frames, seed),
-            frames,
-        ),
-        plain(
-            "2x top speed",
-            scene,
-            problem.sequence(&at(1.0, 2.0), frames, seed),
-            frames,
-        ),
-        plain(
+    let mut out = vec![plain("in range", scene, in_range.clone(), frames)];
+    if scene.handles.iter().any(|h| h.motion.is_some() && h.script.is_empty()) {
+        let fast = |factor| problem.sequence(&at(1.0, factor), frames, seed);
+        out.push(plain("1.5x top speed", scene, fast(1.5), frames));
+        out.push(plain("2x top speed", scene, fast(2.0), frames));
+        let stop = SpeedPlan {
+            pieces: vec![(0, 1.0, 1.0), (frames / 2, 1.0, 0.0)],
+            steady: None,
+        };
+        out.push(plain(
             "sudden stop",
             scene,
-            problem.sequence(
-                &SpeedPlan {
-                    pieces: vec![(0, 1.0, 1.0), (frames / 2, 1.0, 0.0)],
-                    steady: None,
-                },
-                frames,
-                seed,
-            ),
+            problem.sequence(&stop, frames, seed),
             frames,
-        ),
-        Condition {
-            name: format!("{} frames", span.long_frames),
-            scene: scene.clone(),
-            bc: problem.sequence(&at(0.5, 1.0), span.long_frames, seed),
-            measured: frames,
-            change: RunTimeChange::None,
-        },
-    ];
+        ));
+    }
+    out.push(Condition {
+        name: format!("{} frames", span.long_frames),
+        scene: scene.clone(),
+        bc: problem.sequence(&at(0.5, 1.0), span.long_frames, seed),
+        measured: frames,
+        change: RunTimeChange::None,
+    });
     let mut halved = scene.clone();
     halved.dt /= 2.0;
     out.push(Condition {
@@ -136,13 +126,20 @@ fn plain(name: &str, scene: &Scene, bc: BcSequence, frames: usize) -> Condition 
     }
 }
 
-/// The test sequences the chart measures: the first `count` of the scene's test split, each
-/// over `frames` frames.
+/// The test sequences the chart measures: `count` of the scene's test split, the held-out
+/// speeds inside the training range first (test-02, test-03, ...; beyond the range is the
+/// stability matrix's part), each over `frames` frames.
 pub fn chart_sequences(problem: &BuiltScene, count: usize, frames: usize) -> Vec<(SequencePlan, BcSequence)> {
-    mochi_sim::dataset::plan(&problem.scene.dataset)
+    let tests: Vec<SequencePlan> = mochi_sim::dataset::plan(&problem.scene.dataset)
         .into_iter()
         .filter(|p| p.split == mochi_sim::dataset::Split::Test)
+        .collect();
+    let in_range = tests.len().min(2);
+    tests[in_range..]
+        .iter()
+        .chain(&tests[..in_range])
         .take(count)
+        .cloned()
         .map(|p| {
             let bc = problem.sequence(&p.speeds, frames, p.seed);
             (p, bc)

@@ -155,13 +155,19 @@ pub fn simulated<'a>(scene: &Scene, reference: &BuiltScene, budgets: Budgets) ->
     out
 }
 
+/// A method, or why it cannot run: the scene's refusal without the file and field it names
+/// and the advice after it ("the vbd solver does not handle IPC contact").
 fn entry<'a>(family: &str, method: TrainerResult<Simulated>) -> Entry<'a> {
     match method {
         Ok(m) => Entry::Runs(Box::new(m)),
-        Err(e) => Entry::Cannot {
-            family: family.into(),
-            reason: e.to_string(),
-        },
+        Err(e) => {
+            let text = e.to_string();
+            let reason = text.rsplit("`: ").next().unwrap_or(&text);
+            Entry::Cannot {
+                family: family.into(),
+                reason: reason.split(';').next().unwrap_or(reason).trim().into(),
+            }
+        }
     }
 }
 

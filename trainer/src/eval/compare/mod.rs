@@ -63,6 +63,8 @@ pub struct CompareOptions {
     pub peers: Option<PathBuf>,
     /// Where to write the peers' cases (`DIR/CASE.npz`).
     pub cases: Option<PathBuf>,
+    /// Only write the cases (the implicit-Euler references they carry), measure nothing.
+    pub cases_only: bool,
     /// Test sequences of the chart.
     pub sequences: usize,
     /// Frames of each chart sequence.
@@ -285,6 +287,11 @@ fn chart(
     };
     for (plan, bc) in &sequences {
         let implicit = reference(problem, 1, None, bc, options.frames)?;
+        if let (Some(dir), true) = (&options.cases, options.cases_only) {
+            fs::create_dir_all(dir)?;
+            case::write_case(&dir.join(format!("{}.npz", plan.name)), problem, bc, &implicit)?;
+            continue;
+        }
         let (converged, info) = converged_reference(problem, bc, options.frames, options.max_substeps, &implicit)?;
         report.message(&format!(
             "{} {}: time-converged reference at {} substeps (last halving moved it {:.4}%)",
@@ -444,15 +451,36 @@ fn matrix_row(
         &[],
         dim,
         diagonal,
-        Some((&mut reference, condition.measured + 1)),
+        // A peer's case carries the reference over every frame.
+        Some((
+            &mut reference,
+            if options.cases.is_some() {
+                frames + 1
+            } else {
+                condition.measured + 1
+            },
+        )),
     )?;
+    // Where full space itself fails under the condition (a fast rod folding back in one
+    // step), the others are measured over the frames it reached and stepped on for stability.
+    let measured = condition.measured.min(reference.len() - 1);
     cells.push(Cell {
         method: "full space".into(),
-        text: format!("{} / {frames} (the reference)", run.stable_frames),
+        text: match &run.failure {
+            None => format!("{} / {frames} (the reference)", run.stable_frames),
+            Some(f) => format!("{} / {frames} (the reference; fails at {f})", run.stable_frames),
+        },
     });
     if let Some(dir) = &options.cases {
         let name = slug(&condition.name);
         case::write_case(&dir.join(format!("{name}.npz")), &problem, &condition.bc, &reference)?;
+        if options.cases_only {
+            return Ok(MatrixRow {
+                condition: condition.name.clone(),
+                frames: (frames, condition.measured),
+                cells,
+            });
+        }
     }
     // The other methods on the condition's scene with the scene's own solver.
     let scene = &condition.scene;
@@ -478,7 +506,7 @@ fn matrix_row(
             Entry::Runs(mut method) => {
                 let refs: [&[Vec<f64>]; 1] = [&reference];
                 let run = run_sequence(method.as_mut(), &condition.bc, frames, &refs, dim, diagonal, None)?;
-                let error = run.mean_error(0, condition.measured);
+                let error = run.mean_error(0, measured);
                 Cell {
                     method: format!("{} {}", method.family(), method.setting()),
                     text: format!(
@@ -501,7 +529,7 @@ fn matrix_row(
     }
     Ok(MatrixRow {
         condition: condition.name.clone(),
-        frames: (frames, condition.measured),
+        frames: (frames, measured),
         cells,
     })
 }
