@@ -2,23 +2,12 @@
 //!
 //! A value is not finite when its exponent bits are all set. One pass of compares and ORs
 //! over the buffer vectorises (an early-exit test would run value by value); on x86-64 the
-//! same pass is compiled a second time for AVX-512F and chosen at run time, like the `f32`
-//! kernels ([`crate::network::fast`]).
+//! same pass is compiled a second time for AVX-512F (`network/x86.rs`) and chosen at run time,
+//! like the `f32` kernels ([`crate::network::fast`]).
 
 /// Whether every value of `values` is finite.
 pub(crate) fn all_finite(values: &[f32]) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    if crate::network::fast::width() == crate::network::Width::Avx512 {
-        // SAFETY: the CPU has AVX-512F (`width` reports only what it has).
-        return unsafe { all_finite_avx512(values) };
-    }
-    no_exponent_all_set(values)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn all_finite_avx512(values: &[f32]) -> bool {
-    no_exponent_all_set(values)
+    crate::network::isa_all_finite(values).unwrap_or_else(|| no_exponent_all_set(values))
 }
 
 #[inline(always)]

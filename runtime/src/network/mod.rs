@@ -45,6 +45,9 @@ pub mod integer;
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod narrow;
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod swish_avx512;
 #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
 #[allow(unsafe_code)]
 mod wasm;
@@ -155,6 +158,32 @@ fn isa_f16_to_f32(h: u16) -> f32 {
     return armv7em::f16_to_f32(h);
     #[allow(unreachable_code)]
     half::f16::from_bits(h).to_f32()
+}
+
+/// The activation of an `f32` layer's values with this CPU's vectors (AVX-512F); `false`, and
+/// nothing computed, where the portable code does it.
+#[inline(always)]
+fn isa_swish_all(v: &mut [f32]) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return swish_avx512::swish_all(v);
+    #[allow(unreachable_code)]
+    {
+        let _ = v;
+        false
+    }
+}
+
+/// Whether every value is finite, with this CPU's widest vectors (AVX-512F); `None` where the
+/// portable pass does it.
+#[inline(always)]
+pub(crate) fn isa_all_finite(values: &[f32]) -> Option<bool> {
+    #[cfg(target_arch = "x86_64")]
+    return x86::all_finite(values);
+    #[allow(unreachable_code)]
+    {
+        let _ = values;
+        None
+    }
 }
 
 /// Rows the canonical sum computes together: four where vector registers hold their lanes;

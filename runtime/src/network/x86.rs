@@ -309,6 +309,25 @@ pub(super) fn rows_f16(weights: &Weights, layer: &Layer, x: &[f32], first: usize
     unsafe { rows_canonical_avx(weights.params, layer, matrix(weights.halves, layer), x, first, out) }
 }
 
+/// Whether every value is finite (no value with every exponent bit set: one pass of compares
+/// and ORs, compiled for AVX-512F) where the `f32` kernel is AVX-512F; `None` otherwise.
+pub(super) fn all_finite(values: &[f32]) -> Option<bool> {
+    if super::fast::width() != Width::Avx512 {
+        return None;
+    }
+    // SAFETY: the CPU has AVX-512F (`width` reports only what it has).
+    Some(unsafe { all_finite_avx512(values) })
+}
+
+#[target_feature(enable = "avx512f")]
+fn all_finite_avx512(values: &[f32]) -> bool {
+    const EXPONENT: u32 = 0x7f80_0000;
+    let any = values
+        .iter()
+        .fold(0u32, |any, v| any | u32::from(v.to_bits() & EXPONENT == EXPONENT));
+    any == 0
+}
+
 /// Which integer dot product this CPU runs.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum IntKernel {
