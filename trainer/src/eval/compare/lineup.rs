@@ -129,11 +129,10 @@ pub fn simulated<'a>(scene: &Scene, reference: &BuiltScene, budgets: Budgets) ->
         Budgets::Sweep => &[
             (1, 5, None),
             (1, 20, None),
-            (1, 80, None),
             (1, 20, Some(0.0)),
             (4, 5, None),
             (4, 10, Some(0.0)),
-            (16, 5, None),
+            (8, 5, None),
         ],
         Budgets::One => &[(4, 5, None)],
     };
