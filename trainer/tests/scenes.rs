@@ -60,7 +60,7 @@ fn every_shipped_scene_builds_at_its_documented_size() {
                 assert!(matches!(problem.mesh.elements, Elements::Shell(_)));
                 assert!(!problem.scene.obstacles.is_empty(), "the ball");
             }
-            "twist-bar" => {
+            "twist-bar" | "twist-bar-paper" => {
                 assert_eq!(n, 25 * 6 * 6);
                 assert_eq!(problem.simulator.scheme(), mochi_sim::TimeScheme::QuasiStatic);
                 assert_eq!(problem.handles.len(), 2, "both ends held");

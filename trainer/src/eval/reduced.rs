@@ -25,12 +25,14 @@ use crate::artifact::reduced::{ReducedArtifact, SubspaceData};
 use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
-use crate::learn::reduced_spec::{ReducedSpec, SolverChoice};
+use crate::learn::reduced_spec::{ReducedSpec, SolverChoice, SolverPrecision};
 use crate::methods::lipschitz::cubature::cubature_energies;
 use crate::methods::lipschitz::cubature::{elastic_terms, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
 use crate::methods::reduced::optimize::{Exit, ExitCounts, SolveSettings};
+use crate::methods::reduced::paper::paper_settings;
 use crate::methods::reduced::projection::project;
+use crate::methods::reduced::rounding::Rounding;
 use crate::methods::reduced::stepper::scene_objective_scale;
 use crate::methods::reduced::stepper::{ReducedSolver, ReducedStepper, StepperSettings};
 use crate::methods::reduced::subspace::DecoderSubspace;
@@ -96,18 +98,33 @@ impl ReducedReport {
 
 /// The step settings of a `[reduced]` table.
 pub fn stepper_settings(spec: &ReducedSpec, scheme: TimeScheme) -> StepperSettings {
+    let rounding = match spec.precision {
+        SolverPrecision::Double => Rounding::Double,
+        SolverPrecision::Single => Rounding::Single,
+    };
+    let (solver, solve) = match spec.solver {
+        SolverChoice::LbfgsPaper => (
+            ReducedSolver::PaperLbfgs,
+            paper_settings(spec.tolerance, spec.max_iterations, rounding),
+        ),
+        choice => (
+            match choice {
+                SolverChoice::Newton => ReducedSolver::Newton,
+                _ => ReducedSolver::Lbfgs,
+            },
+            SolveSettings {
+                tolerance: spec.tolerance,
+                max_iterations: spec.max_iterations,
+                warm_start: spec.warm_start,
+                memory: spec.memory,
+                rounding,
+                ..SolveSettings::default()
+            },
+        ),
+    };
     StepperSettings {
-        solver: match spec.solver {
-            SolverChoice::Lbfgs => ReducedSolver::Lbfgs,
-            SolverChoice::Newton => ReducedSolver::Newton,
-        },
-        solve: SolveSettings {
-            tolerance: spec.tolerance,
-            max_iterations: spec.max_iterations,
-            warm_start: spec.warm_start,
-            memory: spec.memory,
-            ..SolveSettings::default()
-        },
+        solver,
+        solve,
         quasi_static: scheme == TimeScheme::QuasiStatic,
         record_history: false,
     }

@@ -2,9 +2,11 @@
 //! scene's `.reduced` file, as a ratio against the vanilla subspace stepped in the same
 //! process over the same test motions.
 //!
-//! No full-space reference is simulated (`mochi eval` measures errors); each subspace steps
-//! the scene's test sequences (their boundary conditions, regenerated from the scene's
-//! plan) for the given number of frames, one thread.
+//! No full-space reference is simulated (`mochi eval` does that): each subspace steps the
+//! scene's test sequences (their boundary conditions, regenerated from the scene's plan) for
+//! the given number of frames, one thread, and where the `.reduced` file's directory holds the
+//! scene's dataset (`dataset/`, as `mochi train` leaves it), its error is measured against
+//! the stored test frames (the first `frames` of each, at most as many as are stored).
 
 use std::path::Path;
 
@@ -16,13 +18,14 @@ use crate::artifact::reduced::ReducedArtifact;
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
+use crate::learn::reduced_spec::SolverChoice;
 use crate::methods::lipschitz::cubature::{cubature_energies, elastic_terms};
 use crate::methods::lipschitz::loss::{
     latent_spread, lipschitz_estimate, median_condition, LatentSample, LipschitzTerm,
 };
 use crate::methods::reduced::optimize::Exit;
 use crate::methods::reduced::rounding::Rounding;
-use crate::methods::reduced::stepper::scene_objective_scale;
+use crate::methods::reduced::stepper::{scene_objective_scale, ReducedSolver};
 use crate::progress::Reporter;
 
 /// One subspace over every test sequence.
@@ -38,8 +41,17 @@ pub struct ReducedTiming {
     pub evaluations: f64,
     /// Share of steps that ended in each exit, in [`Exit::ALL`]'s order (the paper's I-IV).
     pub exit_shares: [f64; 4],
-    /// Mean gradient infinity norm where the steps stopped.
+    /// Mean gradient infinity norm where the steps stopped (of the objective the solver
+    /// minimises: unscaled for the paper's solver).
     pub exit_gradient: f64,
+    /// Mean vertex error / diagonal against the stored test frames (NaN without a dataset).
+    pub mean_error: f64,
+    /// The solver that stepped.
+    pub solver: ReducedSolver,
+    /// Its arithmetic.
+    pub rounding: Rounding,
+    /// Its gradient tolerance.
+    pub tolerance: f64,
     /// `Lip[d^2 P/dz^2]` (Eq. 7) on every tenth visited latent.
     pub lipschitz: f64,
     /// The RMS spread of those latents about their mean
@@ -52,7 +64,7 @@ pub struct ReducedTiming {
 }
 
 /// What [`bench`] steps, and how.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReducedBenchOptions {
     /// Steps taken on each test motion (default 300).
     pub frames: usize,
@@ -63,10 +75,15 @@ pub struct ReducedBenchOptions {
     /// ([`mochi_sim::bc::BcSequence::every`]): the same motions in `stride` times larger
     /// steps (default 1).
     pub stride: usize,
-    /// The solves' arithmetic: double precision (default), or single precision emulated
-    /// ([`crate::methods::reduced::rounding`]): what each subspace costs a solver whose numbers
-    /// are `f32`.
+    /// The solves' arithmetic: as the scene says (`Double`, the default), or single precision
+    /// emulated ([`crate::methods::reduced::rounding`]): what each subspace costs a solver
+    /// whose numbers are `f32`.
     pub rounding: Rounding,
+    /// Step with the paper's solver ([`crate::methods::reduced::paper`]) whatever the
+    /// scene's `reduced.solver` says (default off).
+    pub paper: bool,
+    /// The gradient tolerance instead of the scene's `reduced.tolerance`.
+    pub tolerance: Option<f64>,
 }
 
 impl Default for ReducedBenchOptions {
@@ -76,6 +93,8 @@ impl Default for ReducedBenchOptions {
             cold: false,
             stride: 1,
             rounding: Rounding::Double,
+            paper: false,
+            tolerance: None,
         }
     }
 }
@@ -102,10 +121,22 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
     let recipe = Recipe::parse(&reduced.scene_toml, Path::new(&reduced.scene_path))?;
     let mut spec = recipe.reduced.clone().unwrap_or_default();
     spec.warm_start &= !cold;
+    if options.paper {
+        spec.solver = SolverChoice::LbfgsPaper;
+    }
+    if let Some(tolerance) = options.tolerance {
+        spec.tolerance = tolerance;
+    }
     let problem = recipe.build()?;
     let encoding = Encoding::new(&problem, recipe.latent.rods)?;
     let mut settings = stepper_settings(&spec, problem.scene.integrator);
-    settings.solve.rounding = options.rounding;
+    if options.rounding == Rounding::Single {
+        settings.solve.rounding = Rounding::Single;
+    }
+    let data_dir = path.parent().unwrap_or(Path::new(".")).join("dataset");
+    let references = dataset::load(&problem, &data_dir, Split::Test)
+        .ok()
+        .filter(|r| stride == 1 && !r.is_empty());
     let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
     let elastic = elastic_terms(&potentials);
     let cubatures = cubature_energies(&problem, &reduced.cubature)?;
@@ -119,7 +150,8 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
     for (name, data, terms) in subspace_runs(&reduced, &potentials, &with_cubature) {
         let mut visited: Vec<LatentSample> = Vec::new();
         let mut runs: Vec<ReducedMetrics> = Vec::new();
-        for bc in &motions {
+        for (k, bc) in motions.iter().enumerate() {
+            let reference = references.as_ref().and_then(|r| r.get(k)).map(|(_, t)| t);
             runs.push(step_sequence(
                 data,
                 &problem,
@@ -127,7 +159,7 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
                 &settings,
                 terms,
                 bc,
-                None,
+                reference,
                 frames,
                 &mut visited,
             )?);
@@ -147,6 +179,13 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
             evaluations: mean(&|m| m.evaluations),
             exit_shares: Exit::ALL.map(|exit| mean(&|m| m.exits.fraction(exit))),
             exit_gradient: mean(&|m| m.exit_gradient),
+            mean_error: match &references {
+                Some(_) => mean(&|m| m.mean_error),
+                None => f64::NAN,
+            },
+            solver: settings.solver,
+            rounding: settings.solve.rounding,
+            tolerance: settings.solve.tolerance,
             lipschitz: lipschitz_estimate(&hessians, &visited),
             spread: latent_spread(&visited),
             condition: median_condition(&hessians),
@@ -171,11 +210,23 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
     } else {
         format!("{frames} steps of {stride} frames each along each test motion")
     };
+    let (solver, rounding, tolerance) = timings
+        .first()
+        .map_or((ReducedSolver::Lbfgs, options.rounding, f64::NAN), |t| {
+            (t.solver, t.rounding, t.tolerance)
+        });
+    let how = match solver {
+        ReducedSolver::PaperLbfgs => format!(
+            "the paper's L-BFGS (cold, Armijo backtracking by 0.8, gradient tolerance {tolerance:e} on the unscaled objective)"
+        ),
+        ReducedSolver::Lbfgs => format!("L-BFGS starts {start}, gradient tolerance {tolerance:e} on the scaled objective"),
+        other => format!("{}, gradient tolerance {tolerance:e}", other.name()),
+    };
     let mut s = format!(
-        "{scene}: reduced-order solver in {}, {steps}, L-BFGS starts {start}\n\n| subspace | ms/step | speedup vs vanilla \
-         | iterations/step | evaluations/step | converged % | exits I / II / III / IV % | mean exit gradient | Lip \
-         | latent spread | Lip x spread^3 | condition |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
-        options.rounding.name()
+        "{scene}: reduced-order solver in {}, {steps}, {how}\n\n| subspace | ms/step | speedup vs vanilla \
+         | iterations/step | evaluations/step | converged % | exits I / II / III / IV % | mean exit gradient | mean error % | Lip \
+         | latent spread | Lip x spread^3 | condition |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        rounding.name()
     );
     for (k, t) in timings.iter().enumerate() {
         let baseline = &timings[k - k % 2];
@@ -192,7 +243,7 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
             "- | - | - | -".to_string()
         };
         s += &format!(
-            "| {} | {:.3} | {:.2}x | {:.2} | {:.2} | {:.1} | {} | {:.1e} | {landscape} |\n",
+            "| {} | {:.3} | {:.2}x | {:.2} | {:.2} | {:.1} | {} | {:.1e} | {:.3} | {landscape} |\n",
             t.name,
             t.ms_per_step,
             baseline.ms_per_step / t.ms_per_step.max(1e-12),
@@ -201,6 +252,7 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
             100.0 * t.converged(),
             t.exit_shares.map(|f| format!("{:.1}", 100.0 * f)).join(" / "),
             t.exit_gradient,
+            100.0 * t.mean_error,
         );
     }
     if timings.iter().any(|t| t.visited < 2) {

@@ -275,6 +275,7 @@ mod tests {
                 ..AdamWConfig::default()
             },
             final_lr: Some(1e-4),
+            warmup_step: None,
             checkpoint: None,
             progress: false,
         }

@@ -29,6 +29,19 @@ pub enum VanillaNetwork {
     PlainMlp,
 }
 
+/// The learning-rate schedule of `vanilla = "plain-mlp"`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum PlainSchedule {
+    /// Cosine decay from `plain_learning_rate` to `plain_final_learning_rate`, minibatches
+    /// of the autoencoder's batch size.
+    #[default]
+    Cosine,
+    /// The paper's configs: minibatches of 256 frames, a linear warm-up over the first 2,000
+    /// iterations to `plain_learning_rate`, then a factor 0.8 every 30,000 iterations.
+    Paper,
+}
+
 /// Which elastic energy the Lipschitz loss (Eq. 9) differentiates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -56,6 +69,22 @@ pub enum SolverChoice {
     Lbfgs,
     /// Newton on the PSD-projected reduced Hessian.
     Newton,
+    /// L-BFGS as the paper's code runs it, for measuring in the paper's regime: cold every
+    /// step, Armijo-only backtracking by 0.8 (128 trials), 10 pairs, `tolerance` on the
+    /// unscaled objective and an absolute `ftol` of 2.2e-9 (`methods::reduced::paper`).
+    LbfgsPaper,
+}
+
+/// The arithmetic of each reduced step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum SolverPrecision {
+    /// Double precision (the product's).
+    #[default]
+    Double,
+    /// Single precision, emulated by rounding at each stage (`methods::reduced::rounding`):
+    /// the paper's code runs in `f32`.
+    Single,
 }
 
 /// The `[reduced]` table.
@@ -69,6 +98,11 @@ pub struct ReducedSpec {
     pub vanilla: VanillaNetwork,
     /// Hidden width of the plain MLPs of `vanilla = "plain-mlp"` (default 128).
     pub plain_hidden: usize,
+    /// Residual blocks of those MLPs (default 0: one hidden layer; 1 gives two hidden
+    /// layers of `plain_hidden`, the paper's depth).
+    pub plain_blocks: usize,
+    /// Learning-rate schedule of `vanilla = "plain-mlp"` (default `"cosine"`; `"paper"`).
+    pub plain_schedule: PlainSchedule,
     /// Training epochs of `vanilla = "plain-mlp"` (default 2000).
     pub plain_epochs: usize,
     /// Initial learning rate of `vanilla = "plain-mlp"` (default 1e-3; cosine decay to
@@ -109,9 +143,13 @@ pub struct ReducedSpec {
     /// Largest cubature of the elastic energy used for the Lipschitz loss (default 300, the
     /// paper's `S`).
     pub cubature: usize,
-    /// The step optimiser (default `"lbfgs"`).
+    /// The step optimiser (default `"lbfgs"`; `"newton"`, or `"lbfgs-paper"`, the paper's
+    /// solver, which ignores `warm_start` and `memory`).
     pub solver: SolverChoice,
-    /// Gradient tolerance of each step, on the scaled objective (default 1e-5, the paper's).
+    /// The arithmetic of each step (default `"double"`; `"single"` is emulated).
+    pub precision: SolverPrecision,
+    /// Gradient tolerance of each step, on the scaled objective (default 1e-5, the paper's;
+    /// with `solver = "lbfgs-paper"` on the paper code's unscaled objective).
     pub tolerance: f64,
     /// Iteration cap of each step (default 1024, the paper's).
     pub max_iterations: usize,
@@ -128,6 +166,8 @@ impl Default for ReducedSpec {
             subspace: SubspaceSource::Supervised,
             vanilla: VanillaNetwork::Autoencoder,
             plain_hidden: 128,
+            plain_blocks: 0,
+            plain_schedule: PlainSchedule::Cosine,
             plain_epochs: 2000,
             plain_learning_rate: 1e-3,
             plain_final_learning_rate: 1e-5,
@@ -142,6 +182,7 @@ impl Default for ReducedSpec {
             samples: 8,
             cubature: 300,
             solver: SolverChoice::Lbfgs,
+            precision: SolverPrecision::Double,
             tolerance: 1e-5,
             max_iterations: 1024,
             warm_start: true,
@@ -368,6 +409,24 @@ mod tests {
         assert_eq!(spec.vanilla, VanillaNetwork::PlainMlp);
         assert_eq!(spec.plain_hidden, 64);
         assert_eq!(spec.plain_epochs, 2000);
+        assert_eq!((spec.plain_blocks, spec.plain_schedule), (0, PlainSchedule::Cosine));
+        let spec: ReducedSpec = toml::from_str("plain_blocks = 1\nplain_schedule = \"paper\"").unwrap();
+        assert_eq!((spec.plain_blocks, spec.plain_schedule), (1, PlainSchedule::Paper));
         assert!(toml::from_str::<ReducedSpec>("vanilla = \"plain\"").is_err());
+    }
+
+    #[test]
+    fn the_paper_solver_is_an_option_and_not_the_default() {
+        let spec = ReducedSpec::default();
+        assert_eq!(
+            (spec.solver, spec.precision),
+            (SolverChoice::Lbfgs, SolverPrecision::Double)
+        );
+        assert!(spec.warm_start);
+        let spec: ReducedSpec = toml::from_str("solver = \"lbfgs-paper\"\nprecision = \"single\"").unwrap();
+        assert_eq!(
+            (spec.solver, spec.precision),
+            (SolverChoice::LbfgsPaper, SolverPrecision::Single)
+        );
     }
 }

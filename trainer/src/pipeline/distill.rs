@@ -253,6 +253,7 @@ fn train_config(name: String, options: &DistillOptions) -> TrainConfig {
             ..AdamWConfig::default()
         },
         final_lr: Some(options.final_learning_rate),
+        warmup_step: None,
         checkpoint: None,
         progress: options.progress,
     }

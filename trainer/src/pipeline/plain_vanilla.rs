@@ -1,15 +1,26 @@
 //! The paper's vanilla subspace for `[reduced] vanilla = "plain-mlp"` (Lyu et al. 2024,
-//! Eq. 3): an autoencoder of plain one-hidden-layer MLPs, randomly initialised and trained
-//! on the reconstruction loss alone, independent of the latent model's PCA-initialised
-//! autoencoder (whose latent size it takes).
+//! Eq. 3): an autoencoder of plain MLPs (one hidden layer, or `plain_blocks` residual blocks
+//! more), randomly initialised and trained on the reconstruction loss alone, independent of
+//! the latent model's PCA-initialised autoencoder (whose latent size it takes). With
+//! `plain_schedule = "paper"` it trains as the paper's configs say (minibatches of 256, a
+//! warm-up of 2,000 iterations, a factor 0.8 every 30,000).
 
 use std::time::Instant;
 
 use super::stages::Workspace;
 use crate::error::TrainerResult;
 use crate::learn::network::{Autoencoder, AutoencoderSpec, DecoderShape};
-use crate::learn::reduced_spec::ReducedSpec;
-use crate::learn::train::{self, AdamWConfig, CheckpointConfig, TrainConfig};
+use crate::learn::reduced_spec::{PlainSchedule, ReducedSpec};
+use crate::learn::train::{self, AdamWConfig, CheckpointConfig, TrainConfig, WarmupStep};
+
+/// Minibatch size of the paper's schedule.
+pub(crate) const PAPER_BATCH: usize = 256;
+/// Warm-up iterations of the paper's schedule.
+const PAPER_WARMUP_ITERATIONS: usize = 2000;
+/// Iterations between the paper's learning-rate decay steps.
+const PAPER_DECAY_EVERY: usize = 30000;
+/// The paper's decay factor.
+const PAPER_DECAY: f64 = 0.8;
 
 /// A trained plain vanilla autoencoder.
 pub(crate) struct PlainVanilla {
@@ -27,21 +38,48 @@ pub(crate) fn plain_spec(spec: &ReducedSpec, input: usize, k: usize) -> Autoenco
         input,
         latent: k,
         hidden: spec.plain_hidden,
-        blocks: 0,
+        blocks: spec.plain_blocks,
         shape: DecoderShape::Mlp,
     }
 }
 
 /// What tells plain autoencoders of other settings apart (in checkpoint names).
 pub(crate) fn plain_tag(spec: &ReducedSpec) -> String {
-    format!(
+    let mut tag = format!(
         "h{}-e{}-lr{:?}-{:?}",
         spec.plain_hidden, spec.plain_epochs, spec.plain_learning_rate, spec.plain_final_learning_rate
-    )
+    );
+    if spec.plain_blocks > 0 {
+        tag += &format!("-b{}", spec.plain_blocks);
+    }
+    if spec.plain_schedule == PlainSchedule::Paper {
+        tag += "-paper";
+    }
+    tag
 }
 
-/// The training settings of the plain autoencoder (minibatches of `batch` frames).
-pub(crate) fn plain_config(spec: &ReducedSpec, k: usize, batch: usize, seed: u64, work: &Workspace) -> TrainConfig {
+/// The training settings of the plain autoencoder on `frames` frames (minibatches of `batch`
+/// frames, or the paper's with its schedule).
+pub(crate) fn plain_config(
+    spec: &ReducedSpec,
+    k: usize,
+    frames: usize,
+    batch: usize,
+    seed: u64,
+    work: &Workspace,
+) -> TrainConfig {
+    let (batch, warmup_step) = match spec.plain_schedule {
+        PlainSchedule::Cosine => (batch, None),
+        PlainSchedule::Paper => {
+            let per_epoch = frames.div_ceil(PAPER_BATCH).max(1);
+            let schedule = WarmupStep {
+                warmup: PAPER_WARMUP_ITERATIONS.div_ceil(per_epoch),
+                factor: PAPER_DECAY,
+                every: (PAPER_DECAY_EVERY / per_epoch).max(1),
+            };
+            (PAPER_BATCH, Some(schedule))
+        }
+    };
     TrainConfig {
         name: format!("plain-vanilla-k{k}-{}", plain_tag(spec)),
         epochs: spec.plain_epochs,
@@ -52,6 +90,7 @@ pub(crate) fn plain_config(spec: &ReducedSpec, k: usize, batch: usize, seed: u64
             ..AdamWConfig::default()
         },
         final_lr: Some(spec.plain_final_learning_rate),
+        warmup_step,
         checkpoint: Some(CheckpointConfig {
             dir: work.checkpoints.clone(),
             every: 25,
@@ -72,7 +111,7 @@ pub(crate) fn train_plain_vanilla(
     let input = data.first().map_or(0, Vec::len);
     let autoencoder = Autoencoder::new(plain_spec(spec, input, k), seed)?;
     let clock = Instant::now();
-    let config = plain_config(spec, k, batch, seed, work);
+    let config = plain_config(spec, k, data.len(), batch, seed, work);
     let report = train::train_autoencoder(&autoencoder, data, &config, work.resume, None)?;
     Ok(PlainVanilla {
         autoencoder,
@@ -118,5 +157,46 @@ mod tests {
         assert!(after < 1e-2 * before, "reconstruction {before:.3e} -> {after:.3e}");
         let exported = trained.autoencoder.export().unwrap();
         assert_eq!(exported.decoder.as_mlp().unwrap().spec().blocks, 0);
+    }
+
+    #[test]
+    fn the_paper_schedule_warms_up_and_steps_down_by_iterations() {
+        let dir = tempfile::tempdir().unwrap();
+        let work = Workspace {
+            dataset: dir.path().to_path_buf(),
+            checkpoints: dir.path().to_path_buf(),
+            resume: false,
+            bars: false,
+        };
+        let spec = ReducedSpec {
+            plain_schedule: PlainSchedule::Paper,
+            plain_blocks: 1,
+            plain_hidden: 200,
+            plain_epochs: 20000,
+            ..ReducedSpec::default()
+        };
+        // 900 frames: 4 minibatches of 256 per epoch, so 500 epochs of warm-up and a decay
+        // step every 7,500 epochs.
+        let config = plain_config(&spec, 10, 900, 32, 1, &work);
+        assert_eq!(config.batch_size, 256);
+        assert_eq!(
+            config.warmup_step,
+            Some(WarmupStep {
+                warmup: 500,
+                factor: 0.8,
+                every: 7500
+            })
+        );
+        assert!((config.lr_at(0) - 1e-3 / 501.0).abs() < 1e-15);
+        assert!(config.lr_at(499) < 1e-3);
+        assert_eq!(config.lr_at(500), 1e-3);
+        assert_eq!(config.lr_at(7499), 1e-3);
+        assert!((config.lr_at(7500) - 8e-4).abs() < 1e-15);
+        assert!(plain_tag(&spec).ends_with("-b1-paper"));
+        assert_eq!(plain_spec(&spec, 30, 10).blocks, 1);
+        // The default keeps the cosine schedule and the names of earlier checkpoints.
+        let plain = ReducedSpec::default();
+        assert_eq!(plain_config(&plain, 10, 900, 32, 1, &work).warmup_step, None);
+        assert_eq!(plain_tag(&plain), "h128-e2000-lr0.001-1e-5");
     }
 }

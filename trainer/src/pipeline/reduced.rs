@@ -266,6 +266,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
                 ..AdamWConfig::default()
             },
             final_lr: None,
+            warmup_step: None,
             checkpoint: Some(CheckpointConfig {
                 dir: inputs.work.checkpoints.clone(),
                 every: 5,

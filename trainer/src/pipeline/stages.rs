@@ -500,6 +500,7 @@ fn train_config(name: &str, net: &NetworkSpec, seed: u64, work: &Workspace) -> T
             ..AdamWConfig::default()
         },
         final_lr: Some(net.final_learning_rate),
+        warmup_step: None,
         checkpoint: Some(CheckpointConfig {
             dir: work.checkpoints.clone(),
             every: 5,
@@ -543,6 +544,7 @@ mod tests {
                     ..AdamWConfig::default()
                 },
                 final_lr: None,
+                warmup_step: None,
                 checkpoint: None,
                 progress: false,
             };

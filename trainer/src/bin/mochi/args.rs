@@ -294,6 +294,14 @@ pub(crate) enum Bench {
         /// cost a solver whose numbers are f32, as the paper's is).
         #[arg(long)]
         single: bool,
+        /// Step with the paper's solver (L-BFGS as its code runs it: cold, Armijo-only
+        /// backtracking by 0.8, 10 pairs, the tolerance on the unscaled objective, an
+        /// absolute ftol of 2.2e-9), whatever the scene's `reduced.solver` says.
+        #[arg(long)]
+        paper: bool,
+        /// Gradient tolerance of each step instead of the scene's `reduced.tolerance`.
+        #[arg(long)]
+        tolerance: Option<f64>,
         /// Also write the table to this markdown file.
         #[arg(long)]
         out: Option<PathBuf>,

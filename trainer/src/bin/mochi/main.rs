@@ -204,6 +204,8 @@ fn run(cli: Cli) -> Result<()> {
                     cold,
                     stride,
                     single,
+                    paper,
+                    tolerance,
                     out,
                 },
         } => {
@@ -212,6 +214,8 @@ fn run(cli: Cli) -> Result<()> {
                 cold,
                 stride: stride as usize,
                 rounding: if single { Rounding::Single } else { Rounding::Double },
+                paper,
+                tolerance,
             };
             bench_reduced(&reduced, &options, out)
         }

@@ -41,6 +41,10 @@ impl RunIdentity {
             ("weight_decay", format!("{:?}", o.weight_decay)),
             ("final_lr", format!("{:?}", config.final_lr)),
         ];
+        let mut fields = fields;
+        if let Some(schedule) = config.warmup_step {
+            fields.push(("warmup_step", format!("{schedule:?}")));
+        }
         RunIdentity { fields }
     }
 }

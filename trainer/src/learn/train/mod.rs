@@ -102,16 +102,35 @@ pub struct TrainConfig {
     /// Cosine decay of the learning rate from `optimizer.lr` at epoch 0 to this at the last
     /// epoch; `None` keeps it constant.
     pub final_lr: Option<f64>,
+    /// A linear warm-up and step decay instead (Lyu et al.'s schedule); `final_lr` is then
+    /// ignored.
+    pub warmup_step: Option<WarmupStep>,
     /// Periodic checkpoints; `None` writes none (and `resume` then has nothing to resume).
     pub checkpoint: Option<CheckpointConfig>,
     /// Show a progress bar on the terminal.
     pub progress: bool,
 }
 
+/// A learning-rate schedule: `lr * min(1, (e + 1) / (warmup + 1)) * factor^(e / every)` at
+/// epoch `e`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WarmupStep {
+    /// Epochs of linear warm-up.
+    pub warmup: usize,
+    /// The factor of each decay step.
+    pub factor: f64,
+    /// Epochs between decay steps (at least 1).
+    pub every: usize,
+}
+
 impl TrainConfig {
     /// The learning rate of `epoch`.
     pub fn lr_at(&self, epoch: usize) -> f64 {
         let start = self.optimizer.lr;
+        if let Some(WarmupStep { warmup, factor, every }) = self.warmup_step {
+            let ramp = ((epoch + 1) as f64 / (warmup + 1) as f64).min(1.0);
+            return start * ramp * factor.powi((epoch / every.max(1)) as i32);
+        }
         match self.final_lr {
             Some(end) if self.epochs > 1 => {
                 let t = epoch.min(self.epochs - 1) as f64 / (self.epochs - 1) as f64;

@@ -18,6 +18,7 @@ fn config(name: &str, epochs: usize, batch_size: usize, lr: f64) -> TrainConfig 
             ..AdamWConfig::default()
         },
         final_lr: None,
+        warmup_step: None,
         checkpoint: None,
         progress: false,
     }

@@ -5,8 +5,9 @@
 //! Files, in the order data flows: `subspace` (the decoder in the boundary-condition frame,
 //! with its exact Jacobian), `objective` (Eq. 2 on the scene's energies), `optimize` (the
 //! contract every optimiser solves, the exits it reports and the shared line search),
-//! `lbfgs` (L-BFGS with a weak-Wolfe line search), `newton` (Newton on the PSD-projected
-//! reduced Hessian, Armijo backtracking), `stepper` (one solve per frame over a
+//! `lbfgs` (L-BFGS with a weak-Wolfe line search), `paper` (L-BFGS as the paper's code runs
+//! it: cold, Armijo-only backtracking, in the paper's units), `newton` (Newton on the
+//! PSD-projected reduced Hessian, Armijo backtracking), `stepper` (one solve per frame over a
 //! boundary-condition script), `projection` (the closest state of a subspace to a given one,
 //! for comparing subspaces), `rounding` (double precision, or single precision emulated).
 pub mod lbfgs;
@@ -14,6 +15,7 @@ pub mod method;
 pub mod newton;
 pub mod objective;
 pub mod optimize;
+pub mod paper;
 pub mod projection;
 pub mod rounding;
 pub mod stepper;

@@ -9,6 +9,11 @@
 //! frame. The objective is scaled by `dt^2 / (M L^2)` (`M` the total mass, `L` the rest
 //! diagonal), so the gradient tolerance is unit-free: a step ends once the remaining
 //! generalised force moves the body by a tolerance's fraction of its diagonal per step.
+//!
+//! [`ReducedSolver::PaperLbfgs`] runs the paper's solver ([`super::paper`]) on the paper
+//! code's own objective, Eq. 2 times `dt^2` (`1/2 |x - xhat|_M^2 + dt^2 P`; `dt^2 P` for
+//! quasi-statics), so its tolerance and its absolute `ftol` apply to the raw objective as
+//! there, in the scene's units.
 
 use mochi_sim::energy::StencilEnergy;
 use mochi_sim::BuiltScene;
@@ -17,6 +22,7 @@ use super::lbfgs::{lbfgs, LbfgsWorkspace};
 use super::newton::{newton, NewtonWorkspace};
 use super::objective::{InertiaTerm, ObjectiveBuffers, ReducedObjective};
 use super::optimize::{SolveReport, SolveSettings};
+use super::paper::{paper_lbfgs, PaperWorkspace};
 use super::subspace::DecoderSubspace;
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
@@ -34,6 +40,9 @@ pub enum ReducedSolver {
     Lbfgs,
     /// Newton on the PSD-projected reduced Hessian, with line search.
     Newton,
+    /// L-BFGS as the paper's code runs it ([`super::paper`]), on the unscaled objective
+    /// (module documentation).
+    PaperLbfgs,
 }
 
 impl ReducedSolver {
@@ -42,6 +51,7 @@ impl ReducedSolver {
         match self {
             ReducedSolver::Lbfgs => "L-BFGS",
             ReducedSolver::Newton => "Newton",
+            ReducedSolver::PaperLbfgs => "L-BFGS (the paper's)",
         }
     }
 }
@@ -86,6 +96,7 @@ pub struct ReducedStepper {
     buffers: ObjectiveBuffers,
     lbfgs: LbfgsWorkspace,
     newton: NewtonWorkspace,
+    paper: PaperWorkspace,
 }
 
 impl ReducedStepper {
@@ -112,7 +123,10 @@ impl ReducedStepper {
             inertia: InertiaTerm::new(subspace.dim(), masses, dt),
             encoding,
             dt,
-            scale: objective_scale(total_mass, diagonal, dt),
+            scale: match settings.solver {
+                ReducedSolver::PaperLbfgs => dt * dt,
+                _ => objective_scale(total_mass, diagonal, dt),
+            },
             z: vec![0.0; r],
             x: vec![0.0; n],
             v: vec![0.0; n],
@@ -120,12 +134,14 @@ impl ReducedStepper {
             buffers: ObjectiveBuffers::new(n, r),
             lbfgs: LbfgsWorkspace::new(r, settings.solve.memory),
             newton: NewtonWorkspace::new(r),
+            paper: PaperWorkspace::new(r, settings.solve.memory),
             settings,
             subspace,
         })
     }
 
-    /// The scale of the objective (module documentation).
+    /// The scale of the objective (module documentation): `dt^2 / (M L^2)`, or `dt^2` for
+    /// the paper's solver.
     pub fn scale(&self) -> f64 {
         self.scale
     }
@@ -221,6 +237,13 @@ impl ReducedStepper {
                 &mut self.z,
                 &self.settings.solve,
                 &mut self.newton,
+                record,
+            ),
+            ReducedSolver::PaperLbfgs => paper_lbfgs(
+                &mut objective,
+                &mut self.z,
+                &self.settings.solve,
+                &mut self.paper,
                 record,
             ),
         };
