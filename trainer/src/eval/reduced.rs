@@ -11,8 +11,6 @@
 //! subspace runs twice: with the scene's energies, and with runtime cubature (the elastic
 //! terms through the cubature fitted for the Lipschitz loss, the other terms exact).
 
-use std::time::Instant;
-
 use mochi_sim::bc::BcSequence;
 use mochi_sim::cubature::CubatureEnergy;
 use mochi_sim::dataset::SequencePlan;
@@ -26,6 +24,7 @@ use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{ReducedSpec, SolverChoice, SolverPrecision};
+use crate::methods::clock::Stopwatch;
 use crate::methods::lipschitz::cubature::cubature_energies;
 use crate::methods::lipschitz::cubature::{elastic_terms, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
@@ -344,13 +343,13 @@ pub fn step_sequence(
     let mut exit_gradients = 0.0;
     for t in 1..=frames {
         let targets = bc.targets(&problem.handles, t, dim);
-        let clock = Instant::now();
+        let clock = Stopwatch::start();
         let step = if t == 10 {
             stepper.step_recorded(potentials, &targets)
         } else {
             stepper.step(potentials, &targets)
         };
-        seconds += clock.elapsed().as_secs_f64();
+        seconds += clock.seconds();
         let Ok(result) = step else {
             m.stable_frames = t - 1;
             break;

@@ -4,9 +4,11 @@
 //!
 //! No full-space reference is simulated (`mochi eval` does that): each subspace steps the
 //! scene's test sequences (their boundary conditions, regenerated from the scene's plan) for
-//! the given number of frames, one thread, and where the `.reduced` file's directory holds the
-//! scene's dataset (`dataset/`, as `mochi train` leaves it), its error is measured against
-//! the stored test frames (the first `frames` of each, at most as many as are stored).
+//! the given number of frames, one thread, timed by the process's CPU time
+//! ([`crate::methods::clock`]). Where the `.reduced` file's directory holds the scene's dataset
+//! (`dataset/`, as `mochi train` leaves it), its error is measured against the test frames
+//! stored there (simulated first if missing, as `mochi eval` does; the first `frames` of
+//! each, at most as many as are stored).
 
 use std::path::Path;
 
@@ -127,16 +129,25 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
     if let Some(tolerance) = options.tolerance {
         spec.tolerance = tolerance;
     }
-    let problem = recipe.build()?;
+    let mut problem = recipe.build()?;
     let encoding = Encoding::new(&problem, recipe.latent.rods)?;
     let mut settings = stepper_settings(&spec, problem.scene.integrator);
     if options.rounding == Rounding::Single {
         settings.solve.rounding = Rounding::Single;
     }
     let data_dir = path.parent().unwrap_or(Path::new(".")).join("dataset");
-    let references = dataset::load(&problem, &data_dir, Split::Test)
-        .ok()
-        .filter(|r| stride == 1 && !r.is_empty());
+    let references = if data_dir.is_dir() && stride == 1 {
+        dataset::generate(
+            &mut problem,
+            &data_dir,
+            Some(Split::Test),
+            false,
+            &report.frames("dataset"),
+        )?;
+        Some(dataset::load(&problem, &data_dir, Split::Test)?)
+    } else {
+        None
+    };
     let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
     let elastic = elastic_terms(&potentials);
     let cubatures = cubature_energies(&problem, &reduced.cubature)?;
