@@ -47,6 +47,9 @@ pub mod integer;
 mod narrow;
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
+mod strand_avx512;
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
 mod swish_avx512;
 #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
 #[allow(unsafe_code)]
@@ -183,6 +186,26 @@ pub(crate) fn isa_all_finite(values: &[f32]) -> Option<bool> {
     {
         let _ = values;
         None
+    }
+}
+
+/// One step of `N` strand lanes (`crate::strand_lanes::ChainWalks::step`) sixteen lanes per
+/// AVX-512F vector where the CPU has it and `N` is a multiple of sixteen; `false`, and nothing
+/// done, where the plain lane loops do it.
+#[inline(always)]
+pub(crate) fn isa_strand_step<const N: usize>(
+    position: &mut [[f32; N]; 3],
+    axes: &mut [[[f32; N]; 3]; 3],
+    q0: &[f32; N],
+    q1: &[f32; N],
+    length: &[f32; N],
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return strand_avx512::step(position, axes, q0, q1, length);
+    #[allow(unreachable_code)]
+    {
+        let _ = (position, axes, q0, q1, length);
+        false
     }
 }
 
