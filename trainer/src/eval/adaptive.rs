@@ -57,7 +57,7 @@ pub fn evaluate_adaptive(
             )));
         }
         let metrics = AdaptiveMetrics {
-            mean_error: run.mean_error(0, count),
+            mean_error: run.mean_error(0),
             max_error: run.max_errors[0],
             step_seconds: run.seconds,
             enriched: adaptive.enriched_share(),

@@ -62,6 +62,8 @@ pub struct SequenceRun {
     pub error_curves: Vec<Vec<f64>>,
     /// Per reference, the largest vertex distance / diagonal over the measured frames.
     pub max_errors: Vec<f64>,
+    /// Per reference, the frames it covers (of those asked for): the frames measured.
+    pub reference_frames: Vec<usize>,
     /// Frames stepped before a blow-up (all of them when none).
     pub stable_frames: usize,
     /// Frames asked for.
@@ -79,9 +81,9 @@ pub struct SequenceRun {
 impl SequenceRun {
     /// Mean over the measured frames of the error against reference `r` (infinite when the
     /// rollout blew up inside the reference's frames).
-    pub fn mean_error(&self, r: usize, reference_frames: usize) -> f64 {
+    pub fn mean_error(&self, r: usize) -> f64 {
         let curve = &self.error_curves[r];
-        if self.stable_frames < reference_frames.min(self.frames) {
+        if self.stable_frames < self.reference_frames[r] {
             return f64::INFINITY;
         }
         curve.iter().sum::<f64>() / curve.len().max(1) as f64
@@ -111,6 +113,10 @@ pub fn run_sequence(
     let mut run = SequenceRun {
         error_curves: vec![Vec::new(); references.len()],
         max_errors: vec![0.0; references.len()],
+        reference_frames: references
+            .iter()
+            .map(|r| frames.min(r.len().saturating_sub(1)))
+            .collect(),
         stable_frames: frames,
         frames,
         ..SequenceRun::default()

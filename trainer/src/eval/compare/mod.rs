@@ -94,7 +94,7 @@ impl ChartPoint {
     /// Mean over sequences of the mean error against reference `r` (0: implicit Euler, 1:
     /// time-converged); infinite if one blew up inside the measured frames.
     pub fn error(&self, r: usize) -> f64 {
-        self.runs.iter().map(|s| s.mean_error(r, s.frames)).sum::<f64>() / self.runs.len().max(1) as f64
+        self.runs.iter().map(|s| s.mean_error(r)).sum::<f64>() / self.runs.len().max(1) as f64
     }
     /// Mean iterations per frame.
     pub fn iterations(&self) -> f64 {
@@ -112,6 +112,9 @@ pub struct Converged {
     /// Largest over frames of the mean vertex distance / diagonal between it and the run
     /// with half as many substeps.
     pub change: f64,
+    /// Where full space failed on the sequence (the implicit-Euler reference, or a finer
+    /// run of the time-converged one): methods are measured over the frames it reached.
+    pub failures: Vec<String>,
 }
 
 /// One cell of the stability matrix.
@@ -286,13 +289,14 @@ fn chart(
         matrix: Vec::new(),
     };
     for (plan, bc) in &sequences {
-        let implicit = reference(problem, 1, None, bc, options.frames)?;
+        let (implicit, implicit_failure) = reference(problem, 1, None, bc, options.frames)?;
         if let (Some(dir), true) = (&options.cases, options.cases_only) {
             fs::create_dir_all(dir)?;
             case::write_case(&dir.join(format!("{}.npz", plan.name)), problem, bc, &implicit)?;
             continue;
         }
-        let (converged, info) = converged_reference(problem, bc, options.frames, options.max_substeps, &implicit)?;
+        let (converged, info, converged_failure) =
+            converged_reference(problem, bc, options.frames, options.max_substeps, &implicit)?;
         report.message(&format!(
             "{} {}: time-converged reference at {} substeps (last halving moved it {:.4}%)",
             problem.scene.name,
@@ -304,6 +308,7 @@ fn chart(
             sequence: plan.name.clone(),
             substeps: info.0,
             change: info.1,
+            failures: [implicit_failure, converged_failure].into_iter().flatten().collect(),
         });
         if let Some(dir) = &options.cases {
             fs::create_dir_all(dir)?;
@@ -335,8 +340,8 @@ fn chart(
                 method.family(),
                 method.setting(),
                 1e3 * run.seconds,
-                100.0 * run.mean_error(0, run.frames),
-                100.0 * run.mean_error(1, run.frames),
+                100.0 * run.mean_error(0),
+                100.0 * run.mean_error(1),
                 run.failure
                     .as_ref()
                     .map_or(String::new(), |f| format!(", stopped at {f}"))
@@ -360,14 +365,15 @@ fn chart(
 }
 
 /// Full-space positions of frames `0..=frames` of `bc` with `substeps` steps per frame, by
-/// the scene's own time scheme or by `scheme`.
+/// the scene's own time scheme or by `scheme`, up to the frame where full space itself
+/// fails, if it does (then also why).
 fn reference(
     problem: &BuiltScene,
     substeps: usize,
     scheme: Option<TimeScheme>,
     bc: &BcSequence,
     frames: usize,
-) -> TrainerResult<Vec<Vec<f64>>> {
+) -> TrainerResult<(Vec<Vec<f64>>, Option<String>)> {
     let mut scene = problem.scene.clone();
     scene.solver = SolverSpec::FullSpace;
     if let Some(scheme) = scheme {
@@ -385,18 +391,15 @@ fn reference(
         diagonal,
         Some((&mut kept, frames + 1)),
     )?;
-    if let Some(failure) = run.failure {
-        return Err(TrainerError::invalid(format!(
-            "scene `{}`: the full-space reference at {substeps} substeps failed at {failure}",
-            problem.scene.name
-        )));
-    }
-    Ok(kept)
+    let failure = run
+        .failure
+        .map(|f| format!("full space at {substeps} step(s) per frame fails at {f}"));
+    Ok((kept, failure))
 }
 
-/// Positions of a reference run, its substeps per frame, and how far the last halving of its
-/// step moved it.
-type ConvergedRun = (Vec<Vec<f64>>, (usize, f64));
+/// Positions of a reference run, its substeps per frame, how far the last halving of its
+/// step moved it, and why it stopped early (a finer run failing).
+type ConvergedRun = (Vec<Vec<f64>>, (usize, f64), Option<String>);
 
 /// The time-converged reference (module documentation). A quasi-static scene has no time to
 /// converge in: its reference is `implicit` itself.
@@ -408,24 +411,31 @@ fn converged_reference(
     implicit: &[Vec<f64>],
 ) -> TrainerResult<ConvergedRun> {
     if problem.scene.integrator == TimeScheme::QuasiStatic {
-        return Ok((implicit.to_vec(), (1, 0.0)));
+        return Ok((implicit.to_vec(), (1, 0.0), None));
     }
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
     let mut substeps = 1;
-    let mut last = reference(problem, substeps, Some(TimeScheme::Bdf2), bc, frames)?;
-    loop {
+    let (mut last, mut failure) = reference(problem, substeps, Some(TimeScheme::Bdf2), bc, frames)?;
+    let mut change = f64::NAN;
+    while failure.is_none() && 2 * substeps <= max_substeps {
+        let (next, next_failure) = reference(problem, 2 * substeps, Some(TimeScheme::Bdf2), bc, frames)?;
+        if let Some(f) = next_failure {
+            // A finer run that fails keeps the coarser, complete one.
+            failure = Some(format!("{f}; the reference stays at {substeps}"));
+            break;
+        }
         substeps *= 2;
-        let next = reference(problem, substeps, Some(TimeScheme::Bdf2), bc, frames)?;
-        let change = next
+        change = next
             .iter()
             .zip(&last)
             .map(|(a, b)| mochi_sim::measure::mean_and_max_error(a, b, dim, diagonal).0)
             .fold(0.0, f64::max);
-        if change < CONVERGED_CHANGE || 2 * substeps > max_substeps {
-            return Ok((next, (substeps, change)));
-        }
         last = next;
+        if change < CONVERGED_CHANGE {
+            break;
+        }
     }
+    Ok((last, (substeps, change), failure))
 }
 
 /// One condition of the matrix: the full-space reference under it, then one setting per
@@ -504,9 +514,9 @@ fn matrix_row(
                 text: reason,
             },
             Entry::Runs(mut method) => {
-                let refs: [&[Vec<f64>]; 1] = [&reference];
+                let refs: [&[Vec<f64>]; 1] = [&reference[..=measured]];
                 let run = run_sequence(method.as_mut(), &condition.bc, frames, &refs, dim, diagonal, None)?;
-                let error = run.mean_error(0, measured);
+                let error = run.mean_error(0);
                 Cell {
                     method: format!("{} {}", method.family(), method.setting()),
                     text: format!(

@@ -93,6 +93,12 @@ pub fn markdown(c: &Comparison, command: &str) -> String {
             r.substeps,
             100.0 * r.change
         );
+        for f in &r.failures {
+            s += &format!(
+                "  - on `{}`, {f}: methods are measured over the frames it reached\n",
+                r.sequence
+            );
+        }
     }
     s += &format!(
         "\n![against implicit Euler]({0}/speed-accuracy-implicit.png)\n\n![against the time-converged \
