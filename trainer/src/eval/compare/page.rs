@@ -86,13 +86,20 @@ pub fn markdown(c: &Comparison, command: &str) -> String {
         REFERENCES[1],
     );
     for r in &c.converged {
-        s += &format!(
-            "- time-converged reference of `{}`: {} substeps per frame (the last halving moved it {:.4}% of the \
-             diagonal at most)\n",
-            r.sequence,
-            r.substeps,
-            100.0 * r.change
-        );
+        s += &if r.substeps == 1 {
+            format!(
+                "- `{}`: a quasi-static scene has no time step to converge in; both references are its own\n",
+                r.sequence
+            )
+        } else {
+            format!(
+                "- time-converged reference of `{}`: BDF2 at {} substeps per frame (the last halving moved it \
+                 {:.4}% of the diagonal at most)\n",
+                r.sequence,
+                r.substeps,
+                100.0 * r.change
+            )
+        };
         for f in &r.failures {
             s += &format!(
                 "  - on `{}`, {f}: methods are measured over the frames it reached\n",
