@@ -11,6 +11,7 @@ mod contact;
 #[cfg(test)]
 mod contact_tests;
 mod direction;
+mod potential;
 mod prescribed;
 mod report;
 mod settings;
@@ -23,6 +24,7 @@ pub use crate::error::{Quantity, StepError};
 use crate::hessian::HessianPattern;
 use contact::Contact;
 pub use contact::{ContactConfig, ContactObstacle, ContactSettings};
+pub(crate) use potential::incremental_potential;
 pub(crate) use prescribed::{check_targets, place_fixed};
 pub use report::{SolvePhases, StepReport};
 pub use settings::{HessianMode, NewtonSettings, TimeScheme};
@@ -577,39 +579,5 @@ impl Simulator {
                 .map(|(i, p)| (p.as_ref(), w_potential, exact.get(i).map(Vec::as_slice))),
         );
         self.hessian.assemble_stencils(terms, x, project);
-    }
-}
-
-/// The incremental potential without contact, `w_inertia * inertia + w_potential *
-/// sum(potentials)` at `x`, and its gradient over all dofs into `grad` when asked (the
-/// inertia term is skipped where its weight is 0, as in static solves).
-pub(crate) fn incremental_potential(
-    inertia: &Inertia,
-    potentials: &[Box<dyn StencilEnergy>],
-    w_inertia: f64,
-    w_potential: f64,
-    x: &[f64],
-    grad: Option<&mut Vec<f64>>,
-) -> f64 {
-    match grad {
-        None => {
-            let mut e = 0.0;
-            if w_inertia != 0.0 {
-                e += w_inertia * energy::value(inertia, x);
-            }
-            e + w_potential * potentials.iter().map(|p| energy::value(p.as_ref(), x)).sum::<f64>()
-        }
-        Some(g) => {
-            g.clear();
-            g.resize(x.len(), 0.0);
-            let mut e = 0.0;
-            if w_inertia != 0.0 {
-                e += energy::add_gradient(inertia, w_inertia, x, g);
-            }
-            for p in potentials {
-                e += energy::add_gradient(p.as_ref(), w_potential, x, g);
-            }
-            e
-        }
     }
 }
