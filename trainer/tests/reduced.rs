@@ -78,6 +78,40 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         }
     }
     assert!(section.contains("Projection check"), "{section}");
+
+    // `mochi compare` runs both subspaces, with the scene's solver and with the paper's, and
+    // with runtime cubature.
+    let compared = mochi_trainer::eval::compare::compare(
+        "tiny",
+        &mochi_trainer::eval::compare::CompareOptions {
+            model: Some(model_path.clone()),
+            reduced: Some(file.clone()),
+            peers: None,
+            cases: None,
+            cases_only: false,
+            sequences: 1,
+            frames: 8,
+            matrix: None,
+            max_substeps: 2,
+        },
+        &Quiet,
+    )
+    .unwrap();
+    for family in [
+        "reduced, vanilla",
+        "reduced, Lipschitz",
+        "reduced, vanilla, paper's solver",
+        "reduced, Lipschitz, paper's solver",
+        "reduced, Lipschitz, runtime cubature",
+    ] {
+        let point = compared.points.iter().find(|p| p.family == family);
+        let point = point.unwrap_or_else(|| panic!("{family} missing"));
+        assert!(
+            point.error(0).is_finite() && point.error(0) < 0.5,
+            "{family}: {}",
+            point.error(0)
+        );
+    }
     assert!(dir.path().join("eval/convergence.png").is_file());
 
     // The bench steps the same four runs without a reference.

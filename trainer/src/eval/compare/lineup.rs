@@ -55,6 +55,9 @@ pub struct Trained<'a> {
     pub encoding: Option<Encoding>,
     /// The reduced solver's settings (the scene's `[reduced]` table).
     pub reduced_settings: StepperSettings,
+    /// The paper's solver at the same tolerance (cold L-BFGS, Armijo backtracking, emulated
+    /// single precision), run beside it on the exact energies.
+    pub paper_settings: Option<StepperSettings>,
     /// Directory of peers' recordings (`DIR/CASE/*.npz`).
     pub peers: Option<PathBuf>,
 }
@@ -170,39 +173,44 @@ fn entry<'a>(family: &str, method: TrainerResult<Simulated>) -> Entry<'a> {
     }
 }
 
-/// The reduced subspaces on `problem` (the condition's scene) at time step `dt`.
+/// The reduced subspaces on `problem` (the condition's scene) at its time step: each with
+/// the scene's solver and, for the exact energies, with the paper's.
 pub fn reduced<'a>(trained: &'a Trained<'a>, problem: &'a BuiltScene, change: RunTimeChange) -> Vec<Entry<'a>> {
     let Some(encoding) = &trained.encoding else {
         return Vec::new();
     };
-    trained
-        .reduced
-        .iter()
-        .map(|s| {
-            let family = format!("reduced, {}", s.name);
-            if s.energies.is_some() && matches!(change, RunTimeChange::Stiffness(_)) {
-                return Entry::Cannot {
-                    family,
-                    reason: "needs refitting (cubature of the trained material)".into(),
-                };
-            }
-            let energies = s
-                .energies
-                .clone()
-                .unwrap_or_else(|| problem.simulator.potentials().iter().map(|p| p.as_ref()).collect());
-            Entry::Runs(Box::new(ReducedMethod::new(
+    let mut out = Vec::new();
+    for s in &trained.reduced {
+        let family = format!("reduced, {}", s.name);
+        if s.energies.is_some() && matches!(change, RunTimeChange::Stiffness(_)) {
+            out.push(Entry::Cannot {
+                family,
+                reason: "needs refitting (cubature of the trained material)".into(),
+            });
+            continue;
+        }
+        let energies = s
+            .energies
+            .clone()
+            .unwrap_or_else(|| problem.simulator.potentials().iter().map(|p| p.as_ref()).collect());
+        let paper = trained.paper_settings.as_ref().filter(|_| s.energies.is_none());
+        let solvers = std::iter::once((family.clone(), &trained.reduced_settings))
+            .chain(paper.map(|p| (format!("{family}, paper's solver"), p)));
+        for (family, settings) in solvers {
+            out.push(Entry::Runs(Box::new(ReducedMethod::new(
                 family,
                 format!("r={}", s.initial_latent.len()),
                 problem,
                 &s.decoder,
                 &s.initial_latent,
                 encoding,
-                energies,
-                trained.reduced_settings.clone(),
+                energies.clone(),
+                settings.clone(),
                 problem.scene.dt,
-            )))
-        })
-        .collect()
+            ))));
+        }
+    }
+    out
 }
 
 /// The learned models in the runtime, unless the condition changes what they were trained

@@ -33,6 +33,7 @@ use crate::eval::reduced::{stepper_settings, with_runtime_cubature};
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
 use crate::learn::recipe::RodEncoding;
+use crate::learn::reduced_spec::{ReducedSpec, SolverChoice, SolverPrecision};
 use crate::methods::lipschitz::cubature::cubature_energies;
 use crate::methods::method::{run_sequence, SequenceRun};
 use crate::methods::reduced::stepper::StepperSettings;
@@ -230,11 +231,20 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
     let with_cubature = with_runtime_cubature(&potentials, &cubatures);
     let mut reduced = Vec::new();
     let mut reduced_settings = StepperSettings::default();
+    let mut paper_settings = None;
     if let Some(r) = &reduced_file {
         let spec = Recipe::parse(&r.scene_toml, Path::new(&r.scene_path))?
             .reduced
             .unwrap_or_default();
         reduced_settings = stepper_settings(&spec, problem.scene.integrator);
+        if spec.solver != SolverChoice::LbfgsPaper {
+            let paper = ReducedSpec {
+                solver: SolverChoice::LbfgsPaper,
+                precision: SolverPrecision::Single,
+                ..spec.clone()
+            };
+            paper_settings = Some(stepper_settings(&paper, problem.scene.integrator));
+        }
         for (name, data, cubature) in [
             ("vanilla", &r.vanilla, false),
             ("Lipschitz", &r.lipschitz, false),
@@ -257,6 +267,7 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
         },
         reduced,
         reduced_settings,
+        paper_settings,
         peers: options.peers.clone(),
     };
     let mut comparison = chart(&problem, &trained, options, report)?;
