@@ -43,7 +43,8 @@ fn process_seconds() -> f64 {
 mod tests {
     use super::*;
 
-    /// Busy work shows up on the clock; sleeping does not (on unix, where it is CPU time).
+    /// Busy work shows up on the clock, and the clock never runs backwards. (Other tests
+    /// run on other threads of the same process, so what a sleep costs is not checked here.)
     #[test]
     fn the_clock_counts_work() {
         let watch = Stopwatch::start();
@@ -54,11 +55,6 @@ mod tests {
         assert!(x > 0.0);
         let busy = watch.seconds();
         assert!(busy > 0.0);
-        #[cfg(unix)]
-        {
-            let watch = Stopwatch::start();
-            std::thread::sleep(std::time::Duration::from_millis(50));
-            assert!(watch.seconds() < 0.025, "{}", watch.seconds());
-        }
+        assert!(watch.seconds() >= busy);
     }
 }
