@@ -55,10 +55,10 @@ pub struct LbfgsWorkspace {
     head: usize,
     /// Scaling of the initial inverse Hessian.
     gamma: f64,
-    g: Vec<f64>,
-    g_new: Vec<f64>,
-    d: Vec<f64>,
-    trial: Vec<f64>,
+    pub(super) g: Vec<f64>,
+    pub(super) g_new: Vec<f64>,
+    pub(super) d: Vec<f64>,
+    pub(super) trial: Vec<f64>,
 }
 
 impl LbfgsWorkspace {
@@ -83,7 +83,7 @@ impl LbfgsWorkspace {
 
     /// Sizes the buffers for `r` unknowns and `memory` pairs (allocating only when these
     /// changed, which forgets every pair) and, unless `warm`, forgets every pair.
-    fn fit(&mut self, r: usize, memory: usize, warm: bool) {
+    pub(super) fn fit(&mut self, r: usize, memory: usize, warm: bool) {
         if self.r != r || self.memory != memory {
             *self = LbfgsWorkspace::new(r, memory);
         } else if !warm {
@@ -113,7 +113,7 @@ impl LbfgsWorkspace {
     }
 
     /// `d = -H g` by the two-loop recursion; returns the slope `g . d`.
-    fn direction(&mut self) -> f64 {
+    pub(super) fn direction(&mut self) -> f64 {
         let (r, m) = (self.r, self.memory);
         self.d.copy_from_slice(&self.g);
         for k in 0..self.len {
@@ -144,23 +144,34 @@ impl LbfgsWorkspace {
     /// Stores the pair from `z` to `trial` (gradients `g` to `g_new`) when it satisfies the
     /// curvature condition.
     fn push(&mut self, z: &[f64]) {
+        self.store_pair(PairStep::Between(z), true);
+    }
+
+    /// Stores the pair of the step `s` (`PairStep`) and `y = g_new - g` in place of the oldest
+    /// one when memory is full; with `check_curvature`, only when `s.y > eps |s| |y|` (and
+    /// finite), which keeps the implied inverse Hessian positive definite.
+    pub(super) fn store_pair(&mut self, step: PairStep, check_curvature: bool) {
         if self.memory == 0 {
             return;
         }
+        let s_at = |ws: &Self, i: usize| match step {
+            PairStep::Between(z) => ws.trial[i] - z[i],
+            PairStep::Along(a) => a * ws.d[i],
+        };
         let (mut sy, mut ss, mut yy) = (0.0, 0.0, 0.0);
         for i in 0..self.r {
-            let (s, y) = (self.trial[i] - z[i], self.g_new[i] - self.g[i]);
+            let (s, y) = (s_at(self, i), self.g_new[i] - self.g[i]);
             sy += s * y;
             ss += s * s;
             yy += y * y;
         }
         let curved = sy > f64::EPSILON * (ss * yy).sqrt();
-        if !(curved && sy.is_finite() && yy.is_finite() && yy > 0.0) {
+        if check_curvature && !(curved && sy.is_finite() && yy.is_finite() && yy > 0.0) {
             return;
         }
         let (r, slot) = (self.r, self.head);
         for i in 0..r {
-            self.s[slot * r + i] = self.trial[i] - z[i];
+            self.s[slot * r + i] = s_at(self, i);
             self.y[slot * r + i] = self.g_new[i] - self.g[i];
         }
         self.rho[slot] = 1.0 / sy;
@@ -168,6 +179,15 @@ impl LbfgsWorkspace {
         self.head = (slot + 1) % self.memory;
         self.len = (self.len + 1).min(self.memory);
     }
+}
+
+/// The step of a curvature pair.
+#[derive(Clone, Copy)]
+pub(super) enum PairStep<'a> {
+    /// From `z` to the workspace's trial point: `s = trial - z`.
+    Between(&'a [f64]),
+    /// Along the workspace's direction: `s = a d` (as JAX's L-BFGS computes it).
+    Along(f64),
 }
 
 /// Minimises `obj` from `z` by L-BFGS, leaving the final iterate in `z`. The exits are listed

@@ -22,6 +22,9 @@
 //!   by less than [`PAPER_FTOL`] (absolute; JAX's "insufficient progress", which the
 //!   paper's code reports as a saddle point).
 //!
+//! The pairs and the two-loop recursion are [`super::lbfgs`]'s ([`LbfgsWorkspace`]), stored
+//! without its curvature check and with `s = a d` as JAX computes it.
+//!
 //! In emulated single precision ([`super::rounding`]) the objective rounds its own numbers;
 //! here the Armijo bound and the decrease compared with [`PAPER_FTOL`] are rounded to `f32`
 //! as an `f32` solver computes them.
@@ -30,7 +33,8 @@
 //! direction ends the solve as [`Exit::LineSearchCap`] without moving, and a non-finite E
 //! or gradient at the new point returns to the last point and ends it as [`Exit::Saddle`].
 
-use super::optimize::{dot, inf_norm, report, Exit, Objective, SolveReport, SolveSettings, ARMIJO_C1};
+use super::lbfgs::{LbfgsWorkspace, PairStep};
+use super::optimize::{inf_norm, report, Exit, Objective, SolveReport, SolveSettings, ARMIJO_C1};
 use super::rounding::Rounding;
 
 /// The absolute decrease below which a step ends the solve (JAX's default `ftol`).
@@ -42,103 +46,6 @@ pub const PAPER_SHRINK: f64 = 0.8;
 /// The curvature pairs the paper's code keeps (JAX's `maxcor`).
 pub const PAPER_MEMORY: usize = 10;
 
-/// The buffers of a solve (allocated once per size).
-#[derive(Debug, Clone)]
-pub struct PaperWorkspace {
-    r: usize,
-    memory: usize,
-    /// Pairs, oldest first: `len` of them in slots `0..len`.
-    s: Vec<f64>,
-    y: Vec<f64>,
-    rho: Vec<f64>,
-    alpha: Vec<f64>,
-    len: usize,
-    gamma: f64,
-    g: Vec<f64>,
-    g_new: Vec<f64>,
-    d: Vec<f64>,
-    trial: Vec<f64>,
-}
-
-impl PaperWorkspace {
-    /// A workspace for `r` unknowns keeping `memory` pairs.
-    pub fn new(r: usize, memory: usize) -> Self {
-        PaperWorkspace {
-            r,
-            memory,
-            s: vec![0.0; r * memory],
-            y: vec![0.0; r * memory],
-            rho: vec![0.0; memory],
-            alpha: vec![0.0; memory],
-            len: 0,
-            gamma: 1.0,
-            g: vec![0.0; r],
-            g_new: vec![0.0; r],
-            d: vec![0.0; r],
-            trial: vec![0.0; r],
-        }
-    }
-
-    fn start(&mut self, r: usize, memory: usize) {
-        if self.r != r || self.memory != memory {
-            *self = PaperWorkspace::new(r, memory);
-        }
-        self.len = 0;
-        self.gamma = 1.0;
-    }
-
-    /// `d = -H g` by the two-loop recursion over the stored pairs.
-    fn direction(&mut self) {
-        let r = self.r;
-        for (d, g) in self.d.iter_mut().zip(&self.g) {
-            *d = -g;
-        }
-        for i in (0..self.len).rev() {
-            let a = self.rho[i] * dot(&self.s[i * r..(i + 1) * r], &self.d);
-            self.alpha[i] = a;
-            for (q, y) in self.d.iter_mut().zip(&self.y[i * r..(i + 1) * r]) {
-                *q -= a * y;
-            }
-        }
-        for q in self.d.iter_mut() {
-            *q *= self.gamma;
-        }
-        for i in 0..self.len {
-            let b = self.rho[i] * dot(&self.y[i * r..(i + 1) * r], &self.d);
-            let c = self.alpha[i] - b;
-            for (q, s) in self.d.iter_mut().zip(&self.s[i * r..(i + 1) * r]) {
-                *q += c * s;
-            }
-        }
-    }
-
-    /// Stores the pair `s = step * d`, `y = g_new - g`, dropping the oldest when full.
-    fn push(&mut self, step: f64) {
-        if self.memory == 0 {
-            return;
-        }
-        let r = self.r;
-        if self.len == self.memory {
-            self.s.copy_within(r.., 0);
-            self.y.copy_within(r.., 0);
-            self.rho.copy_within(1.., 0);
-            self.len -= 1;
-        }
-        let slot = self.len;
-        let (mut sy, mut yy) = (0.0, 0.0);
-        for i in 0..r {
-            let (s, y) = (step * self.d[i], self.g_new[i] - self.g[i]);
-            self.s[slot * r + i] = s;
-            self.y[slot * r + i] = y;
-            sy += s * y;
-            yy += y * y;
-        }
-        self.rho[slot] = 1.0 / sy;
-        self.gamma = sy / yy;
-        self.len += 1;
-    }
-}
-
 /// Minimises `obj` from `z` as the paper's code does (module documentation), leaving the
 /// final iterate in `z`. Reads `tolerance`, `max_iterations`, `max_line_search`, `memory`
 /// and `rounding` from `settings` (never `warm_start`: every solve is cold).
@@ -146,11 +53,11 @@ pub fn paper_lbfgs(
     obj: &mut dyn Objective,
     z: &mut [f64],
     settings: &SolveSettings,
-    workspace: &mut PaperWorkspace,
+    workspace: &mut LbfgsWorkspace,
     record_history: bool,
 ) -> SolveReport {
     let ws = workspace;
-    ws.start(z.len(), settings.memory);
+    ws.fit(z.len(), settings.memory, false);
     if obj.dim() != z.len() {
         return report(Exit::Saddle, 0, 0, f64::NAN, &[f64::NAN], Vec::new());
     }
@@ -166,11 +73,10 @@ pub fn paper_lbfgs(
     }
     let mut iterations = 0;
     loop {
-        ws.direction();
+        let slope = ws.direction();
         if !ws.d.iter().all(|v| v.is_finite()) {
             return report(Exit::LineSearchCap, iterations, evaluations, f, &ws.g, history);
         }
-        let slope = dot(&ws.g, &ws.d);
         // Backtracking on Armijo alone.
         let mut step = 1.0;
         let mut passed = false;
@@ -192,7 +98,7 @@ pub fn paper_lbfgs(
         if !value.is_finite() || !inf_norm(&ws.g_new).is_finite() {
             return report(Exit::Saddle, iterations, evaluations, f, &ws.g, history);
         }
-        ws.push(step);
+        ws.store_pair(PairStep::Along(step), false);
         let decrease = rounding.round(f - value);
         let before = iterations;
         z.copy_from_slice(&ws.trial);

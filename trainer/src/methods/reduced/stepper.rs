@@ -22,7 +22,7 @@ use super::lbfgs::{lbfgs, LbfgsWorkspace};
 use super::newton::{newton, NewtonWorkspace};
 use super::objective::{InertiaTerm, ObjectiveBuffers, ReducedObjective};
 use super::optimize::{SolveReport, SolveSettings};
-use super::paper::{paper_lbfgs, PaperWorkspace};
+use super::paper::paper_lbfgs;
 use super::subspace::DecoderSubspace;
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
@@ -96,7 +96,6 @@ pub struct ReducedStepper {
     buffers: ObjectiveBuffers,
     lbfgs: LbfgsWorkspace,
     newton: NewtonWorkspace,
-    paper: PaperWorkspace,
 }
 
 impl ReducedStepper {
@@ -134,7 +133,6 @@ impl ReducedStepper {
             buffers: ObjectiveBuffers::new(n, r),
             lbfgs: LbfgsWorkspace::new(r, settings.solve.memory),
             newton: NewtonWorkspace::new(r),
-            paper: PaperWorkspace::new(r, settings.solve.memory),
             settings,
             subspace,
         })
@@ -243,7 +241,7 @@ impl ReducedStepper {
                 &mut objective,
                 &mut self.z,
                 &self.settings.solve,
-                &mut self.paper,
+                &mut self.lbfgs,
                 record,
             ),
         };

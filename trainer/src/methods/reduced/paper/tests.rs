@@ -3,7 +3,7 @@ use super::super::optimize::problems::{lifted, quadratic, rosenbrock, uphill};
 use super::*;
 
 fn solve(obj: &mut dyn Objective, z: &mut [f64], settings: &SolveSettings) -> SolveReport {
-    let mut ws = PaperWorkspace::new(z.len(), settings.memory);
+    let mut ws = LbfgsWorkspace::new(z.len(), settings.memory);
     paper_lbfgs(obj, z, settings, &mut ws, true)
 }
 
@@ -73,7 +73,7 @@ fn backtracks_by_four_fifths_and_caps_at_the_line_search_limit() {
 #[test]
 fn every_solve_starts_cold() {
     // Two solves on one workspace do the same work: no pairs are carried over.
-    let mut ws = PaperWorkspace::new(2, PAPER_MEMORY);
+    let mut ws = LbfgsWorkspace::new(2, PAPER_MEMORY);
     let settings = SolveSettings {
         warm_start: true,
         ..paper()
