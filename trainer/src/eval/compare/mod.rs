@@ -459,11 +459,10 @@ fn matrix_row(
 ) -> TrainerResult<MatrixRow> {
     let mut reference_scene = condition.scene.clone();
     reference_scene.solver = SolverSpec::FullSpace;
-    let problem = reference_scene.build()?;
-    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let mut full = Simulated::new(&reference_scene, 1, "1 step(s) per frame")?;
+    let (dim, diagonal) = (full.problem().mesh.dim, full.problem().mesh.rest_diagonal());
     let frames = condition.bc.frames();
     let mut cells = Vec::new();
-    let mut full = Simulated::new(&reference_scene, 1, "1 step(s) per frame")?;
     let mut reference = Vec::new();
     let run = run_sequence(
         &mut full,
@@ -482,6 +481,9 @@ fn matrix_row(
             },
         )),
     )?;
+    // The scene as built for the reference serves every other method too (the solver aside,
+    // it is the condition's scene).
+    let problem = full.problem();
     // Where full space itself fails under the condition (a fast rod folding back in one
     // step), the others are measured over the frames it reached and stepped on for stability.
     let measured = condition.measured.min(reference.len() - 1);
@@ -494,7 +496,7 @@ fn matrix_row(
     });
     if let Some(dir) = &options.cases {
         let name = slug(&condition.name);
-        case::write_case(&dir.join(format!("{name}.npz")), &problem, &condition.bc, &reference)?;
+        case::write_case(&dir.join(format!("{name}.npz")), problem, &condition.bc, &reference)?;
         if options.cases_only {
             return Ok(MatrixRow {
                 condition: condition.name.clone(),
@@ -505,12 +507,11 @@ fn matrix_row(
     }
     // The other methods on the condition's scene with the scene's own solver.
     let scene = &condition.scene;
-    let on_condition = scene.build()?;
-    let mut entries: Vec<Entry> = lineup::simulated(scene, &problem, Budgets::One)
+    let mut entries: Vec<Entry> = lineup::simulated(scene, problem, Budgets::One)
         .into_iter()
         .skip(1)
         .collect();
-    entries.extend(lineup::reduced(trained, &on_condition, condition.change));
+    entries.extend(lineup::reduced(trained, problem, condition.change));
     entries.extend(lineup::learned(trained, condition.change, Budgets::One));
     entries.extend(lineup::peers(
         trained,
