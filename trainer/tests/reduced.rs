@@ -35,6 +35,11 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     let k = outcome.model.latent as usize;
     assert_eq!(reduced.vanilla.initial_latent.len(), k);
     assert_eq!(reduced.lipschitz.initial_latent.len(), k);
+    let linear = reduced
+        .pca
+        .as_ref()
+        .expect("a supervised subspace keeps the PCA of its frames");
+    assert_eq!((linear.basis.len(), linear.initial_latent.len()), (k, k));
     assert!(reduced.lipschitz.training_seconds >= reduced.vanilla.training_seconds);
     assert!(!reduced.cubature.is_empty() && reduced.lambda > 0.0);
     let file = reduced_path(&out, "tiny");
@@ -79,7 +84,7 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     }
     assert!(section.contains("Projection check"), "{section}");
 
-    // `mochi compare` runs both subspaces, with the scene's solver and with the paper's, and
+    // `mochi compare` runs the PCA and both trained subspaces, with the scene's solver and with the paper's, and
     // with runtime cubature.
     let compared = mochi_trainer::eval::compare::compare(
         "tiny",
@@ -98,6 +103,8 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     )
     .unwrap();
     for family in [
+        "reduced, PCA",
+        "reduced, PCA, paper's solver",
         "reduced, vanilla",
         "reduced, Lipschitz",
         "reduced, vanilla, paper's solver",

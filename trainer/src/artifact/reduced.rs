@@ -1,5 +1,5 @@
 //! The reduced-method file `<scene>.reduced` (beside the model artifacts): the vanilla and the
-//! Lipschitz-optimised subspace of one scene, the cubature they were optimised with, and what
+//! Lipschitz-optimised subspace of one scene, the linear (PCA) subspace of the same frames, the cubature they were optimised with, and what
 //! their training measured. Only the trainer reads it (the reduced solver runs on the
 //! desktop), through the runtime's envelope:
 //!
@@ -13,13 +13,14 @@ use serde::{Deserialize, Serialize};
 
 use super::ArtifactError;
 use crate::learn::network::{DenseLayer, ExportedMlp};
+use crate::learn::pca::Pca;
 use mochi_runtime::envelope;
 use mochi_sim::error::InputError;
 
 /// Magic of a reduced-method file.
 pub const REDUCED_MAGIC: &[u8; 8] = b"MOCHIRED";
 /// Its format version.
-pub const REDUCED_VERSION: u32 = 1;
+pub const REDUCED_VERSION: u32 = 2;
 
 /// One cubature rule of an energy term: the term's name, its selected stencils and weights.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -57,6 +58,40 @@ impl SubspaceData {
     }
 }
 
+/// The linear subspace: the PCA of the training frames (encoded) at the vanilla's latent size.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LinearSubspaceData {
+    /// The mean encoded frame.
+    pub mean: Vec<f64>,
+    /// The components, orthonormal, by decreasing variance.
+    pub basis: Vec<Vec<f64>>,
+    /// The projection of the scene's start.
+    pub initial_latent: Vec<f64>,
+}
+
+impl LinearSubspaceData {
+    /// The subspace of `pca`, starting at the projection of `start` (encoded).
+    pub fn new(pca: &Pca, start: &[f64]) -> Result<Self, ArtifactError> {
+        let initial_latent = pca
+            .project(start)
+            .map_err(|e| crate::learn::network::NetworkError::Invalid(format!("PCA of the start state: {e}")))?;
+        Ok(LinearSubspaceData {
+            mean: pca.mean.clone(),
+            basis: pca.basis.clone(),
+            initial_latent,
+        })
+    }
+
+    /// Its linear map.
+    pub fn pca(&self) -> Pca {
+        Pca {
+            mean: self.mean.clone(),
+            basis: self.basis.clone(),
+            singular_values: Vec::new(),
+        }
+    }
+}
+
 /// The reduced method of one scene.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReducedArtifact {
@@ -76,6 +111,8 @@ pub struct ReducedArtifact {
     pub cubature: Vec<CubatureData>,
     /// The absolute weight of the Lipschitz term.
     pub lambda: f64,
+    /// The linear subspace (`None` for a data-free subspace: there are no frames to fit).
+    pub pca: Option<LinearSubspaceData>,
 }
 
 /// The reduced-method file of `scene` in `out_dir`.
@@ -115,6 +152,20 @@ impl ReducedArtifact {
                         "{name} subspace: initial latent of {} values for a decoder taking {}",
                         s.initial_latent.len(),
                         decoder.spec().input
+                    ),
+                ));
+            }
+        }
+        if let Some(linear) = &artifact.pca {
+            let n = linear.mean.len();
+            if linear.basis.iter().any(|c| c.len() != n) || linear.initial_latent.len() != linear.basis.len() {
+                return Err(InputError::file(
+                    path,
+                    format!(
+                        "linear subspace: {} components of a {n}-value mean need as many values each and an initial \
+                         latent of {} values",
+                        linear.basis.len(),
+                        linear.basis.len()
                     ),
                 ));
             }
@@ -161,6 +212,11 @@ mod tests {
                 residual: 1e-3,
             }],
             lambda: 0.25,
+            pca: Some(LinearSubspaceData {
+                mean: vec![1.0, 2.0, 3.0],
+                basis: vec![vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0]],
+                initial_latent: vec![0.5, -0.5],
+            }),
         };
         artifact.save(&path).unwrap();
         assert_eq!(ReducedArtifact::load(&path).unwrap(), artifact);
@@ -175,5 +231,10 @@ mod tests {
         wrong.save(&path).unwrap();
         let err = ReducedArtifact::load(&path).unwrap_err().to_string();
         assert!(err.contains("lipschitz subspace"), "{err}");
+        let mut short = artifact.clone();
+        short.pca.as_mut().unwrap().basis[1].pop();
+        short.save(&path).unwrap();
+        let err = ReducedArtifact::load(&path).unwrap_err().to_string();
+        assert!(err.contains("linear subspace"), "{err}");
     }
 }

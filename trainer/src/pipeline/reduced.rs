@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::plain_vanilla::{plain_tag, train_plain_vanilla};
 use super::stages::{SelectedAutoencoder, StageTimes, TrainingFrames, Workspace};
-use crate::artifact::reduced::{reduced_path, CubatureData, ReducedArtifact, SubspaceData};
+use crate::artifact::reduced::{reduced_path, CubatureData, LinearSubspaceData, ReducedArtifact, SubspaceData};
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::datafree::{normal_latents, train_data_free_model, DataFreeObjective, DataFreeSettings};
 use crate::learn::encoding::Encoding;
@@ -335,7 +335,21 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         },
         cubature: cubatures,
         lambda,
+        pca: Some(linear_subspace(inputs, k)?),
     })
+}
+
+/// The PCA of the training frames at latent size `k`, the linear subspace compared with the
+/// trained ones.
+fn linear_subspace(inputs: &ReducedInputs<'_>, k: usize) -> TrainerResult<LinearSubspaceData> {
+    let fitted = &inputs.autoencoder.pca;
+    let pca = fitted.clone().truncated(k.min(fitted.num_components()))?;
+    let start = inputs
+        .frames
+        .f64s
+        .first()
+        .ok_or_else(|| TrainerError::invalid("the training split has no frames"))?;
+    Ok(LinearSubspaceData::new(&pca, start)?)
 }
 
 fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult<ReducedArtifact> {
@@ -416,6 +430,7 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
         },
         cubature: cubatures,
         lambda,
+        pca: None,
     })
 }
 

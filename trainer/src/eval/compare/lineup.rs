@@ -15,11 +15,13 @@ use super::conditions::RunTimeChange;
 use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::network::ExportedMlp;
+use crate::learn::pca::Pca;
 use crate::methods::learned::LearnedRuntime;
 use crate::methods::method::Method;
 use crate::methods::peer::PeerRecording;
 use crate::methods::reduced::method::ReducedMethod;
 use crate::methods::reduced::stepper::StepperSettings;
+use crate::methods::reduced::subspace::SubspaceDecoder;
 use crate::methods::simulated::Simulated;
 
 /// A learned model in one storage, ready for the runtime.
@@ -32,12 +34,30 @@ pub struct LearnedModel<'m> {
     pub model: ValidModel<'m>,
 }
 
+/// A reduced subspace's decoder, owned.
+pub enum SubspaceMap {
+    /// A trained decoder (vanilla, Lipschitz-optimised).
+    Network(ExportedMlp),
+    /// A PCA.
+    Linear(Pca),
+}
+
+impl SubspaceMap {
+    /// The decoder as the reduced solver takes it.
+    pub fn decoder(&self) -> SubspaceDecoder<'_> {
+        match self {
+            SubspaceMap::Network(mlp) => mlp.into(),
+            SubspaceMap::Linear(pca) => pca.into(),
+        }
+    }
+}
+
 /// A reduced subspace and the energies it steps with.
 pub struct ReducedSubspace<'a> {
-    /// "vanilla", "Lipschitz", with ", runtime cubature" where the elastic terms are.
+    /// "PCA", "vanilla", "Lipschitz", with ", runtime cubature" where the elastic terms are.
     pub name: String,
     /// Its decoder.
-    pub decoder: ExportedMlp,
+    pub decoder: SubspaceMap,
     /// The latent of the scene's start.
     pub initial_latent: Vec<f64>,
     /// The energies it steps with: `None` for the condition's exact energies, `Some` for a
@@ -201,7 +221,7 @@ pub fn reduced<'a>(trained: &'a Trained<'a>, problem: &'a BuiltScene, change: Ru
                 family,
                 format!("r={}", s.initial_latent.len()),
                 problem,
-                &s.decoder,
+                s.decoder.decoder(),
                 &s.initial_latent,
                 encoding,
                 energies.clone(),

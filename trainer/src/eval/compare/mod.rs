@@ -46,7 +46,7 @@ pub mod lineup;
 pub mod page;
 
 use conditions::{Condition, MatrixSpan, RunTimeChange};
-use lineup::{Budgets, Entry, LearnedModel, ReducedSubspace, Trained};
+use lineup::{Budgets, Entry, LearnedModel, ReducedSubspace, SubspaceMap, Trained};
 
 /// The time-converged reference stops halving the step once the positions move by less than
 /// this fraction of the rest diagonal (mean over vertices, largest over frames).
@@ -245,6 +245,14 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
             };
             paper_settings = Some(stepper_settings(&paper, problem.scene.integrator));
         }
+        if let Some(linear) = &r.pca {
+            reduced.push(ReducedSubspace {
+                name: "PCA".into(),
+                decoder: SubspaceMap::Linear(linear.pca()),
+                initial_latent: linear.initial_latent.clone(),
+                energies: None,
+            });
+        }
         for (name, data, cubature) in [
             ("vanilla", &r.vanilla, false),
             ("Lipschitz", &r.lipschitz, false),
@@ -253,7 +261,7 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
         ] {
             reduced.push(ReducedSubspace {
                 name: name.into(),
-                decoder: data.decoder()?,
+                decoder: SubspaceMap::Network(data.decoder()?),
                 initial_latent: data.initial_latent.clone(),
                 energies: cubature.then(|| with_cubature.clone()),
             });

@@ -169,7 +169,8 @@ fn swish_parts(u: f64) -> (f64, f64, f64) {
     (swish(u), first, second)
 }
 
-fn check_len(what: &str, got: usize, expected: usize) -> ModelResult<()> {
+/// An error naming `what` unless it has `expected` values.
+pub(crate) fn check_len(what: &str, got: usize, expected: usize) -> ModelResult<()> {
     if got != expected {
         return invalid(format!("{what} has {got} values, expected {expected}"));
     }

@@ -9,10 +9,9 @@ use mochi_sim::scene::Start;
 use mochi_sim::BuiltScene;
 
 use super::stepper::{ReducedStepper, StepperSettings};
-use super::subspace::DecoderSubspace;
+use super::subspace::{DecoderSubspace, SubspaceDecoder};
 use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
-use crate::learn::network::ExportedMlp;
 use crate::methods::method::{Method, StepCost};
 
 /// One subspace stepped by the reduced solver.
@@ -20,7 +19,7 @@ pub struct ReducedMethod<'a> {
     family: String,
     setting: String,
     problem: &'a BuiltScene,
-    decoder: &'a ExportedMlp,
+    decoder: SubspaceDecoder<'a>,
     initial_latent: &'a [f64],
     encoding: &'a Encoding,
     potentials: Vec<&'a dyn StencilEnergy>,
@@ -38,7 +37,7 @@ impl<'a> ReducedMethod<'a> {
         family: String,
         setting: String,
         problem: &'a BuiltScene,
-        decoder: &'a ExportedMlp,
+        decoder: impl Into<SubspaceDecoder<'a>>,
         initial_latent: &'a [f64],
         encoding: &'a Encoding,
         potentials: Vec<&'a dyn StencilEnergy>,
@@ -49,7 +48,7 @@ impl<'a> ReducedMethod<'a> {
             family,
             setting,
             problem,
-            decoder,
+            decoder: decoder.into(),
             initial_latent,
             encoding,
             potentials,

@@ -3,8 +3,8 @@
 //! handle targets for the prescribed ones (the same map as
 //! [`Encoding::decode_into`](crate::learn::encoding::Encoding::decode_into)).
 //!
-//! Its Jacobian `dx/dz` is exact: forward mode through the decoder ([`Mlp64`]), then the
-//! rotation `R`. Prescribed vertices do not depend on `z`; their rows are zero. A gradient
+//! The decoder is a trained network or a PCA's linear map ([`SubspaceDecoder`]). The map's
+//! Jacobian `dx/dz` is exact: forward mode through the decoder, then the rotation `R`. Prescribed vertices do not depend on `z`; their rows are zero. A gradient
 //! `(dx/dz)^T g` needs no Jacobian: `R^T g`, then reverse mode through the decoder. The map's
 //! second derivatives enter only contracted with a world-space vector `g` (the exact reduced
 //! Hessian's term `sum_i g_i d^2 x_i / dz^2`): since the frame is affine in `q`, that is the
@@ -12,16 +12,16 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::decoder_map::DecoderMap;
+pub use super::decoder_map::SubspaceDecoder;
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::{Encoding, Frame};
-use crate::learn::network::derivatives::{Mlp64, Mlp64Workspace};
-use crate::learn::network::{ExportedMlp, ModelResult};
+use crate::learn::network::ModelResult;
 
 /// A decoder in a scene's boundary-condition frame, with the buffers its derivatives need.
 #[derive(Clone)]
 pub struct DecoderSubspace {
-    mlp: Mlp64,
-    workspace: Mlp64Workspace,
+    map: DecoderMap,
     dim: usize,
     state_len: usize,
     /// Per encoded vertex `k`: its global vertex and the index of its origin.
@@ -42,26 +42,28 @@ pub struct DecoderSubspace {
 impl DecoderSubspace {
     /// The map of `decoder` (latent -> encoded state of `encoding`), with the handles at
     /// `targets` (`dim` per prescribed vertex) until [`DecoderSubspace::set_frame`] moves them.
-    pub fn new(decoder: &ExportedMlp, encoding: &Encoding, targets: &[f64]) -> TrainerResult<Self> {
+    pub fn new<'d>(
+        decoder: impl Into<SubspaceDecoder<'d>>,
+        encoding: &Encoding,
+        targets: &[f64],
+    ) -> TrainerResult<Self> {
         if encoding.strand_bends() {
             return Err(TrainerError::invalid(
                 "the reduced solver needs positions encoded as points; this scene encodes rod strands by their bends \
                  (`latent.rods = \"bends\"`)",
             ));
         }
-        let mlp = Mlp64::new(decoder);
-        if mlp.output_len() != encoding.encoded_len() {
+        let map = DecoderMap::new(decoder.into());
+        if map.output_len() != encoding.encoded_len() {
             return Err(TrainerError::invalid(format!(
                 "the decoder gives {} values per state, the scene's encoding has {}",
-                mlp.output_len(),
+                map.output_len(),
                 encoding.encoded_len()
             )));
         }
-        let workspace = Mlp64Workspace::new(&mlp);
-        let r = mlp.input_len();
+        let r = map.input_len();
         let n = encoding.encoded_len();
         let mut subspace = DecoderSubspace {
-            workspace,
             dim: encoding.dim(),
             state_len: encoding.state_len(),
             free: encoding
@@ -79,7 +81,7 @@ impl DecoderSubspace {
             w: vec![0.0; n],
             decoded_at: vec![0.0; r],
             decoded_fresh: false,
-            mlp,
+            map,
         };
         subspace.set_frame(&encoding.frame(targets)?, targets);
         Ok(subspace)
@@ -87,7 +89,7 @@ impl DecoderSubspace {
 
     /// Latent size `r`.
     pub fn latent_len(&self) -> usize {
-        self.mlp.input_len()
+        self.map.input_len()
     }
 
     /// Length of a world state (`dim` per vertex).
@@ -113,7 +115,7 @@ impl DecoderSubspace {
     pub fn positions(&mut self, z: &[f64], x: &mut [f64]) -> TrainerResult<()> {
         self.check_len("state", self.state_len, x.len())?;
         self.forget_decoded();
-        self.mlp.value(z, &mut self.q, &mut self.workspace)?;
+        self.map.value(z, &mut self.q)?;
         self.decoded_at.clear();
         self.decoded_at.extend_from_slice(z);
         self.decoded_fresh = true;
@@ -128,7 +130,7 @@ impl DecoderSubspace {
         self.check_len("state", self.state_len, x.len())?;
         self.check_len("Jacobian", self.state_len * r, jac.len())?;
         self.forget_decoded();
-        self.mlp.jacobian(z, &mut self.q, &mut self.jq, &mut self.workspace)?;
+        self.map.jacobian(z, &mut self.q, &mut self.jq)?;
         self.place(x);
         let d = self.dim;
         for &v in &self.handle_vertices {
@@ -157,31 +159,30 @@ impl DecoderSubspace {
     /// vertices do not depend on `z`). Right after [`DecoderSubspace::positions`] at the same
     /// `z` (as an objective's gradient call comes), the decoder's hidden pass is not repeated.
     pub fn gradient(&mut self, z: &[f64], g: &[f64], out: &mut [f64]) -> TrainerResult<()> {
-        if self.decoded_fresh && self.decoded_at == z {
-            self.with_pulled_back(g, |mlp, w, ws| mlp.pulled_back_after_value(w, out, ws))
-        } else {
+        let after_value = self.decoded_fresh && self.decoded_at == z;
+        if !after_value {
             self.forget_decoded();
-            self.with_pulled_back(g, |mlp, w, ws| mlp.pulled_back(z, w, out, ws))
         }
+        self.with_pulled_back(g, |map, w| map.pulled_back(z, w, out, after_value))
     }
 
     /// `sum_i g_i d^2 x_i / dz^2` (`r x r`, row-major) at `z` for a world-space vector `g`
     /// (`state_len` values): the second-order term of the exact reduced Hessian.
     pub fn contracted_hessian(&mut self, z: &[f64], g: &[f64], out: &mut [f64]) -> TrainerResult<()> {
         self.forget_decoded();
-        self.with_pulled_back(g, |mlp, w, ws| mlp.contracted_hessian(z, w, out, ws))
+        self.with_pulled_back(g, |map, w| map.contracted_hessian(z, w, out))
     }
 
     /// Calls `decoder_call` with the decoder, `g` pulled back to the encoded layout (the
-    /// decoder's output weights) and the decoder's workspace.
+    /// decoder's output weights).
     fn with_pulled_back(
         &mut self,
         g: &[f64],
-        decoder_call: impl FnOnce(&Mlp64, &[f64], &mut Mlp64Workspace) -> ModelResult<()>,
+        decoder_call: impl FnOnce(&mut DecoderMap, &[f64]) -> ModelResult<()>,
     ) -> TrainerResult<()> {
         let mut w = std::mem::take(&mut self.w);
         let pulled = self.pull_back(g, &mut w);
-        let result = pulled.and_then(|()| Ok(decoder_call(&self.mlp, &w, &mut self.workspace)?));
+        let result = pulled.and_then(|()| Ok(decoder_call(&mut self.map, &w)?));
         self.w = w;
         result
     }
@@ -190,7 +191,7 @@ impl DecoderSubspace {
     pub fn second_directional(&mut self, z: &[f64], v: &[f64], out: &mut [f64]) -> TrainerResult<()> {
         self.check_len("state", self.state_len, out.len())?;
         self.forget_decoded();
-        self.mlp.second_directional(z, v, &mut self.w, &mut self.workspace)?;
+        self.map.second_directional(z, v, &mut self.w)?;
         let d = self.dim;
         for &h in &self.handle_vertices {
             out[h * d..(h + 1) * d].fill(0.0);

@@ -320,3 +320,97 @@ fn projection_gradient_matches_finite_differences_and_recovers_decoded_states() 
     // Wrong sizes are errors, not panics.
     assert!(ProjectionObjective::new(&mut subspace, &masses[1..], diagonal, &on).is_err());
 }
+
+/// The PCA subspace with every direction of the encoded state: a linear map onto the whole
+/// space of free vertices.
+fn whole_space(beam: &TinyBeam) -> crate::learn::pca::Pca {
+    let n = beam.encoding.encoded_len();
+    crate::learn::pca::Pca {
+        mean: vec![0.0; n],
+        basis: (0..n)
+            .map(|i| (0..n).map(|j| f64::from(u8::from(i == j))).collect())
+            .collect(),
+        singular_values: Vec::new(),
+    }
+}
+
+#[test]
+fn a_linear_subspace_has_the_derivatives_of_finite_differences_and_no_curvature() {
+    let beam = tiny_beam();
+    let frames = &beam.sequences[0].encoded;
+    let pca = crate::learn::pca::Pca::fit(frames, 3).unwrap();
+    let targets = beam.sequences[0].targets[5].clone();
+    let mut subspace = DecoderSubspace::new(&pca, &beam.encoding, &targets).unwrap();
+    let (n, r) = (subspace.state_len(), subspace.latent_len());
+    assert_eq!(r, 3);
+    let z = pca.project(&frames[5]).unwrap();
+    let (mut x, mut jac) = (vec![0.0; n], vec![0.0; n * r]);
+    subspace.positions_and_jacobian(&z, &mut x, &mut jac).unwrap();
+    // Frame 5 lies close to the 3-component PCA of the sequence it is part of.
+    let world = &beam.sequences[0].trajectory.positions[5];
+    let diagonal = beam.problem.mesh.rest_diagonal();
+    let off = x.iter().zip(world).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(off < 0.05 * diagonal, "{off}");
+    let eps = 1e-6;
+    for a in 0..r {
+        let (mut zp, mut zm) = (z.clone(), z.clone());
+        zp[a] += eps;
+        zm[a] -= eps;
+        let (mut xp, mut xm) = (vec![0.0; n], vec![0.0; n]);
+        subspace.positions(&zp, &mut xp).unwrap();
+        subspace.positions(&zm, &mut xm).unwrap();
+        let fd: Vec<f64> = xp.iter().zip(&xm).map(|(p, m)| (p - m) / (2.0 * eps)).collect();
+        let column: Vec<f64> = (0..n).map(|i| jac[i * r + a]).collect();
+        assert!(relative(&column, &fd) < 1e-8, "column {a}");
+    }
+    let g: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+    let (mut pulled, mut curvature, mut second) = (vec![0.0; r], vec![1.0; r * r], vec![1.0; n]);
+    subspace.gradient(&z, &g, &mut pulled).unwrap();
+    let by_jacobian: Vec<f64> = (0..r).map(|a| (0..n).map(|i| jac[i * r + a] * g[i]).sum()).collect();
+    assert!(relative(&pulled, &by_jacobian) < 1e-12);
+    subspace.contracted_hessian(&z, &g, &mut curvature).unwrap();
+    subspace.second_directional(&z, &[1.0, -1.0, 0.5], &mut second).unwrap();
+    assert!(curvature.iter().chain(&second).all(|&v| v == 0.0));
+    assert!(subspace.positions(&[0.0; 2], &mut x).is_err());
+}
+
+#[test]
+fn a_linear_subspace_of_the_whole_space_steps_as_the_full_space_solver() {
+    let beam = tiny_beam();
+    let whole = whole_space(&beam);
+    let targets = |t: usize| beam.sequences[0].targets[t].clone();
+    let subspace = DecoderSubspace::new(&whole, &beam.encoding, &targets(0)).unwrap();
+    let settings = StepperSettings {
+        solver: ReducedSolver::Newton,
+        solve: SolveSettings {
+            tolerance: 1e-10,
+            ..SolveSettings::default()
+        },
+        quasi_static: false,
+        record_history: false,
+    };
+    let masses = beam.problem.simulator.masses().to_vec();
+    let diagonal = beam.problem.mesh.rest_diagonal();
+    let mut stepper = ReducedStepper::new(
+        subspace,
+        beam.encoding.clone(),
+        masses,
+        diagonal,
+        beam.problem.scene.dt,
+        settings,
+    )
+    .unwrap();
+    stepper.reset(&beam.sequences[0].encoded[0], &targets(0)).unwrap();
+    let pots = potentials(&beam);
+    for t in 1..=4 {
+        stepper.step(&pots, &targets(t)).unwrap();
+        let reference = &beam.sequences[0].trajectory.positions[t];
+        let off = stepper
+            .positions()
+            .iter()
+            .zip(reference)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(off < 1e-6 * diagonal, "frame {t}: {off}");
+    }
+}
