@@ -107,7 +107,8 @@ pub(crate) enum Command {
     Compare {
         /// Scene name or path (the model's scene when `--model` is given).
         scene: String,
-        /// The learned model (`SCENE.mochi`); its supervised twin beside it is added.
+        /// The learned model (`SCENE.mochi`); its supervised twin and the selection's other
+        /// candidates (`candidates/`) beside it are added.
         #[arg(long)]
         model: Option<PathBuf>,
         /// The scene's `.reduced` file.

@@ -12,7 +12,7 @@ use mochi_sim::energy::StencilEnergy;
 use mochi_sim::{AdaptiveSettings, BuiltScene, Scene, SolverSpec, VbdSettings};
 
 use super::conditions::RunTimeChange;
-use crate::error::TrainerResult;
+use crate::error::{fs, TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 use crate::learn::network::ExportedMlp;
 use crate::learn::pca::Pca;
@@ -24,12 +24,54 @@ use crate::methods::reduced::stepper::StepperSettings;
 use crate::methods::reduced::subspace::SubspaceDecoder;
 use crate::methods::simulated::Simulated;
 
+/// Family of the selection's other candidates while they are read in (they chart as budgets
+/// of the learned runtime, model size and shape among them).
+pub const CANDIDATE: &str = "candidate";
+
+/// The learned models of `model`: the model (`SCENE.mochi`, "learned (runtime)"), its
+/// supervised twin beside it (`SCENE.supervised.mochi`) and the selection's other candidates
+/// (`candidates/*.mochi` beside it, as `mochi train` writes them; [`CANDIDATE`]), each with its
+/// bytes and path.
+pub fn model_files(model: &Path) -> TrainerResult<Vec<(&'static str, Vec<u8>, PathBuf)>> {
+    let kept = fs::read(model)?;
+    let mut files = Vec::new();
+    let name = model.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    if let Some(stem) = name.strip_suffix(".mochi") {
+        let twin = model.with_file_name(format!("{stem}.supervised.mochi"));
+        if twin.is_file() {
+            files.push(("supervised (runtime)", fs::read(&twin)?, twin));
+        }
+    }
+    let dir = model.with_file_name("candidates");
+    let mut candidates = Vec::new();
+    if let Ok(read) = std::fs::read_dir(&dir) {
+        for entry in read {
+            let path = entry.map_err(|e| TrainerError::io(&dir, e))?.path();
+            if path.extension().is_some_and(|e| e == "mochi") {
+                candidates.push(path);
+            }
+        }
+    }
+    candidates.sort();
+    for path in candidates {
+        let bytes = fs::read(&path)?;
+        if bytes != kept {
+            files.push((CANDIDATE, bytes, path));
+        }
+    }
+    files.insert(0, ("learned (runtime)", kept, model.to_path_buf()));
+    Ok(files)
+}
+
 /// A learned model in one storage, ready for the runtime.
 pub struct LearnedModel<'m> {
     /// "learned (runtime)" or "supervised (runtime)".
     pub family: &'static str,
-    /// Latent size and storage ("k=8, int8").
+    /// Latent size and storage ("k=8, int8"), and the candidate's name for the selection's
+    /// other candidates.
     pub setting: String,
+    /// The model `mochi train` kept (or its supervised twin), not another candidate.
+    pub kept: bool,
     /// The validated model.
     pub model: ValidModel<'m>,
 }
@@ -242,7 +284,7 @@ pub fn learned<'a>(trained: &'a Trained<'a>, change: RunTimeChange, budgets: Bud
         Budgets::One => trained
             .learned
             .iter()
-            .filter(|m| m.family.starts_with("learned") && !m.setting.ends_with("f16"))
+            .filter(|m| m.kept && m.family.starts_with("learned") && !m.setting.ends_with("f16"))
             .collect(),
     };
     models

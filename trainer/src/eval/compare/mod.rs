@@ -46,7 +46,7 @@ pub mod lineup;
 pub mod page;
 
 use conditions::{Condition, MatrixSpan, RunTimeChange};
-use lineup::{Budgets, Entry, LearnedModel, ReducedSubspace, SubspaceMap, Trained};
+use lineup::{model_files, Budgets, Entry, LearnedModel, ReducedSubspace, SubspaceMap, Trained, CANDIDATE};
 
 /// The time-converged reference stops halving the step once the positions move by less than
 /// this fraction of the rest diagonal (mean over vertices, largest over frames).
@@ -55,8 +55,8 @@ pub const CONVERGED_CHANGE: f64 = 1e-3;
 /// Options of `mochi compare`.
 #[derive(Clone, Debug)]
 pub struct CompareOptions {
-    /// The learned model (`SCENE.mochi`; its supervised twin beside it is added), whose scene
-    /// is the one compared. Without it, the scene named on the command line.
+    /// The learned model (`SCENE.mochi`; its supervised twin beside it and the selection's
+    /// other candidates in `candidates/` beside it are added), whose scene is the one compared. Without it, the scene named on the command line.
     pub model: Option<PathBuf>,
     /// The scene's `.reduced` file, when there is one.
     pub reduced: Option<PathBuf>,
@@ -172,17 +172,10 @@ pub fn compare(scene: &str, options: &CompareOptions, report: &dyn Reporter) -> 
 
 fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Reporter) -> TrainerResult<Comparison> {
     // The learned models, each storage; their scene is the one compared.
-    let mut bytes = Vec::new();
-    if let Some(path) = &options.model {
-        bytes.push(("learned (runtime)", fs::read(path)?, path.clone()));
-        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        if let Some(stem) = name.strip_suffix(".mochi") {
-            let twin = path.with_file_name(format!("{stem}.supervised.mochi"));
-            if twin.is_file() {
-                bytes.push(("supervised (runtime)", fs::read(&twin)?, twin));
-            }
-        }
-    }
+    let bytes = match &options.model {
+        Some(path) => model_files(path)?,
+        None => Vec::new(),
+    };
     let recipe = match &options.model {
         Some(path) => {
             let artifact = Artifact::read(path)?;
@@ -215,9 +208,19 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
     let mut learned = Vec::new();
     for (i, f, q) in &quantized {
         let base = &bases[*i];
+        let (family, path) = (bytes[*i].0, &bytes[*i].2);
+        let name = match family {
+            CANDIDATE => format!(", {}", path.file_stem().and_then(|n| n.to_str()).unwrap_or("?")),
+            _ => String::new(),
+        };
         learned.push(LearnedModel {
-            family: bytes[*i].0,
-            setting: format!("k={}, {}", base.latent, format_name(*f)),
+            family: if family == CANDIDATE {
+                "learned (runtime)"
+            } else {
+                family
+            },
+            kept: family != CANDIDATE,
+            setting: format!("k={}, {}{name}", base.latent, format_name(*f)),
             model: ValidModel::new(q.model(base)).map_err(|e| TrainerError::invalid(format!("{e:?}")))?,
         });
     }
