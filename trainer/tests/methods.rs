@@ -147,6 +147,9 @@ fn compare_runs_every_family_and_replays_a_peer() {
     };
     let first = compare("tiny", &base, &Quiet).unwrap();
     assert!(cases.join("test-02.npz").is_file());
+    // A family that cannot run says why instead of leaving the chart.
+    let reduced = first.unavailable.iter().find(|c| c.method == "reduced").unwrap();
+    assert!(reduced.text.contains("no `[reduced]` table"), "{}", reduced.text);
     // A "peer" that recorded the implicit-Euler reference itself: error 0, its own times.
     let problem = tiny().build().unwrap();
     let full = first

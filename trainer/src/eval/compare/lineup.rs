@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use mochi_runtime::ValidModel;
 use mochi_sim::energy::StencilEnergy;
+use mochi_sim::scene::ObstacleMesh;
 use mochi_sim::{AdaptiveSettings, BuiltScene, Scene, SolverSpec, VbdSettings};
 
 use super::conditions::RunTimeChange;
@@ -16,6 +17,7 @@ use crate::error::{fs, TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 use crate::learn::network::ExportedMlp;
 use crate::learn::pca::Pca;
+use crate::learn::recipe::{Recipe, RodEncoding};
 use crate::methods::learned::LearnedRuntime;
 use crate::methods::method::Method;
 use crate::methods::peer::PeerRecording;
@@ -122,6 +124,42 @@ pub struct Trained<'a> {
     pub paper_settings: Option<StepperSettings>,
     /// Directory of peers' recordings (`DIR/CASE/*.npz`).
     pub peers: Option<PathBuf>,
+    /// Why there is no learned model, when there is none ([`absent_learned`]).
+    pub learned_absent: Option<String>,
+    /// Why there are no reduced subspaces, when there are none ([`absent_reduced`]).
+    pub reduced_absent: Option<String>,
+}
+
+/// Why the learned runtime cannot be compared on `recipe`'s scene when no model is given.
+pub fn absent_learned(recipe: &Recipe) -> String {
+    if moving_obstacles(recipe) {
+        "takes no obstacle inputs: a trained model follows the handles, the scene's obstacle moves on its own \
+         keyframes"
+            .into()
+    } else {
+        "no model given (`--model`; `mochi train SCENE` makes one)".into()
+    }
+}
+
+/// Why the reduced solver cannot be compared on `recipe`'s scene when no subspaces are given.
+pub fn absent_reduced(recipe: &Recipe) -> String {
+    if recipe.scene.contact.is_some() {
+        "no contact barrier among the energies it reduces (the scene has IPC contact)".into()
+    } else if recipe.latent.rods == RodEncoding::Bends {
+        "the scene's subspace encodes strands by their bends (`latent.rods`); the reduced solver steps positions".into()
+    } else if recipe.reduced.is_none() {
+        "the scene has no `[reduced]` table (`mochi train` trains the subspaces of scenes with one)".into()
+    } else {
+        "no subspaces given (`--reduced`; `mochi train SCENE` writes `SCENE.reduced`)".into()
+    }
+}
+
+fn moving_obstacles(recipe: &Recipe) -> bool {
+    recipe.scene.contact.as_ref().is_some_and(|c| {
+        c.obstacles.iter().any(|o| match o {
+            ObstacleMesh::Box { keyframes, .. } | ObstacleMesh::File { keyframes, .. } => !keyframes.is_empty(),
+        })
+    })
 }
 
 /// A method, or why the family cannot take the condition.
@@ -239,7 +277,7 @@ fn entry<'a>(family: &str, method: TrainerResult<Simulated>) -> Entry<'a> {
 /// the scene's solver and, for the exact energies, with the paper's.
 pub fn reduced<'a>(trained: &'a Trained<'a>, problem: &'a BuiltScene, change: RunTimeChange) -> Vec<Entry<'a>> {
     let Some(encoding) = &trained.encoding else {
-        return Vec::new();
+        return absent("reduced", &trained.reduced_absent);
     };
     let mut out = Vec::new();
     for s in &trained.reduced {
@@ -278,6 +316,9 @@ pub fn reduced<'a>(trained: &'a Trained<'a>, problem: &'a BuiltScene, change: Ru
 /// The learned models in the runtime, unless the condition changes what they were trained
 /// for.
 pub fn learned<'a>(trained: &'a Trained<'a>, change: RunTimeChange, budgets: Budgets) -> Vec<Entry<'a>> {
+    if trained.learned.is_empty() {
+        return absent("learned (runtime)", &trained.learned_absent);
+    }
     let models: Vec<&LearnedModel> = match budgets {
         Budgets::Sweep => trained.learned.iter().collect(),
         // The f32 and the int8 storage of the kept model.
@@ -334,6 +375,17 @@ pub fn peers<'a>(trained: &Trained, case: &str, vertices: usize, dim: usize) -> 
                 family: "XPBD (pypbd)".into(),
                 reason: format!("{}: {e}", display(p)),
             },
+        })
+        .collect()
+}
+
+/// A family that is not there, and why (nothing when no reason is given).
+fn absent<'a>(family: &str, reason: &Option<String>) -> Vec<Entry<'a>> {
+    reason
+        .iter()
+        .map(|r| Entry::Cannot {
+            family: family.into(),
+            reason: r.clone(),
         })
         .collect()
 }
