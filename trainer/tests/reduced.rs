@@ -2,9 +2,18 @@
 //! writes both subspaces and their cubature, `mochi eval` steps them on the test sequences
 //! (every step converged, projections measured), and `mochi bench reduced` times them.
 
+use mochi_sim::energy::StencilEnergy;
+use mochi_sim::measure::mean_and_max_error;
+use mochi_sim::SpeedPlan;
 use mochi_trainer::artifact::reduced::{reduced_path, ReducedArtifact};
+use mochi_trainer::eval::reduced::{step_sequence, stepper_settings};
 use mochi_trainer::eval::reduced_bench::{self, ReducedBenchOptions};
+use mochi_trainer::learn::encoding::Encoding;
+use mochi_trainer::learn::recipe::RodEncoding;
+use mochi_trainer::methods::reduced::optimize::Exit;
 use mochi_trainer::methods::reduced::rounding::Rounding;
+use mochi_trainer::methods::reduced::stepper::ReducedStepper;
+use mochi_trainer::methods::reduced::subspace::DecoderSubspace;
 use mochi_trainer::{artifact_paths, evaluate, train_scene, EvalOptions, Quiet, Recipe, TrainOptions};
 
 /// The tiny cantilever of the latent tests, asking for the reduced method with a short
@@ -44,6 +53,49 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     assert!(!reduced.cubature.is_empty() && reduced.lambda > 0.0);
     let file = reduced_path(&out, "tiny");
     assert_eq!(ReducedArtifact::load(&file).unwrap(), reduced);
+
+    // The evaluation's rollout (through the methods' one measuring loop) is the stepper's own
+    // loop: the same states, hence the same errors, bit for bit, and the same exits.
+    let mut problem = recipe.build().unwrap();
+    let bc = problem.sequence(&SpeedPlan::constant(1.0), 30, 5);
+    let reference = problem.run(&bc, &mochi_sim::Silent).unwrap();
+    let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
+    let settings = stepper_settings(&recipe.reduced.clone().unwrap(), problem.scene.integrator);
+    let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+    let mut visited = Vec::new();
+    let metrics = step_sequence(
+        &reduced.lipschitz,
+        &problem,
+        &encoding,
+        &settings,
+        &potentials,
+        &bc,
+        Some(&reference),
+        30,
+        &mut visited,
+    )
+    .unwrap();
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let targets = |t: usize| bc.targets(&problem.handles, t, dim);
+    let decoder = reduced.lipschitz.decoder().unwrap();
+    let subspace = DecoderSubspace::new(&decoder, &encoding, &targets(0)).unwrap();
+    let masses = problem.simulator.masses().to_vec();
+    let mut stepper =
+        ReducedStepper::new(subspace, encoding.clone(), masses, diagonal, problem.scene.dt, settings).unwrap();
+    stepper.reset(&reduced.lipschitz.initial_latent, &targets(0)).unwrap();
+    let mut iterations = 0;
+    for t in 1..=30 {
+        let step = stepper.step(&potentials, &targets(t)).unwrap();
+        assert_eq!(step.exit, Exit::Converged);
+        iterations += step.iterations;
+        let (mean, _) = mean_and_max_error(stepper.positions(), &reference.positions[t], dim, diagonal);
+        assert_eq!(metrics.error_curve[t - 1], mean, "frame {t}");
+    }
+    assert_eq!(metrics.stable_frames, 30);
+    assert_eq!(metrics.iterations, iterations as f64 / 30.0);
+    assert_eq!(metrics.exits.count(Exit::Converged), 30);
+    assert_eq!(visited.len(), 3, "every tenth frame's latent");
+    assert!(!metrics.convergence.is_empty(), "the tenth step's objective history");
 
     // Evaluation adds the four reduced runs; every step converges, the exact-energy runs
     // project the reference, and the report has the section and the projection check.

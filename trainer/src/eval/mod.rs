@@ -142,15 +142,8 @@ pub fn evaluate(
         )));
     }
     let (mut problem, encoding) = rebuild_problem(first)?;
-    let data_dir = paths[0].parent().unwrap_or(Path::new(".")).join("dataset");
-    dataset::generate(
-        &mut problem,
-        &data_dir,
-        Some(Split::Test),
-        false,
-        &report.frames("dataset"),
-    )?;
-    let tests = dataset::load(&problem, &data_dir, Split::Test)?;
+    let tests = rollout::test_split(&mut problem, &paths[0], report)?;
+    let data_dir = rollout::dataset_dir(&paths[0]);
     // The rollouts' boundary conditions come from the scene's plan, each sequence's errors
     // from its stored frames: the two must be the same motion.
     let plans: Vec<BcSequence> = tests

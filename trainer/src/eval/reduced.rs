@@ -15,7 +15,6 @@ use mochi_sim::bc::BcSequence;
 use mochi_sim::cubature::CubatureEnergy;
 use mochi_sim::dataset::SequencePlan;
 use mochi_sim::measure::mean_and_max_error;
-use mochi_sim::scene::Start;
 use mochi_sim::trajectory::Trajectory;
 use mochi_sim::{BuiltScene, StencilEnergy, TimeScheme};
 
@@ -24,16 +23,17 @@ use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
 use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{ReducedSpec, SolverChoice, SolverPrecision};
-use crate::methods::clock::Stopwatch;
 use crate::methods::lipschitz::cubature::cubature_energies;
 use crate::methods::lipschitz::cubature::{elastic_terms, ELASTIC_TERMS};
 use crate::methods::lipschitz::loss::{lipschitz_estimate, LatentSample, LipschitzTerm};
+use crate::methods::method::run_sequence;
+use crate::methods::reduced::method::ReducedMethod;
 use crate::methods::reduced::optimize::{Exit, ExitCounts, SolveSettings};
 use crate::methods::reduced::paper::paper_settings;
 use crate::methods::reduced::projection::project;
 use crate::methods::reduced::rounding::Rounding;
 use crate::methods::reduced::stepper::scene_objective_scale;
-use crate::methods::reduced::stepper::{ReducedSolver, ReducedStepper, StepperSettings};
+use crate::methods::reduced::stepper::{ReducedSolver, StepperSettings};
 use crate::methods::reduced::subspace::DecoderSubspace;
 use crate::progress::Reporter;
 use crate::report::chart::{self, Series};
@@ -314,76 +314,40 @@ pub fn step_sequence(
     frames: usize,
     visited: &mut Vec<LatentSample>,
 ) -> TrainerResult<ReducedMetrics> {
-    let dim = problem.mesh.dim;
-    let diagonal = problem.mesh.rest_diagonal();
-    let targets0 = bc.targets(&problem.handles, 0, dim);
-    let subspace = DecoderSubspace::new(&data.decoder()?, encoding, &targets0)?;
-    let masses = problem.simulator.masses().to_vec();
-    let mut stepper = ReducedStepper::new(
-        subspace,
-        encoding.clone(),
-        masses,
-        diagonal,
-        problem.scene.dt,
+    let decoder = data.decoder()?;
+    let mut method = ReducedMethod::new(
+        String::new(),
+        String::new(),
+        problem,
+        &decoder,
+        &data.initial_latent,
+        encoding,
+        potentials.to_vec(),
         settings.clone(),
-    )?;
-    stepper.reset(&data.initial_latent, &targets0)?;
-    if problem.scene.start == Start::Static {
-        stepper.settle(potentials, &targets0)?;
-    }
-    let frames = frames.min(bc.frames());
-    let measured = reference.map_or(0, |r| frames.min(r.num_frames().saturating_sub(1)));
-    let mut m = ReducedMetrics {
-        stable_frames: frames,
+        problem.scene.dt,
+    );
+    let references: Vec<&[Vec<f64>]> = reference.map(|r| &r.positions[..]).into_iter().collect();
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let run = run_sequence(&mut method, bc, frames, &references, dim, diagonal, None)?;
+    let log = method.log();
+    let done = run.stable_frames.max(1) as f64;
+    visited.extend(log.visited.iter().cloned());
+    Ok(ReducedMetrics {
+        mean_error: match reference {
+            Some(_) => run.mean_error(0),
+            None => 0.0,
+        },
+        max_error: run.max_errors.first().copied().unwrap_or(0.0),
+        error_curve: run.error_curves.first().cloned().unwrap_or_default(),
+        step_seconds: run.seconds,
+        iterations: run.iterations,
+        evaluations: log.evaluations as f64 / done,
+        exits: log.exits,
+        exit_gradient: log.exit_gradients / done,
+        stable_frames: run.stable_frames,
+        convergence: log.convergence.clone(),
         ..Default::default()
-    };
-    let mut seconds = 0.0;
-    let mut iterations = 0usize;
-    let mut evaluations = 0usize;
-    let mut exit_gradients = 0.0;
-    for t in 1..=frames {
-        let targets = bc.targets(&problem.handles, t, dim);
-        let clock = Stopwatch::start();
-        let step = if t == 10 {
-            stepper.step_recorded(potentials, &targets)
-        } else {
-            stepper.step(potentials, &targets)
-        };
-        seconds += clock.seconds();
-        let Ok(result) = step else {
-            m.stable_frames = t - 1;
-            break;
-        };
-        iterations += result.iterations;
-        evaluations += result.evaluations;
-        exit_gradients += result.gradient_norm;
-        m.exits.add(&result);
-        if t == 10 {
-            m.convergence = result.history.clone();
-        }
-        if t % 10 == 0 {
-            visited.push(LatentSample {
-                z: stepper.latent().to_vec(),
-                targets: targets.clone(),
-            });
-        }
-        if let Some(reference) = reference.filter(|_| t <= measured) {
-            let (mean, max) = mean_and_max_error(stepper.positions(), &reference.positions[t], dim, diagonal);
-            m.error_curve.push(mean);
-            m.max_error = m.max_error.max(max);
-        }
-    }
-    let done = m.stable_frames.max(1) as f64;
-    m.step_seconds = seconds / done;
-    m.iterations = iterations as f64 / done;
-    m.evaluations = evaluations as f64 / done;
-    m.exit_gradient = exit_gradients / done;
-    m.mean_error = if m.error_curve.len() < measured {
-        f64::INFINITY
-    } else {
-        m.error_curve.iter().sum::<f64>() / measured.max(1) as f64
-    };
-    Ok(m)
+    })
 }
 
 /// `convergence.png`: the objective above its final value against the iteration, for the

@@ -135,16 +135,9 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
     if options.rounding == Rounding::Single {
         settings.solve.rounding = Rounding::Single;
     }
-    let data_dir = path.parent().unwrap_or(Path::new(".")).join("dataset");
+    let data_dir = super::rollout::dataset_dir(path);
     let references = if data_dir.is_dir() && stride == 1 {
-        dataset::generate(
-            &mut problem,
-            &data_dir,
-            Some(Split::Test),
-            false,
-            &report.frames("dataset"),
-        )?;
-        Some(dataset::load(&problem, &data_dir, Split::Test)?)
+        Some(super::rollout::test_split(&mut problem, path, report)?)
     } else {
         None
     };

@@ -5,6 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use mochi_sim::bc::BcSequence;
+use mochi_sim::dataset::{self, SequencePlan, Split};
 use mochi_sim::measure::{kinetic_energy, mean_and_max_error};
 use mochi_sim::trajectory::Trajectory;
 use mochi_sim::BuiltScene;
@@ -14,6 +15,7 @@ use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::{decode_world, pack_signals, Encoding};
 use crate::learn::network::{ExportedIntegrator, FrozenDecoder};
 use crate::learn::recipe::{Recipe, RodEncoding};
+use crate::progress::Reporter;
 
 /// Frames over which accuracy is measured (from the start of each test sequence).
 pub const ACCURACY_FRAMES: usize = 1000;
@@ -50,6 +52,23 @@ pub fn rebuild_problem(artifact: &Artifact) -> TrainerResult<(BuiltScene, Encodi
     let problem = recipe.build()?;
     let encoding = carried_encoding(artifact, &problem)?;
     Ok((problem, encoding))
+}
+
+/// The scene's test split in the `dataset` folder beside `file` (a model or a `.reduced`
+/// file, as `mochi train` lays them out), simulated first where it is missing.
+pub fn test_split(
+    problem: &mut BuiltScene,
+    file: &Path,
+    report: &dyn Reporter,
+) -> TrainerResult<Vec<(SequencePlan, Trajectory)>> {
+    let data_dir = dataset_dir(file);
+    dataset::generate(problem, &data_dir, Some(Split::Test), false, &report.frames("dataset"))?;
+    Ok(dataset::load(problem, &data_dir, Split::Test)?)
+}
+
+/// The `dataset` folder beside `file`.
+pub fn dataset_dir(file: &Path) -> std::path::PathBuf {
+    file.parent().unwrap_or(Path::new(".")).join("dataset")
 }
 
 /// The encoding `artifact` carries, built for `problem` (its scene): strand bends when it

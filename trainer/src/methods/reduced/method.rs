@@ -1,18 +1,41 @@
 //! The reduced solver as a [`Method`]: a [`ReducedStepper`] in one decoder's subspace,
 //! rebuilt at every reset (the scene's start, settled when the scene starts in static
 //! equilibrium), stepping with the energies it is given (the scene's exact ones, or the
-//! elastic terms through runtime cubature).
+//! elastic terms through runtime cubature). Beyond a step's cost it keeps a [`SolveLog`] of the
+//! sequence: how the solves ended, the convergence of one step, the latents it visited.
 
 use mochi_sim::bc::BcSequence;
 use mochi_sim::energy::StencilEnergy;
 use mochi_sim::scene::Start;
 use mochi_sim::BuiltScene;
 
+use super::optimize::ExitCounts;
 use super::stepper::{ReducedStepper, StepperSettings};
 use super::subspace::{DecoderSubspace, SubspaceDecoder};
 use crate::error::TrainerResult;
 use crate::learn::encoding::Encoding;
+use crate::methods::lipschitz::loss::LatentSample;
 use crate::methods::method::{Method, StepCost};
+
+/// The frame whose solve keeps the objective after every iteration (the convergence chart).
+pub const CONVERGENCE_FRAME: usize = 10;
+/// Every how many frames the latent is kept in [`SolveLog::visited`].
+pub const VISITED_EVERY: usize = 10;
+
+/// What the solves of one sequence did, beyond each step's [`StepCost`].
+#[derive(Clone, Debug, Default)]
+pub struct SolveLog {
+    /// How the solves ended.
+    pub exits: ExitCounts,
+    /// Objective evaluations, line-search trials included, over all steps.
+    pub evaluations: usize,
+    /// Sum over steps of the gradient's infinity norm where each solve stopped.
+    pub exit_gradients: f64,
+    /// The objective after each iteration of frame [`CONVERGENCE_FRAME`]'s solve.
+    pub convergence: Vec<f64>,
+    /// The latent and handle targets of every [`VISITED_EVERY`]-th frame.
+    pub visited: Vec<LatentSample>,
+}
 
 /// One subspace stepped by the reduced solver.
 pub struct ReducedMethod<'a> {
@@ -26,6 +49,7 @@ pub struct ReducedMethod<'a> {
     settings: StepperSettings,
     dt: f64,
     stepper: Option<ReducedStepper>,
+    log: SolveLog,
 }
 
 impl<'a> ReducedMethod<'a> {
@@ -55,7 +79,13 @@ impl<'a> ReducedMethod<'a> {
             settings,
             dt,
             stepper: None,
+            log: SolveLog::default(),
         }
+    }
+
+    /// What the solves since the last reset did.
+    pub fn log(&self) -> &SolveLog {
+        &self.log
     }
 
     /// The stepper of the current sequence (after a reset).
@@ -90,6 +120,7 @@ impl Method for ReducedMethod<'_> {
             stepper.settle(&self.potentials, &targets0)?;
         }
         self.stepper = Some(stepper);
+        self.log = SolveLog::default();
         Ok(())
     }
 
@@ -99,7 +130,24 @@ impl Method for ReducedMethod<'_> {
             .stepper
             .as_mut()
             .ok_or_else(|| crate::error::TrainerError::invalid("reduced solver: stepped before a reset"))?;
-        let report = stepper.step(&self.potentials, &targets)?;
+        let report = if frame == CONVERGENCE_FRAME {
+            stepper.step_recorded(&self.potentials, &targets)?
+        } else {
+            stepper.step(&self.potentials, &targets)?
+        };
+        let log = &mut self.log;
+        log.exits.add(&report);
+        log.evaluations += report.evaluations;
+        log.exit_gradients += report.gradient_norm;
+        if frame == CONVERGENCE_FRAME {
+            log.convergence.clone_from(&report.history);
+        }
+        if frame % VISITED_EVERY == 0 {
+            log.visited.push(LatentSample {
+                z: stepper.latent().to_vec(),
+                targets,
+            });
+        }
         Ok(StepCost::iterated(f64::NAN, report.iterations as f64))
     }
 
