@@ -8,11 +8,12 @@
 use std::path::Path;
 
 use mochi_codegen::{format_name, Options, Quantized};
-use mochi_runtime::{AnyInstance, OwnedModel, ValidModel, WeightFormat};
+use mochi_runtime::{OwnedModel, ValidModel, WeightFormat};
 
 use crate::error::{Context, TrainerResult as Result};
-use crate::eval::rollout::motions;
 use crate::eval::rollout::OFF_REFERENCE;
+use crate::methods::learned::LearnedRuntime;
+use crate::methods::method::run_sequence;
 use crate::report::chart::{self, LabelledPoint};
 use mochi_sim::dataset::SequencePlan;
 use mochi_sim::measure::{mean_and_max_error, vertex_errors};
@@ -114,7 +115,7 @@ pub fn evaluate(
         .load(bytes)
         .with_context(|| format!("{}: runtime refused the artifact", source.display()))?
         .model();
-    let mut f32_positions: Vec<Vec<Vec<f32>>> = Vec::new();
+    let mut f32_positions: Vec<Vec<Vec<f64>>> = Vec::new();
     let mut reports = Vec::new();
     for storage in storages() {
         let options = storage.options;
@@ -140,9 +141,22 @@ pub fn evaluate(
         for (s, (plan, reference)) in tests.iter().enumerate() {
             let measured = frames.min(reference.num_frames() - 1);
             let bc = problem.sequence(&plan.speeds, measured, plan.seed);
-            let rolled = roll(&model, |t| motions(&bc, t), measured)?;
             let diagonal = base.diagonal as f64;
             let dim = base.dim();
+            // Frames `1..` up to the first step or decode the runtime refused or a blow-up (a
+            // rollout that only drifted off the reference rolls on).
+            let mut runtime = LearnedRuntime::new(&model, "learned (runtime)", storage_name(&storage))?;
+            let mut rolled = Vec::new();
+            run_sequence(
+                &mut runtime,
+                &bc,
+                measured,
+                &[],
+                dim,
+                diagonal,
+                Some((&mut rolled, measured + 1)),
+            )?;
+            rolled.remove(0);
             let (mut mean_sum, mut stable) = (0.0, rolled.len());
             for (t, x) in rolled.iter().enumerate() {
                 let (mean, worst) = mean_and_max_error(x, &reference.positions[t + 1], dim, diagonal);
@@ -152,8 +166,7 @@ pub fn evaluate(
                 mean_sum += mean;
                 report.max_error = report.max_error.max(worst);
                 if let Some(ours) = f32_positions.get(s).and_then(|p| p.get(t)) {
-                    let ours: Vec<f64> = ours.iter().map(|&v| v as f64).collect();
-                    report.max_deviation = vertex_errors(x, &ours, dim, diagonal).fold(report.max_deviation, f64::max);
+                    report.max_deviation = vertex_errors(x, ours, dim, diagonal).fold(report.max_deviation, f64::max);
                 }
             }
             report.stable_frames = report.stable_frames.min(stable);
@@ -170,26 +183,6 @@ pub fn evaluate(
         reports.push(report);
     }
     Ok(reports)
-}
-
-/// Positions of frames `1..=frames` of the runtime's rollout with `motion(t)` (one motion per
-/// handle), up to the first refused step or decode.
-fn roll(
-    model: &ValidModel,
-    motion: impl Fn(usize) -> Vec<mochi_runtime::HandleMotion>,
-    frames: usize,
-) -> Result<Vec<Vec<f32>>> {
-    let m = model.model();
-    let mut body = AnyInstance::new(model)?;
-    let mut x = vec![0.0f32; m.state_len()];
-    let mut out = Vec::with_capacity(frames);
-    for t in 1..=frames {
-        if body.step(model, &motion(t)).is_err() || body.decode_into(model, &mut x).is_err() {
-            break;
-        }
-        out.push(x.clone());
-    }
-    Ok(out)
 }
 
 /// Writes `storage.png`: mean error against model size, one point per format.
