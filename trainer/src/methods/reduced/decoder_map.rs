@@ -32,7 +32,7 @@ impl<'a> From<&'a Pca> for SubspaceDecoder<'a> {
 /// The decoder in `f64` with the buffers its derivatives need.
 #[derive(Clone)]
 pub(super) enum DecoderMap {
-    Network { mlp: Mlp64, workspace: Mlp64Workspace },
+    Network { mlp: Mlp64, workspace: Box<Mlp64Workspace> },
     Linear(LinearMap),
 }
 
@@ -49,7 +49,7 @@ impl DecoderMap {
         match decoder {
             SubspaceDecoder::Network(exported) => {
                 let mlp = Mlp64::new(exported);
-                let workspace = Mlp64Workspace::new(&mlp);
+                let workspace = Box::new(Mlp64Workspace::new(&mlp));
                 DecoderMap::Network { mlp, workspace }
             }
             SubspaceDecoder::Linear(pca) => {

@@ -142,7 +142,7 @@ impl Method for ReducedMethod<'_> {
         if frame == CONVERGENCE_FRAME {
             log.convergence.clone_from(&report.history);
         }
-        if frame % VISITED_EVERY == 0 {
+        if frame.is_multiple_of(VISITED_EVERY) {
             log.visited.push(LatentSample {
                 z: stepper.latent().to_vec(),
                 targets,
