@@ -240,3 +240,20 @@ fn unused_mesh_attributes_are_a_warning_on_stderr() {
         "{err}"
     );
 }
+
+#[test]
+fn a_narrowed_selection_that_cannot_be_read_is_refused_before_training() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    for (flag, value, says) in [
+        ("--decoder", "resnet", "expected `linear`, `mlp` or `basis=W`"),
+        ("--decoder", "basis=0", "basis=W"),
+        ("--integrator-width", "0", "--integrator-width must be at least 1"),
+    ] {
+        let o = mochi(&["train", "beam", "--out", out.to_str().unwrap(), flag, value]);
+        assert!(!o.status.success());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(says), "{flag} {value}: {err}");
+        assert!(!out.exists(), "nothing written before the refusal");
+    }
+}

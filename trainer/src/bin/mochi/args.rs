@@ -80,6 +80,14 @@ pub(crate) enum Command {
         /// Train only this latent size instead of choosing among the scene's candidates.
         #[arg(long)]
         latent: Option<usize>,
+        /// Train only this decoder family instead of the scene's `latent.selection.decoders`:
+        /// `linear`, `mlp` or `basis=W` (no distilled decoders are added).
+        #[arg(long)]
+        decoder: Option<String>,
+        /// Train only integrators of this width instead of the scene's
+        /// `latent.selection.integrator_widths`.
+        #[arg(long)]
+        integrator_width: Option<usize>,
     },
     /// Evaluate trained models on the held-out test sequences (with their supervised baselines).
     Eval {

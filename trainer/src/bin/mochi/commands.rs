@@ -6,6 +6,7 @@ use mochi_sim::dataset::{self, SpeedPlan, Split};
 use mochi_sim::{Progress, Scene};
 use mochi_trainer::eval;
 use mochi_trainer::eval::reduced_bench::ReducedBenchOptions;
+use mochi_trainer::learn::recipe::DecoderCandidate;
 use mochi_trainer::report::render;
 use mochi_trainer::{artifact_paths, shipped_scene_names, FramesBar, Recipe};
 use std::path::{Path, PathBuf};
@@ -126,12 +127,43 @@ pub(crate) fn make_dataset(name: &str, out: Option<PathBuf>) -> Result<()> {
     Ok(())
 }
 
-pub(crate) fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, latent_size: Option<usize>) -> Result<()> {
-    let recipe = Recipe::load(name)?;
-    let scene = &recipe.scene;
+/// `--decoder`: `linear`, `mlp` or `basis=W`.
+fn decoder_candidate(text: &str) -> Result<DecoderCandidate> {
+    Ok(match text {
+        "linear" => DecoderCandidate::Linear,
+        "mlp" => DecoderCandidate::Mlp,
+        _ => match text.strip_prefix("basis=").map(str::parse::<usize>) {
+            Some(Ok(width)) if width > 0 => DecoderCandidate::Basis(width),
+            _ => bail!("--decoder {text}: expected `linear`, `mlp` or `basis=W` (W at least 1)"),
+        },
+    })
+}
+
+pub(crate) fn train_scene(
+    name: &str,
+    out: Option<PathBuf>,
+    resume: bool,
+    latent_size: Option<usize>,
+    decoder: Option<&str>,
+    integrator_width: Option<usize>,
+) -> Result<()> {
+    let mut recipe = Recipe::load(name)?;
     if latent_size == Some(0) {
         bail!("--latent must be at least 1");
     }
+    // A narrowed selection is written into the artifacts' scene, so they say what was trained.
+    let selection = &mut recipe.latent.selection;
+    if let Some(text) = decoder {
+        selection.decoders = vec![decoder_candidate(text)?];
+        selection.distill.modes.clear();
+    }
+    if let Some(width) = integrator_width {
+        if width == 0 {
+            bail!("--integrator-width must be at least 1");
+        }
+        selection.integrator_widths = vec![width];
+    }
+    let scene = &recipe.scene;
     print_warnings(&scene.region_warnings(&scene.build_mesh()?));
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(&scene.name));
     let options = mochi_trainer::TrainOptions {

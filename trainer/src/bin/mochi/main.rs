@@ -63,7 +63,9 @@ fn run(cli: Cli) -> Result<()> {
             out,
             resume,
             latent,
-        } => train_scene(&scene, out, resume, latent),
+            decoder,
+            integrator_width,
+        } => train_scene(&scene, out, resume, latent, decoder.as_deref(), integrator_width),
         Command::Eval {
             artifacts,
             out,
