@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use mochi_runtime::ValidModel;
 use mochi_sim::energy::StencilEnergy;
 use mochi_sim::scene::ObstacleMesh;
-use mochi_sim::{AdaptiveSettings, BuiltScene, Scene, SolverSpec, VbdSettings};
+use mochi_sim::{AdaptiveSettings, BuiltScene, Scene, SolverSpec, TimeScheme, VbdSettings};
 
 use super::conditions::RunTimeChange;
 use crate::error::{fs, TrainerError, TrainerResult};
@@ -128,6 +128,17 @@ pub struct Trained<'a> {
     pub learned_absent: Option<String>,
     /// Why there are no reduced subspaces, when there are none ([`absent_reduced`]).
     pub reduced_absent: Option<String>,
+    /// Why there are no peers' recordings, when there are none ([`absent_peers`]).
+    pub peers_absent: Option<String>,
+}
+
+/// Why XPBD cannot be compared on `recipe`'s scene when no recordings are given.
+pub fn absent_peers(recipe: &Recipe) -> String {
+    if recipe.scene.integrator == TimeScheme::QuasiStatic {
+        "steps dynamics only; the scene is quasi-static".into()
+    } else {
+        "no recordings given (`--peers`; `scripts/compare.sh` runs pypbd)".into()
+    }
 }
 
 /// Why the learned runtime cannot be compared on `recipe`'s scene when no model is given.
@@ -353,7 +364,7 @@ pub fn learned<'a>(trained: &'a Trained<'a>, change: RunTimeChange, budgets: Bud
 /// The peers' recordings of case `case` (`DIR/CASE/*.npz`), in file-name order.
 pub fn peers<'a>(trained: &Trained, case: &str, vertices: usize, dim: usize) -> Vec<Entry<'a>> {
     let Some(dir) = &trained.peers else {
-        return Vec::new();
+        return absent("XPBD (pypbd)", &trained.peers_absent);
     };
     let dir = dir.join(case);
     let Ok(read) = std::fs::read_dir(&dir) else {

@@ -282,6 +282,7 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
         peers: options.peers.clone(),
         learned_absent: bytes.is_empty().then(|| lineup::absent_learned(&recipe)),
         reduced_absent: reduced_file.is_none().then(|| lineup::absent_reduced(&recipe)),
+        peers_absent: options.peers.is_none().then(|| lineup::absent_peers(&recipe)),
     };
     let mut comparison = chart(&problem, &trained, options, report)?;
     if let Some(span) = options.matrix {
