@@ -26,9 +26,10 @@ use crate::methods::reduced::stepper::StepperSettings;
 use crate::methods::reduced::subspace::SubspaceDecoder;
 use crate::methods::simulated::Simulated;
 
-/// Family of the selection's other candidates while they are read in (they chart as budgets
-/// of the learned runtime, model size and shape among them).
+/// Family of the selection's other candidates while they are read in.
 pub const CANDIDATE: &str = "candidate";
+/// The family the selection's other candidates chart as (each a budget: model size and shape).
+pub const CANDIDATES_FAMILY: &str = "learned (runtime), other candidates";
 
 /// The learned models of `model`: the model (`SCENE.mochi`, "learned (runtime)"), its
 /// supervised twin beside it (`SCENE.supervised.mochi`) and the selection's other candidates
@@ -295,7 +296,7 @@ pub fn reduced<'a>(trained: &'a Trained<'a>, problem: &'a BuiltScene, change: Ru
         let family = format!("reduced, {}", s.name);
         if s.energies.is_some() && matches!(change, RunTimeChange::Stiffness(_)) {
             out.push(Entry::Cannot {
-                family,
+                family: format!("{family} r={}", s.initial_latent.len()),
                 reason: "needs refitting (cubature of the trained material)".into(),
             });
             continue;

@@ -46,7 +46,9 @@ pub mod lineup;
 pub mod page;
 
 use conditions::{Condition, MatrixSpan, RunTimeChange};
-use lineup::{model_files, Budgets, Entry, LearnedModel, ReducedSubspace, SubspaceMap, Trained, CANDIDATE};
+use lineup::{
+    model_files, Budgets, Entry, LearnedModel, ReducedSubspace, SubspaceMap, Trained, CANDIDATE, CANDIDATES_FAMILY,
+};
 
 /// The time-converged reference stops halving the step once the positions move by less than
 /// this fraction of the rest diagonal (mean over vertices, largest over frames).
@@ -214,11 +216,7 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
             _ => String::new(),
         };
         learned.push(LearnedModel {
-            family: if family == CANDIDATE {
-                "learned (runtime)"
-            } else {
-                family
-            },
+            family: if family == CANDIDATE { CANDIDATES_FAMILY } else { family },
             kept: family != CANDIDATE,
             setting: format!("k={}, {}{name}", base.latent, format_name(*f)),
             model: ValidModel::new(q.model(base)).map_err(|e| TrainerError::invalid(format!("{e:?}")))?,

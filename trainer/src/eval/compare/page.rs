@@ -161,7 +161,7 @@ fn summary(c: &Comparison) -> String {
     let Some(learned) = c
         .points
         .iter()
-        .filter(|p| p.family == "learned (runtime)")
+        .filter(|p| p.family == "learned (runtime)" && p.error(0).is_finite())
         .min_by(|a, b| a.seconds().total_cmp(&b.seconds()))
     else {
         return String::new();
