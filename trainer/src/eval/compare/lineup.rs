@@ -13,6 +13,7 @@ use mochi_sim::scene::ObstacleMesh;
 use mochi_sim::{AdaptiveSettings, BuiltScene, Scene, SolverSpec, TimeScheme, VbdSettings};
 
 use super::conditions::RunTimeChange;
+use crate::artifact::Artifact;
 use crate::error::{fs, TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
 use crate::learn::network::ExportedMlp;
@@ -33,8 +34,8 @@ pub const CANDIDATES_FAMILY: &str = "learned (runtime), other candidates";
 
 /// The learned models of `model`: the model (`SCENE.mochi`, "learned (runtime)"), its
 /// supervised twin beside it (`SCENE.supervised.mochi`) and the selection's other candidates
-/// (`candidates/*.mochi` beside it, as `mochi train` writes them; [`CANDIDATE`]), each with its
-/// bytes and path.
+/// (`candidates/*.mochi` beside it, as `mochi train` writes them, but for the kept model's own
+/// networks; [`CANDIDATE`]), each with its bytes and path.
 pub fn model_files(model: &Path) -> TrainerResult<Vec<(&'static str, Vec<u8>, PathBuf)>> {
     let kept = fs::read(model)?;
     let mut files = Vec::new();
@@ -56,9 +57,15 @@ pub fn model_files(model: &Path) -> TrainerResult<Vec<(&'static str, Vec<u8>, Pa
         }
     }
     candidates.sort();
+    let networks = |bytes: &[u8], path: &Path| -> TrainerResult<_> {
+        let a = Artifact::from_bytes(bytes, path)?;
+        Ok((a.latent, a.decoder, a.decoder_basis, a.pca_basis, a.integrator))
+    };
+    let kept_networks = networks(&kept, model)?;
     for path in candidates {
         let bytes = fs::read(&path)?;
-        if bytes != kept {
+        // The kept model is also among the candidates, with another summary.
+        if networks(&bytes, &path)? != kept_networks {
             files.push((CANDIDATE, bytes, path));
         }
     }
