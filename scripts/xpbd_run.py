@@ -1,8 +1,8 @@
 """XPBD peer: Bender's PositionBasedDynamics (PyPI `pypbd`) driven on a case `.npz` written by
 `mochi compare SCENE --cases DIR` (rest shape, cells, lumped masses, handles and their targets,
 material, the scene's implicit-Euler reference, and a contact scene's obstacle boxes with their
-centres at every frame, dhat and friction; layout in trainer/src/eval/compare/case.rs). Run by scripts/xpbd.sh, which makes its virtual environment and
-pins it to one core:
+centres at every frame, dhat and friction; layout in trainer/src/eval/compare/case.rs). Run by
+scripts/xpbd.sh, which makes its virtual environment and pins it to one core:
 
     python xpbd_run.py CASE.npz --substeps S --iterations I --out RESULT.npz
     python xpbd_run.py CASE.npz --sweep OUTDIR [--substeps-list 1,2,4 --iterations-list 1,5]
@@ -61,7 +61,8 @@ collision handling, `DistanceFieldCollisionDetection` (the `CubicSDFCollisionDet
   (pybind11's default policy for a returned reference), so `updateMeshTransformation` on it
   moves nothing: a moving box's mesh therefore spans the box's whole path from the start;
 - contact is the library's particle-rigid body contact: found after each step's position
-  solve, within the collision tolerance (the box's distance field minus the tolerance below 0),
+  solve, within the collision tolerance (where the distance to the box less the tolerance is
+  below 0),
   and solved by `MAX_ITERATIONS_V` velocity iterations (default 5, the library's): the relative
   normal velocity goes to 0 (restitution 0 here: the reference's contacts are inelastic),
   Coulomb friction with the case's coefficient (the library sums the two bodies'
