@@ -1,7 +1,8 @@
 """XPBD peer: Bender's PositionBasedDynamics (PyPI `pypbd`) driven on a case `.npz` written by
 `mochi compare SCENE --cases DIR` (rest shape, cells, lumped masses, handles and their targets,
-material, the scene's implicit-Euler reference; layout in trainer/src/eval/compare/case.rs). Run by scripts/xpbd.sh, which makes its virtual environment and
-pins it to one core:
+material, the scene's implicit-Euler reference, and a contact scene's obstacle boxes with their
+centres at every frame, dhat and friction; layout in trainer/src/eval/compare/case.rs). Run by
+scripts/xpbd.sh, which makes its virtual environment and pins it to one core:
 
     python xpbd_run.py CASE.npz --substeps S --iterations I --out RESULT.npz
     python xpbd_run.py CASE.npz --sweep OUTDIR [--substeps-list 1,2,4 --iterations-list 1,5]
@@ -19,6 +20,8 @@ Result `.npz` (one per setting):
   error_percent (frames+1,) float64       mean vertex distance to `reference`, % of `diagonal`
   constraint                              0-d str: the constraints, their parameters and the scaling
   pypbd_version                           0-d str
+  contact, tolerance                      (cases with obstacles) 0-d str: the contact setup;
+                                          0-d float64: the collision tolerance (m)
 `--sweep` writes `s{S}-i{I}.npz` per setting into OUTDIR and `sweep.md` (one table row per
 setting: mean error % over all frames, final-frame error %, ms per frame: wall mean and median,
 the library's calls, thread CPU; then the Pareto front by CPU time, the cost `mochi compare`
@@ -39,7 +42,37 @@ How the library is driven (its Python API, version in PYPBD_VERSION):
   (`Simulation::GRAVITATION` is a vector parameter without a binding), so a case with another
   gravity is refused;
 - velocities start at zero (a case starts at rest), masses are the case's lumped masses;
-- velocity iterations (`MAX_ITERATIONS_V`) are 0: they only act on contacts, there are none.
+- velocity iterations (`MAX_ITERATIONS_V`) are 0 without obstacles: they only act on contacts.
+
+Obstacles (a case with `obstacle_kinds`; solid cases, axis-aligned boxes): the library's own
+collision handling, `DistanceFieldCollisionDetection` (the `CubicSDFCollisionDetection` that
+`Simulation.initDefault` installs):
+- each box is a rigid body of mass 0 (static: the library neither integrates it nor applies
+  impulses to it) with a box mesh, and `addCollisionBox` gives it the library's analytic box
+  distance field; the tet model is added with `testMesh`, so its vertices are tested against
+  the boxes (`collisionDetectionRBSolid`; only vertices: a box edge pressing into a face between
+  vertices is not seen, unlike IPC's edge-edge and point-face pairs);
+- a moving box (the case's centres change over the frames) is placed before every substep where
+  it is at the substep's end (linear between the frame's centres), with the velocity of that
+  motion: `RigidBody.setPosition` / `setVelocity`, then `updateInverseTransformation` (the
+  world-to-box transform the distance query uses; the library updates it only for bodies with
+  mass). The body's mesh serves only the broad phase (its bounding box); the library never
+  moves the mesh of a body of mass 0, and `RigidBody.getGeometry` returns a copy in the binding
+  (pybind11's default policy for a returned reference), so `updateMeshTransformation` on it
+  moves nothing: a moving box's mesh therefore spans the box's whole path from the start;
+- contact is the library's particle-rigid body contact: found after each step's position
+  solve, within the collision tolerance (where the distance to the box less the tolerance is
+  below 0),
+  and solved by `MAX_ITERATIONS_V` velocity iterations (default 5, the library's): the relative
+  normal velocity goes to 0 (restitution 0 here: the reference's contacts are inelastic),
+  Coulomb friction with the case's coefficient (the library sums the two bodies'
+  coefficients: the tet model gets the case's, the boxes 0), and a penetration below the
+  tolerance surface gets a velocity of stiffness x depth (`setContactStiffnessParticleRigidBody`);
+  positions are never projected, so a penetration is undone only by that velocity over the
+  next substeps, while the tets' own constraints push against it;
+- collision tolerance: the case's dhat (1 mm on stomp) unless `--tolerance`; contact stiffness:
+  the library's default 100 (1/s) or `--contact-stiffness`, or `--contact-stiffness-h C` for
+  C / h (h the substep; C = 1 undoes a penetration in one substep).
 
 Constraints per body kind (all XPBD, i.e. with compliance alpha = 1 / (k h^2), h the substep):
 - solid: the library's XPBD FEM tet constraint (`addSolidConstraints` method 3), Young's modulus
@@ -116,6 +149,12 @@ DIVERGED = 10.0
 # mass_scale; docs/notes/2026-11-28-xpbd-peer.md. Cloth: 0, no bending constraint (see the
 # docstring).
 DEFAULT_BENDING = {"cloth": 0.0, "rod": 10.0}
+# Contact with the case's obstacles (the library's particle-rigid body contacts). tolerance None:
+# the case's dhat. stiffness and velocity_iterations are the library's defaults
+# (SimulationModel's contact stiffness 100, TimeStepController's maxIterationsV 5); restitution
+# 0, the implicit-Euler reference's contacts being inelastic.
+CONTACT_DEFAULTS = {"tolerance": None, "stiffness": 100.0, "stiffness_h": None, "velocity_iterations": 5,
+                    "restitution": 0.0}
 
 
 def scalar(d, key, default=None):
@@ -138,7 +177,37 @@ def load_case(path):
         sys.exit(f"{path}: kind {case['kind']!r}: this peer drives solid, cloth and rod cases only")
     if not np.allclose(case["gravity"], [0.0, -9.81, 0.0]):
         sys.exit(f"{path}: gravity {case['gravity']} is not pypbd's fixed (0, -9.81, 0)")
+    if "obstacle_kinds" in d.files:
+        case["obstacle_kinds"] = [str(k) for k in d["obstacle_kinds"]]
+        for key in ["contact_dhat", "contact_friction", "contact_epsv"]:
+            case[key] = float(scalar(d, key))
+        if case["kind"] != "solid":
+            sys.exit(f"{path}: obstacles on a {case['kind']} case: this peer collides tet models only")
+        if any(k != "box" for k in case["obstacle_kinds"]):
+            sys.exit(f"{path}: obstacle kinds {case['obstacle_kinds']}: this peer drives boxes only")
+        if np.any(case["obstacle_rotations"] != 0):
+            sys.exit(f"{path}: a rotated obstacle box: this peer drives axis-aligned boxes only")
     return case
+
+
+def has_obstacles(case):
+    return "obstacle_kinds" in case and len(case["obstacle_kinds"]) > 0
+
+
+def box_mesh(pbd, extents):
+    """The library's vertex data and face mesh of a box of `extents` centred at the origin (its
+    rigid body needs a mesh; collisions use the box's analytic distance field)."""
+    vd = pbd.VertexData()
+    half = 0.5 * np.asarray(extents, dtype=np.float64)
+    for k in range(8):
+        vd.addVertex(np.array([half[i] if (k >> i) & 1 else -half[i] for i in range(3)]))
+    mesh = pbd.IndexedFaceMesh()
+    mesh.initMesh(8, 18, 12)
+    for q in ([0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]):
+        mesh.addFace([q[0], q[1], q[2]])
+        mesh.addFace([q[0], q[2], q[3]])
+    mesh.buildNeighbors()
+    return vd, mesh
 
 
 def interior_hinges(tris):
@@ -200,7 +269,8 @@ def fem_threshold_fraction(case, positions, h, mass_scale):
 class Peer:
     """One pypbd simulation of a case at one setting."""
 
-    def __init__(self, case, substeps, iterations, mass_scale=MASS_SCALE, bending=None, velocity_order=1):
+    def __init__(self, case, substeps, iterations, mass_scale=MASS_SCALE, bending=None, velocity_order=1,
+                 contact=None):
         import pypbd as pbd
 
         self.pbd = pbd
@@ -219,7 +289,10 @@ class Peer:
         ts = sim.getTimeStep()
         ts.setValueUInt(pbd.TimeStepController.NUM_SUB_STEPS, 1)
         ts.setValueUInt(pbd.TimeStepController.MAX_ITERATIONS, iterations)
-        ts.setValueUInt(pbd.TimeStepController.MAX_ITERATIONS_V, 0)
+        obstacles = has_obstacles(case)
+        self.contact = dict(CONTACT_DEFAULTS, **(contact or {})) if obstacles else None
+        velocity_iterations = self.contact["velocity_iterations"] if obstacles else 0
+        ts.setValueUInt(pbd.TimeStepController.MAX_ITERATIONS_V, velocity_iterations)
         # 0: first-order velocity update v = (x - x_old) / h (the library's default), 1: second order.
         ts.setValueInt(pbd.TimeStepController.VELOCITY_UPDATE_METHOD, velocity_order - 1)
         self.h = case["dt"] / substeps
@@ -234,7 +307,9 @@ class Peer:
             tets[flip] = tets[flip][:, [0, 1, 3, 2]]
             if not nu <= 0.49:
                 sys.exit(f"Poisson ratio {nu} > 0.49: pypbd's FEM tet constraint skips every tet")
-            tm = model.addTetModel(points, tets.ravel().tolist())
+            # testMesh: the library puts the tet model's vertices into its collision detection
+            # (a collision object without geometry, tested against the boxes' distance fields).
+            tm = model.addTetModel(points, tets.ravel().tolist(), testMesh=obstacles)
             assert tm.getIndexOffset() == 0
             model.addSolidConstraints(tm, 3, E * mass_scale, nu, E * mass_scale, False, False)
             self.constraint = (
@@ -307,7 +382,74 @@ class Peer:
         self.x[probe] = saved + 0.25
         assert np.array_equal(np.asarray(pd.getPosition(int(probe))).ravel(), saved + 0.25)
         self.x[probe] = saved
+        self.boxes = []
+        if obstacles:
+            self._add_obstacles(tm)
         model.initConstraintGroups()
+
+    def _add_obstacles(self, tm):
+        """Each of the case's boxes as a static rigid body (mass 0) with the library's analytic
+        box distance field as its collision object; the moving ones are placed before every
+        substep (`_place_boxes`)."""
+        pbd, case, c = self.pbd, self.case, self.contact
+        cd = self.sim.getTimeStep().getCollisionDetection()
+        tolerance = c["tolerance"] if c["tolerance"] is not None else case["contact_dhat"]
+        cd.setTolerance(tolerance)
+        # stiffness_h: the stiffness as a multiple of 1 / h (h the substep), instead of a number.
+        stiffness = c["stiffness_h"] / self.h if c["stiffness_h"] is not None else c["stiffness"]
+        self.model.setContactStiffnessParticleRigidBody(stiffness)
+        # A contact's friction coefficient is the sum of its two bodies' (DistanceFieldCollisionDetection),
+        # its restitution the product.
+        tm.setFrictionCoeff(case["contact_friction"])
+        tm.setRestitutionCoeff(c["restitution"])
+        centres = case["obstacle_centres"]
+        self.keep = []
+        for k, extents in enumerate(case["obstacle_extents"]):
+            # The body's mesh only bounds the box for the broad phase (the collision test is the
+            # analytic distance field of `extents`). The library moves the mesh of a body of mass 0
+            # never, and the binding's `getGeometry` returns a copy (pybind11's default for a
+            # reference), so a moving box's mesh spans its whole path from the start.
+            sweep = np.abs(centres[:, k] - centres[0, k]).max(axis=0)
+            vd, mesh = box_mesh(pbd, extents + 2 * sweep)
+            rb = self.model.addRigidBody(1.0, vd, mesh, centres[0, k], np.identity(3), np.ones(3))
+            rb.setMass(0.0)
+            rb.setFrictionCoeff(0.0)
+            rb.setRestitutionCoeff(1.0)
+            # The distance query's world-to-box transform is the identity rotation about the centre.
+            assert np.allclose(rb.getTransformationR(), np.identity(3)) and np.allclose(rb.getTransformationV1(), 0)
+            index = len(self.model.getRigidBodies()) - 1
+            local = rb.getGeometry().getVertexDataLocal()
+            self.keep.append(local)  # the collision object keeps a pointer into it
+            cd.addCollisionBox(index, pbd.CollisionObject.RigidBodyCollisionObjectType, local, 0, local.size(),
+                               np.asarray(extents, dtype=np.float64), False, False)
+            moving = bool(np.any(sweep > 0))
+            self.boxes.append((rb, k, moving))
+        assert cd.getTolerance() == tolerance
+        self.tolerance = tolerance
+        moving = sum(m for _, _, m in self.boxes)
+        self.contact_text = (
+            f"{len(self.boxes)} boxes ({moving} moving, placed before every substep) as static rigid bodies"
+            f" with the library's box distance field (DistanceFieldCollisionDetection.addCollisionBox),"
+            f" tet vertices tested against them (addTetModel testMesh); collision tolerance {tolerance:g} m"
+            f" (the case's dhat {case['contact_dhat']:g}), friction {case['contact_friction']:g},"
+            f" restitution {c['restitution']:g}, contact stiffness {stiffness:g}"
+            + (f" ({c['stiffness_h']:g} / h)" if c["stiffness_h"] is not None else "") + ","
+            f" {c['velocity_iterations']} velocity iterations")
+        self.constraint += "; contact: " + self.contact_text
+
+    def _place_boxes(self, f, fraction, h):
+        """Moves the moving boxes to where they are `fraction` of the way through frame f
+        (linear between the frame's centres), with the velocity that takes them there from the
+        previous substep; the library's contact solve uses the box's velocity."""
+        centres = self.case["obstacle_centres"]
+        for rb, k, moving in self.boxes:
+            if not moving:
+                continue
+            a, b = centres[f, k], centres[f + 1, k]
+            x = a + fraction * (b - a)
+            rb.setVelocity((b - a) / (h * self.substeps))
+            rb.setPosition(x)
+            rb.updateInverseTransformation()
 
     def run(self, frames=None, diverged=None):
         """Simulates `frames` frames (default: all of the case's targets); stops early when
@@ -332,6 +474,8 @@ class Peer:
             t0 = clock()
             for s in range(S):
                 self.x[handles] = sub[s]
+                if self.boxes:
+                    self._place_boxes(f, (s + 1) / S, self.h)
                 t1 = clock()
                 step(model)
                 solver += clock() - t1
@@ -355,7 +499,8 @@ def errors(case, positions):
 
 
 def run_one(case, args, out):
-    peer = Peer(case, args.substeps, args.iterations, args.mass_scale, args.bending, args.velocity_order)
+    peer = Peer(case, args.substeps, args.iterations, args.mass_scale, args.bending, args.velocity_order,
+                contact_options(args))
     limit = DIVERGED * case["diagonal"]
     ref = case["reference"]
     positions, step_s, solver_s = peer.run(
@@ -376,6 +521,7 @@ def run_one(case, args, out):
         frames_completed=np.int64(done),
         constraint=np.array(peer.constraint),
         pypbd_version=np.array(PYPBD_VERSION),
+        **({"contact": np.array(peer.contact_text), "tolerance": np.float64(peer.tolerance)} if peer.boxes else {}),
     )
     row = {
         "substeps": args.substeps,
@@ -392,6 +538,17 @@ def run_one(case, args, out):
     }
     print(json.dumps(row))
     return row, peer.constraint
+
+
+def contact_options(args):
+    """The contact settings given on the command line (the rest: CONTACT_DEFAULTS)."""
+    given = {"tolerance": args.tolerance, "stiffness": args.contact_stiffness, "stiffness_h": args.contact_stiffness_h,
+             "velocity_iterations": args.velocity_iterations, "restitution": args.restitution}
+    return {k: v for k, v in given.items() if v is not None}
+
+
+CONTACT_FLAGS = {"tolerance": "--tolerance", "stiffness": "--contact-stiffness", "stiffness_h": "--contact-stiffness-h",
+                 "velocity_iterations": "--velocity-iterations", "restitution": "--restitution"}
 
 
 def parse_list(text):
@@ -416,6 +573,8 @@ def sweep(case_path, args):
         if args.frames is not None:
             cmd += ["--frames", str(args.frames)]
         cmd += ["--velocity-order", str(args.velocity_order)]
+        for key, value in contact_options(args).items():
+            cmd += [CONTACT_FLAGS[key], repr(value)]
         line = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
         row = json.loads(line)
         rows.append(row)
@@ -494,14 +653,50 @@ def box_case(cells=(1, 4, 1), size=(0.025, 0.125, 0.025), frames=60):
     }
 
 
+def obstacle_case(frames=30, descent=0.006):
+    """A block of 32 tets (0.1 x 0.03 x 0.05 m, E 1e5 Pa, nu 0.4, as stomp) 0.5 mm over a ground
+    box, pressed by a box over its middle that descends `descent` in 0.5 s from just above its top
+    and holds: the case layout of a scene with obstacles (box kinds, extents, centres per frame,
+    dhat 1e-3, friction 0.5), no reference (zeros)."""
+    case = box_case(cells=(4, 2, 2), size=(0.1, 0.03, 0.05), frames=frames)
+    case["rest"] = case["rest"] + np.array([-0.05, 0.0005, -0.025])
+    case["initial"] = case["rest"].copy()
+    case["handles"] = np.zeros(0, np.int64)
+    case["targets"] = np.zeros((frames + 1, 0, 3))
+    case["youngs"], case["poisson"] = 1e5, 0.4
+    t = np.arange(frames + 1) * case["dt"]
+    bottom = case["rest"][:, 1].max() + 0.001 - np.minimum(t / 0.5, 1) * descent
+    press = np.stack([np.zeros_like(t), bottom + 0.02, np.zeros_like(t)], axis=1)
+    case["obstacle_kinds"] = ["box", "box"]
+    case["obstacle_extents"] = np.array([[1.0, 0.1, 1.0], [0.06, 0.04, 0.1]])
+    case["obstacle_rotations"] = np.zeros((2, 3))
+    case["obstacle_centres"] = np.stack([np.tile([0.0, -0.05, 0.0], (frames + 1, 1)), press], axis=1)
+    case["contact_dhat"], case["contact_friction"], case["contact_epsv"] = 1e-3, 0.5, 1e-3
+    return case
+
+
+def _press(case, substeps, contact):
+    """Runs the obstacle case; returns the lowest vertex over the last 10 frames and the range
+    of (top vertex under the press box - the box's bottom) over them."""
+    peer = Peer(case, substeps, 1, contact=contact)
+    positions, _, _ = peer.run()
+    last = positions[-10:]
+    top = case["rest"][:, 1] == case["rest"][:, 1].max()
+    under = top & (np.abs(case["rest"][:, 0]) < 0.03)
+    bottom = case["obstacle_centres"][-10:, 1, 1] - 0.5 * case["obstacle_extents"][1, 1]
+    gap = last[:, under, 1] - bottom[:, None]
+    return float(last[:, :, 1].min()), float(gap.min()), float(gap.max())
+
+
 def self_check():
     """A bar of 24 tets (the beam scene's tet size and material) hanging from its top face under
-    gravity for 2 s from rest. Checks: (1) on its hanging shape, the library's skip test switches
+    gravity for 2 s from rest, and a block pressed onto a ground box (`obstacle_case`). Checks: (1) on its hanging shape, the library's skip test switches
     off every tet in the case's own units and none at the default mass_scale; (2) at the default
     mass_scale and 256 substeps x 1 iteration the bar hangs (centre drop under 1 mm) with the
     static stretch of a bar under its own weight, rho g L^2 / (2 E), within 10%; (3) at
     mass_scale 1 the constraints are off where they matter: the bar's stretch is off the static
-    value by more than 10x."""
+    value by more than 10x; (4) the block's vertices stay above the ground and its top under the press
+    follows the press down to within the collision tolerance."""
     case = box_case()
     g = 9.81
     L = float(np.ptp(case["rest"][:, 1]))
@@ -516,7 +711,15 @@ def self_check():
     print(f"stretch (mean of the last second): {stretch:.4e} m at mass_scale {MASS_SCALE:g}, "
           f"{stretch_unscaled:.4e} m at mass_scale 1; static rho g L^2 / (2E) {analytic:.4e} m; "
           f"centre drop {drop:.2e} m")
+    # Obstacles: the block on the ground, squashed by 6 mm by the press (64 substeps x 1, contact
+    # stiffness 1 / h; collision tolerance = dhat 1 mm).
+    obstacles = obstacle_case()
+    lowest, gap_min, gap_max = _in_fresh_process(_press, obstacles, 64, {"stiffness_h": 1.0})
+    print(f"obstacles: lowest vertex {lowest:.2e} m over the ground's top (y = 0); top vertices under the press"
+          f" {gap_min:.2e} to {gap_max:.2e} m from its bottom (collision tolerance 1e-3 m)")
     checks = [
+        (lowest > -5e-4, "obstacles: the ground holds the pressed block (at most 0.5 mm into it)"),
+        (-1.5e-3 < gap_min and gap_max < 5e-4, "obstacles: the press pushes the block's top down with it"),
         (off_unscaled == 1.0 and off_scaled == 0.0, "skip test: all tets off unscaled, none scaled"),
         (abs(drop) < 1e-3 and abs(stretch - analytic) < 0.1 * analytic, "scaled: hangs with the static stretch"),
         (abs(stretch_unscaled - analytic) > 10 * analytic, "unscaled: constraints off, stretch far from static"),
@@ -562,6 +765,15 @@ def main():
     p.add_argument("--bending", type=float, help="cloth/rod bending stiffness (before mass scale)")
     p.add_argument("--velocity-order", type=int, choices=[1, 2], default=1,
                    help="the library's velocity update: first order (its default) or second order")
+    p.add_argument("--tolerance", type=float,
+                   help="obstacles: the library's collision tolerance in m (default: the case's dhat)")
+    p.add_argument("--contact-stiffness", type=float,
+                   help="obstacles: the library's particle-rigid body contact stiffness (default 100, its own)")
+    p.add_argument("--contact-stiffness-h", type=float, metavar="C",
+                   help="obstacles: contact stiffness C / h, h the substep (instead of --contact-stiffness)")
+    p.add_argument("--velocity-iterations", type=int,
+                   help="obstacles: the library's velocity iterations per step (default 5, its own)")
+    p.add_argument("--restitution", type=float, help="obstacles: restitution coefficient (default 0)")
     p.add_argument("--threshold-report", action="store_true",
                    help="solid: fraction of (tet, frame) of the reference where the library would skip the tet")
     p.add_argument("--table", metavar="OUTDIR", help="rewrite OUTDIR/sweep.md from OUTDIR/sweep.json")

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use mochi_runtime::{AnyInstance, OwnedModel, ValidModel};
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::measure::mean_and_max_error;
-use mochi_sim::npz::NpzOut;
+use mochi_sim::npz::{NpzFile, NpzOut};
 use mochi_sim::SpeedPlan;
 use mochi_trainer::eval::compare::conditions::MatrixSpan;
 use mochi_trainer::eval::compare::{compare, page, CompareOptions};
@@ -303,4 +303,54 @@ fn eval_of_the_adaptive_solver_gives_the_direct_numbers() {
         assert!((got.enriched - enriched).abs() < 1e-12);
         assert!(mean > 0.0);
     });
+}
+
+/// A contact scene's peer case carries its obstacle boxes where the simulator puts them: each
+/// box's centre at frame t is the centroid of the simulator's box corners after t steps (stomp's
+/// box starts down at 0.5 s, frame 15), with the scene's contact parameters.
+#[test]
+fn a_contact_case_carries_the_obstacles_where_the_simulator_puts_them() {
+    let mut problem = Recipe::load("stomp").unwrap().build().unwrap();
+    let frames = 20;
+    let bc = mochi_trainer::eval::compare::conditions::chart_sequences(&problem, 1, frames)
+        .remove(0)
+        .1;
+    let dim = problem.mesh.dim;
+    let mut reference = vec![problem.simulator.positions().to_vec()];
+    let mut corners = vec![problem.simulator.obstacle_positions().unwrap().to_vec()];
+    for t in 1..=frames {
+        let targets = bc.targets(&problem.handles, t, dim);
+        problem.simulator.step(&targets).unwrap();
+        reference.push(problem.simulator.positions().to_vec());
+        corners.push(problem.simulator.obstacle_positions().unwrap().to_vec());
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("case.npz");
+    mochi_trainer::eval::compare::case::write_case(&path, &problem, &bc, &reference).unwrap();
+    let mut npz = NpzFile::open(&path).unwrap();
+    assert!(npz.has("obstacle_kinds"));
+    let centres = npz.array("obstacle_centres").unwrap();
+    centres.expect_shape(&[frames as u64 + 1, 2, 3]).unwrap();
+    let centres = centres.into_vec::<f64>("float64").unwrap();
+    for (t, corners) in corners.iter().enumerate() {
+        // The ground's 8 corners, then the box's.
+        for (k, box_corners) in corners.chunks_exact(24).enumerate() {
+            for i in 0..3 {
+                let centroid = box_corners.chunks_exact(3).map(|p| p[i]).sum::<f64>() / 8.0;
+                let written = centres[(t * 2 + k) * 3 + i];
+                assert!(
+                    (written - centroid).abs() < 1e-12,
+                    "frame {t} box {k} axis {i}: {written} vs {centroid}"
+                );
+            }
+        }
+    }
+    let box_y = |t: usize| centres[(t * 2 + 1) * 3 + 1];
+    assert!(box_y(15) - box_y(frames) > 3e-3, "the box moves down after 0.5 s");
+    let friction = npz
+        .array("contact_friction")
+        .unwrap()
+        .into_vec::<f64>("float64")
+        .unwrap();
+    assert_eq!(friction, [0.5]);
 }
