@@ -171,7 +171,8 @@ fn summary(c: &Comparison) -> String {
     for family in ALTERNATIVES {
         let options: Vec<&ChartPoint> = c.points.iter().filter(|p| p.family == family).collect();
         if options.is_empty() {
-            parts.push(format!("{family}: not run"));
+            let why = c.unavailable.iter().find(|u| u.method == family);
+            parts.push(format!("{family}: {}", why.map_or("not run", |u| u.text.as_str())));
             continue;
         }
         let reaching = options
