@@ -97,8 +97,8 @@ fn isa_rows_f32(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], first: usiz
     }
 }
 
-/// The canonical `f16` sum's leading rows with this CPU's vectors (AVX2 + F16C, NEON);
-/// 0 where the portable code does them.
+/// The canonical `f16` sum's leading rows with this CPU's vectors (AVX2 + F16C, NEON) or
+/// FPU (Armv7E-M: two weights per load); 0 where the portable code does them.
 #[inline(always)]
 fn isa_rows_f16(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usize, out: &mut [f32]) -> usize {
     #[cfg(target_arch = "x86_64")]
@@ -110,6 +110,14 @@ fn isa_rows_f16(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usize
     return match vector_kernels() {
         true => joined(parts, |x| match x.len() == layer.cols as usize {
             true => aarch64::rows_f16(weights.params, layer, matrix(weights.halves, layer), x, first, out),
+            false => 0,
+        }),
+        false => 0,
+    };
+    #[cfg(all(target_arch = "arm", feature = "armv7em", target_abi = "eabihf"))]
+    return match vector_kernels() {
+        true => joined(parts, |x| match x.len() == layer.cols as usize {
+            true => armv7em::rows_f16(weights.params, layer, matrix(weights.halves, layer), x, first, out),
             false => 0,
         }),
         false => 0,
