@@ -247,7 +247,8 @@ pub(crate) fn decode_run(
     origin_of: &[u32],
     origins: &mut Origins,
 ) {
-    let done = match d == 3 && origins.vector && WorldBlocks::PRESENT {
+    // The target's constant first: where it is `false` the branch is gone before inlining.
+    let done = match WorldBlocks::PRESENT && d == 3 && origins.vector {
         true => placed_blocks(output, first_row, run, origin_of, origins),
         false => 0,
     };
@@ -269,10 +270,13 @@ pub(crate) fn placed_free(
     out: &mut [f32],
     origins: &mut Origins,
 ) -> usize {
+    if !WorldBlocks::PRESENT || d != 3 || !origins.vector {
+        return 0;
+    }
     let Some(&origin) = origin_of.first() else {
         return 0;
     };
-    if d != 3 || !origins.vector || !WorldBlocks::PRESENT || origins.blocks_for(origin).is_none() {
+    if origins.blocks_for(origin).is_none() {
         return 0;
     }
     let place = origins.place;
@@ -324,11 +328,13 @@ fn placed_blocks(
 /// several per vector where it has a per-vertex one ([`network::isa_place`]), else one by one.
 pub(crate) fn place_run(d: usize, run: &mut [f32], origin_of: &[u32], origins: &mut Origins) {
     let frame = origins.place.frame;
+    // The targets' constants first: where they are `false` the branches are gone before
+    // inlining, and the loop below is all there is.
     let mut done = 0;
-    if d == 3 {
-        if origins.vector && WorldBlocks::PRESENT {
-            done = place_blocks(run, origin_of, origins);
-        }
+    if WorldBlocks::PRESENT && d == 3 && origins.vector {
+        done = place_blocks(run, origin_of, origins);
+    }
+    if network::ISA_PLACE && d == 3 {
         let (rest, of) = (
             run.get_mut(3 * done..).unwrap_or_default(),
             origin_of.get(done..).unwrap_or(&[]),

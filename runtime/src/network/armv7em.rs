@@ -93,11 +93,27 @@ pub fn f16_to_f32(h: u16) -> f32 {
 }
 
 /// The canonical `f16` sum ([`super::canonical`]) of rows `first..first + out.len()` of a
-/// layer whose weights are `w` (`cols = x.len()` halves per row), two rows at a time; returns
-/// the leading rows written (an even number: the caller computes the rest). 0 unless `cols`
-/// is a whole number of eights.
+/// layer whose weights are `w`, for the input given as consecutive `parts` (gathered on the
+/// stack first), two rows at a time; returns the leading rows written (an even number: the
+/// caller computes the rest). 0 unless the columns are a whole number of eights. Not inlined:
+/// the stack buffer and the loop stay out of the callers' `f32` paths.
 #[cfg(target_abi = "eabihf")]
+#[inline(never)]
 pub fn rows_f16(
+    params: &[f32],
+    layer: &crate::model::Layer,
+    w: &[u16],
+    parts: &[&[f32]],
+    first: usize,
+    out: &mut [f32],
+) -> usize {
+    super::joined(parts, |x| rows_f16_joined(params, layer, w, x, first, out))
+}
+
+/// [`rows_f16`] for the input `x`.
+#[cfg(target_abi = "eabihf")]
+#[inline(always)]
+fn rows_f16_joined(
     params: &[f32],
     layer: &crate::model::Layer,
     w: &[u16],

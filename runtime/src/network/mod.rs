@@ -116,10 +116,7 @@ fn isa_rows_f16(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usize
     };
     #[cfg(all(target_arch = "arm", feature = "armv7em", target_abi = "eabihf"))]
     return match vector_kernels() {
-        true => joined(parts, |x| match x.len() == layer.cols as usize {
-            true => armv7em::rows_f16(weights.params, layer, matrix(weights.halves, layer), x, first, out),
-            false => 0,
-        }),
+        true => armv7em::rows_f16(weights.params, layer, matrix(weights.halves, layer), parts, first, out),
         false => 0,
     };
     #[allow(unreachable_code)]
@@ -231,6 +228,9 @@ pub(crate) type WorldBlocks = x86_world::WorldBlocks;
 /// The vector world transform and one-pass decode of this target: none.
 #[cfg(not(target_arch = "x86_64"))]
 pub(crate) type WorldBlocks = world::NoWorldBlocks;
+
+/// Whether [`isa_place`] places any vertices on this target.
+pub(crate) const ISA_PLACE: bool = cfg!(target_arch = "aarch64");
 
 /// Places 3D vertices of `run` in the world (`frame * v + origin(o)`, `origin_of` giving
 /// each vertex's `o`) several per vector where this target's transform takes any origin per
