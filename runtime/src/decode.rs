@@ -327,7 +327,6 @@ fn placed_blocks(
 /// where the CPU has the block transform ([`WorldBlocks`]) and the sixteen share an origin,
 /// several per vector where it has a per-vertex one ([`network::isa_place`]), else one by one.
 pub(crate) fn place_run(d: usize, run: &mut [f32], origin_of: &[u32], origins: &mut Origins) {
-    let frame = origins.place.frame;
     // The targets' constants first: where they are `false` the branches are gone before
     // inlining, and the loop below is all there is.
     let mut done = 0;
@@ -335,12 +334,14 @@ pub(crate) fn place_run(d: usize, run: &mut [f32], origin_of: &[u32], origins: &
         done = place_blocks(run, origin_of, origins);
     }
     if network::ISA_PLACE && d == 3 {
+        let frame = origins.place.frame;
         let (rest, of) = (
             run.get_mut(3 * done..).unwrap_or_default(),
             origin_of.get(done..).unwrap_or(&[]),
         );
         done += network::isa_place(&frame, origins.vector, rest, of, |o| origins.get(o));
     }
+    let frame = origins.place.frame;
     for (q, &o) in run.chunks_exact_mut(d).zip(origin_of).skip(done) {
         let world = frame * Vector3::new(q[0], q[1], q.get(2).copied().unwrap_or(0.0)) + origins.get(o);
         q.iter_mut().zip(world.iter()).for_each(|(q, w)| *q = *w);
