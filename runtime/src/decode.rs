@@ -6,10 +6,9 @@ use nalgebra::Vector3;
 
 use crate::frame::Placement;
 use crate::model::{Chain, Layer, Model, Weights};
-use crate::network::{self, LayerInput};
+use crate::network::world::{WorldTransform, BLOCK_FLOATS, BLOCK_VERTICES};
+use crate::network::{self, LayerInput, WorldBlocks, STRAND_LANES};
 use crate::strand_lanes::ChainWalks;
-#[cfg(target_arch = "x86_64")]
-use crate::world_x86::WorldBlocks;
 
 /// Writes the first `d` coordinates of `p` as vertex `v` of `out` (element by element: a
 /// slice copy of 2 or 3 floats would be a call to `memmove`).
@@ -61,9 +60,8 @@ impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
         }
     }
 
-    /// [`WorldBlocks::placed_vertices`] of the layer: the free vertices, sixteen at a time,
+    /// [`WorldTransform::placed_vertices`] of the layer: the free vertices, sixteen at a time,
     /// decoded and placed straight into `out`; returns how many.
-    #[cfg(target_arch = "x86_64")]
     fn placed_vertices(
         &self,
         (blocks, origin): (&mut WorldBlocks, &mut u32),
@@ -88,8 +86,7 @@ impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
 
     /// Rows from `first` transformed by `blocks` in the same pass, as many whole blocks of
     /// sixteen 3D vertices as `out` holds; returns the rows written (0 unless the layer is
-    /// stored by columns, see [`WorldBlocks::placed_rows`]).
-    #[cfg(target_arch = "x86_64")]
+    /// stored by columns, see [`WorldTransform::placed_rows`]).
     fn placed_rows(&self, blocks: &WorldBlocks, first: usize, out: &mut [f32]) -> usize {
         self.output.map_or(0, |l| {
             blocks.placed_rows(self.weights.params, l, self.input.values(), first, out)
@@ -99,21 +96,6 @@ impl<'w, 'l, 'h> OutputRows<'w, 'l, 'h> {
 
 /// Encoded vertices whose decoder rows a [`BendRows`] computes at once.
 const BEND_BLOCK: usize = 16;
-
-/// Strands walked side by side ([`ChainWalks`]): sixteen on x86-64 (one AVX-512 vector,
-/// whose step `ChainWalks` writes with intrinsics), eight where the lanes become other
-/// vector instructions, one on targets without vectors (the Cortex-M4), where more lanes
-/// only add bookkeeping. Any number gives the same bits.
-const STRAND_LANES: usize = if cfg!(target_arch = "x86_64") {
-    16
-} else if cfg!(any(
-    target_arch = "aarch64",
-    all(target_arch = "wasm32", target_feature = "simd128")
-)) {
-    8
-} else {
-    1
-};
 
 /// One strand's cache of the decoder's output rows for bend-encoded vertices, a block of
 /// consecutive free vertices at a time (a strand usually lists consecutive ones): each row
@@ -265,14 +247,11 @@ pub(crate) fn decode_run(
     origin_of: &[u32],
     origins: &mut Origins,
 ) {
-    #[cfg(target_arch = "x86_64")]
-    let done = if d == 3 && origins.vector {
-        placed_blocks(output, first_row, run, origin_of, origins)
-    } else {
-        0
+    // The target's constant first: where it is `false` the branch is gone before inlining.
+    let done = match WorldBlocks::PRESENT && d == 3 && origins.vector {
+        true => placed_blocks(output, first_row, run, origin_of, origins),
+        false => 0,
     };
-    #[cfg(not(target_arch = "x86_64"))]
-    let done = 0;
     let rest = run.get_mut(done * d..).unwrap_or_default();
     output.rows(first_row + done * d, rest);
     place_run(d, rest, origin_of.get(done..).unwrap_or(&[]), origins);
@@ -291,23 +270,25 @@ pub(crate) fn placed_free(
     out: &mut [f32],
     origins: &mut Origins,
 ) -> usize {
-    #[cfg(target_arch = "x86_64")]
-    if let (3, true, Some(&origin)) = (d, origins.vector, origin_of.first()) {
-        let place = origins.place;
-        if origins.blocks_for(origin).is_some() {
-            if let Some((at, blocks)) = origins.blocks.as_mut() {
-                return output.placed_vertices((blocks, at), free, origin_of, &mut |o| place.origin(o), out);
-            }
-        }
+    if !WorldBlocks::PRESENT || d != 3 || !origins.vector {
+        return 0;
     }
-    let _ = (output, d, free, origin_of, out, origins);
-    0
+    let Some(&origin) = origin_of.first() else {
+        return 0;
+    };
+    if origins.blocks_for(origin).is_none() {
+        return 0;
+    }
+    let place = origins.place;
+    match origins.blocks.as_mut() {
+        Some((at, blocks)) => output.placed_vertices((blocks, at), free, origin_of, &mut |o| place.origin(o), out),
+        None => 0,
+    }
 }
 
 /// The leading blocks of sixteen 3D vertices of `run` whose vertices share an origin block by
 /// block, decoded and placed in one pass ([`OutputRows::placed_rows`]); returns the vertices
 /// done.
-#[cfg(target_arch = "x86_64")]
 fn placed_blocks(
     output: &OutputRows,
     first_row: usize,
@@ -315,7 +296,6 @@ fn placed_blocks(
     origin_of: &[u32],
     origins: &mut Origins,
 ) -> usize {
-    const PER_BLOCK: usize = crate::world_x86::BLOCK_FLOATS / 3;
     let mut done = 0;
     while let Some(&origin) = origin_of.get(done) {
         // Mostly every vertex left shares the origin: a pass without an early exit vectorises.
@@ -324,7 +304,7 @@ fn placed_blocks(
             true => left.len(),
             false => left.iter().take_while(|&&o| o == origin).count(),
         };
-        let vertices = shared / PER_BLOCK * PER_BLOCK;
+        let vertices = shared / BLOCK_VERTICES * BLOCK_VERTICES;
         let (Some(span), Some(blocks)) = (run.get_mut(3 * done..3 * (done + vertices)), origins.blocks_for(origin))
         else {
             break;
@@ -344,25 +324,23 @@ fn placed_blocks(
 
 /// Turns the local coordinates of a run of encoded vertices decoded into `run` (`d` floats
 /// each) into world positions in place, `origin_of` their origin indices: sixteen at a time
-/// where the CPU has a vector transform and the sixteen share an origin, else one by one.
+/// where the CPU has the block transform ([`WorldBlocks`]) and the sixteen share an origin,
+/// several per vector where it has a per-vertex one ([`network::isa_place`]), else one by one.
 pub(crate) fn place_run(d: usize, run: &mut [f32], origin_of: &[u32], origins: &mut Origins) {
-    #[cfg(target_arch = "x86_64")]
-    let done = if d == 3 && origins.vector {
-        place_blocks(run, origin_of, origins)
-    } else {
-        0
-    };
-    #[cfg(target_arch = "aarch64")]
-    let done = {
-        let frame = &origins.place.frame;
-        match (d, origins.vector, network::vector_kernels()) {
-            (3, true, true) => network::aarch64::place::<true>(frame, run, origin_of, |o| origins.get(o)),
-            (3, false, true) => network::aarch64::place::<false>(frame, run, origin_of, |o| origins.get(o)),
-            _ => 0,
-        }
-    };
-    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
-    let done = 0;
+    // The targets' constants first: where they are `false` the branches are gone before
+    // inlining, and the loop below is all there is.
+    let mut done = 0;
+    if WorldBlocks::PRESENT && d == 3 && origins.vector {
+        done = place_blocks(run, origin_of, origins);
+    }
+    if network::ISA_PLACE && d == 3 {
+        let frame = origins.place.frame;
+        let (rest, of) = (
+            run.get_mut(3 * done..).unwrap_or_default(),
+            origin_of.get(done..).unwrap_or(&[]),
+        );
+        done += network::isa_place(&frame, origins.vector, rest, of, |o| origins.get(o));
+    }
     let frame = origins.place.frame;
     for (q, &o) in run.chunks_exact_mut(d).zip(origin_of).skip(done) {
         let world = frame * Vector3::new(q[0], q[1], q.get(2).copied().unwrap_or(0.0)) + origins.get(o);
@@ -372,13 +350,11 @@ pub(crate) fn place_run(d: usize, run: &mut [f32], origin_of: &[u32], origins: &
 
 /// The leading blocks of sixteen 3D vertices of `run` that share an origin, placed with the
 /// vector transform; returns the vertices placed (0 where the CPU has no vector transform).
-#[cfg(target_arch = "x86_64")]
 fn place_blocks(run: &mut [f32], origin_of: &[u32], origins: &mut Origins) -> usize {
-    use crate::world_x86::BLOCK_FLOATS;
     let mut done = 0;
     for (block, of) in run
         .chunks_exact_mut(BLOCK_FLOATS)
-        .zip(origin_of.chunks_exact(BLOCK_FLOATS / 3))
+        .zip(origin_of.chunks_exact(BLOCK_VERTICES))
     {
         let Some(block) = <&mut [f32; BLOCK_FLOATS]>::try_from(block).ok() else {
             break;
@@ -386,23 +362,21 @@ fn place_blocks(run: &mut [f32], origin_of: &[u32], origins: &mut Origins) -> us
         if !of.iter().all(|&o| o == of[0]) || !origins.place_block(of[0], block) {
             break;
         }
-        done += BLOCK_FLOATS / 3;
+        done += BLOCK_VERTICES;
     }
     done
 }
 
 /// The origins of encoded vertices ([`Placement::origin`]), the last one kept: consecutive
-/// vertices mostly share an origin, and placing a handle vertex costs a rotation. On x86-64
-/// also the vector transform for that origin.
+/// vertices mostly share an origin, and placing a handle vertex costs a rotation. Also the
+/// vector transform for that origin, where the target has one ([`WorldBlocks`]).
 pub(crate) struct Origins<'p, 'm, 'a> {
     place: &'p Placement<'m, 'a>,
     last: Option<(u32, Vector3<f32>)>,
     /// Whether the vector transform may be used: only behind an `f32` decoder, whose targets
     /// agree within rounding; `f16` and int8 decoders promise the same bits everywhere, and
     /// the vector transform rounds differently from the scalar one.
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     vector: bool,
-    #[cfg(target_arch = "x86_64")]
     blocks: Option<(u32, WorldBlocks)>,
 }
 
@@ -414,13 +388,11 @@ impl<'p, 'm, 'a> Origins<'p, 'm, 'a> {
             place,
             last: None,
             vector,
-            #[cfg(target_arch = "x86_64")]
             blocks: None,
         }
     }
 
     /// The vector transform for origin `origin`; `None` where the CPU has none.
-    #[cfg(target_arch = "x86_64")]
     fn blocks_for(&mut self, origin: u32) -> Option<&WorldBlocks> {
         let o = match self.blocks {
             Some((at, _)) if at == origin => None,
@@ -440,8 +412,7 @@ impl<'p, 'm, 'a> Origins<'p, 'm, 'a> {
 
     /// Sixteen vertices of origin `origin` placed with the vector transform; `false`, and
     /// nothing done, where the CPU has none.
-    #[cfg(target_arch = "x86_64")]
-    fn place_block(&mut self, origin: u32, block: &mut [f32; crate::world_x86::BLOCK_FLOATS]) -> bool {
+    fn place_block(&mut self, origin: u32, block: &mut [f32; BLOCK_FLOATS]) -> bool {
         self.blocks_for(origin).map(|blocks| blocks.apply(block)).is_some()
     }
 

@@ -44,9 +44,6 @@ pub mod pool;
 mod strand_lanes;
 mod validation;
 mod vertex_lists;
-#[cfg(target_arch = "x86_64")]
-#[allow(unsafe_code)]
-mod world_x86;
 
 pub use aligned::Aligned;
 #[cfg(feature = "std")]

@@ -9,7 +9,11 @@
 //!   half of a register to `f32` in one instruction, where the software conversion takes a
 //!   dozen and branches. The conversion is exact (every `f16` is an
 //!   `f32`; subnormals included, as the flush-to-zero bit is clear), so the canonical sum's
-//!   bits do not change.
+//!   bits do not change. Rows of a layer whose columns are whole eights go two at a time
+//!   through [`rows_f16`]: `VLDM` loads two weights per word straight into the FPU,
+//!   `VCVTB`/`VCVTT` convert the low and the high half, then the canonical sum's `VMUL` and
+//!   `VADD` per weight (`LDRH`, `VMOV` and `VCVTB` one weight at a time took two instructions
+//!   more per weight).
 
 use core::arch::asm;
 
@@ -86,4 +90,159 @@ fn smlad(x: u32, y: u32, acc: i32) -> i32 {
 #[inline(always)]
 pub fn f16_to_f32(h: u16) -> f32 {
     f16::from_bits(h) as f32
+}
+
+/// The canonical `f16` sum ([`super::canonical`]) of rows `first..first + out.len()` of a
+/// layer whose weights are `w`, for the input given as consecutive `parts` (gathered on the
+/// stack first), two rows at a time; returns the leading rows written (an even number: the
+/// caller computes the rest). 0 unless the columns are a whole number of eights. Not inlined:
+/// the stack buffer and the loop stay out of the callers' `f32` paths.
+#[cfg(target_abi = "eabihf")]
+#[inline(never)]
+pub fn rows_f16(
+    params: &[f32],
+    layer: &crate::model::Layer,
+    w: &[u16],
+    parts: &[&[f32]],
+    first: usize,
+    out: &mut [f32],
+) -> usize {
+    super::joined(parts, |x| rows_f16_joined(params, layer, w, x, first, out))
+}
+
+/// [`rows_f16`] for the input `x`.
+#[cfg(target_abi = "eabihf")]
+#[inline(always)]
+fn rows_f16_joined(
+    params: &[f32],
+    layer: &crate::model::Layer,
+    w: &[u16],
+    x: &[f32],
+    first: usize,
+    out: &mut [f32],
+) -> usize {
+    use super::canonical::{fold, LANES};
+    let cols = x.len();
+    if cols == 0 || !cols.is_multiple_of(LANES) || cols != layer.cols as usize {
+        return 0;
+    }
+    let mut done = 0;
+    for (pair, o) in out.chunks_exact_mut(2).enumerate() {
+        let r = first + 2 * pair;
+        let Some(rows) = w.get(r * cols..(r + 2) * cols) else {
+            break;
+        };
+        let mut lanes = [0.0f32; 2 * LANES];
+        // SAFETY: `rows` holds two rows of `cols` halves and `x` `cols` floats, `cols` a
+        // positive multiple of 8; `lanes` holds 16 floats.
+        unsafe {
+            lanes_f16x2(
+                rows.as_ptr(),
+                rows.as_ptr().add(cols),
+                x.as_ptr(),
+                cols / LANES,
+                &mut lanes,
+            )
+        };
+        let (l0, l1) = lanes.split_at(LANES);
+        for (k, (o, l)) in o.iter_mut().zip([l0, l1]).enumerate() {
+            let l: &[f32; LANES] = l.try_into().unwrap_or(&[0.0; LANES]);
+            *o = super::finish(params, layer, r + k, fold(l));
+        }
+        done += 2;
+    }
+    done
+}
+
+/// The eight canonical lanes of two rows of `f16` weights (`w0`, `w1`) with `x`, over `groups`
+/// groups of eight columns, written to `lanes` (row 0's, then row 1's): lane `l` adds
+/// `w[c] * x[c]` for `c = l, l + 8, ...` in order, the product and the sum each rounded
+/// (`VMUL`, `VADD`), from +0.
+///
+/// The FPU registers cannot be operands here (Rust's single-precision register class on Arm
+/// needs the `vfp2` feature, which implies the double precision the M4 lacks), so the block
+/// names them itself and saves and restores all 32 around the loop: `x` in s0-s7, the loaded
+/// weight words in s8-s11, the converted products in s12-s15, the sixteen lanes in s16-s31.
+///
+/// # Safety
+/// `w0` and `w1` must hold `8 groups` halves, `x` `8 groups` floats; `groups > 0`.
+#[cfg(target_abi = "eabihf")]
+#[inline(never)]
+unsafe fn lanes_f16x2(w0: *const u16, w1: *const u16, x: *const f32, groups: usize, lanes: &mut [f32; 16]) {
+    // SAFETY: the caller's promise; the block reads `8 groups` halves from each row and
+    // floats from `x`, and reads and writes the 16 floats of `lanes`; every FPU register it
+    // writes is restored from the stack before it ends.
+    unsafe {
+        asm!(
+            "vpush {{s0-s15}}",
+            "vpush {{s16-s31}}",
+            "vldmia {lanes}, {{s16-s31}}",
+            "2:",
+            "vldmia {x}!, {{s0-s7}}",
+            // Columns 0-3 of the group: row 0 into lanes 0-3 (s16-s19), row 1 (s24-s27).
+            "vldmia {w0}!, {{s8-s9}}",
+            "vldmia {w1}!, {{s10-s11}}",
+            "vcvtb.f32.f16 s12, s8",
+            "vcvtt.f32.f16 s13, s8",
+            "vcvtb.f32.f16 s14, s9",
+            "vcvtt.f32.f16 s15, s9",
+            "vmul.f32 s12, s12, s0",
+            "vmul.f32 s13, s13, s1",
+            "vmul.f32 s14, s14, s2",
+            "vmul.f32 s15, s15, s3",
+            "vadd.f32 s16, s16, s12",
+            "vadd.f32 s17, s17, s13",
+            "vadd.f32 s18, s18, s14",
+            "vadd.f32 s19, s19, s15",
+            "vcvtb.f32.f16 s12, s10",
+            "vcvtt.f32.f16 s13, s10",
+            "vcvtb.f32.f16 s14, s11",
+            "vcvtt.f32.f16 s15, s11",
+            "vmul.f32 s12, s12, s0",
+            "vmul.f32 s13, s13, s1",
+            "vmul.f32 s14, s14, s2",
+            "vmul.f32 s15, s15, s3",
+            "vadd.f32 s24, s24, s12",
+            "vadd.f32 s25, s25, s13",
+            "vadd.f32 s26, s26, s14",
+            "vadd.f32 s27, s27, s15",
+            // Columns 4-7: row 0 into lanes 4-7 (s20-s23), row 1 (s28-s31).
+            "vldmia {w0}!, {{s8-s9}}",
+            "vldmia {w1}!, {{s10-s11}}",
+            "vcvtb.f32.f16 s12, s8",
+            "vcvtt.f32.f16 s13, s8",
+            "vcvtb.f32.f16 s14, s9",
+            "vcvtt.f32.f16 s15, s9",
+            "vmul.f32 s12, s12, s4",
+            "vmul.f32 s13, s13, s5",
+            "vmul.f32 s14, s14, s6",
+            "vmul.f32 s15, s15, s7",
+            "vadd.f32 s20, s20, s12",
+            "vadd.f32 s21, s21, s13",
+            "vadd.f32 s22, s22, s14",
+            "vadd.f32 s23, s23, s15",
+            "vcvtb.f32.f16 s12, s10",
+            "vcvtt.f32.f16 s13, s10",
+            "vcvtb.f32.f16 s14, s11",
+            "vcvtt.f32.f16 s15, s11",
+            "vmul.f32 s12, s12, s4",
+            "vmul.f32 s13, s13, s5",
+            "vmul.f32 s14, s14, s6",
+            "vmul.f32 s15, s15, s7",
+            "vadd.f32 s28, s28, s12",
+            "vadd.f32 s29, s29, s13",
+            "vadd.f32 s30, s30, s14",
+            "vadd.f32 s31, s31, s15",
+            "subs {n}, {n}, #1",
+            "bne 2b",
+            "vstmia {lanes}, {{s16-s31}}",
+            "vpop {{s16-s31}}",
+            "vpop {{s0-s15}}",
+            w0 = inout(reg) w0 => _,
+            w1 = inout(reg) w1 => _,
+            x = inout(reg) x => _,
+            n = inout(reg) groups => _,
+            lanes = in(reg) lanes.as_mut_ptr(),
+        );
+    }
 }

@@ -18,7 +18,9 @@
 
 use core::arch::x86_64::*;
 
-use crate::model::{column_stride, wide_stores_columns, Layer};
+use super::matrix;
+use super::x86_lanes::{wide_driver, Avx2, Avx512, Lanes};
+use crate::model::{column_stride, wide_stores_columns, Layer, WeightFormat};
 
 /// Blocks of 16 (AVX-512) or 8 (AVX2) rows computed together, one pass over the columns:
 /// eight independent chains hide each fused multiply-add's latency, and a layer of at most
@@ -26,15 +28,16 @@ use crate::model::{column_stride, wide_stores_columns, Layer};
 const GROUP: usize = 8;
 
 /// Rows `first..first + out.len()` of a column-stored `f32` layer (weights `w`, `x.len()`
-/// columns, biases in `params`) with AVX-512F; returns the rows written (0 when the shapes do
-/// not match: the caller computes them). The first block ends where the loads become 64-byte
-/// aligned (every column has the same alignment, see [`column_stride`]): a load across two
-/// cache lines costs two. Then groups of [`GROUP`] blocks, then the blocks left.
+/// columns, biases in `params`) with `L`'s vectors; returns the rows written (0 when the
+/// shapes do not match: the caller computes them). The first block ends where the loads
+/// become aligned to a whole vector (every column has the same alignment, see
+/// [`column_stride`]): a load across two cache lines costs two. Then groups of [`GROUP`]
+/// blocks, then the blocks left.
 ///
 /// # Safety
-/// The CPU must have AVX-512F.
-#[target_feature(enable = "avx512f")]
-pub(super) unsafe fn rows512(
+/// Inside a wrapper compiled for `L`'s features ([`Lanes`]).
+#[inline(always)]
+unsafe fn rows_by_columns<L: Lanes>(
     params: &[f32],
     layer: &Layer,
     w: &[f32],
@@ -46,179 +49,108 @@ pub(super) unsafe fn rows512(
         return 0;
     };
     let stride = column_stride(layer.rows as usize);
-    let (head, rest) = out.split_at_mut(lead(w, first, 16).min(out.len()));
+    let (head, rest) = out.split_at_mut(lead(w, first, L::N).min(out.len()));
     let mut r = first;
-    let mut groups = rest.chunks_exact_mut(16 * GROUP);
+    let mut groups = rest.chunks_exact_mut(L::N * GROUP);
     // SAFETY (every call below): `checked` made sure rows `first..first + out.len()` exist in
-    // every column of `w` and in `bias`; each call gets the rows from `r` that its block holds.
+    // every column of `w` and in `bias`; each call gets the rows from `r` that its block
+    // holds; the caller's features.
     unsafe {
         if !head.is_empty() {
-            block512(w, stride, x, bias, r, head);
+            block::<L>(w, stride, x, bias, r, head);
             r += head.len();
         }
         for group in &mut groups {
-            group512(w, stride, x, bias, r, group);
+            group_of::<L>(w, stride, x, bias, r, group);
             r += group.len();
         }
-        for block in groups.into_remainder().chunks_mut(16) {
-            block512(w, stride, x, bias, r, block);
-            r += block.len();
+        for rows in groups.into_remainder().chunks_mut(L::N) {
+            block::<L>(w, stride, x, bias, r, rows);
+            r += rows.len();
         }
     }
     out.len()
 }
 
-/// Rows `r..r + out.len()` (at most 16), masked.
+wide_driver!(
+    /// [`rows_by_columns`] with AVX-512F, sixteen rows per vector.
+    pub(super) rows512 = rows_by_columns::<Avx512>, "avx512f"
+);
+wide_driver!(
+    /// [`rows_by_columns`] with AVX2 and FMA, eight rows per vector (the same bits).
+    pub(super) rows256 = rows_by_columns::<Avx2>, "avx2,fma"
+);
+
+/// Rows `r..r + out.len()` (at most `L::N`), masked.
 ///
 /// # Safety
-/// AVX-512F; the rows exist in every column of `w` (`stride` apart, `x.len()` columns) and in
-/// `bias`.
-#[target_feature(enable = "avx512f")]
-#[inline]
-unsafe fn block512(w: &[f32], stride: usize, x: &[f32], bias: &[f32], r: usize, out: &mut [f32]) {
-    let keep = ((1u32 << out.len()) - 1) as u16;
-    let mut s = _mm512_setzero_ps();
-    for (c, &xc) in x.iter().enumerate() {
-        // SAFETY: the caller's promise; the mask reads only the block's rows.
-        let v = unsafe { _mm512_maskz_loadu_ps(keep, w.as_ptr().add(c * stride + r)) };
-        s = _mm512_fmadd_ps(v, _mm512_set1_ps(xc), s);
-    }
-    // SAFETY: the caller's promise; the masks cover only the block's rows and `out`.
+/// `L`'s features; the rows exist in every column of `w` (`stride` apart, `x.len()` columns)
+/// and in `bias`.
+#[inline(always)]
+unsafe fn block<L: Lanes>(w: &[f32], stride: usize, x: &[f32], bias: &[f32], r: usize, out: &mut [f32]) {
+    // SAFETY: the caller's promise; the mask reads and writes only the block's rows.
     unsafe {
-        let b = _mm512_maskz_loadu_ps(keep, bias.as_ptr().add(r));
-        _mm512_mask_storeu_ps(out.as_mut_ptr(), keep, _mm512_add_ps(b, s));
+        let keep = L::mask(out.len());
+        let mut s = L::zero();
+        for (c, &xc) in x.iter().enumerate() {
+            let v = L::load_masked(keep, w.as_ptr().add(c * stride + r));
+            s = L::fmadd(v, L::splat(xc), s);
+        }
+        let b = L::load_masked(keep, bias.as_ptr().add(r));
+        L::store_masked(keep, out.as_mut_ptr(), L::add(b, s));
     }
 }
 
-/// Rows `r..r + 16 GROUP`.
+/// Rows `r..r + L::N GROUP`.
 ///
 /// # Safety
-/// As [`block512`], and `out` holds `16 GROUP` floats.
-#[target_feature(enable = "avx512f")]
-#[inline]
-unsafe fn group512(w: &[f32], stride: usize, x: &[f32], bias: &[f32], r: usize, out: &mut [f32]) {
+/// As [`block`], and `out` holds `L::N GROUP` floats.
+#[inline(always)]
+unsafe fn group_of<L: Lanes>(w: &[f32], stride: usize, x: &[f32], bias: &[f32], r: usize, out: &mut [f32]) {
     // SAFETY: the caller's promise.
-    let s = unsafe { column_chains512::<GROUP>(w.as_ptr().add(r), stride, x) };
-    for (b, s) in s.iter().enumerate() {
-        // SAFETY: the caller's promise.
-        unsafe {
-            let v = _mm512_add_ps(_mm512_loadu_ps(bias.as_ptr().add(r + 16 * b)), *s);
-            _mm512_storeu_ps(out.as_mut_ptr().add(16 * b), v);
+    unsafe {
+        let s = column_chains::<L, GROUP>(w.as_ptr().add(r), stride, x);
+        for (b, s) in s.iter().enumerate() {
+            let v = L::add(L::load(bias.as_ptr().add(r + L::N * b)), *s);
+            L::store(out.as_mut_ptr().add(L::N * b), v);
         }
     }
 }
 
-/// The sums of `V` consecutive 16-row vectors of a column-stored layer, from `w` (row `r` of
-/// column 0; column `c` is `c * stride` floats further): for each vector one chain of fused
-/// multiply-adds over the columns in order, the module's formula without the bias. Also
-/// what the decode's one-pass kernels of `crate::world_x86` sum.
+/// The sums of `V` consecutive `L::N`-row vectors of a column-stored layer, from `w` (row `r`
+/// of column 0; column `c` is `c * stride` floats further): for each vector one chain of
+/// fused multiply-adds over the columns in order, the module's formula without the bias.
+///
+/// # Safety
+/// `L`'s features; `L::N V` floats from `w + c * stride` must be readable for every column
+/// `c < x.len()`.
+#[inline(always)]
+unsafe fn column_chains<L: Lanes, const V: usize>(w: *const f32, stride: usize, x: &[f32]) -> [L::V; V] {
+    // SAFETY: the caller's promise.
+    unsafe {
+        let mut s = [L::zero(); V];
+        for (c, &xc) in x.iter().enumerate() {
+            let xv = L::splat(xc);
+            let column = w.add(c * stride);
+            for (b, s) in s.iter_mut().enumerate() {
+                *s = L::fmadd(L::load(column.add(L::N * b)), xv, *s);
+            }
+        }
+        s
+    }
+}
+
+/// [`column_chains`] with AVX-512F: what the decode's one-pass kernels of `super::x86_world`
+/// sum.
 ///
 /// # Safety
 /// The CPU must have AVX-512F; `16 V` floats from `w + c * stride` must be readable for every
 /// column `c < x.len()`.
 #[target_feature(enable = "avx512f")]
 #[inline]
-pub(crate) unsafe fn column_chains512<const V: usize>(w: *const f32, stride: usize, x: &[f32]) -> [__m512; V] {
-    let mut s = [_mm512_setzero_ps(); V];
-    for (c, &xc) in x.iter().enumerate() {
-        let xv = _mm512_set1_ps(xc);
-        // SAFETY: the caller's promise.
-        let column = unsafe { w.add(c * stride) };
-        for (b, s) in s.iter_mut().enumerate() {
-            // SAFETY: the caller's promise.
-            *s = _mm512_fmadd_ps(unsafe { _mm512_loadu_ps(column.add(16 * b)) }, xv, *s);
-        }
-    }
-    s
-}
-
-/// [`rows512`] with AVX2 and FMA, eight rows per vector, loads aligned to 32 bytes (the same
-/// bits).
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA.
-#[target_feature(enable = "avx2,fma")]
-pub(super) unsafe fn rows256(
-    params: &[f32],
-    layer: &Layer,
-    w: &[f32],
-    x: &[f32],
-    first: usize,
-    out: &mut [f32],
-) -> usize {
-    let Some(bias) = checked(params, layer, w, x.len(), first, out.len()) else {
-        return 0;
-    };
-    let stride = column_stride(layer.rows as usize);
-    let (head, rest) = out.split_at_mut(lead(w, first, 8).min(out.len()));
-    let mut r = first;
-    let mut groups = rest.chunks_exact_mut(8 * GROUP);
-    // SAFETY (every call below): as in `rows512`.
-    unsafe {
-        if !head.is_empty() {
-            block256(w, stride, x, bias, r, head);
-            r += head.len();
-        }
-        for group in &mut groups {
-            group256(w, stride, x, bias, r, group);
-            r += group.len();
-        }
-        for block in groups.into_remainder().chunks_mut(8) {
-            block256(w, stride, x, bias, r, block);
-            r += block.len();
-        }
-    }
-    out.len()
-}
-
-/// Rows `r..r + out.len()` (at most 8), masked.
-///
-/// # Safety
-/// AVX2 and FMA; as [`block512`].
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-unsafe fn block256(w: &[f32], stride: usize, x: &[f32], bias: &[f32], r: usize, out: &mut [f32]) {
-    let n = out.len() as i32;
-    let mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-    let mut s = _mm256_setzero_ps();
-    for (c, &xc) in x.iter().enumerate() {
-        // SAFETY: the caller's promise; the mask reads only the block's rows.
-        let v = unsafe { _mm256_maskload_ps(w.as_ptr().add(c * stride + r), mask) };
-        s = _mm256_fmadd_ps(v, _mm256_set1_ps(xc), s);
-    }
-    // SAFETY: as above.
-    unsafe {
-        let b = _mm256_maskload_ps(bias.as_ptr().add(r), mask);
-        _mm256_maskstore_ps(out.as_mut_ptr(), mask, _mm256_add_ps(b, s));
-    }
-}
-
-/// Rows `r..r + 8 GROUP`.
-///
-/// # Safety
-/// AVX2 and FMA; as [`group512`] with `8 GROUP` floats.
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-unsafe fn group256(w: &[f32], stride: usize, x: &[f32], bias: &[f32], r: usize, out: &mut [f32]) {
-    let mut s = [_mm256_setzero_ps(); GROUP];
-    for (c, &xc) in x.iter().enumerate() {
-        let xv = _mm256_set1_ps(xc);
-        for (b, s) in s.iter_mut().enumerate() {
-            // SAFETY: the caller's promise.
-            *s = _mm256_fmadd_ps(
-                unsafe { _mm256_loadu_ps(w.as_ptr().add(c * stride + r + 8 * b)) },
-                xv,
-                *s,
-            );
-        }
-    }
-    for (b, s) in s.iter().enumerate() {
-        // SAFETY: the caller's promise.
-        unsafe {
-            let v = _mm256_add_ps(_mm256_loadu_ps(bias.as_ptr().add(r + 8 * b)), *s);
-            _mm256_storeu_ps(out.as_mut_ptr().add(8 * b), v);
-        }
-    }
+pub(super) unsafe fn column_chains512<const V: usize>(w: *const f32, stride: usize, x: &[f32]) -> [__m512; V] {
+    // SAFETY: compiled for AVX-512F; the caller's promise.
+    unsafe { column_chains::<Avx512, V>(w, stride, x) }
 }
 
 /// Rows from `first` until row `first + lead` of `w`'s columns starts on a multiple of
@@ -249,6 +181,22 @@ pub(super) fn checked<'p>(
         && first.checked_add(n).is_some_and(|end| end <= rows);
     let start = layer.bias as usize;
     fits.then(|| params.get(start..start + rows)).flatten()
+}
+
+/// The weights (column by column) and biases of a [`WeightFormat::F32Columns`] layer, when
+/// rows `first..first + n` of it exist for an input of `cols` values.
+pub(super) fn column_layer<'p>(
+    params: &'p [f32],
+    layer: &Layer,
+    cols: usize,
+    first: usize,
+    n: usize,
+) -> Option<(&'p [f32], &'p [f32])> {
+    if layer.format != WeightFormat::F32Columns {
+        return None;
+    }
+    let w = matrix(params, layer);
+    checked(params, layer, w, cols, first, n).map(|bias| (w, bias))
 }
 
 #[cfg(all(test, feature = "std"))]

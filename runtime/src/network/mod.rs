@@ -54,9 +54,16 @@ mod swish_avx512;
 #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
 #[allow(unsafe_code)]
 mod wasm;
+pub(crate) mod world;
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 mod x86;
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod x86_lanes;
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod x86_world;
 
 use crate::model::{Layer, WeightFormat, Weights};
 
@@ -90,8 +97,8 @@ fn isa_rows_f32(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], first: usiz
     }
 }
 
-/// The canonical `f16` sum's leading rows with this CPU's vectors (AVX2 + F16C, NEON);
-/// 0 where the portable code does them.
+/// The canonical `f16` sum's leading rows with this CPU's vectors (AVX2 + F16C, NEON) or
+/// FPU (Armv7E-M: two weights per load); 0 where the portable code does them.
 #[inline(always)]
 fn isa_rows_f16(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usize, out: &mut [f32]) -> usize {
     #[cfg(target_arch = "x86_64")]
@@ -105,6 +112,11 @@ fn isa_rows_f16(weights: &Weights, layer: &Layer, parts: &[&[f32]], first: usize
             true => aarch64::rows_f16(weights.params, layer, matrix(weights.halves, layer), x, first, out),
             false => 0,
         }),
+        false => 0,
+    };
+    #[cfg(all(target_arch = "arm", feature = "armv7em", target_abi = "eabihf"))]
+    return match vector_kernels() {
+        true => armv7em::rows_f16(weights.params, layer, matrix(weights.halves, layer), parts, first, out),
         false => 0,
     };
     #[allow(unreachable_code)]
@@ -209,6 +221,58 @@ pub(crate) fn isa_strand_step<const N: usize>(
     }
 }
 
+/// The vector world transform and one-pass decode of this target ([`world::WorldTransform`]):
+/// AVX-512F on x86-64 (chosen at run time: `new` gives `None` without it), none elsewhere.
+#[cfg(target_arch = "x86_64")]
+pub(crate) type WorldBlocks = x86_world::WorldBlocks;
+/// The vector world transform and one-pass decode of this target: none.
+#[cfg(not(target_arch = "x86_64"))]
+pub(crate) type WorldBlocks = world::NoWorldBlocks;
+
+/// Whether [`isa_place`] places any vertices on this target.
+pub(crate) const ISA_PLACE: bool = cfg!(target_arch = "aarch64");
+
+/// Places 3D vertices of `run` in the world (`frame * v + origin(o)`, `origin_of` giving
+/// each vertex's `o`) several per vector where this target's transform takes any origin per
+/// vertex (NEON: four at a time; `fused` behind an `f32` decoder, else the scalar transform's
+/// own operations and bits). Returns the leading vertices placed (0 where the caller places
+/// them).
+#[inline(always)]
+pub(crate) fn isa_place(
+    frame: &nalgebra::Matrix3<f32>,
+    fused: bool,
+    run: &mut [f32],
+    origin_of: &[u32],
+    origin: impl FnMut(u32) -> nalgebra::Vector3<f32>,
+) -> usize {
+    #[cfg(target_arch = "aarch64")]
+    return match (vector_kernels(), fused) {
+        (true, true) => aarch64::place::<true>(frame, run, origin_of, origin),
+        (true, false) => aarch64::place::<false>(frame, run, origin_of, origin),
+        (false, _) => 0,
+    };
+    #[allow(unreachable_code)]
+    {
+        let _ = (frame, fused, run, origin_of, origin);
+        0
+    }
+}
+
+/// Strands a decode walks side by side (`crate::strand_lanes::ChainWalks`): sixteen on x86-64
+/// (one AVX-512 vector, [`isa_strand_step`]), eight where the lanes become other vector
+/// instructions, one on targets without vectors (the Cortex-M4), where more lanes only add
+/// bookkeeping. Any number gives the same bits.
+pub(crate) const STRAND_LANES: usize = if cfg!(target_arch = "x86_64") {
+    16
+} else if cfg!(any(
+    target_arch = "aarch64",
+    all(target_arch = "wasm32", target_feature = "simd128")
+)) {
+    8
+} else {
+    1
+};
+
 /// Rows the canonical sum computes together: four where vector registers hold their lanes;
 /// two on the Cortex-M4, whose 32 single-precision registers hold two rows' eight lanes with
 /// room for the input and the weights (four rows' lanes would be spilled to the stack).
@@ -267,26 +331,6 @@ pub(crate) fn matrix<'p, T>(pool: &'p [T], layer: &Layer) -> &'p [T] {
         _ => layer.rows as usize,
     };
     pool.get(start..start + rows * layer.cols as usize).unwrap_or(&[])
-}
-
-#[cfg(target_arch = "x86_64")]
-pub(crate) use columns::column_chains512;
-
-/// The weights (column by column) and biases of a [`WeightFormat::F32Columns`] layer, when
-/// rows `first..first + n` of it exist for an input of `cols` values.
-#[cfg(target_arch = "x86_64")]
-pub(crate) fn column_layer<'p>(
-    params: &'p [f32],
-    layer: &Layer,
-    cols: usize,
-    first: usize,
-    n: usize,
-) -> Option<(&'p [f32], &'p [f32])> {
-    if layer.format != WeightFormat::F32Columns {
-        return None;
-    }
-    let w = matrix(params, layer);
-    columns::checked(params, layer, w, cols, first, n).map(|bias| (w, bias))
 }
 
 /// Rows `first..first + out.len()` of `layer` applied to the concatenation of `parts`.

@@ -7,6 +7,7 @@
 use core::arch::x86_64::*;
 
 use super::canonical::{fold, Stored, LANES};
+use super::x86_lanes::{wide_driver, Avx2, Avx512, Lanes};
 use super::{finish, matrix, Width};
 use crate::model::{Layer, WeightFormat, Weights};
 
@@ -91,109 +92,53 @@ pub(super) fn rows_f32(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], firs
 }
 
 /// The accumulators of `N` consecutive rows starting at `base` (row stride `cols`): for each
-/// row one chain of 16-lane fused multiply-adds over the columns, the last 16 masked; the
-/// rows past `N` stay zero. `N` is a constant so that the chains live in registers.
+/// row one chain of `L::N`-lane fused multiply-adds over the columns, the last block masked;
+/// the rows past `N` stay zero. `N` is a constant so that the chains live in registers.
 ///
 /// # Safety
-/// The CPU must have AVX-512F; `base..base + N * cols` and `x..x + cols` must be readable.
-#[target_feature(enable = "avx512f")]
-#[inline]
-unsafe fn chains512<const N: usize>(base: *const f32, x: *const f32, cols: usize) -> [__m512; BLOCK] {
-    let (whole, rem) = (cols / 16, cols % 16);
-    let mut acc = [_mm512_setzero_ps(); BLOCK];
-    // SAFETY: for row k < N and column block i < whole, k * cols + 16 i + 16 <= N * cols and
-    // 16 i + 16 <= cols; the masked tail reads only the `rem` columns that exist.
+/// Inside a wrapper compiled for `L`'s features (see [`Lanes`]); `base..base + N * cols` and
+/// `x..x + cols` must be readable.
+#[inline(always)]
+unsafe fn chains<L: Lanes, const N: usize>(base: *const f32, x: *const f32, cols: usize) -> [L::V; BLOCK] {
+    let (whole, rem) = (cols / L::N, cols % L::N);
+    // SAFETY: for row k < N and column block i < whole, k * cols + N i + N <= N * cols and
+    // N i + N <= cols; the masked tail reads only the `rem` columns that exist.
     unsafe {
+        let mut acc = [L::zero(); BLOCK];
         for i in 0..whole {
-            let xv = _mm512_loadu_ps(x.add(16 * i));
+            let xv = L::load(x.add(L::N * i));
             for (k, a) in acc.iter_mut().enumerate().take(N) {
-                *a = _mm512_fmadd_ps(_mm512_loadu_ps(base.add(k * cols + 16 * i)), xv, *a);
+                *a = L::fmadd(L::load(base.add(k * cols + L::N * i)), xv, *a);
             }
         }
         if rem > 0 {
-            let mask: __mmask16 = ((1u32 << rem) - 1) as u16;
-            let xv = _mm512_maskz_loadu_ps(mask, x.add(16 * whole));
+            let mask = L::mask(rem);
+            let xv = L::load_masked(mask, x.add(L::N * whole));
             for (k, a) in acc.iter_mut().enumerate().take(N) {
-                *a = _mm512_fmadd_ps(_mm512_maskz_loadu_ps(mask, base.add(k * cols + 16 * whole)), xv, *a);
+                *a = L::fmadd(L::load_masked(mask, base.add(k * cols + L::N * whole)), xv, *a);
             }
         }
+        acc
     }
-    acc
 }
 
-/// Rows `first..first + out.len()` of an `f32` layer with AVX-512F: eight rows at a time
-/// ([`chains512`]), the rest one at a time, then each accumulator's halves added and
-/// [`reduce8`] (which gives a row the same bits whichever lane it sits in). Returns the rows
-/// written.
+/// Rows `first..first + out.len()` of an `f32` layer with `L`'s vectors: eight rows at a
+/// time ([`chains`]), the rest one at a time, then each accumulator summed into eight lanes
+/// and [`reduce8`] (which gives a row the same bits whichever lane it sits in). Returns the
+/// rows written.
 ///
 /// # Safety
-/// The CPU must have AVX-512F. `x.len() == cols`; rows outside `w` are not written.
-#[target_feature(enable = "avx512f,avx2")]
-unsafe fn rows_f32_avx512(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], first: usize, out: &mut [f32]) -> usize {
-    let cols = x.len();
-    let fold16 = |a: __m512| {
-        _mm256_add_ps(
-            _mm512_castps512_ps256(a),
-            _mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(_mm512_castps_pd(a))),
-        )
-    };
-    let mut r = first;
-    for o in out.chunks_mut(BLOCK) {
-        let n = o.len();
-        let Some(block) = w.get(r * cols..(r + n) * cols) else {
-            return r - first;
-        };
-        if n == BLOCK {
-            // SAFETY: `block` holds the 8 rows; `x` holds `cols` values.
-            let acc = unsafe { chains512::<BLOCK>(block.as_ptr(), x.as_ptr(), cols) };
-            store_rows(params, layer, reduce8(acc.map(fold16)), r, o);
-        } else {
-            for (k, o) in o.iter_mut().enumerate() {
-                // SAFETY: row k of `block` holds `cols` values.
-                let acc = unsafe { chains512::<1>(block.as_ptr().add(k * cols), x.as_ptr(), cols) };
-                store_rows(params, layer, reduce8(acc.map(fold16)), r + k, core::slice::from_mut(o));
-            }
-        }
-        r += n;
-    }
-    out.len()
-}
-
-/// As [`chains512`] with 8-lane AVX2 fused multiply-adds (the tail by `maskload`).
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA; the pointers as for [`chains512`].
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-unsafe fn chains256<const N: usize>(base: *const f32, x: *const f32, cols: usize) -> [__m256; BLOCK] {
-    let (whole, rem) = (cols / 8, cols % 8);
-    let mut acc = [_mm256_setzero_ps(); BLOCK];
-    // SAFETY: as in `chains512`, with 8-column blocks; `maskload` reads only the lanes its
-    // mask enables.
-    unsafe {
-        for i in 0..whole {
-            let xv = _mm256_loadu_ps(x.add(8 * i));
-            for (k, a) in acc.iter_mut().enumerate().take(N) {
-                *a = _mm256_fmadd_ps(_mm256_loadu_ps(base.add(k * cols + 8 * i)), xv, *a);
-            }
-        }
-        if rem > 0 {
-            let mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(rem as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-            let xv = _mm256_maskload_ps(x.add(8 * whole), mask);
-            for (k, a) in acc.iter_mut().enumerate().take(N) {
-                *a = _mm256_fmadd_ps(_mm256_maskload_ps(base.add(k * cols + 8 * whole), mask), xv, *a);
-            }
-        }
-    }
-    acc
-}
-
-/// As [`rows_f32_avx512`] with AVX2 and FMA ([`chains256`]).
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA; the slices as for [`rows_f32_avx512`].
-#[target_feature(enable = "avx2,fma")]
-unsafe fn rows_f32_avx2(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], first: usize, out: &mut [f32]) -> usize {
+/// Inside a wrapper compiled for `L`'s features and AVX2. `x.len() == cols`; rows outside
+/// `w` are not written.
+#[inline(always)]
+unsafe fn rows_wide<L: Lanes>(
+    params: &[f32],
+    layer: &Layer,
+    w: &[f32],
+    x: &[f32],
+    first: usize,
+    out: &mut [f32],
+) -> usize {
     let cols = x.len();
     let mut r = first;
     for o in out.chunks_mut(BLOCK) {
@@ -201,21 +146,38 @@ unsafe fn rows_f32_avx2(params: &[f32], layer: &Layer, w: &[f32], x: &[f32], fir
         let Some(block) = w.get(r * cols..(r + n) * cols) else {
             return r - first;
         };
-        if n == BLOCK {
-            // SAFETY: `block` holds the 8 rows; `x` holds `cols` values.
-            let acc = unsafe { chains256::<BLOCK>(block.as_ptr(), x.as_ptr(), cols) };
-            store_rows(params, layer, reduce8(acc), r, o);
-        } else {
-            for (k, o) in o.iter_mut().enumerate() {
-                // SAFETY: row k of `block` holds `cols` values.
-                let acc = unsafe { chains256::<1>(block.as_ptr().add(k * cols), x.as_ptr(), cols) };
-                store_rows(params, layer, reduce8(acc), r + k, core::slice::from_mut(o));
+        // SAFETY (both branches): `block` holds the `n` rows; `x` holds `cols` values; the
+        // caller's features.
+        unsafe {
+            if n == BLOCK {
+                let acc = chains::<L, BLOCK>(block.as_ptr(), x.as_ptr(), cols);
+                let mut eight = [_mm256_setzero_ps(); BLOCK];
+                for (e, a) in eight.iter_mut().zip(acc) {
+                    *e = L::eight(a);
+                }
+                store_rows(params, layer, reduce8(eight), r, o);
+            } else {
+                for (k, o) in o.iter_mut().enumerate() {
+                    let acc = chains::<L, 1>(block.as_ptr().add(k * cols), x.as_ptr(), cols);
+                    let mut eight = [_mm256_setzero_ps(); BLOCK];
+                    eight[0] = L::eight(acc[0]);
+                    store_rows(params, layer, reduce8(eight), r + k, core::slice::from_mut(o));
+                }
             }
         }
         r += n;
     }
     out.len()
 }
+
+wide_driver!(
+    /// [`rows_wide`] with AVX-512F.
+    rows_f32_avx512 = rows_wide::<Avx512>, "avx512f,avx2"
+);
+wide_driver!(
+    /// [`rows_wide`] with AVX2 and FMA.
+    rows_f32_avx2 = rows_wide::<Avx2>, "avx2,fma"
+);
 
 /// Eight consecutive weights converted to `f32`.
 trait Load8: Stored {

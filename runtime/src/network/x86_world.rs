@@ -1,22 +1,22 @@
-//! The world transform `p = R q + o` of encoded 3D vertices, sixteen at a time on AVX-512F.
+//! The world transform `p = R q + o` of encoded 3D vertices, sixteen at a time on AVX-512F
+//! ([`WorldTransform`], the seam of `super::world`), and the one-pass decode into it.
 //!
 //! Sixteen vertices are 48 interleaved floats, three vectors. Output lane `i` (coordinate
 //! `c = i % 3` of its vertex) is `R[c][0] x + R[c][1] y + R[c][2] z + o[c]`; the vertex's
 //! `x`, `y` and `z` for every lane are gathered from two of the three vectors by one
 //! permutation each, and the rows of `R` and `o` are laid out once in the same lane pattern.
 //! Every lane computes `((R[c][0] x + o[c]) + R[c][1] y) + R[c][2] z` with fused
-//! multiply-adds: the scalar path ([`crate::decode`]) is free to round differently, within the
+//! multiply-adds: the scalar path (`crate::decode`) is free to round differently, within the
 //! tolerance `f32` targets agree to.
 
 use core::arch::x86_64::*;
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::columns::{column_chains512, column_layer};
+use super::world::{WorldTransform, BLOCK_FLOATS, BLOCK_VERTICES};
+use super::Width;
 use crate::model::{column_stride, Layer};
-use crate::network::{self, column_chains512};
-
-/// Floats in one block: sixteen vertices of three coordinates.
-pub(crate) const BLOCK_FLOATS: usize = 48;
 
 /// For output vector `b` and coordinate `k` of the source vertex: which pair of input vectors
 /// the permutation reads (`first`, `first + 1`), and the index of each lane in that pair.
@@ -55,11 +55,13 @@ pub(crate) struct WorldBlocks {
     origin: [__m512; 3],
 }
 
-impl WorldBlocks {
+impl WorldTransform for WorldBlocks {
+    const PRESENT: bool = true;
+
     /// The pattern for the rotation `r` and the origin `o`; `None` where the CPU lacks
     /// AVX-512F (the caller transforms vertex by vertex).
-    pub(crate) fn new(r: &Matrix3<f32>, o: &Vector3<f32>) -> Option<Self> {
-        if crate::network::fast::width() != crate::network::Width::Avx512 {
+    fn new(r: &Matrix3<f32>, o: &Vector3<f32>) -> Option<Self> {
+        if super::fast::width() != Width::Avx512 {
             return None;
         }
         // Lane `l` of output vector `b` holds coordinate `(16 b + l) % 3` of its vertex.
@@ -89,7 +91,7 @@ impl WorldBlocks {
     }
 
     /// Moves the transform to the origin `o` (the rotation stays).
-    pub(crate) fn set_origin(&mut self, o: &Vector3<f32>) {
+    fn set_origin(&mut self, o: &Vector3<f32>) {
         let mut origin = [[0.0f32; 16]; 3];
         for (b, lanes) in origin.iter_mut().enumerate() {
             for (l, lane) in lanes.iter_mut().enumerate() {
@@ -101,11 +103,54 @@ impl WorldBlocks {
     }
 
     /// Transforms one block of sixteen vertices in place.
-    pub(crate) fn apply(&self, block: &mut [f32; BLOCK_FLOATS]) {
+    fn apply(&self, block: &mut [f32; BLOCK_FLOATS]) {
         // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F.
         unsafe { self.apply_avx512(block) }
     }
 
+    /// See [`WorldTransform::placed_rows`]: the bits of the column kernel followed by
+    /// [`WorldTransform::apply`], without storing and loading the block in between.
+    fn placed_rows(&self, params: &[f32], layer: &Layer, x: &[f32], first: usize, out: &mut [f32]) -> usize {
+        let n = out.len() / BLOCK_FLOATS * BLOCK_FLOATS;
+        let Some((w, bias)) = column_layer(params, layer, x.len(), first, n).filter(|_| n > 0) else {
+            return 0;
+        };
+        let stride = column_stride(layer.rows as usize);
+        // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; `column_layer`
+        // checked that rows `first..first + n` exist in every column of `w` and in `bias`.
+        unsafe { self.placed_avx512(w, stride, bias, x, first, &mut out[..n]) };
+        n
+    }
+
+    /// See [`WorldTransform::placed_vertices`]: contiguous blocks with three stores, blocks
+    /// across a prescribed vertex vertex by vertex; the vertices of a block with several
+    /// origins are moved from the first one's to their own. Blocks of one origin have the
+    /// bits of [`WorldTransform::placed_rows`].
+    #[allow(clippy::too_many_arguments)]
+    fn placed_vertices(
+        &mut self,
+        params: &[f32],
+        layer: &Layer,
+        x: &[f32],
+        free: &[u32],
+        origin_of: &[u32],
+        origin: &mut u32,
+        origin_at: &mut dyn FnMut(u32) -> Vector3<f32>,
+        out: &mut [f32],
+    ) -> usize {
+        let n = free.len().min(origin_of.len()) / BLOCK_VERTICES * BLOCK_VERTICES;
+        let Some((w, bias)) = column_layer(params, layer, x.len(), 0, 3 * n).filter(|_| n > 0) else {
+            return 0;
+        };
+        let stride = column_stride(layer.rows as usize);
+        let (free, origin_of) = (&free[..n], &origin_of[..n]);
+        // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; `column_layer`
+        // checked that rows `0..3 n` exist in every column of `w` and in `bias`.
+        unsafe { self.placed_vertices_avx512(w, stride, bias, x, free, origin_of, origin, origin_at, out) }
+    }
+}
+
+impl WorldBlocks {
     #[target_feature(enable = "avx512f")]
     fn apply_avx512(&self, block: &mut [f32; BLOCK_FLOATS]) {
         let p = block.as_mut_ptr();
@@ -147,23 +192,6 @@ impl WorldBlocks {
         [out0, out1, out2]
     }
 
-    /// Rows `first..` of a decoder's column-stored `f32` output layer on the input `x`, as
-    /// many whole blocks as `out` holds, each transformed while still in registers: the bits
-    /// of the column kernel followed by [`WorldBlocks::apply`], without storing and loading
-    /// the block in between. Returns the rows written (0 where the layer is not stored by
-    /// columns or lacks the rows: the caller computes them).
-    pub(crate) fn placed_rows(&self, params: &[f32], layer: &Layer, x: &[f32], first: usize, out: &mut [f32]) -> usize {
-        let n = out.len() / BLOCK_FLOATS * BLOCK_FLOATS;
-        let Some((w, bias)) = network::column_layer(params, layer, x.len(), first, n).filter(|_| n > 0) else {
-            return 0;
-        };
-        let stride = column_stride(layer.rows as usize);
-        // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; `column_layer`
-        // checked that rows `first..first + n` exist in every column of `w` and in `bias`.
-        unsafe { self.placed_avx512(w, stride, bias, x, first, &mut out[..n]) };
-        n
-    }
-
     /// # Safety
     /// Rows `first..first + out.len()` must exist in `bias` and in each of the `x.len()`
     /// columns of `w` (`stride` floats apart).
@@ -197,42 +225,7 @@ impl WorldBlocks {
         }
     }
 
-    /// The encoded vertices `free` (the model's free vertices, ascending; `origin_of` their
-    /// origins, `origin` the one this transform is at, `origin_at` the position of any)
-    /// decoded from a column-stored `f32` output layer on the input `x` and placed, sixteen at
-    /// a time, each block straight to its vertices in `out` (`3` floats per vertex):
-    /// contiguous blocks with three stores, blocks across a prescribed vertex vertex by
-    /// vertex. A block whose first vertex has another origin moves the transform there
-    /// ([`WorldBlocks::set_origin`]); the vertices of a block with several origins are moved
-    /// from the first one's to their own one by one. Stops before the last
-    /// `free.len() % 16`; returns the free vertices placed (0 where the layer is not stored
-    /// by columns or `out` is too short). Blocks of one origin have the bits of
-    /// [`WorldBlocks::placed_rows`].
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn placed_vertices(
-        &mut self,
-        params: &[f32],
-        layer: &Layer,
-        x: &[f32],
-        free: &[u32],
-        origin_of: &[u32],
-        origin: &mut u32,
-        origin_at: &mut dyn FnMut(u32) -> Vector3<f32>,
-        out: &mut [f32],
-    ) -> usize {
-        const PER_BLOCK: usize = BLOCK_FLOATS / 3;
-        let n = free.len().min(origin_of.len()) / PER_BLOCK * PER_BLOCK;
-        let Some((w, bias)) = network::column_layer(params, layer, x.len(), 0, 3 * n).filter(|_| n > 0) else {
-            return 0;
-        };
-        let stride = column_stride(layer.rows as usize);
-        let (free, origin_of) = (&free[..n], &origin_of[..n]);
-        // SAFETY: a `WorldBlocks` exists only where the CPU has AVX-512F; `column_layer`
-        // checked that rows `0..3 n` exist in every column of `w` and in `bias`.
-        unsafe { self.placed_vertices_avx512(w, stride, bias, x, free, origin_of, origin, origin_at, out) }
-    }
-
-    /// The loop of [`WorldBlocks::placed_vertices`], compiled for AVX-512F so that the column
+    /// The loop of [`WorldTransform::placed_vertices`], compiled for AVX-512F so that the column
     /// chains and the block's transform and stores inline into it.
     ///
     /// # Safety
@@ -254,9 +247,11 @@ impl WorldBlocks {
         origin_at: &mut dyn FnMut(u32) -> Vector3<f32>,
         out: &mut [f32],
     ) -> usize {
-        const PER_BLOCK: usize = BLOCK_FLOATS / 3;
         let mut done = 0;
-        for (vertices, origins) in free.chunks_exact(PER_BLOCK).zip(origin_of.chunks_exact(PER_BLOCK)) {
+        for (vertices, origins) in free
+            .chunks_exact(BLOCK_VERTICES)
+            .zip(origin_of.chunks_exact(BLOCK_VERTICES))
+        {
             if origins[0] != *origin {
                 *origin = origins[0];
                 self.set_origin(&origin_at(*origin));
@@ -271,7 +266,7 @@ impl WorldBlocks {
                     false => self.mixed_block(bias.as_ptr().add(r), a, vertices, origins, origin_at, out),
                 }
             }
-            done += PER_BLOCK;
+            done += BLOCK_VERTICES;
         }
         done
     }
