@@ -27,15 +27,13 @@ use crate::methods::reduced::stepper::StepperSettings;
 use crate::methods::reduced::subspace::SubspaceDecoder;
 use crate::methods::simulated::Simulated;
 
-/// Family of the selection's other candidates while they are read in.
-pub const CANDIDATE: &str = "candidate";
 /// The family the selection's other candidates chart as (each a budget: model size and shape).
 pub const CANDIDATES_FAMILY: &str = "learned (runtime), other candidates";
 
 /// The learned models of `model`: the model (`SCENE.mochi`, "learned (runtime)"), its
 /// supervised twin beside it (`SCENE.supervised.mochi`) and the selection's other candidates
 /// (`candidates/*.mochi` beside it, as `mochi train` writes them, but for the kept model's own
-/// networks; [`CANDIDATE`]), each with its bytes and path.
+/// networks; [`CANDIDATES_FAMILY`]), each with its family, bytes and path.
 pub fn model_files(model: &Path) -> TrainerResult<Vec<(&'static str, Vec<u8>, PathBuf)>> {
     let kept = fs::read(model)?;
     let mut files = Vec::new();
@@ -66,7 +64,7 @@ pub fn model_files(model: &Path) -> TrainerResult<Vec<(&'static str, Vec<u8>, Pa
         let bytes = fs::read(&path)?;
         // The kept model is also among the candidates, with another summary.
         if networks(&bytes, &path)? != kept_networks {
-            files.push((CANDIDATE, bytes, path));
+            files.push((CANDIDATES_FAMILY, bytes, path));
         }
     }
     files.insert(0, ("learned (runtime)", kept, model.to_path_buf()));
@@ -75,13 +73,11 @@ pub fn model_files(model: &Path) -> TrainerResult<Vec<(&'static str, Vec<u8>, Pa
 
 /// A learned model in one storage, ready for the runtime.
 pub struct LearnedModel<'m> {
-    /// "learned (runtime)" or "supervised (runtime)".
+    /// "learned (runtime)", "supervised (runtime)" or [`CANDIDATES_FAMILY`].
     pub family: &'static str,
     /// Latent size and storage ("k=8, int8"), and the candidate's name for the selection's
     /// other candidates.
     pub setting: String,
-    /// The model `mochi train` kept (or its supervised twin), not another candidate.
-    pub kept: bool,
     /// The validated model.
     pub model: ValidModel<'m>,
 }
@@ -344,7 +340,7 @@ pub fn learned<'a>(trained: &'a Trained<'a>, change: RunTimeChange, budgets: Bud
         Budgets::One => trained
             .learned
             .iter()
-            .filter(|m| m.kept && m.family.starts_with("learned") && !m.setting.ends_with("f16"))
+            .filter(|m| m.family == "learned (runtime)" && !m.setting.ends_with("f16"))
             .collect(),
     };
     models

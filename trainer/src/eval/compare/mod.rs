@@ -46,9 +46,7 @@ pub mod lineup;
 pub mod page;
 
 use conditions::{Condition, MatrixSpan, RunTimeChange};
-use lineup::{
-    model_files, Budgets, Entry, LearnedModel, ReducedSubspace, SubspaceMap, Trained, CANDIDATE, CANDIDATES_FAMILY,
-};
+use lineup::{model_files, Budgets, Entry, LearnedModel, ReducedSubspace, SubspaceMap, Trained, CANDIDATES_FAMILY};
 
 /// The time-converged reference stops halving the step once the positions move by less than
 /// this fraction of the rest diagonal (mean over vertices, largest over frames).
@@ -58,7 +56,8 @@ pub const CONVERGED_CHANGE: f64 = 1e-3;
 #[derive(Clone, Debug)]
 pub struct CompareOptions {
     /// The learned model (`SCENE.mochi`; its supervised twin beside it and the selection's
-    /// other candidates in `candidates/` beside it are added), whose scene is the one compared. Without it, the scene named on the command line.
+    /// other candidates in `candidates/` beside it are added), whose scene is the one
+    /// compared. Without it, the scene named on the command line.
     pub model: Option<PathBuf>,
     /// The scene's `.reduced` file, when there is one.
     pub reduced: Option<PathBuf>,
@@ -212,12 +211,11 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
         let base = &bases[*i];
         let (family, path) = (bytes[*i].0, &bytes[*i].2);
         let name = match family {
-            CANDIDATE => format!(", {}", path.file_stem().and_then(|n| n.to_str()).unwrap_or("?")),
+            CANDIDATES_FAMILY => format!(", {}", path.file_stem().and_then(|n| n.to_str()).unwrap_or("?")),
             _ => String::new(),
         };
         learned.push(LearnedModel {
-            family: if family == CANDIDATE { CANDIDATES_FAMILY } else { family },
-            kept: family != CANDIDATE,
+            family,
             setting: format!("k={}, {}{name}", base.latent, format_name(*f)),
             model: ValidModel::new(q.model(base)).map_err(|e| TrainerError::invalid(format!("{e:?}")))?,
         });
