@@ -33,9 +33,15 @@ pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
 /// the trainer reads (scene, encoder, PCA, drawing lists, training summary) out of the first
 /// section into a section of its own; version 4 moved the triangles to draw from that section
 /// into the first (`surface_triangles`, over the drawn vertices); version 5 added decoders that
-/// end in a linear basis (`decoder_basis`). Other versions are refused with
-/// [`EnvelopeError::Version`].
-pub const FORMAT_VERSION: u32 = 5;
+/// end in a linear basis (`decoder_basis`); version 6 added the trained range of frame times
+/// (`dt_range`, for an integrator that takes the frame time as an input). The runtime also
+/// reads version [`OLDEST_READ_VERSION`] (as a model of one frame time); other versions are
+/// refused with [`EnvelopeError::Version`].
+pub const FORMAT_VERSION: u32 = 6;
+
+/// Oldest artifact format version the runtime reads: 5, whose payload is this one without its
+/// last field (`dt_range`).
+pub const OLDEST_READ_VERSION: u32 = 5;
 
 /// Why an artifact was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -105,9 +111,14 @@ pub fn wide_params_len(m: &Model) -> usize {
 /// The deployable payload of an artifact (its first section), after checking every section's
 /// envelope.
 pub fn payload(bytes: &[u8]) -> Result<&[u8], LoadError> {
-    let (payload, rest) = envelope::split(bytes, MAGIC, FORMAT_VERSION)?;
+    Ok(versioned_payload(bytes)?.1)
+}
+
+/// [`payload`] with the artifact's format version.
+fn versioned_payload(bytes: &[u8]) -> Result<(u32, &[u8]), LoadError> {
+    let (version, payload, rest) = envelope::split_versions(bytes, MAGIC, OLDEST_READ_VERSION..=FORMAT_VERSION)?;
     envelope::check_sections(rest)?;
-    Ok(payload)
+    Ok((version, payload))
 }
 
 /// A model loaded from artifact bytes into pools `P` (weights), `F` (other reals), `I`
@@ -215,14 +226,16 @@ where
         self.indices.clear();
         self.handles.clear();
         self.header = Model::EMPTY;
-        self.read(payload(bytes)?)?;
+        let (version, payload) = versioned_payload(bytes)?;
+        self.read(payload, version)?;
         self.describe().validate().map_err(LoadError::Invalid)?;
         self.loaded = true;
         Ok(ValidModel::validated(self.describe()))
     }
 
-    /// Reads every field of the payload in the order of `payload::Payload`.
-    fn read(&mut self, payload: &[u8]) -> Result<(), LoadError> {
+    /// Reads every field of the payload in the order of `payload::Payload` (a format-5 payload
+    /// ends before `dt_range`).
+    fn read(&mut self, payload: &[u8], version: u32) -> Result<(), LoadError> {
         let mut r = Reader {
             de: postcard::Deserializer::from_bytes(payload),
             size: payload.len(),
@@ -263,6 +276,10 @@ where
         r.network("integrator", &mut self.params, &mut self.integrator, false)?;
         self.header.surface_triangles = r.seq("surface_triangles", &mut self.indices)?;
         self.header.decoder_basis = r.value("decoder_basis")?;
+        if version >= 6 {
+            let [lo, hi] = r.value::<[f64; 2]>("dt_range")?;
+            (self.header.dt_min, self.header.dt_max) = (lo as f32, hi as f32);
+        }
         match r.de.finalize() {
             Ok([]) => {}
             _ => return Err(LoadError::TrailingBytes),

@@ -63,6 +63,9 @@ pub enum MochiStatus {
     BufferLength = -5,
     /// The decoded state was not finite; the rest positions were written instead.
     DecodeNotFinite = -6,
+    /// The frame time is not a positive finite number, or the model takes only its own
+    /// (`dt_max` of [`MochiModelInfo`] is 0) and another was given.
+    FrameTime = -7,
 }
 
 /// Sizes of a model.
@@ -81,10 +84,15 @@ pub struct MochiModelInfo {
     pub state_len: u32,
     /// Floats of a drawn-vertices state ([`mochi_instance_decode_surface`]).
     pub surface_len: u32,
-    /// Time step in seconds.
+    /// Time step in seconds ([`mochi_instance_step`]'s frame time).
     pub dt: f32,
     /// Rest bounding-box diagonal.
     pub diagonal: f32,
+    /// Shortest frame time the model was trained at (0 for a model of one frame time).
+    pub dt_min: f32,
+    /// Longest frame time the model was trained at; when positive,
+    /// [`mochi_instance_step_dt`] takes any positive frame time, otherwise only `dt`.
+    pub dt_max: f32,
 }
 
 /// The instance in `instance`'s memory.
@@ -117,6 +125,8 @@ pub unsafe extern "C" fn mochi_model_info(model: *const MochiModel, info: *mut M
         surface_len: m.surface_len() as u32,
         dt: m.dt,
         diagonal: m.diagonal,
+        dt_min: m.dt_min,
+        dt_max: m.dt_max,
     };
     MochiStatus::Ok
 }
@@ -145,7 +155,8 @@ pub unsafe extern "C" fn mochi_instance_init(model: *const MochiModel, instance:
     }
 }
 
-/// Advances `instance` one frame with `count` handle motions (the model's handle order).
+/// Advances `instance` one frame of the model's time step (`dt` of [`MochiModelInfo`]) with
+/// `count` handle motions (the model's handle order).
 ///
 /// # Safety
 /// `model` as for [`mochi_instance_init`]; `instance` initialised by it; `motions` null or
@@ -158,6 +169,29 @@ pub unsafe extern "C" fn mochi_instance_step(
     count: usize,
 ) -> MochiStatus {
     // SAFETY: see the function's contract.
+    let Some(dt) = (unsafe { model.as_ref() }).map(|m| m.0.model().dt) else {
+        return MochiStatus::NullPointer;
+    };
+    // SAFETY: the same contract.
+    unsafe { mochi_instance_step_dt(model, instance, motions, count, dt) }
+}
+
+/// Advances `instance` one frame of `dt` seconds (the engine's frame time) with `count` handle
+/// motions: any positive `dt` for a model trained over a range of frame times (`dt_max` of
+/// [`MochiModelInfo`] positive), only the model's own `dt` otherwise
+/// ([`MochiStatus::FrameTime`]).
+///
+/// # Safety
+/// As [`mochi_instance_step`].
+#[no_mangle]
+pub unsafe extern "C" fn mochi_instance_step_dt(
+    model: *const MochiModel,
+    instance: *mut MochiInstance,
+    motions: *const HandleMotion,
+    count: usize,
+    dt: f32,
+) -> MochiStatus {
+    // SAFETY: see the function's contract.
     let (Some(model), Some(body)) = (unsafe { model.as_ref() }, unsafe { state(instance) }) else {
         return MochiStatus::NullPointer;
     };
@@ -166,13 +200,14 @@ pub unsafe extern "C" fn mochi_instance_step(
     }
     // SAFETY: `count` readable motions (the function's contract).
     let bc = unsafe { core::slice::from_raw_parts(motions, count) };
-    match body.step(&model.0, bc) {
+    match body.step_dt(&model.0, bc, dt) {
         Ok(Stepped::Ok) => MochiStatus::Ok,
         Ok(Stepped::Clamped) => MochiStatus::Clamped,
         Ok(Stepped::Held) => MochiStatus::Held,
         Err(StepError::HandleCount { .. }) => MochiStatus::HandleCount,
         Err(StepError::NotFinite { .. }) => MochiStatus::NotFinite,
         Err(StepError::Model(_)) => MochiStatus::Size,
+        Err(StepError::FrameTime | StepError::FixedFrameTime) => MochiStatus::FrameTime,
     }
 }
 

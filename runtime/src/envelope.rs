@@ -130,17 +130,28 @@ impl Header {
 /// Checks, in order: the magic (refused first, so a foreign file is named as such even when
 /// short), the header's presence, the version, that the payload fits, and its CRC-32.
 pub fn split<'a>(bytes: &'a [u8], magic: &[u8; 8], version: u32) -> Result<(&'a [u8], &'a [u8]), EnvelopeError> {
+    split_versions(bytes, magic, version..=version).map(|(_, payload, rest)| (payload, rest))
+}
+
+/// [`split`] for a reader of several versions: accepts any version in `versions` and returns
+/// it with the payload (a version outside is refused naming the newest).
+pub fn split_versions<'a>(
+    bytes: &'a [u8],
+    magic: &[u8; 8],
+    versions: core::ops::RangeInclusive<u32>,
+) -> Result<(u32, &'a [u8], &'a [u8]), EnvelopeError> {
     if bytes.get(..magic.len()) != Some(&magic[..]) {
         return Err(EnvelopeError::BadMagic);
     }
     let header = Header::parse(bytes)?;
-    if header.version != version {
+    if !versions.contains(&header.version) {
         return Err(EnvelopeError::Version {
             found: header.version,
-            expected: version,
+            expected: *versions.end(),
         });
     }
-    section(header, &bytes[HEADER_LEN..])
+    let (payload, rest) = section(header, &bytes[HEADER_LEN..])?;
+    Ok((header.version, payload, rest))
 }
 
 /// The payload of `bytes`, which must be exactly one envelope with `magic` and `version`.

@@ -43,6 +43,8 @@ impl Model<'static> {
         latent: 0,
         bc_len: 0,
         dt: 0.0,
+        dt_min: 0.0,
+        dt_max: 0.0,
         diagonal: 0.0,
         rotates: false,
         params: &[],
@@ -73,7 +75,7 @@ impl Model<'static> {
 
 impl<'a> Model<'a> {
     /// Number of fields of a [`Model`].
-    pub const FIELDS: usize = 30;
+    pub const FIELDS: usize = 32;
 
     /// Every field with its name, in declaration order.
     pub fn fields(&self) -> [(&'static str, FieldValue<'a>); Model::FIELDS] {
@@ -84,6 +86,8 @@ impl<'a> Model<'a> {
             latent,
             bc_len,
             dt,
+            dt_min,
+            dt_max,
             diagonal,
             rotates,
             params,
@@ -116,6 +120,8 @@ impl<'a> Model<'a> {
             ("latent", V::U32(latent)),
             ("bc_len", V::U32(bc_len)),
             ("dt", V::F32(dt)),
+            ("dt_min", V::F32(dt_min)),
+            ("dt_max", V::F32(dt_max)),
             ("diagonal", V::F32(diagonal)),
             ("rotates", V::Bool(rotates)),
             ("params", V::F32s(params)),

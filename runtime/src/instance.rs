@@ -68,7 +68,16 @@ pub enum StepError {
     },
     /// The model's sizes are not the ones this instance was compiled for.
     Model(SizeError),
+    /// The frame time given to [`Instance::step_dt`] is not a positive finite number.
+    FrameTime,
+    /// The model was trained at the one frame time [`Model::dt`] (it does not take the frame
+    /// time as an input) and another was given.
+    FixedFrameTime,
 }
+
+/// Relative difference from [`Model::dt`] within which a model of one frame time accepts a
+/// frame time given to [`Instance::step_dt`] (a host's rounding of `1/30`).
+pub const FRAME_TIME_TOLERANCE: f32 = 1e-4;
 
 /// Why a decode was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -105,6 +114,11 @@ impl fmt::Display for StepError {
             }
             StepError::NotFinite { handle } => write!(f, "motion of handle {handle} is not finite"),
             StepError::Model(e) => write!(f, "{e}"),
+            StepError::FrameTime => write!(f, "frame time is not a positive finite number"),
+            StepError::FixedFrameTime => write!(
+                f,
+                "the model was trained at one frame time (its `dt`) and does not take another"
+            ),
         }
     }
 }
@@ -230,11 +244,28 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         self.frames
     }
 
-    /// Advances one frame with the handles' motion over it (one [`HandleMotion`] per handle,
-    /// in the model's handle order). Bad input is refused and leaves the instance unchanged.
+    /// Advances one frame of the model's own frame time ([`Model::dt`]) with the handles'
+    /// motion over it (one [`HandleMotion`] per handle, in the model's handle order). Bad input
+    /// is refused and leaves the instance unchanged.
     pub fn step(&mut self, model: &ValidModel, bc: &[HandleMotion]) -> Result<Stepped, StepError> {
+        self.step_dt(model, bc, model.model().dt)
+    }
+
+    /// Advances one frame of `dt` seconds (the host's frame time: 1/72, 1/90, 1/120 s on a
+    /// headset) with the handles' motion over it. A model that takes the frame time as an input
+    /// ([`Model::timed`]) steps by any positive `dt` (outside its trained range
+    /// [`Model::dt_min`]..=[`Model::dt_max`] the motion is an extrapolation); a model of one
+    /// frame time accepts only its own ([`FRAME_TIME_TOLERANCE`]). Bad input is refused and
+    /// leaves the instance unchanged.
+    pub fn step_dt(&mut self, model: &ValidModel, bc: &[HandleMotion], dt: f32) -> Result<Stepped, StepError> {
         let (k, s) = self.check_sizes(model).map_err(StepError::Model)?;
         let m = model.model();
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(StepError::FrameTime);
+        }
+        if !m.timed() && (dt - m.dt).abs() > FRAME_TIME_TOLERANCE * m.dt {
+            return Err(StepError::FixedFrameTime);
+        }
         if bc.len() != m.handles.len() {
             return Err(StepError::HandleCount {
                 expected: m.handles.len(),
@@ -248,12 +279,14 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         for (chunk, motion) in signal.chunks_exact_mut(SIGNAL_PER_HANDLE).zip(bc) {
             chunk.copy_from_slice(&motion.signal());
         }
-        let parts: [&[f32]; 5] = [
+        let time = [dt];
+        let parts: [&[f32]; 6] = [
             &self.z[..k],
             &self.z_prev[..k],
             &signal[..s],
             &self.signal[..s],
             &self.signal_prev[..s],
+            if m.timed() { &time } else { &[] },
         ];
         let h = last_hidden::<H>(&m.weights(), m.integrator, &parts);
         let mut increment = [0.0f32; K];

@@ -103,6 +103,8 @@ impl Strand {
             indices: &self.indices,
             decoder: &self.decoder,
             decoder_basis: false,
+            dt_min: 0.0,
+            dt_max: 0.0,
             integrator: &self.integrator,
             handles: &self.handles,
             rest,

@@ -4,7 +4,8 @@
 //!
 //! A network is a list of dense layers `[input, inner_0, outer_0, ..., output]` with
 //! `h = input(x); h += outer_j(swish(inner_j(h))); y = output(swish(h))`. The integrator maps
-//! `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` to the increment `z_t - z_{t-1}`; the decoder
+//! `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` (then the frame time, for a model trained over a
+//! range of frame times: [`Model::timed`]) to the increment `z_t - z_{t-1}`; the decoder
 //! maps a latent to the encoded state of the free vertices: `dim` numbers each (positions in
 //! the encoding frame), or two numbers each for rod strands encoded by their bends
 //! ([`Model::chains`], see [`Chain`]).
@@ -217,8 +218,17 @@ pub struct Model<'a> {
     pub latent: u32,
     /// Boundary-condition signal numbers per frame ([`SIGNAL_PER_HANDLE`] per handle).
     pub bc_len: u32,
-    /// Time step in seconds.
+    /// Time step in seconds: the frame time [`crate::Instance::step`] advances by.
     pub dt: f32,
+    /// Shortest frame time the integrator was trained at; 0 with [`Model::dt_max`] for a model
+    /// trained at the one frame time [`Model::dt`].
+    pub dt_min: f32,
+    /// Longest frame time the integrator was trained at. When positive, the integrator takes
+    /// the frame time (seconds) as one more input after the boundary-condition signals and
+    /// [`crate::Instance::step_dt`] steps by any positive frame time (outside
+    /// `dt_min..=dt_max` the motion is an extrapolation); when 0 the model steps by [`Model::dt`]
+    /// only.
+    pub dt_max: f32,
     /// Rest bounding-box diagonal.
     pub diagonal: f32,
     /// Whether states are encoded relative to the handles' rotation.
@@ -374,6 +384,16 @@ impl<'a> Model<'a> {
     /// Length of an encoded state (`dim` per free vertex, 2 for bends).
     pub fn encoded_len(&self) -> usize {
         self.values_per_vertex() * self.free_vertices.len as usize
+    }
+    /// Whether the integrator takes the frame time as an input (trained over a range of frame
+    /// times, [`Model::dt_min`] to [`Model::dt_max`]).
+    pub fn timed(&self) -> bool {
+        self.dt_max > 0.0
+    }
+    /// Length of the integrator's input: two latents, three signals, and the frame time when
+    /// [`Model::timed`].
+    pub fn integrator_input(&self) -> usize {
+        2 * self.latent as usize + 3 * self.bc_len as usize + usize::from(self.timed())
     }
     /// Widest hidden layer of either network (for a basis decoder, of its MLP and its
     /// features).

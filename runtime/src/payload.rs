@@ -56,7 +56,8 @@ pub struct Payload {
     pub latent_max: Vec<f32>,
     /// Decoder: latent -> encoded state.
     pub decoder: Vec<LayerData>,
-    /// Integrator: `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` -> latent increment.
+    /// Integrator: `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` (then the frame time when
+    /// `dt_range` is not zero) -> latent increment.
     pub integrator: Vec<LayerData>,
     /// Triangles to draw, three indices into `surface_vertices` each: the boundary faces of a
     /// tet mesh (outward), the triangles of a 2D mesh or cloth, none for rods. Last, so that a
@@ -65,6 +66,10 @@ pub struct Payload {
     /// Whether the decoder's last layer is a linear basis (see [`crate::Model::decoder_basis`]).
     /// Last, so that a format-4 payload followed by one `0x00` byte (`false`) reads as this one.
     pub decoder_basis: bool,
+    /// Shortest and longest frame time (seconds) the integrator was trained at, when it takes
+    /// the frame time as its last input; `[0, 0]` for a model of the one frame time `dt` (see
+    /// [`crate::Model::dt_max`]). Last: a format-5 payload is this one without it.
+    pub dt_range: [f64; 2],
 }
 
 /// One rod strand of the bend encoding (see [`crate::Chain`]).
@@ -165,6 +170,7 @@ mod tests {
             integrator: vec![layer(4, 38), layer(1, 4)],
             surface_triangles: vec![0, 1, 2],
             decoder_basis: false,
+            dt_range: [0.0; 2],
         }
     }
 
@@ -256,6 +262,7 @@ mod tests {
         Payload {
             decoder,
             decoder_basis: true,
+            dt_range: [0.0; 2],
             ..payload()
         }
     }
@@ -361,6 +368,7 @@ mod tests {
         // The same layers without the flag are an MLP decoder of the wrong shape.
         let p = Payload {
             decoder_basis: false,
+            dt_range: [0.0; 2],
             ..with_basis(vec![layer(4, 1, 0.7), layer(3, 4, 1.3)], 3)
         };
         assert_eq!(refused(p), Some(("decoder", Problem::Unsupported)));

@@ -85,7 +85,8 @@ impl Model<'_> {
             );
         }
         self.validate_decoder(k)?;
-        self.validate_network("integrator", self.integrator, 2 * k + 3 * bc, k)?;
+        self.validate_frame_times()?;
+        self.validate_network("integrator", self.integrator, self.integrator_input(), k)?;
         if !self.params.iter().all(|v| v.is_finite()) {
             return fail("params", Problem::NotFinite);
         }
@@ -94,6 +95,23 @@ impl Model<'_> {
             return fail("halves", Problem::NotFinite);
         }
         Ok(())
+    }
+
+    /// The trained range of frame times: both 0 (one frame time), or finite with
+    /// `0 < dt_min <= dt_max`.
+    fn validate_frame_times(&self) -> Result<(), ModelError> {
+        let (lo, hi) = (self.dt_min, self.dt_max);
+        for (field, v) in [("dt_min", lo), ("dt_max", hi)] {
+            if !v.is_finite() {
+                return fail(field, Problem::NotFinite);
+            }
+        }
+        match (lo, hi) {
+            (0.0, 0.0) => Ok(()),
+            (lo, hi) if lo > 0.0 && lo <= hi => Ok(()),
+            (lo, _) if lo <= 0.0 => fail("dt_min", Problem::Domain),
+            _ => fail("dt_max", Problem::Domain),
+        }
     }
 
     fn validate_vertices(&self) -> Result<(), ModelError> {

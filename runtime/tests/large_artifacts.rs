@@ -65,6 +65,7 @@ fn one_large_handle() -> Payload {
         // A strip of triangles over every drawn vertex.
         surface_triangles: (0..n as u32 - 2).flat_map(|i| [i, i + 1, i + 2]).collect(),
         decoder_basis: false,
+        dt_range: [0.0; 2],
     }
 }
 
@@ -104,6 +105,7 @@ fn one_large_strand() -> Payload {
         integrator: vec![layer(4, 2 + 36), layer(1, 4)],
         surface_triangles: vec![],
         decoder_basis: false,
+        dt_range: [0.0; 2],
     }
 }
 

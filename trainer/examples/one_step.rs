@@ -69,10 +69,14 @@ fn main() -> anyhow::Result<()> {
         let last = seq.encoded.len() - 1;
         for t in [2, 5, 20, 60, 100, 140].into_iter().filter(|&t| t <= last) {
             let (prev, prev2) = (world(&latents[t - 1], t - 1)?, world(&latents[t - 2], t - 2)?);
-            let predicted =
-                model
-                    .integrator
-                    .step(&pack(&latents[t - 1], &latents[t - 2], &seq.trajectory.bc_signal, t))?;
+            let dt = model.artifact.timed().then_some(seq.trajectory.dt);
+            let predicted = model.integrator.step(&pack(
+                &latents[t - 1],
+                &latents[t - 2],
+                &seq.trajectory.bc_signal,
+                t,
+                dt,
+            ))?;
             let (truth_x, pred_x, stay_x) = (
                 world(&latents[t], t)?,
                 world(&predicted, t)?,

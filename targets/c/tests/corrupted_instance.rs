@@ -47,6 +47,7 @@ fn model(latent: usize) -> MochiModel {
         integrator: vec![layer(4, 2 * latent + 36), layer(latent, 4)],
         surface_triangles: vec![0, 1, 2],
         decoder_basis: false,
+        dt_range: [0.0; 2],
     };
     let storage: &'static mut OwnedModel = Box::leak(Box::default());
     let valid = storage.load(&payload.to_section().unwrap()).unwrap();

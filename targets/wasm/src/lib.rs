@@ -243,6 +243,19 @@ pub extern "C" fn mochi_dt() -> f32 {
     current().map_or(0.0, |m| m.dt)
 }
 
+/// Shortest frame time the viewer's model was trained at (0: it steps by its `dt` only).
+#[no_mangle]
+pub extern "C" fn mochi_dt_min() -> f32 {
+    current().map_or(0.0, |m| m.dt_min)
+}
+
+/// Longest frame time the viewer's model was trained at; when positive,
+/// [`mochi_step_pose_dt`] takes the page's own frame time (0: the model's `dt` only).
+#[no_mangle]
+pub extern "C" fn mochi_dt_max() -> f32 {
+    current().map_or(0.0, |m| m.dt_max)
+}
+
 /// Rest bounding-box diagonal of the viewer's model.
 #[no_mangle]
 pub extern "C" fn mochi_diagonal() -> f32 {
@@ -291,6 +304,14 @@ pub extern "C" fn mochi_triangles() -> *const u32 {
 /// or a negative code when refused (a non-finite pose; the object is unchanged).
 #[no_mangle]
 pub extern "C" fn mochi_step_pose(tx: f32, ty: f32, tz: f32, rx: f32, ry: f32, rz: f32) -> i32 {
+    mochi_step_pose_dt(mochi_dt(), tx, ty, tz, rx, ry, rz)
+}
+
+/// [`mochi_step_pose`] over a frame of `dt` seconds (the page's own frame time): any positive
+/// `dt` for a model trained over a range of frame times ([`mochi_dt_max`] positive), only the
+/// model's `dt` otherwise (refused with a negative code, the object unchanged).
+#[no_mangle]
+pub extern "C" fn mochi_step_pose_dt(dt: f32, tx: f32, ty: f32, tz: f32, rx: f32, ry: f32, rz: f32) -> i32 {
     let s = state();
     let (Some(model), Some(body)) = (s.current.as_ref(), s.body.as_mut()) else {
         return NOT_INITIALISED;
@@ -299,9 +320,9 @@ pub extern "C" fn mochi_step_pose(tx: f32, ty: f32, tz: f32, rx: f32, ry: f32, r
         translation: [tx, ty, tz],
         rotation: [rx, ry, rz],
     };
-    let motion = HandleMotion::from_poses(&s.pose, &pose, model.model().dt);
+    let motion = HandleMotion::from_poses(&s.pose, &pose, dt);
     let bc = [motion; MAX_HANDLES];
-    let status = match body.step(model, &bc[..model.model().handles.len()]) {
+    let status = match body.step_dt(model, &bc[..model.model().handles.len()], dt) {
         Ok(stepped) => stepped as i32,
         Err(_) => return STEP_REFUSED,
     };

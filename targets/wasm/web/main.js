@@ -87,7 +87,9 @@ async function choose(name) {
   about.textContent =
     `${model.name}: ${m.mochi_vertex_count().toLocaleString()} vertices, ${count.toLocaleString()} drawn, ` +
     `${(triangles.length / 3).toLocaleString()} triangles, ${m.mochi_handle_count()} handle(s), ` +
-    `${(1 / m.mochi_dt()).toFixed(0)} steps per second of simulated time`;
+    (m.mochi_dt_max() > 0
+      ? `steps at the page's frame rate (trained ${(1 / m.mochi_dt_max()).toFixed(0)}-${(1 / m.mochi_dt_min()).toFixed(0)} Hz)`
+      : `${(1 / m.mochi_dt()).toFixed(0)} steps per second of simulated time`);
   active = {
     name: model.name,
     dim,
@@ -95,6 +97,10 @@ async function choose(name) {
     rest,
     diagonal: m.mochi_diagonal(),
     dt: m.mochi_dt(),
+    // A model trained over a range of frame times steps by the page's own frame time (kept
+    // inside that range); any other by its one `dt`.
+    dtRange: [m.mochi_dt_min(), m.mochi_dt_max()],
+    last: null,
     mouse: mouseOf(model.name),
     pose: { t: [0, 0, 0], r: [0, 0, 0] },
     target: { t: [0, 0, 0], r: [0, 0, 0] },
@@ -149,14 +155,20 @@ const clamp = (v, limit) => Math.max(-limit, Math.min(limit, v));
 function frame() {
   const a = active;
   if (a) {
-    const maxMove = 0.5 * a.diagonal * a.dt;
-    const maxTurn = 1.0 * a.dt;
+    const now = performance.now();
+    let dt = a.dt;
+    if (a.dtRange[1] > 0 && a.last !== null) {
+      dt = Math.min(a.dtRange[1], Math.max(a.dtRange[0], (now - a.last) / 1000));
+    }
+    a.last = now;
+    const maxMove = 0.5 * a.diagonal * dt;
+    const maxTurn = 1.0 * dt;
     for (let c = 0; c < 3; c++) {
       a.pose.t[c] += clamp(0.15 * (a.target.t[c] - a.pose.t[c]), maxMove);
       a.pose.r[c] += clamp(0.15 * (a.target.r[c] - a.pose.r[c]), maxTurn);
     }
     const start = performance.now();
-    a.status = m.mochi_step_pose(...a.pose.t, ...a.pose.r);
+    a.status = m.mochi_step_pose_dt(dt, ...a.pose.t, ...a.pose.r);
     a.times.push(performance.now() - start);
     if (a.times.length > TIMED_FRAMES) a.times.shift();
     const x = surface(a.dim, a.count);

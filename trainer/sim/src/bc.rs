@@ -202,6 +202,68 @@ impl BcSequence {
         }
     }
 
+    /// The same motion (this sequence's steps last `dt` seconds) seen at another frame time
+    /// `new_dt`: `frames` frames after frame 0, the pose at each new frame's time integrated
+    /// from the piecewise-constant velocities, and the velocity over each new step the mean of
+    /// the old ones it spans (time-weighted). Past this sequence's end the handles hold still.
+    /// [`Self::refined`] and [`Self::every`] are the whole-number cases.
+    pub fn resampled(&self, dt: f64, new_dt: f64, frames: usize) -> BcSequence {
+        let velocity_at = |t: &Track, step: usize| {
+            t.velocities
+                .get(step)
+                .filter(|_| step >= 1 && step <= self.frames)
+                .copied()
+                .unwrap_or([0.0; 6])
+        };
+        let segment = |v: [f64; 6]| Segment {
+            frames: 1,
+            velocity: [v[0], v[1], v[2]],
+            angular_velocity: [v[3], v[4], v[5]],
+        };
+        // The old step (1-based) a time falls in, and how far into it, in seconds.
+        let locate = |time: f64| {
+            let steps = time / dt;
+            let whole = (steps.floor() as usize).min(self.frames);
+            (whole, time - whole as f64 * dt)
+        };
+        let tracks = self
+            .tracks
+            .iter()
+            .map(|t| {
+                let pose_at = |time: f64| {
+                    let (whole, rest) = locate(time);
+                    let base = t.poses[whole];
+                    if rest <= 0.0 {
+                        base
+                    } else {
+                        base.advanced(&segment(velocity_at(t, whole + 1)), rest)
+                    }
+                };
+                let mut poses = vec![t.poses[0]];
+                let mut velocities = vec![[0.0; 6]];
+                for f in 1..=frames {
+                    let (t0, t1) = ((f - 1) as f64 * new_dt, f as f64 * new_dt);
+                    poses.push(pose_at(t1));
+                    // Time-weighted mean of the old velocities over [t0, t1].
+                    let mut v = [0.0; 6];
+                    let mut time = t0;
+                    while time < t1 {
+                        let step = (time / dt).floor() as usize + 1;
+                        let end = (step as f64 * dt).min(t1);
+                        let weight = (end - time) / new_dt;
+                        let old = velocity_at(t, step);
+                        v.iter_mut().zip(old).for_each(|(a, b)| *a += weight * b);
+                        // Guard against a step boundary that rounding puts at `time` itself.
+                        time = if end > time { end } else { time + 1e-12 * dt };
+                    }
+                    velocities.push(v);
+                }
+                Track { poses, velocities }
+            })
+            .collect();
+        BcSequence { tracks, frames }
+    }
+
     /// The boundary-condition signal at `frame`: per handle, linear and angular velocity,
     /// translation and rotation vector ([`SIGNAL_PER_HANDLE`] numbers).
     pub fn signal(&self, frame: usize) -> Vec<f64> {
@@ -462,6 +524,78 @@ mod tests {
         // Every fourth frame is the coarse sequence's, exactly.
         assert_eq!(fine.every(4).tracks[0].poses, seq.tracks[0].poses);
         assert_eq!(seq.refined(1, dt), seq);
+    }
+
+    #[test]
+    fn resampled_is_refined_and_every_at_whole_ratios_and_integrates_the_motion_between() {
+        let segments = [
+            Segment {
+                frames: 3,
+                velocity: [0.3, 0.1, 0.0],
+                angular_velocity: [0.0, 0.0, 1.2],
+            },
+            Segment {
+                frames: 4,
+                velocity: [0.0, -0.6, 0.0],
+                angular_velocity: [0.0, 0.0, -0.5],
+            },
+        ];
+        let dt = 0.1;
+        let seq = BcSequence {
+            tracks: vec![Track::from_segments(&segments, 10, dt)],
+            frames: 10,
+        };
+        let close = |a: &BcSequence, b: &BcSequence| {
+            assert_eq!(a.frames(), b.frames());
+            for (ta, tb) in a.tracks.iter().zip(&b.tracks) {
+                for (pa, pb) in ta.poses.iter().zip(&tb.poses) {
+                    assert!((pa.translation - pb.translation).norm() < 1e-12);
+                    assert!(pa.rotation.angle_to(&pb.rotation) < 1e-12);
+                }
+                for (va, vb) in ta.velocities.iter().zip(&tb.velocities) {
+                    assert!(
+                        va.iter().zip(vb).all(|(a, b)| (a - b).abs() < 1e-12),
+                        "{va:?} vs {vb:?}"
+                    );
+                }
+            }
+        };
+        close(&seq.resampled(dt, dt / 4.0, 40), &seq.refined(4, dt));
+        close(&seq.resampled(dt, 3.0 * dt, 3), &seq.every(3));
+        close(&seq.resampled(dt, dt, 10), &seq);
+        // A ratio that is not whole (30 -> 72 frames per second): the poses are the motion's
+        // closed form (rotation about one axis, constant velocities per segment) at each time.
+        let new_dt = dt * 30.0 / 72.0;
+        let frames = 30;
+        let fine = seq.resampled(dt, new_dt, frames);
+        let exact = |time: f64| {
+            let first = time.min(0.3);
+            let second = (time - 0.3).clamp(0.0, 0.4);
+            let x = 0.3 * first;
+            let y = 0.1 * first - 0.6 * second;
+            (x, y, 1.2 * first - 0.5 * second)
+        };
+        for f in 0..=frames {
+            let (x, y, angle) = exact(f as f64 * new_dt);
+            let p = &fine.tracks[0].poses[f];
+            assert!(
+                (p.translation.x - x).abs() < 1e-12 && (p.translation.y - y).abs() < 1e-12,
+                "frame {f}"
+            );
+            let turned = p.rotation.scaled_axis().z;
+            assert!((turned - angle).abs() < 1e-12, "frame {f}: {turned} vs {angle}");
+        }
+        // Each new step's mean velocity moves the pose from one new frame to the next.
+        for f in 1..=frames {
+            let v = fine.tracks[0].velocities[f];
+            let (x0, _, a0) = exact((f - 1) as f64 * new_dt);
+            let (x1, _, a1) = exact(f as f64 * new_dt);
+            assert!((v[0] * new_dt - (x1 - x0)).abs() < 1e-12 && (v[5] * new_dt - (a1 - a0)).abs() < 1e-12);
+        }
+        // Past the end (frame 10 at 1 s) the handles hold still.
+        let long = seq.resampled(dt, new_dt, 40);
+        assert_eq!(long.tracks[0].poses[40], long.tracks[0].poses[30]);
+        assert_eq!(long.tracks[0].velocities[40], [0.0; 6]);
     }
 
     #[test]

@@ -60,6 +60,9 @@ pub struct SequencePlan {
     pub speeds: SpeedPlan,
     /// Seed of its directions and segment lengths.
     pub seed: u64,
+    /// Its frame time when it is not the scene's `dt` (a dataset over a range of frame rates,
+    /// `dataset.frame_rates`).
+    pub dt: Option<f64>,
 }
 
 /// Frames between the speed draws of a `dataset.varied` training sequence.
@@ -83,6 +86,7 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
         description,
         speeds,
         seed: train_seed(k),
+        dt: None,
     };
     for k in 0..n {
         let level = spread(k, n);
@@ -154,6 +158,7 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
             description,
             speeds,
             seed: spec.seed.wrapping_mul(1000).wrapping_add(500 + k as u64),
+            dt: None,
         });
     }
     // Validation levels split the training range in `validation + 1` equal parts (1/3 and 2/3
@@ -166,12 +171,54 @@ pub fn plan(spec: &DatasetSpec) -> Vec<SequencePlan> {
             description: format!("validation speed level {level:.2}"),
             speeds: SpeedPlan::constant(level),
             seed: spec.seed.wrapping_mul(1000).wrapping_add(700 + k as u64),
+            dt: None,
         });
+    }
+    if let Some((shortest, longest)) = spec.frame_times() {
+        spread_frame_times(&mut plans, spec.seed, shortest, longest);
     }
     plans
 }
 
+/// Gives the training and validation sequences of `plans` frame times spread geometrically
+/// from `longest` to `shortest` (each split on its own), in an order shuffled by `seed`, and
+/// names the rate in each description.
+fn spread_frame_times(plans: &mut [SequencePlan], seed: u64, shortest: f64, longest: f64) {
+    for split in [Split::Train, Split::Validation] {
+        let members: Vec<usize> = (0..plans.len()).filter(|&i| plans[i].split == split).collect();
+        let n = members.len();
+        let mut order: Vec<usize> = (0..n).collect();
+        let rng = &mut bc::rng(seed.wrapping_add(0xd7 + split as u64));
+        // Fisher-Yates with the crate's seeded generator (no extra dependency for one shuffle).
+        for i in (1..n).rev() {
+            order.swap(i, rng.random_range(0..=i));
+        }
+        for (slot, &i) in order.iter().zip(&members) {
+            let share = if n == 1 { 0.5 } else { *slot as f64 / (n - 1) as f64 };
+            let dt = longest * (shortest / longest).powf(share);
+            let plan = &mut plans[i];
+            plan.dt = Some(dt);
+            plan.description = format!("{}, {:.1} frames per second", plan.description, 1.0 / dt);
+        }
+    }
+}
+
 impl BuiltScene {
+    /// The boundary conditions of `plan` over `frames` frames at its frame time: the scene's
+    /// motion sampled at `dt` ([`Self::sequence`]) and, for a plan at another frame time, the
+    /// same motion seen at that one ([`BcSequence::resampled`]).
+    pub fn plan_sequence(&self, plan: &SequencePlan, frames: usize) -> BcSequence {
+        let dt = self.scene.dt;
+        match plan.dt {
+            Some(new_dt) if new_dt != dt => {
+                let base = (frames as f64 * new_dt / dt).ceil() as usize + 1;
+                self.sequence(&plan.speeds, base, plan.seed)
+                    .resampled(dt, new_dt, frames)
+            }
+            _ => self.sequence(&plan.speeds, frames, plan.seed),
+        }
+    }
+
     /// The boundary conditions of a sequence: scripted handles follow their script;
     /// handles with a motion sample it with the plan's speeds; others stay put.
     pub fn sequence(&self, speeds: &SpeedPlan, frames: usize, seed: u64) -> BcSequence {
@@ -335,7 +382,7 @@ pub fn generate(
     let todo: Vec<SequencePlan> = plan(&spec)
         .into_iter()
         .filter(|p| split.is_none_or(|s| s == p.split))
-        .filter(|p| overwrite || !is_current(&sequence_path(dir, p), spec.frames_of(p.split)))
+        .filter(|p| overwrite || !is_current(&sequence_path(dir, p), spec.frames_of(p.split), p.dt))
         .collect();
     let total: usize = todo.iter().map(|p| spec.frames_of(p.split)).sum();
     let name = problem.scene.name.clone();
@@ -344,8 +391,18 @@ pub fn generate(
     let mut report = GenerateReport::default();
     for plan in &todo {
         progress.message(&format!("{name} {}", plan.name));
-        let seq = problem.sequence(&plan.speeds, spec.frames_of(plan.split), plan.seed);
-        let mut traj = problem.run(&seq, progress).map_err(|source| SimError::Step {
+        let seq = problem.plan_sequence(plan, spec.frames_of(plan.split));
+        // A sequence at another frame time is simulated by the scene built with that step.
+        let mut rebuilt = match plan.dt {
+            Some(dt) if dt != problem.scene.dt => {
+                let mut scene = problem.scene.clone();
+                scene.dt = dt;
+                Some(scene.build()?)
+            }
+            _ => None,
+        };
+        let simulator = rebuilt.as_mut().unwrap_or(problem);
+        let mut traj = simulator.run(&seq, progress).map_err(|source| SimError::Step {
             scene: name.clone(),
             sequence: plan.name.clone(),
             source,
@@ -365,9 +422,17 @@ pub fn generate(
     Ok(report)
 }
 
-/// Whether `path` holds a readable trajectory of `frames` frames (after the initial one).
-fn is_current(path: &Path, frames: usize) -> bool {
-    path.exists() && Trajectory::read_npz(path).is_ok_and(|t| t.num_frames() == frames + 1)
+/// Whether `path` holds a readable trajectory of `frames` frames (after the initial one) at
+/// the frame time `dt` (`None`: any; the scene's own is checked on load).
+fn is_current(path: &Path, frames: usize, dt: Option<f64>) -> bool {
+    path.exists()
+        && Trajectory::read_npz(path)
+            .is_ok_and(|t| t.num_frames() == frames + 1 && dt.is_none_or(|dt| same_time(t.dt, dt)))
+}
+
+/// Whether two frame times are the same (up to the rounding of their text in a file).
+fn same_time(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-9 * b.abs()
 }
 
 /// Reads the sequences of `split` of `problem`'s dataset from `dir`, in plan order, checking
@@ -400,6 +465,17 @@ pub fn load(problem: &BuiltScene, dir: &Path, split: Split) -> Result<Vec<(Seque
                 ),
             ));
         }
+        let dt = plan.dt.unwrap_or(problem.scene.dt);
+        if !same_time(traj.dt, dt) {
+            return Err(InputError::field(
+                &path,
+                "dt",
+                format!(
+                    "holds frames {} s apart; the scene plans this sequence at {} s (regenerate with `mochi dataset`)",
+                    traj.dt, dt
+                ),
+            ));
+        }
         if traj.positions[0].len() != problem.mesh.rest.len() {
             return Err(InputError::field(
                 &path,
@@ -421,6 +497,42 @@ mod tests {
     use super::*;
 
     #[test]
+    fn frame_rates_spread_over_training_and_validation_and_leave_tests_at_the_scene_step() {
+        let spec = DatasetSpec {
+            train: 6,
+            varied: 1,
+            frame_rates: Some([30.0, 120.0]),
+            ..DatasetSpec::default()
+        };
+        let plans = plan(&spec);
+        for split in [Split::Train, Split::Validation] {
+            let mut rates: Vec<f64> = plans
+                .iter()
+                .filter(|p| p.split == split)
+                .map(|p| 1.0 / p.dt.expect("a frame time"))
+                .collect();
+            let in_order = rates.clone();
+            rates.sort_by(f64::total_cmp);
+            assert!((rates[0] - 30.0).abs() < 1e-9 && (rates[rates.len() - 1] - 120.0).abs() < 1e-9);
+            // Geometric: equal ratios between neighbours.
+            let ratios: Vec<f64> = rates.windows(2).map(|w| w[1] / w[0]).collect();
+            assert!(ratios.iter().all(|r| (r - ratios[0]).abs() < 1e-9), "{ratios:?}");
+            if split == Split::Train {
+                assert_ne!(in_order, rates, "rates follow the speed levels");
+            }
+        }
+        assert!(plans.iter().filter(|p| p.split == Split::Test).all(|p| p.dt.is_none()));
+        // The same plan without rates is the plan with them, frame times aside.
+        let plain = plan(&DatasetSpec {
+            frame_rates: None,
+            ..spec
+        });
+        for (a, b) in plain.iter().zip(&plans) {
+            assert_eq!((&a.name, &a.speeds, a.seed), (&b.name, &b.speeds, b.seed));
+        }
+    }
+
+    #[test]
     fn plan_holds_out_test_speeds_and_goes_beyond_the_range() {
         let spec = DatasetSpec {
             train: 5,
@@ -432,6 +544,7 @@ mod tests {
             steady: 0,
             varied: 0,
             validation: 2,
+            frame_rates: None,
         };
         let plans = plan(&spec);
         let train: Vec<f64> = plans

@@ -26,6 +26,8 @@ use mochi_sim::error::InputError;
 const SINGLE_SECTION_VERSION: u32 = 2;
 /// The last format without `decoder_basis` (every decoder a residual MLP), still read.
 const MLP_DECODER_VERSION: u32 = 4;
+/// The last format whose models step at one frame time (no `dt_range`).
+const ONE_FRAME_TIME_VERSION: u32 = 5;
 
 /// Weights and biases smaller than this fraction (`2^-40`) of their layer's largest weight are
 /// written as zero.
@@ -112,6 +114,7 @@ impl Artifact {
             integrator: self.integrator.iter().map(layer_data).collect(),
             surface_triangles: self.drawn_triangles()?,
             decoder_basis: self.decoder_basis,
+            dt_range: self.dt_range,
         };
         let training = TrainingSection {
             scene: self.scene.clone(),
@@ -201,6 +204,7 @@ impl Artifact {
             decoder: layers(p.decoder)?,
             decoder_basis: p.decoder_basis,
             integrator: layers(p.integrator)?,
+            dt_range: p.dt_range,
             summary: t.summary,
         })
     }
@@ -220,7 +224,7 @@ impl Artifact {
         Ok(bytes)
     }
 
-    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 4, 3 or 2), and checks that
+    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 5, 4, 3 or 2), and checks that
     /// the runtime accepts what it reads of it.
     pub fn parse(bytes: &[u8]) -> Result<Artifact, ArtifactError> {
         let decode = |section| move |source| ArtifactError::Decode { section, source };
@@ -234,6 +238,8 @@ impl Artifact {
         } else {
             let version = if old(MLP_DECODER_VERSION) {
                 MLP_DECODER_VERSION
+            } else if old(ONE_FRAME_TIME_VERSION) {
+                ONE_FRAME_TIME_VERSION
             } else {
                 FORMAT_VERSION
             };
@@ -245,6 +251,10 @@ impl Artifact {
                 // (an empty list).
                 model.push(0);
                 training.push(0);
+            }
+            if version <= ONE_FRAME_TIME_VERSION {
+                // Format 6 appended `dt_range` ([0, 0]: one frame time; two f64 of 8 bytes).
+                model.extend([0; 16]);
             }
             Artifact::from_sections(
                 Payload::decode(&model).map_err(decode("model section"))?,
@@ -335,6 +345,19 @@ mod tests {
                 expected: FORMAT_VERSION
             })
         );
+    }
+
+    #[test]
+    fn artifact_of_format_5_is_still_read_by_the_trainer_and_the_runtime() {
+        let (bytes, artifact) = tiny();
+        let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
+        let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
+        // Format 5 is format 6 without the model section's last field (`dt_range`, 16 bytes).
+        let mut old = envelope::wrap(MAGIC, ONE_FRAME_TIME_VERSION, &model[..model.len() - 16]);
+        old.extend(envelope::wrap(TRAINING_MAGIC, ONE_FRAME_TIME_VERSION, training));
+        assert_eq!(Artifact::parse(&old).unwrap(), artifact);
+        let mut runtime = mochi_runtime::OwnedModel::default();
+        assert_eq!(runtime.load(&old).unwrap().model().dt_max, 0.0);
     }
 
     #[test]

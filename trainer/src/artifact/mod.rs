@@ -232,11 +232,19 @@ pub struct Artifact {
     pub decoder_basis: bool,
     /// Integrator: packed input -> latent increment.
     pub integrator: Vec<DenseLayer>,
+    /// Shortest and longest frame time the integrator was trained at when it takes the frame
+    /// time as an input (`[0, 0]`: one frame time, `dt`); see `mochi_runtime::Model::dt_max`.
+    pub dt_range: [f64; 2],
     /// How it was made.
     pub summary: TrainingSummary,
 }
 
 impl Artifact {
+    /// Whether the integrator takes the frame time as an input (packed after the signals).
+    pub fn timed(&self) -> bool {
+        self.dt_range[1] > 0.0
+    }
+
     /// Length of an encoded state (`dim` per encoded vertex, 2 with strand bends).
     pub fn encoded_len(&self) -> usize {
         let per_vertex = if self.encoding.chains.is_empty() {
@@ -276,6 +284,13 @@ impl Artifact {
         let positive = |v: f64| v.is_finite() && v > 0.0;
         if !positive(self.dt) || !positive(self.diagonal) {
             return err("dt", "time step and diagonal must be positive".into());
+        }
+        let [lo, hi] = self.dt_range;
+        if !(lo == 0.0 && hi == 0.0 || positive(lo) && positive(hi) && lo <= hi) {
+            return err(
+                "dt_range",
+                format!("must be [0, 0] or 0 < shortest <= longest frame time, got [{lo}, {hi}]"),
+            );
         }
         if self.rest.len() != n * dim {
             return err(
@@ -364,7 +379,12 @@ impl Artifact {
         let nets = [
             ("encoder", &self.encoder, encoded, k),
             ("decoder", &self.decoder, k, encoded),
-            ("integrator", &self.integrator, 2 * k + 3 * self.bc_len as usize, k),
+            (
+                "integrator",
+                &self.integrator,
+                2 * k + 3 * self.bc_len as usize + usize::from(self.timed()),
+                k,
+            ),
         ];
         for (field, layers, input, output) in nets {
             let wrong = |e: NetworkError| (field.to_string(), e.to_string());

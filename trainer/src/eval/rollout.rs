@@ -155,8 +155,9 @@ fn max_radius(q: &[f32], per_vertex: usize) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The trainer's own rollout of `model` over `bc` (the reference the runtime is checked
-/// against): from the initial latent, calls `visit(t, z_t, q_t, x_t)` for `t = 1..=frames` with
+/// The trainer's own rollout of `model` over `bc` at `problem`'s time step (the reference the
+/// runtime is checked against; a model that takes the frame time steps at that one): from the
+/// initial latent, calls `visit(t, z_t, q_t, x_t)` for `t = 1..=frames` with
 /// the latent, the decoded encoded state and the world state, until `visit` returns `false`.
 /// Returns the seconds spent stepping and decoding.
 pub fn roll(
@@ -177,7 +178,12 @@ pub fn roll(
         signals.rotate_right(1);
         signals[0] = bc.signal(t);
         let clock = Instant::now();
-        let q_in = pack_signals(&z_prev, &z_prev2, [&signals[0], &signals[1], &signals[2]]);
+        let q_in = pack_signals(
+            &z_prev,
+            &z_prev2,
+            [&signals[0], &signals[1], &signals[2]],
+            a.timed().then_some(problem.scene.dt),
+        );
         let z = model.integrator.step(&q_in)?;
         let mid = Instant::now();
         let targets = bc.targets(&problem.handles, t, dim);

@@ -49,11 +49,17 @@ pub fn distill_integrator(
     let Some(width) = inputs.first().map(Vec::len) else {
         return Err(TrainError::Invalid("the teacher's rollouts visited no input".into()));
     };
-    if width < 2 * k || !(width - 2 * k).is_multiple_of(3) {
-        return Err(TrainError::Invalid(format!(
-            "packed inputs of {width} values for latent size {k}"
-        )));
-    }
+    // Three signals of one length, then the frame time for a timed integrator (signals are
+    // 12 numbers per handle, so the two layouts cannot be confused).
+    let (bc, timed) = match width.checked_sub(2 * k).map(|rest| (rest / 3, rest % 3)) {
+        Some((bc, 0)) => (bc, false),
+        Some((bc, 1)) => (bc, true),
+        _ => {
+            return Err(TrainError::Invalid(format!(
+                "packed inputs of {width} values for latent size {k}"
+            )))
+        }
+    };
     let increments = |qs: &[Vec<f32>]| -> TrainResult<Vec<Vec<f32>>> {
         qs.iter()
             .map(|q| Ok(teach(q)?.iter().zip(q).map(|(z, p)| z - p).collect()))
@@ -63,9 +69,10 @@ pub fn distill_integrator(
     let increment_norm = Normalisation::fit(&increments(&inputs)?).map_err(|e| TrainError::Invalid(e.to_string()))?;
     let spec = IntegratorSpec {
         latent: k,
-        bc: (width - 2 * k) / 3,
+        bc,
         hidden: shape.hidden,
         blocks: shape.blocks,
+        timed,
     };
     let inverse: Vec<f32> = increment_norm.std.iter().map(|s| 1.0 / s).collect();
     let inverse = Tensor::from_vec(inverse, (1, k), &Device::Cpu)?;

@@ -25,6 +25,7 @@ pub struct PhysicsObjective<'a> {
     losses: Vec<PhysicsLoss>,
     augmentation: Augmentation,
     min_speed: f64,
+    scene_dt: f64,
 }
 
 impl<'a> PhysicsObjective<'a> {
@@ -47,6 +48,7 @@ impl<'a> PhysicsObjective<'a> {
             losses,
             augmentation,
             min_speed,
+            scene_dt: problem.scene.dt,
         })
     }
 
@@ -120,7 +122,7 @@ impl<'a> PhysicsObjective<'a> {
         // One sample per thread: each worker has its own copy of the loss (its inertia and
         // penalty targets change per sample), and results are gathered in sample order.
         let per_worker = m.div_ceil(self.losses.len());
-        let min_speed = self.min_speed;
+        let (min_speed, scene_dt) = (self.min_speed, self.scene_dt);
         let parts: Vec<Result<(f64, Vec<f32>), String>> = self
             .losses
             .par_iter_mut()
@@ -143,8 +145,14 @@ impl<'a> PhysicsObjective<'a> {
                         .decode_into(&q, frame, targets, &mut x)
                         .map_err(|e| e.to_string())?;
                     let (prev, prev2) = &prevs[i];
+                    let dt = data.sequences[s.sequence].trajectory.dt;
+                    loss.set_dt(dt);
                     let value = loss.value_and_gradient(&x, prev, prev2, targets, &mut grad);
-                    let balance = loss.balance(prev, prev2, min_speed);
+                    // A sample at another frame time is weighted by (dt / scene dt)^2: the loss
+                    // times dt^2 is the solver's own objective, whose curvature (M + dt^2 K) is
+                    // about the mass matrix at every rate, so a position error costs about the
+                    // same at 120 Hz as at 30 Hz instead of 16 times more.
+                    let balance = loss.balance(prev, prev2, min_speed) / (dt / scene_dt).powi(2);
                     total += value / balance;
                     data.encoding
                         .encode_gradient(&q, &grad, frame, balance, &mut local)

@@ -42,6 +42,12 @@ impl PhysicsLoss {
         })
     }
 
+    /// Sets the frame time of the samples that follow (a dataset over a range of frame rates
+    /// has one per sequence; the scene's `dt` until set).
+    pub fn set_dt(&mut self, dt: f64) {
+        self.dt = dt;
+    }
+
     /// Value of the loss at `x` given the two previous states and the handle targets
     /// (`dim` numbers per handle vertex, handles concatenated); writes `dE/dx` into `grad`.
     /// Runs on the calling thread (training evaluates one sample per thread) with a fixed

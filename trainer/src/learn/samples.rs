@@ -51,6 +51,9 @@ pub struct IntegratorData<'a> {
     pub increment_norm: Normalisation,
     /// Per latent coordinate, smallest and largest training value.
     pub latent_range: (Vec<f32>, Vec<f32>),
+    /// Whether the integrator takes the frame time as an input (the scene's dataset spans a
+    /// range of frame rates, `dataset.frame_rates`).
+    pub timed: bool,
     pub(crate) encoding: &'a Encoding,
 }
 
@@ -88,6 +91,7 @@ impl<'a> IntegratorData<'a> {
     ) -> Result<Self, SamplesError> {
         let k = ae.spec().latent;
         let bc_len = SIGNAL_PER_HANDLE * problem.handles.len();
+        let timed = problem.scene.dataset.frame_rates.is_some();
         let mut latents = Vec::new();
         let mut decoded = Vec::new();
         for seq in sequences {
@@ -132,6 +136,7 @@ impl<'a> IntegratorData<'a> {
                     &latents[s][sample.prev2()],
                     &seq.trajectory.bc_signal,
                     t,
+                    timed.then_some(seq.trajectory.dt),
                 ));
                 increments.push(
                     latents[s][t]
@@ -162,8 +167,15 @@ impl<'a> IntegratorData<'a> {
             samples,
             inputs,
             latent_range: (lo, hi),
+            timed,
             encoding,
         })
+    }
+
+    /// The integrator's time input for samples of `sequence`: its frame time when
+    /// [`IntegratorData::timed`].
+    pub(crate) fn input_time(&self, sequence: usize) -> Option<f64> {
+        self.timed.then(|| self.sequences[sequence].trajectory.dt)
     }
 
     /// Target of the predicted frame of `sample`.
@@ -173,13 +185,15 @@ impl<'a> IntegratorData<'a> {
     }
 }
 
-/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` for predicting frame `t` from the signal of
-/// every frame (frame indices below 0 clamp to 0, the body at rest).
-pub fn pack(z_prev: &[f32], z_prev2: &[f32], signal: &[Vec<f64>], t: usize) -> Vec<f32> {
+/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` (then `dt`, for an integrator that takes the
+/// frame time) for predicting frame `t` from the signal of every frame (frame indices below 0
+/// clamp to 0, the body at rest).
+pub fn pack(z_prev: &[f32], z_prev2: &[f32], signal: &[Vec<f64>], t: usize, dt: Option<f64>) -> Vec<f32> {
     pack_signals(
         z_prev,
         z_prev2,
         [&signal[t], &signal[t.saturating_sub(1)], &signal[t.saturating_sub(2)]],
+        dt,
     )
 }
 
@@ -283,7 +297,13 @@ pub fn rolled_inputs(
             .map(|&i| {
                 let r = &rolls[i];
                 let signal = &data.sequences[r.sample.sequence].trajectory.bc_signal;
-                pack(&r.z_prev, &r.z_prev2, signal, r.next)
+                pack(
+                    &r.z_prev,
+                    &r.z_prev2,
+                    signal,
+                    r.next,
+                    data.input_time(r.sample.sequence),
+                )
             })
             .collect();
         let refs: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
@@ -298,7 +318,8 @@ pub fn rolled_inputs(
         .into_iter()
         .map(|r| {
             let signal = &data.sequences[r.sample.sequence].trajectory.bc_signal;
-            (r.sample, pack(&r.z_prev, &r.z_prev2, signal, r.sample.frame))
+            let dt = data.input_time(r.sample.sequence);
+            (r.sample, pack(&r.z_prev, &r.z_prev2, signal, r.sample.frame, dt))
         })
         .unzip())
 }
@@ -376,6 +397,7 @@ pub(crate) mod fixtures {
             bc: data.bc_len,
             hidden: 16,
             blocks: 1,
+            timed: data.timed,
         };
         LatentIntegrator::new(int_spec, data.input_norm.clone(), data.increment_norm.clone(), 2).unwrap()
     }
@@ -398,7 +420,7 @@ mod tests {
         let signal = &beam.sequences[0].trajectory.bc_signal;
         let k = data.latent;
         let step = |z1: &[f32], z2: &[f32], t: usize| -> Vec<f32> {
-            let row = pack(z1, z2, signal, t);
+            let row = pack(z1, z2, signal, t, None);
             tensor_to_rows(&integrator.forward(&to_tensor(&[&row], row.len()).unwrap()).unwrap()).unwrap()[0].clone()
         };
         // Packed input of frame `t` after `steps` own steps from ground truth.
@@ -410,7 +432,7 @@ mod tests {
                 let next = step(&z1, &z2, f);
                 z2 = std::mem::replace(&mut z1, next);
             }
-            pack(&z1, &z2, signal, t)
+            pack(&z1, &z2, signal, t, None)
         };
         let samples: Vec<SampleRef> = (1..data.samples.len() + 1)
             .map(|frame| SampleRef { sequence: 0, frame })

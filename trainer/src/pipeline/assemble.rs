@@ -83,6 +83,11 @@ pub fn build_artifact(
         decoder: exported.decoder.layers().into_iter().cloned().collect(),
         decoder_basis: exported.decoder.is_basis(),
         integrator: integrator.export()?.mlp().layers().into_iter().cloned().collect(),
+        dt_range: problem
+            .scene
+            .dataset
+            .frame_times()
+            .map_or([0.0; 2], |(shortest, longest)| [shortest, longest]),
         summary,
     };
     artifact.validate().map_err(|(field, message)| ArtifactError::Invalid {

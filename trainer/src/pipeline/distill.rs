@@ -201,10 +201,15 @@ pub fn distill_artifact_integrator(
     let model = LoadedModel::new(artifact.clone())?;
     let spec = &problem.scene.dataset;
     let frames = options.frames.unwrap_or(spec.frames);
+    // The training motions at their own frame times (a model that takes the frame time is
+    // distilled over its trained range).
     let sequences: Vec<_> = dataset::plan(spec)
         .iter()
         .filter(|p| p.split == Split::Train)
-        .map(|p| problem.sequence(&p.speeds, frames, p.seed))
+        .map(|p| {
+            let dt = artifact.timed().then(|| p.dt.unwrap_or(problem.scene.dt));
+            (problem.plan_sequence(p, frames), dt)
+        })
         .collect();
     let (lo, hi) = (&artifact.latent_min, &artifact.latent_max);
     // A rollout stops where its latent leaves the training range widened by its width on
@@ -216,14 +221,14 @@ pub fn distill_artifact_integrator(
     };
     let rollout = |step: &Step| {
         let mut inputs = Vec::new();
-        for bc in &sequences {
+        for (bc, dt) in &sequences {
             let mut z_prev = artifact.initial_latent.clone();
             let mut z_prev2 = artifact.initial_latent.clone();
             let mut signals = [bc.signal(0), bc.signal(0), bc.signal(0)];
             for t in 1..=frames {
                 signals.rotate_right(1);
                 signals[0] = bc.signal(t);
-                let q = pack_signals(&z_prev, &z_prev2, [&signals[0], &signals[1], &signals[2]]);
+                let q = pack_signals(&z_prev, &z_prev2, [&signals[0], &signals[1], &signals[2]], *dt);
                 let z = step(&q)?;
                 inputs.push(q);
                 if !inside(&z) {

@@ -443,6 +443,7 @@ pub(crate) fn train_integrator(
         bc: data.bc_len,
         hidden: shape.width,
         blocks: spec.integrator.blocks,
+        timed: data.timed,
     };
     let augmentation = Augmentation {
         noise: spec.noise,

@@ -419,6 +419,16 @@ impl Scene {
         if d.test_frames == Some(0) {
             return bad("dataset.test_frames", "must be at least 1");
         }
+        if let Some([lo, hi]) = d.frame_rates {
+            // Up to 10,000 frames per second: beyond, a step is shorter than any host's frame.
+            let rate = |v: f64| v.is_finite() && v > 0.0 && v <= 1e4;
+            if !(rate(lo) && rate(hi) && lo <= hi) {
+                return bad(
+                    "dataset.frame_rates",
+                    "must be [lowest, highest] frames per second, 0 < lowest <= highest <= 10000",
+                );
+            }
+        }
         Ok(())
     }
 }

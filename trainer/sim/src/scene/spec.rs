@@ -368,6 +368,15 @@ pub struct DatasetSpec {
     /// Validation sequences (held-out constant speed levels, `frames` long each), made by
     /// `mochi train` for its model selection. Default 2.
     pub validation: usize,
+    /// `[lowest, highest]` frame rate (frames per second) of the training and validation
+    /// sequences, for a learned integrator that takes the frame time as an input and serves a
+    /// host's own frame rate (72, 90, 120 Hz on a headset): the sequences' rates spread
+    /// geometrically over the range (in an order shuffled by the seed, so that rates and speed
+    /// levels do not go together), each sequence the scene's motion at that rate over the same
+    /// number of frames, simulated with a time step of one frame. Test sequences stay at the
+    /// scene's own `dt` (`mochi eval --rates` measures others). Default none: every sequence at
+    /// `dt`.
+    pub frame_rates: Option<[f64; 2]>,
 }
 
 impl Default for DatasetSpec {
@@ -382,11 +391,18 @@ impl Default for DatasetSpec {
             steady: 0,
             varied: 0,
             validation: 2,
+            frame_rates: None,
         }
     }
 }
 
 impl DatasetSpec {
+    /// The `(shortest, longest)` frame time of the training sequences, when they span a range
+    /// of frame rates ([`DatasetSpec::frame_rates`]).
+    pub fn frame_times(&self) -> Option<(f64, f64)> {
+        self.frame_rates.map(|[lo, hi]| (1.0 / hi, 1.0 / lo))
+    }
+
     /// Frames of a sequence of `split`.
     pub fn frames_of(&self, split: Split) -> usize {
         match split {

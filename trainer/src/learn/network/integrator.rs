@@ -21,12 +21,17 @@ pub(crate) struct IntegratorSpec {
     pub hidden: usize,
     /// Residual blocks of the MLP.
     pub blocks: usize,
+    /// Whether the frame time `dt` follows the signals in the input (a model trained over a
+    /// range of frame rates). Absent in checkpoints written before it existed: `false`.
+    #[serde(default)]
+    pub timed: bool,
 }
 
 impl IntegratorSpec {
-    /// Length of the packed input `q = [z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`.
+    /// Length of the packed input `q = [z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` (then `dt`
+    /// when [`IntegratorSpec::timed`]).
     pub fn input(&self) -> usize {
-        2 * self.latent + 3 * self.bc
+        2 * self.latent + 3 * self.bc + usize::from(self.timed)
     }
 
     fn mlp(&self) -> MlpSpec {
@@ -281,6 +286,7 @@ mod tests {
             bc: 3,
             hidden: 32,
             blocks: 2,
+            timed: false,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         // Features of very different scales, as latents and boundary velocities are.
@@ -377,6 +383,7 @@ mod tests {
             bc: 1,
             hidden: 8,
             blocks: 0,
+            timed: false,
         };
         let wrong = LatentIntegrator::new(spec, Normalisation::identity(6), Normalisation::identity(2), 0);
         assert!(wrong.is_err());
