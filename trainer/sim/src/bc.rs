@@ -202,6 +202,20 @@ impl BcSequence {
         }
     }
 
+    /// Frames `0..=frames` of this sequence (all of it when it is shorter).
+    pub fn first(&self, frames: usize) -> BcSequence {
+        let frames = frames.min(self.frames);
+        let tracks = self
+            .tracks
+            .iter()
+            .map(|t| Track {
+                poses: t.poses[..=frames].to_vec(),
+                velocities: t.velocities[..=frames].to_vec(),
+            })
+            .collect();
+        BcSequence { tracks, frames }
+    }
+
     /// The same motion (this sequence's steps last `dt` seconds) seen at another frame time
     /// `new_dt`: `frames` frames after frame 0, the pose at each new frame's time integrated
     /// from the piecewise-constant velocities, and the velocity over each new step the mean of
@@ -563,6 +577,8 @@ mod tests {
         close(&seq.resampled(dt, dt / 4.0, 40), &seq.refined(4, dt));
         close(&seq.resampled(dt, 3.0 * dt, 3), &seq.every(3));
         close(&seq.resampled(dt, dt, 10), &seq);
+        close(&seq.resampled(dt, dt, 6), &seq.first(6));
+        assert_eq!(seq.first(99), seq);
         // A ratio that is not whole (30 -> 72 frames per second): the poses are the motion's
         // closed form (rotation about one axis, constant velocities per segment) at each time.
         let new_dt = dt * 30.0 / 72.0;

@@ -34,6 +34,7 @@ pub mod adaptive;
 pub mod adaptive_bench;
 pub mod compare;
 pub mod network_export;
+pub mod rates;
 pub mod reduced;
 pub mod reduced_bench;
 pub mod rollout;
@@ -291,7 +292,7 @@ fn slack_of(artifact: &Artifact) -> f64 {
 
 /// `paths`, each followed by its supervised sibling (`X.supervised.mochi` beside `X.mochi`)
 /// when that exists and is not listed already.
-fn expand_with_baselines(paths: &[PathBuf]) -> Vec<PathBuf> {
+pub(crate) fn expand_with_baselines(paths: &[PathBuf]) -> Vec<PathBuf> {
     let mut out: Vec<PathBuf> = Vec::new();
     for p in paths {
         if !out.contains(p) {

@@ -15,6 +15,7 @@ pub struct LearnedRuntime<'m> {
     setting: String,
     model: &'m ValidModel<'m>,
     body: AnyInstance,
+    dt: f32,
     multiply_adds: f64,
     x32: Vec<f32>,
     x: Vec<f64>,
@@ -33,9 +34,17 @@ impl<'m> LearnedRuntime<'m> {
                 + m.walk_multiply_adds()) as f64,
             model,
             body,
+            dt: m.dt,
             x32: vec![0.0; m.state_len()],
             x: vec![0.0; m.state_len()],
         })
+    }
+
+    /// The same, stepping frames of `dt` seconds (a model that takes the frame time as an
+    /// input, `mochi_runtime::Model::timed`; any other refuses every step at another).
+    pub fn at_frame_time(mut self, dt: f64) -> Self {
+        self.dt = dt as f32;
+        self
     }
 
     fn decode(&mut self) -> TrainerResult<()> {
@@ -66,7 +75,7 @@ impl Method for LearnedRuntime<'_> {
         let motion = motions(bc, frame);
         let clock = super::clock::Stopwatch::start();
         self.body
-            .step(self.model, &motion)
+            .step_dt(self.model, &motion, self.dt)
             .map_err(|e| TrainerError::invalid(format!("runtime step refused: {e:?}")))?;
         self.body
             .decode_into(self.model, &mut self.x32)

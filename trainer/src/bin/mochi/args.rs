@@ -107,6 +107,17 @@ pub(crate) enum Command {
         /// scenes whose `[solver]` is adaptive).
         #[arg(long)]
         adaptive: bool,
+        /// Instead: step the models (of one body, possibly of different scenes) at these frame
+        /// rates on the same motions, against full space at each rate (`rates.md`); e.g.
+        /// `30,60,72,90,120,144`.
+        #[arg(long, value_delimiter = ',', conflicts_with_all = ["adaptive", "accuracy_frames"])]
+        rates: Vec<f64>,
+        /// With `--rates`: seconds of motion measured against full space at each rate.
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+        /// With `--rates`: test sequences used (held-out speeds inside the range first).
+        #[arg(long, default_value_t = 2)]
+        sequences: usize,
     },
     /// Every method that applies to a scene on one chart (time per frame against error, against
     /// implicit Euler and a time-converged reference) and a stability matrix: full space, a

@@ -220,6 +220,31 @@ pub(crate) fn eval_models(
     Ok(())
 }
 
+pub(crate) fn eval_rates(
+    artifacts: &[PathBuf],
+    out: Option<PathBuf>,
+    rates: Vec<f64>,
+    seconds: f64,
+    frames: usize,
+    sequences: usize,
+) -> Result<()> {
+    if frames == 0 || sequences == 0 {
+        bail!("--frames and --sequences must be at least 1");
+    }
+    let out_dir = out.unwrap_or_else(|| artifacts[0].parent().unwrap_or(Path::new(".")).join("eval"));
+    let options = mochi_trainer::eval::rates::RatesOptions {
+        rates,
+        seconds,
+        stability_frames: frames,
+        sequences,
+        out_dir: out_dir.clone(),
+    };
+    mochi_trainer::eval::rates::evaluate_rates(artifacts, &options, &Terminal)?;
+    let report = std::fs::read_to_string(out_dir.join("rates.md"))?;
+    println!("\n{report}\nchart and page -> {}", out_dir.display());
+    Ok(())
+}
+
 pub(crate) fn compare(scene: &str, out: PathBuf, options: mochi_trainer::eval::compare::CompareOptions) -> Result<()> {
     if options.frames == 0 || options.sequences == 0 {
         bail!("--frames and --sequences must be at least 1");

@@ -13,7 +13,8 @@ use mochi_trainer::{shipped_scene_names, Recipe, Reporter};
 
 use args::{Bench, Cli, Command};
 use commands::{
-    bench_reduced, bench_runtime, bench_sim, compare, demo, eval_models, make_dataset, simulate, train_scene,
+    bench_reduced, bench_runtime, bench_sim, compare, demo, eval_models, eval_rates, make_dataset, simulate,
+    train_scene,
 };
 
 /// Reports on the terminal: stages and messages as lines on stdout, progress as bars.
@@ -70,8 +71,18 @@ fn run(cli: Cli) -> Result<()> {
             artifacts,
             out,
             frames,
+            rates,
+            seconds,
+            sequences,
+            ..
+        } if !rates.is_empty() => eval_rates(&artifacts, out, rates, seconds, frames, sequences),
+        Command::Eval {
+            artifacts,
+            out,
+            frames,
             accuracy_frames,
             adaptive,
+            ..
         } => eval_models(&artifacts, out, frames, accuracy_frames, adaptive),
         Command::Compare {
             scene,

@@ -346,13 +346,11 @@ pub fn learned<'a>(trained: &'a Trained<'a>, change: RunTimeChange, budgets: Bud
     models
         .into_iter()
         .map(|m| match change {
-            RunTimeChange::None => match LearnedRuntime::new(&m.model, m.family, m.setting.clone()) {
-                Ok(r) => Entry::Runs(Box::new(r)),
-                Err(e) => Entry::Cannot {
-                    family: m.family.into(),
-                    reason: e.to_string(),
-                },
-            },
+            RunTimeChange::None => runtime_entry(m, m.model.model().dt as f64),
+            // A model that takes the frame time steps at the condition's.
+            RunTimeChange::TimeStep(factor) if m.model.model().timed() => {
+                runtime_entry(m, factor * m.model.model().dt as f64)
+            }
             RunTimeChange::TimeStep(_) => Entry::Cannot {
                 family: format!("{} {}", m.family, m.setting),
                 reason: "needs retraining (trained at one time step)".into(),
@@ -363,6 +361,17 @@ pub fn learned<'a>(trained: &'a Trained<'a>, change: RunTimeChange, budgets: Bud
             },
         })
         .collect()
+}
+
+/// `m` in the runtime, stepping frames of `dt` seconds.
+fn runtime_entry<'a>(m: &'a LearnedModel, dt: f64) -> Entry<'a> {
+    match LearnedRuntime::new(&m.model, m.family, m.setting.clone()) {
+        Ok(r) => Entry::Runs(Box::new(r.at_frame_time(dt))),
+        Err(e) => Entry::Cannot {
+            family: m.family.into(),
+            reason: e.to_string(),
+        },
+    }
 }
 
 /// The peers' recordings of case `case` (`DIR/CASE/*.npz`), in file-name order.
