@@ -52,6 +52,15 @@ int main(void) {
       mochi_instance_step(NULL, &bodies[0], NULL, 0) != MochiStatus_NullPointer)
     return fail("bad-input checks", MochiStatus_Ok);
 
+  /* A model of one frame time (its info's dt_max is 0) refuses another, and any model a frame
+     time that is not a positive number; nothing changes. */
+  MochiHandleMotion still[MAX_HANDLES];
+  memset(still, 0, sizeof still);
+  if (info.dt_max != 0.0f ||
+      mochi_instance_step_dt(model, &bodies[0], still, info.handles, 1.0f / 90.0f) != MochiStatus_FrameTime ||
+      mochi_instance_step_dt(model, &bodies[0], still, info.handles, -info.dt) != MochiStatus_FrameTime)
+    return fail("frame-time checks", MochiStatus_Ok);
+
   printf("model tiny weights f32 frames %d\n", FRAMES);
   uint64_t hash = 0xcbf29ce484222325ull;
   MochiHandleMotion motion, rest, bc[MAX_HANDLES];

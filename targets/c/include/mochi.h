@@ -59,6 +59,11 @@ enum MochiStatus
    * The decoded state was not finite; the rest positions were written instead.
    */
   MochiStatus_DecodeNotFinite = -6,
+  /**
+   * The frame time is not a positive finite number, or the model takes only its own
+   * (`dt_max` of [`MochiModelInfo`] is 0) and another was given.
+   */
+  MochiStatus_FrameTime = -7,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -102,13 +107,22 @@ typedef struct MochiModelInfo {
    */
   uint32_t surface_len;
   /**
-   * Time step in seconds.
+   * Time step in seconds ([`mochi_instance_step`]'s frame time).
    */
   float dt;
   /**
    * Rest bounding-box diagonal.
    */
   float diagonal;
+  /**
+   * Shortest frame time the model was trained at (0 for a model of one frame time).
+   */
+  float dt_min;
+  /**
+   * Longest frame time the model was trained at; when positive,
+   * [`mochi_instance_step_dt`] takes any positive frame time, otherwise only `dt`.
+   */
+  float dt_max;
 } MochiModelInfo;
 
 /**
@@ -168,7 +182,8 @@ MochiStatus mochi_model_info(const struct MochiModel *model, struct MochiModelIn
 MochiStatus mochi_instance_init(const struct MochiModel *model, struct MochiInstance *instance);
 
 /**
- * Advances `instance` one frame with `count` handle motions (the model's handle order).
+ * Advances `instance` one frame of the model's time step (`dt` of [`MochiModelInfo`]) with
+ * `count` handle motions (the model's handle order).
  *
  * # Safety
  * `model` as for [`mochi_instance_init`]; `instance` initialised by it; `motions` null or
@@ -178,6 +193,21 @@ MochiStatus mochi_instance_step(const struct MochiModel *model,
                                 struct MochiInstance *instance,
                                 const struct MochiHandleMotion *motions,
                                 size_t count);
+
+/**
+ * Advances `instance` one frame of `dt` seconds (the engine's frame time) with `count` handle
+ * motions: any positive `dt` for a model trained over a range of frame times (`dt_max` of
+ * [`MochiModelInfo`] positive), only the model's own `dt` otherwise
+ * ([`MochiStatus::FrameTime`]).
+ *
+ * # Safety
+ * As [`mochi_instance_step`].
+ */
+MochiStatus mochi_instance_step_dt(const struct MochiModel *model,
+                                   struct MochiInstance *instance,
+                                   const struct MochiHandleMotion *motions,
+                                   size_t count,
+                                   float dt);
 
 /**
  * Writes the world positions of every vertex (`state_len` floats) into `out`.
