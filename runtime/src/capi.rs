@@ -10,6 +10,7 @@
 
 use core::mem::{align_of, size_of};
 
+use crate::collider::{push_out, Collider, ColliderError};
 use crate::frame::HandleMotion;
 use crate::instance::{AnyInstance, DecodeError, StepError, Stepped, ValidModel};
 use crate::model::{Model, ModelError};
@@ -66,6 +67,9 @@ pub enum MochiStatus {
     /// The frame time is not a positive finite number, or the model takes only its own
     /// (`dt_max` of [`MochiModelInfo`] is 0) and another was given.
     FrameTime = -7,
+    /// A collider has an unknown shape, a size that is not positive or a non-finite number,
+    /// or the margin is negative or not finite.
+    Collider = -8,
 }
 
 /// Sizes of a model.
@@ -269,5 +273,55 @@ unsafe fn decode(
         Err(DecodeError::BufferLength { .. }) => MochiStatus::BufferLength,
         Err(DecodeError::NotFinite) => MochiStatus::DecodeNotFinite,
         Err(DecodeError::Model(_)) => MochiStatus::Size,
+    }
+}
+
+/// Pushes every vertex of `positions` (`len` floats: a state or drawn-vertices buffer of
+/// `model`, `dim` per vertex) nearer than `margin` to one of `count` colliders, or inside it,
+/// out to `margin` from its surface (`mochi_runtime::collider`); writes how many moves were
+/// made into `moved` (may be null). Refused input changes nothing.
+///
+/// # Safety
+/// `model` as for [`mochi_instance_init`]; `positions` null or `len` writable floats;
+/// `colliders` null or `count` readable colliders; `moved` null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn mochi_push_out(
+    model: *const MochiModel,
+    positions: *mut f32,
+    len: usize,
+    colliders: *const Collider,
+    count: usize,
+    margin: f32,
+    moved: *mut u32,
+) -> MochiStatus {
+    // SAFETY: see the function's contract.
+    let Some(model) = (unsafe { model.as_ref() }) else {
+        return MochiStatus::NullPointer;
+    };
+    if positions.is_null() || (colliders.is_null() && count > 0) {
+        return MochiStatus::NullPointer;
+    }
+    // SAFETY: `len` writable floats and `count` readable colliders (the function's contract).
+    let (out, list) = unsafe {
+        (
+            core::slice::from_raw_parts_mut(positions, len),
+            if count == 0 {
+                &[][..]
+            } else {
+                core::slice::from_raw_parts(colliders, count)
+            },
+        )
+    };
+    match push_out(out, model.0.model().dim(), list, margin) {
+        Ok(n) => {
+            // SAFETY: null or writable (the function's contract).
+            if let Some(m) = unsafe { moved.as_mut() } {
+                *m = n as u32;
+            }
+            MochiStatus::Ok
+        }
+        Err(ColliderError::Invalid { .. }) => MochiStatus::Collider,
+        Err(ColliderError::Arguments) if !len.is_multiple_of(model.0.model().dim()) => MochiStatus::BufferLength,
+        Err(ColliderError::Arguments) => MochiStatus::Collider,
     }
 }

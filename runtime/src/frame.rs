@@ -92,7 +92,7 @@ impl HandleMotion {
 
 /// The rotation of a rotation vector (Rodrigues' formula), with `libm`'s sine and cosine
 /// rather than the platform's, so that every target computes the same bits.
-fn rotation(rotation_vector: &[f32; 3]) -> Rotation3<f32> {
+pub(crate) fn rotation(rotation_vector: &[f32; 3]) -> Rotation3<f32> {
     let [x, y, z] = *rotation_vector;
     let angle = libm::sqrtf(x * x + y * y + z * z);
     if angle <= f32::EPSILON {

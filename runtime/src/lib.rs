@@ -28,6 +28,7 @@ pub mod aligned;
 pub mod artifact;
 #[cfg(feature = "capi")]
 pub mod capi;
+pub mod collider;
 mod decode;
 pub mod envelope;
 mod fields;
@@ -49,6 +50,7 @@ pub use aligned::Aligned;
 #[cfg(feature = "std")]
 pub use artifact::OwnedModel;
 pub use artifact::{LoadError, LoadedModel, Storage, FORMAT_VERSION as ARTIFACT_VERSION};
+pub use collider::{push_out, Collider, ColliderError};
 pub use envelope::EnvelopeError;
 pub use fields::FieldValue;
 pub use frame::{ChainWalk, HandleMotion, HandlePose};

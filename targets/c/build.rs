@@ -13,6 +13,7 @@ fn main() {
     let sources = [
         repo.join("runtime/src/capi.rs"),
         repo.join("runtime/src/frame.rs"),
+        repo.join("runtime/src/collider.rs"),
         manifest.join("src/lib.rs"),
     ];
     let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR")).join("mochi.h");
@@ -32,7 +33,10 @@ fn header(sources: &[PathBuf], out: &Path) {
         usize_is_size_t: true,
         ..Default::default()
     };
-    config.export.rename = HashMap::from([("HandleMotion".to_string(), "MochiHandleMotion".to_string())]);
+    config.export.rename = HashMap::from([
+        ("HandleMotion".to_string(), "MochiHandleMotion".to_string()),
+        ("Collider".to_string(), "MochiCollider".to_string()),
+    ]);
     config.enumeration.prefix_with_name = true;
     let mut builder = cbindgen::Builder::new().with_config(config);
     for source in sources {

@@ -95,6 +95,25 @@ int main(void) {
   if (memcmp(positions[0], positions[2], info.state_len * sizeof(float)) == 0)
     return fail("the instance at rest moved with the others", MochiStatus_Ok);
 
+  /* A collider pushes decoded vertices out (a ball around the first vertex of the instance at
+     rest, in a copy); a collider that is not a shape is refused and changes nothing. */
+  static float pushed[1 << 16];
+  memcpy(pushed, positions[2], info.state_len * sizeof(float));
+  MochiCollider ball;
+  memset(&ball, 0, sizeof ball);
+  ball.shape = 0;
+  ball.size[0] = 0.05f * info.diagonal;
+  for (uint32_t c = 0; c < info.dim; c++) ball.center[c] = pushed[c];
+  uint32_t moved = 0;
+  s = mochi_push_out(model, pushed, info.state_len, &ball, 1, 0.0f, &moved);
+  if (s != MochiStatus_Ok || moved < 1) return fail("mochi_push_out", s);
+  float gap = 0.0f;
+  for (uint32_t c = 0; c < info.dim; c++) gap += (pushed[c] - ball.center[c]) * (pushed[c] - ball.center[c]);
+  if (gap < 0.99f * ball.size[0] * ball.size[0]) return fail("a pushed vertex is still inside", MochiStatus_Ok);
+  ball.size[0] = -1.0f;
+  if (mochi_push_out(model, pushed, info.state_len, &ball, 1, 0.0f, &moved) != MochiStatus_Collider)
+    return fail("a bad collider was not refused", MochiStatus_Ok);
+
   printf("positions");
   for (uint32_t i = 0; i < info.state_len; i++) {
     uint32_t bits;

@@ -15,6 +15,21 @@
 #define MOCHI_INSTANCE_WORDS 257
 
 /**
+ * [`Collider::shape`] of a sphere (`size = [radius, 0, 0]`).
+ */
+#define SPHERE 0
+
+/**
+ * [`Collider::shape`] of a capsule (`size = [radius, half_length, 0]`, axis along local y).
+ */
+#define CAPSULE 1
+
+/**
+ * [`Collider::shape`] of a box (`size` = half extents along its local axes).
+ */
+#define BOX 2
+
+/**
  * What a call did. Non-negative: success; negative: refused, nothing changed (except
  * [`MochiStatus::DecodeNotFinite`], which writes the rest positions).
  */
@@ -64,6 +79,11 @@ enum MochiStatus
    * (`dt_max` of [`MochiModelInfo`] is 0) and another was given.
    */
   MochiStatus_FrameTime = -7,
+  /**
+   * A collider has an unknown shape, a size that is not positive or a non-finite number,
+   * or the margin is negative or not finite.
+   */
+  MochiStatus_Collider = -8,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -160,6 +180,29 @@ typedef struct MochiHandleMotion {
   float rotation[3];
 } MochiHandleMotion;
 
+/**
+ * One analytic collider at its pose this frame.
+ */
+typedef struct MochiCollider {
+  /**
+   * [`SPHERE`], [`CAPSULE`] or [`BOX`].
+   */
+  uint32_t shape;
+  /**
+   * Sphere `[radius, 0, 0]`, capsule `[radius, half_length, 0]`, box half extents (all in
+   * the model's length unit).
+   */
+  float size[3];
+  /**
+   * World position of the shape frame's origin (its centre).
+   */
+  float center[3];
+  /**
+   * Rotation of the shape frame, a rotation vector (axis times angle, radians).
+   */
+  float rotation[3];
+} MochiCollider;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -230,6 +273,24 @@ MochiStatus mochi_instance_decode_surface(const struct MochiModel *model,
                                           struct MochiInstance *instance,
                                           float *out,
                                           size_t len);
+
+/**
+ * Pushes every vertex of `positions` (`len` floats: a state or drawn-vertices buffer of
+ * `model`, `dim` per vertex) nearer than `margin` to one of `count` colliders, or inside it,
+ * out to `margin` from its surface (`mochi_runtime::collider`); writes how many moves were
+ * made into `moved` (may be null). Refused input changes nothing.
+ *
+ * # Safety
+ * `model` as for [`mochi_instance_init`]; `positions` null or `len` writable floats;
+ * `colliders` null or `count` readable colliders; `moved` null or writable.
+ */
+MochiStatus mochi_push_out(const struct MochiModel *model,
+                           float *positions,
+                           size_t len,
+                           const struct MochiCollider *colliders,
+                           size_t count,
+                           float margin,
+                           uint32_t *moved);
 
 /**
  * The generated model, or null if it failed validation (it cannot, unless the generated

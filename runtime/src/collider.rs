@@ -1,0 +1,211 @@
+//! Run-time colliders: analytic shapes a host moves every frame (a hand's capsules, a ball, a
+//! floor box) and the cheap correction that pushes decoded vertices out of them, in fixed
+//! memory, `O(vertices x colliders)`.
+//!
+//! The shapes are the simulator's (`mochi_sim::contact::ColliderShape`, whose parameter rows
+//! `[code, a, b, c]` these mirror): a sphere of `radius`; a capsule, the points within
+//! `radius` of a segment of half length `half_length` along the shape's local y axis; a box of
+//! half extents along its local axes. A shape sits at a pose: the world position of its frame's
+//! origin and the frame's rotation as a rotation vector (axis times angle, radians).
+//!
+//! [`push_out`] moves every vertex nearer to a collider's surface than `margin` (or inside it)
+//! by the shortest way to `margin` outside it: radially from a sphere's centre or a capsule's
+//! axis, across the nearest face of a box (along the distance's direction when the vertex is
+//! outside within the margin). Colliders are taken in order, so where two overlap the later one
+//! wins. The correction does not know the body's physics: it is what a renderer needs so that
+//! no drawn vertex shows inside a collider, not a response of the body to the contact.
+
+use core::fmt;
+
+use nalgebra::Vector3;
+
+use crate::frame::rotation;
+
+/// [`Collider::shape`] of a sphere (`size = [radius, 0, 0]`).
+pub const SPHERE: u32 = 0;
+/// [`Collider::shape`] of a capsule (`size = [radius, half_length, 0]`, axis along local y).
+pub const CAPSULE: u32 = 1;
+/// [`Collider::shape`] of a box (`size` = half extents along its local axes).
+pub const BOX: u32 = 2;
+
+type V3 = Vector3<f32>;
+
+/// One analytic collider at its pose this frame.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Collider {
+    /// [`SPHERE`], [`CAPSULE`] or [`BOX`].
+    pub shape: u32,
+    /// Sphere `[radius, 0, 0]`, capsule `[radius, half_length, 0]`, box half extents (all in
+    /// the model's length unit).
+    pub size: [f32; 3],
+    /// World position of the shape frame's origin (its centre).
+    pub center: [f32; 3],
+    /// Rotation of the shape frame, a rotation vector (axis times angle, radians).
+    pub rotation: [f32; 3],
+}
+
+/// Why [`push_out`] was refused (the positions are left as they were).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ColliderError {
+    /// Collider `index` has an unknown shape, a size that is not positive (a capsule's half
+    /// length may be zero), or a non-finite number.
+    Invalid {
+        /// Its index in the list given.
+        index: usize,
+    },
+    /// `dim` is not 2 or 3, the positions are not a whole number of vertices, or the margin
+    /// is negative or not finite.
+    Arguments,
+}
+
+impl fmt::Display for ColliderError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ColliderError::Invalid { index } => write!(
+                f,
+                "collider {index} has an unknown shape, a size that is not positive, or a non-finite number"
+            ),
+            ColliderError::Arguments => {
+                write!(
+                    f,
+                    "positions must be whole 2D or 3D vertices and the margin finite and >= 0"
+                )
+            }
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for ColliderError {}
+
+impl Collider {
+    /// Whether the shape is known, its sizes positive (a capsule's half length may be 0) and
+    /// every number finite.
+    pub fn is_valid(&self) -> bool {
+        let finite = self
+            .size
+            .iter()
+            .chain(&self.center)
+            .chain(&self.rotation)
+            .all(|v| v.is_finite());
+        let [a, b, c] = self.size;
+        finite
+            && match self.shape {
+                SPHERE => a > 0.0,
+                CAPSULE => a > 0.0 && b >= 0.0,
+                BOX => a > 0.0 && b > 0.0 && c > 0.0,
+                _ => false,
+            }
+    }
+
+    /// `p` in the shape's own frame.
+    fn local(&self, p: V3) -> V3 {
+        rotation(&self.rotation).inverse() * (p - V3::from(self.center))
+    }
+
+    /// Signed distance of `p` (world) to the shape's surface, negative inside.
+    pub fn signed_distance(&self, p: [f32; 3]) -> f32 {
+        local_signed_distance(self, self.local(V3::from(p)))
+    }
+
+    /// Where `p` (world) goes to lie at least `margin` outside the shape, by the shortest way;
+    /// `None` when it already does.
+    pub fn pushed(&self, p: [f32; 3], margin: f32) -> Option<[f32; 3]> {
+        let q = self.local(V3::from(p));
+        if local_signed_distance(self, q) >= margin {
+            return None;
+        }
+        let moved = local_pushed(self, q, margin);
+        Some((V3::from(self.center) + rotation(&self.rotation) * moved).into())
+    }
+}
+
+/// Signed distance of the local point `q` to `c`'s surface.
+fn local_signed_distance(c: &Collider, q: V3) -> f32 {
+    let [a, b, _] = c.size;
+    match c.shape {
+        SPHERE => q.norm() - a,
+        CAPSULE => (q - V3::new(0.0, q.y.clamp(-b, b), 0.0)).norm() - a,
+        _ => {
+            let excess = V3::from_fn(|i, _| q[i].abs() - c.size[i]);
+            excess.map(|e| e.max(0.0)).norm() + excess.max().min(0.0)
+        }
+    }
+}
+
+/// The local point `q` (nearer than `margin` to `c`'s surface) moved the shortest way to
+/// `margin` outside it.
+fn local_pushed(c: &Collider, q: V3, margin: f32) -> V3 {
+    let [a, b, _] = c.size;
+    // A round shape: out from the closest point of its centre set (a point or a segment).
+    let round = |core: V3, fallback: V3| {
+        let r = q - core;
+        let n = r.try_normalize(f32::EPSILON).unwrap_or(fallback);
+        core + n * (a + margin)
+    };
+    match c.shape {
+        SPHERE => round(V3::zeros(), V3::y()),
+        CAPSULE => {
+            let core = V3::new(0.0, q.y.clamp(-b, b), 0.0);
+            // On the axis itself: out through the nearer cap, or sideways along x.
+            let fallback = if q.y.abs() >= b && b > 0.0 {
+                V3::y() * q.y.signum()
+            } else {
+                V3::x()
+            };
+            round(core, fallback)
+        }
+        _ => {
+            let h = V3::from(c.size);
+            let closest = q.zip_map(&h, |v, e| v.clamp(-e, e));
+            let outside = q - closest;
+            match outside.try_normalize(f32::EPSILON) {
+                // Outside within the margin: along the distance's direction.
+                Some(n) => closest + n * margin,
+                // Inside: across the face of least penetration.
+                None => {
+                    let excess = V3::from_fn(|i, _| q[i].abs() - h[i]);
+                    let i = excess.imax();
+                    let mut moved = q;
+                    let side = if q[i] < 0.0 { -1.0 } else { 1.0 };
+                    moved[i] = side * (h[i] + margin);
+                    moved
+                }
+            }
+        }
+    }
+}
+
+/// Pushes every vertex of `positions` (`dim` numbers each; a 2D vertex is at z = 0 and keeps
+/// only its x and y) nearer than `margin` to a collider's surface, or inside it, out to
+/// `margin` from it, collider after collider; returns how many vertex moves were made. Bad
+/// input is refused before anything moves.
+pub fn push_out(
+    positions: &mut [f32],
+    dim: usize,
+    colliders: &[Collider],
+    margin: f32,
+) -> Result<usize, ColliderError> {
+    if !(dim == 2 || dim == 3) || !positions.len().is_multiple_of(dim) || !(margin.is_finite() && margin >= 0.0) {
+        return Err(ColliderError::Arguments);
+    }
+    if let Some(index) = colliders.iter().position(|c| !c.is_valid()) {
+        return Err(ColliderError::Invalid { index });
+    }
+    let mut moved = 0;
+    for c in colliders {
+        for v in positions.chunks_exact_mut(dim) {
+            let p = [v[0], v[1], if dim == 3 { v[2] } else { 0.0 }];
+            if let Some(to) = c.pushed(p, margin) {
+                v.copy_from_slice(&to[..dim]);
+                moved += 1;
+            }
+        }
+    }
+    Ok(moved)
+}
+
+#[cfg(all(test, feature = "std"))]
+#[path = "collider_tests.rs"]
+mod tests;
