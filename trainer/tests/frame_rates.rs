@@ -13,7 +13,7 @@ use mochi_trainer::eval::rates::{evaluate_rates, RateCell, RatesOptions};
 use mochi_trainer::eval::{carried_encoding, roll, LoadedModel};
 use mochi_trainer::methods::learned::LearnedRuntime;
 use mochi_trainer::methods::method::Method;
-use mochi_trainer::{Artifact, Quiet, Recipe};
+use mochi_trainer::{train_scene, Artifact, Quiet, Recipe, TrainOptions};
 
 fn tiny_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/artifacts/tiny.mochi")
@@ -165,4 +165,53 @@ fn eval_at_rates_measures_a_timed_model_everywhere_and_a_fixed_one_at_its_own_ra
         .unwrap_err()
         .to_string();
     assert!(err.contains("strands.mochi") && err.contains("another body"), "{err}");
+}
+
+#[test]
+fn a_scene_over_frame_rates_trains_a_timed_model_that_steps_at_every_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    // The tiny training scene over 30-60 frames per second, one latent size and decoder.
+    let tiny = include_str!("../sim/tests/fixtures/tiny-train.toml")
+        .replace("[dataset]\n", "[dataset]\nframe_rates = [30.0, 60.0]\n")
+        .replace("sizes = [2, 4, 8]", "sizes = [4]")
+        + "\n[latent.selection]\ndecoders = [\"mlp\"]\n";
+    let path = dir.path().join("tiny-rates.toml");
+    std::fs::write(&path, &tiny).unwrap();
+    let recipe = Recipe::load(path.to_str().unwrap()).unwrap();
+    let options = TrainOptions {
+        out_dir: dir.path().join("out"),
+        resume: false,
+        latent: None,
+    };
+    let outcome = train_scene(&recipe, &options, &Quiet).unwrap();
+    for model in [&outcome.model, &outcome.baseline] {
+        assert!(model.timed(), "{:?}", model.method);
+        assert!((model.dt_range[0] - 1.0 / 60.0).abs() < 1e-12 && (model.dt_range[1] - 1.0 / 30.0).abs() < 1e-12);
+    }
+    // The training sequences were simulated at their own frame times.
+    let rates: Vec<f64> = std::fs::read_dir(dir.path().join("out/dataset"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("train-")))
+        .map(|p| (1.0 / mochi_sim::trajectory::Trajectory::read_npz(&p).unwrap().dt).round())
+        .collect();
+    assert!(rates.contains(&30.0) && rates.contains(&60.0), "{rates:?}");
+    let model = dir.path().join("out/tiny.mochi");
+    let eval = RatesOptions {
+        rates: vec![30.0, 45.0, 60.0],
+        seconds: 1.0,
+        stability_frames: 120,
+        sequences: 1,
+        out_dir: dir.path().join("eval"),
+    };
+    let report = evaluate_rates(&[model], &eval, &Quiet).unwrap();
+    assert_eq!(report.models.len(), 2, "the model and its supervised twin");
+    for (rate, cells) in &report.rows {
+        for cell in cells {
+            match cell {
+                RateCell::Measured(m) => assert!(m[0].mean_error.is_finite(), "{rate} Hz"),
+                RateCell::Cannot(why) => panic!("{rate} Hz: {why}"),
+            }
+        }
+    }
 }

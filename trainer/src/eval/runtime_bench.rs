@@ -18,6 +18,7 @@ use crate::artifact::Artifact;
 use crate::error::{bail, Context, TrainerResult as Result};
 use crate::eval::rollout::motions;
 use crate::eval::{self, LoadedModel};
+use crate::learn::encoding::pack_signals;
 use crate::learn::network::{Decoder, ResMlp};
 use mochi_sim::dataset::{self, Split};
 use mochi_sim::measure::vertex_errors;
@@ -272,23 +273,18 @@ fn run_for_sizes(k: usize, s: usize, hidden: usize, run: &Run) -> Result<Measure
 fn candle_seconds(trainer: &LoadedModel, script: &[Vec<HandleMotion>], k: usize) -> Result<f64> {
     let integrator = ResMlp::from_exported(trainer.integrator.mlp())?;
     let decoder = Decoder::from_frozen(&trainer.decoder)?;
-    let signal = |i: usize| -> Vec<f32> { script[i].iter().flat_map(|m| m.signal()).collect() };
+    let signal = |i: usize| -> Vec<f64> { script[i].iter().flat_map(|m| m.signal()).map(f64::from).collect() };
+    // A timed model steps at its own frame time here.
+    let dt = trainer.artifact.timed().then_some(trainer.artifact.dt);
     let initial = trainer.artifact.initial_latent.clone();
     let (mut z, mut z_prev) = (initial.clone(), initial);
-    let zero = vec![0.0f32; signal(0).len()];
+    let zero = vec![0.0f64; signal(0).len()];
     let (mut p1, mut p2) = (zero.clone(), zero);
     let mut failed = None;
     let frames = script.len();
     let seconds = seconds_per_call(frames, |i| {
         let p0 = signal(i % frames);
-        let input: Vec<f32> = z
-            .iter()
-            .chain(&z_prev)
-            .chain(&p0)
-            .chain(&p1)
-            .chain(&p2)
-            .copied()
-            .collect();
+        let input = pack_signals(&z, &z_prev, [&p0, &p1, &p2], dt);
         let result = (|| -> candle_core::Result<Vec<f32>> {
             let x = Tensor::from_slice(&input, (1, input.len()), &Device::Cpu)?;
             let increment = integrator.forward(&x)?;
