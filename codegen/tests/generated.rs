@@ -11,9 +11,11 @@ use mochi_runtime::WeightFormat;
 
 /// Artifact, weight storage, length and FNV-1a 64 of the generated module.
 ///
-/// Last change: artifact format 6 (the trained range of frame times): the `MODEL` literal
-/// gained the lines `dt_min: 0.0,` and `dt_max: 0.0,` and the header comment says
-/// `// Artifact format 6`; every module is longer by exactly those lines' 34 bytes. Before:
+/// Last change: artifact format 6 (the trained range of frame times and the run-time collider
+/// slots): the `MODEL` literal gained the lines `dt_min: 0.0,`, `dt_max: 0.0,` and
+/// `collider_shapes: mochi_runtime::Span { start: N, len: 0 },` (N the length of `FLOATS`) and
+/// the header comment says `// Artifact format 6`; every module is longer by exactly those
+/// lines' bytes (99 or 100). Before:
 /// `ARTIFACT_PARAMS_LEN` (the capacity for loading the artifact) is computed from
 /// the layer shapes as a loader with a wide `f32` kernel fills its pool, which on x86-64 now
 /// stores every layer of at most 64 columns or of 128-256 rows by columns (more padding):
@@ -35,12 +37,12 @@ use mochi_runtime::WeightFormat;
 /// vertices, the `surface_source` span's start and the new `surface_triangles` span). Before
 /// that: the loader's derived `chain_order` (the inverse of the strands' slots).
 const EXPECTED: [(&str, WeightFormat, usize, u64); 6] = [
-    ("tiny", WeightFormat::F32, 198399, 0x57287d556d7d35b5),
-    ("beam", WeightFormat::F32, 11411199, 0x2608662da42c7364),
-    ("strands", WeightFormat::F32, 93699, 0xee6bc94888468bcb),
-    ("tiny", WeightFormat::F16, 121039, 0x19f43ffcc968c1eb),
-    ("tiny", WeightFormat::Int8, 87505, 0x2009cd429b4fcb56),
-    ("beam", WeightFormat::Int8, 3417852, 0xd7a2768f98d69bdb),
+    ("tiny", WeightFormat::F32, 198464, 0xfe2fc94d692305f8),
+    ("beam", WeightFormat::F32, 11411265, 0xd888d743dc80ffeb),
+    ("strands", WeightFormat::F32, 93764, 0x39af1b0282136f92),
+    ("tiny", WeightFormat::F16, 121104, 0xdaaf304b70c87f56),
+    ("tiny", WeightFormat::Int8, 87570, 0x8f139289c8bd032d),
+    ("beam", WeightFormat::Int8, 3417918, 0x0ee63c92415614b4),
 ];
 
 fn fnv1a(bytes: &[u8]) -> u64 {

@@ -34,13 +34,14 @@ pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
 /// section into a section of its own; version 4 moved the triangles to draw from that section
 /// into the first (`surface_triangles`, over the drawn vertices); version 5 added decoders that
 /// end in a linear basis (`decoder_basis`); version 6 added the trained range of frame times
-/// (`dt_range`, for an integrator that takes the frame time as an input). The runtime also
+/// (`dt_range`, for an integrator that takes the frame time as an input) and the run-time
+/// collider slots (`collider_shapes`). The runtime also
 /// reads version [`OLDEST_READ_VERSION`] (as a model of one frame time); other versions are
 /// refused with [`EnvelopeError::Version`].
 pub const FORMAT_VERSION: u32 = 6;
 
 /// Oldest artifact format version the runtime reads: 5, whose payload is this one without its
-/// last field (`dt_range`).
+/// last two fields (`dt_range`, `collider_shapes`).
 pub const OLDEST_READ_VERSION: u32 = 5;
 
 /// Why an artifact was refused.
@@ -279,6 +280,7 @@ where
         if version >= 6 {
             let [lo, hi] = r.value::<[f64; 2]>("dt_range")?;
             (self.header.dt_min, self.header.dt_max) = (lo as f32, hi as f32);
+            self.header.collider_shapes = r.seq("collider_shapes", &mut self.floats)?;
         }
         match r.de.finalize() {
             Ok([]) => {}

@@ -10,7 +10,7 @@
 
 use core::mem::{align_of, size_of};
 
-use crate::collider::{push_out, Collider, ColliderError};
+use crate::collider::{push_out, Collider, ColliderError, ColliderState};
 use crate::frame::HandleMotion;
 use crate::instance::{AnyInstance, DecodeError, StepError, Stepped, ValidModel};
 use crate::model::{Model, ModelError};
@@ -68,7 +68,8 @@ pub enum MochiStatus {
     /// (`dt_max` of [`MochiModelInfo`] is 0) and another was given.
     FrameTime = -7,
     /// A collider has an unknown shape, a size that is not positive or a non-finite number,
-    /// or the margin is negative or not finite.
+    /// the margin is negative or not finite, or more collider states were given than the
+    /// model has slots.
     Collider = -8,
 }
 
@@ -97,6 +98,8 @@ pub struct MochiModelInfo {
     /// Longest frame time the model was trained at; when positive,
     /// [`mochi_instance_step_dt`] takes any positive frame time, otherwise only `dt`.
     pub dt_max: f32,
+    /// Run-time collider slots ([`mochi_instance_step_colliders`]).
+    pub colliders: u32,
 }
 
 /// The instance in `instance`'s memory.
@@ -131,6 +134,7 @@ pub unsafe extern "C" fn mochi_model_info(model: *const MochiModel, info: *mut M
         diagonal: m.diagonal,
         dt_min: m.dt_min,
         dt_max: m.dt_max,
+        colliders: m.colliders() as u32,
     };
     MochiStatus::Ok
 }
@@ -195,16 +199,47 @@ pub unsafe extern "C" fn mochi_instance_step_dt(
     count: usize,
     dt: f32,
 ) -> MochiStatus {
+    // SAFETY: the same contract, and no colliders.
+    unsafe { mochi_instance_step_colliders(model, instance, motions, count, core::ptr::null(), 0, dt) }
+}
+
+/// [`mochi_instance_step_dt`] with this frame's run-time colliders: `ncolliders` states, at
+/// most the model's collider slots (`colliders` of [`MochiModelInfo`]), in slot order; the
+/// slots past them are empty. A state that is not finite, or more states than slots, is
+/// refused ([`MochiStatus::Collider`]).
+///
+/// # Safety
+/// As [`mochi_instance_step`]; `colliders` null (with `ncolliders` 0) or `ncolliders` readable
+/// states.
+#[no_mangle]
+pub unsafe extern "C" fn mochi_instance_step_colliders(
+    model: *const MochiModel,
+    instance: *mut MochiInstance,
+    motions: *const HandleMotion,
+    count: usize,
+    colliders: *const ColliderState,
+    ncolliders: usize,
+    dt: f32,
+) -> MochiStatus {
     // SAFETY: see the function's contract.
     let (Some(model), Some(body)) = (unsafe { model.as_ref() }, unsafe { state(instance) }) else {
         return MochiStatus::NullPointer;
     };
-    if motions.is_null() {
+    if motions.is_null() || (colliders.is_null() && ncolliders > 0) {
         return MochiStatus::NullPointer;
     }
-    // SAFETY: `count` readable motions (the function's contract).
-    let bc = unsafe { core::slice::from_raw_parts(motions, count) };
-    match body.step_dt(&model.0, bc, dt) {
+    // SAFETY: `count` readable motions and `ncolliders` readable states (the contract).
+    let (bc, touch) = unsafe {
+        (
+            core::slice::from_raw_parts(motions, count),
+            if ncolliders == 0 {
+                &[][..]
+            } else {
+                core::slice::from_raw_parts(colliders, ncolliders)
+            },
+        )
+    };
+    match body.step_with(&model.0, bc, touch, dt) {
         Ok(Stepped::Ok) => MochiStatus::Ok,
         Ok(Stepped::Clamped) => MochiStatus::Clamped,
         Ok(Stepped::Held) => MochiStatus::Held,
@@ -212,6 +247,7 @@ pub unsafe extern "C" fn mochi_instance_step_dt(
         Err(StepError::NotFinite { .. }) => MochiStatus::NotFinite,
         Err(StepError::Model(_)) => MochiStatus::Size,
         Err(StepError::FrameTime | StepError::FixedFrameTime) => MochiStatus::FrameTime,
+        Err(StepError::ColliderCount { .. } | StepError::ColliderNotFinite { .. }) => MochiStatus::Collider,
     }
 }
 

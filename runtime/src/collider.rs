@@ -17,7 +17,7 @@
 
 use core::fmt;
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Rotation3, Vector3};
 
 use crate::frame::rotation;
 
@@ -29,6 +29,98 @@ pub const CAPSULE: u32 = 1;
 pub const BOX: u32 = 2;
 
 type V3 = Vector3<f32>;
+
+/// Numbers of a collider slot's shape row in a model (`[code, a, b, c]`).
+pub const SHAPE_ROW: usize = 4;
+/// Most collider slots a model may have.
+pub const MAX_COLLIDERS: usize = 8;
+/// Inputs the integrator reads per collider slot ([`features`]).
+pub const FEATURES_PER_COLLIDER: usize = 9;
+/// Beyond this many rest diagonals from the body's encoding origin a collider reads as absent
+/// ([`features`]).
+pub const FAR_DIAGONALS: f32 = 2.0;
+
+/// A collider slot's shape from its row `[code, a, b, c]` of a model: `(shape, size)`, or
+/// `None` when the row is not a shape with positive sizes (a capsule's half length may be 0).
+pub fn shape_from_row(row: &[f32]) -> Option<(u32, [f32; 3])> {
+    let &[code, a, b, c] = row else {
+        return None;
+    };
+    let shape = [SPHERE, CAPSULE, BOX].into_iter().find(|&s| s as f32 == code)?;
+    let size = match shape {
+        SPHERE => [a, 0.0, 0.0],
+        CAPSULE => [a, b, 0.0],
+        _ => [a, b, c],
+    };
+    let probe = Collider {
+        shape,
+        size,
+        center: [0.0; 3],
+        rotation: [0.0; 3],
+    };
+    probe.is_valid().then_some((shape, size))
+}
+
+/// A collider slot's state in a frame, as the host gives it: the pose of the shape's frame and
+/// its motion over the step that ends at the frame (the layout of a dataset's
+/// `collider_states` row).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ColliderState {
+    /// World position of the shape frame's origin.
+    pub center: [f32; 3],
+    /// Rotation of the shape frame, a rotation vector (radians).
+    pub rotation: [f32; 3],
+    /// Linear velocity of the centre (units / s).
+    pub linear_velocity: [f32; 3],
+    /// Angular velocity (rad / s, world axes).
+    pub angular_velocity: [f32; 3],
+}
+
+impl ColliderState {
+    /// Whether every number is finite.
+    pub fn is_finite(&self) -> bool {
+        self.center
+            .iter()
+            .chain(&self.rotation)
+            .chain(&self.linear_velocity)
+            .chain(&self.angular_velocity)
+            .all(|v| v.is_finite())
+    }
+}
+
+/// The integrator's inputs for one collider slot, in the body's encoding frame (rotation
+/// `frame`, origin `origin`; a model's [`crate::frame::Placement`]): the centre `R^T (c - o)`,
+/// the rotation vector of `R^T R_c`, and the velocity `R^T v`. A collider farther than
+/// [`FAR_DIAGONALS`] rest diagonals from the origin, or an absent one (`None`), reads as
+/// absent: its centre `FAR_DIAGONALS * diagonal * R^T y` (above the body), rotation and
+/// velocity zero. The one definition: the trainer packs its training inputs with it too.
+pub fn features(
+    frame: &Matrix3<f32>,
+    origin: &V3,
+    diagonal: f32,
+    state: Option<&ColliderState>,
+) -> [f32; FEATURES_PER_COLLIDER] {
+    let far = FAR_DIAGONALS * diagonal;
+    let inverse = frame.transpose();
+    let mut out = [0.0; FEATURES_PER_COLLIDER];
+    let near = state.filter(|s| (V3::from(s.center) - origin).norm() <= far);
+    match near {
+        Some(s) => {
+            let centre = inverse * (V3::from(s.center) - origin);
+            let turned = Rotation3::from_matrix_unchecked(inverse * *rotation(&s.rotation).matrix()).scaled_axis();
+            let velocity = inverse * V3::from(s.linear_velocity);
+            for (i, v) in centre.iter().chain(turned.iter()).chain(velocity.iter()).enumerate() {
+                out[i] = *v;
+            }
+        }
+        None => {
+            let centre = inverse * (V3::y() * far);
+            out[..3].copy_from_slice(centre.as_slice());
+        }
+    }
+    out
+}
 
 /// One analytic collider at its pose this frame.
 #[repr(C)]

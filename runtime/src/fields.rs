@@ -70,12 +70,13 @@ impl Model<'static> {
         initial_latent: EMPTY_SPAN,
         latent_min: EMPTY_SPAN,
         latent_max: EMPTY_SPAN,
+        collider_shapes: EMPTY_SPAN,
     };
 }
 
 impl<'a> Model<'a> {
     /// Number of fields of a [`Model`].
-    pub const FIELDS: usize = 32;
+    pub const FIELDS: usize = 33;
 
     /// Every field with its name, in declaration order.
     pub fn fields(&self) -> [(&'static str, FieldValue<'a>); Model::FIELDS] {
@@ -113,6 +114,7 @@ impl<'a> Model<'a> {
             initial_latent,
             latent_min,
             latent_max,
+            collider_shapes,
         } = *self;
         [
             ("dim", V::U32(dim)),
@@ -147,6 +149,7 @@ impl<'a> Model<'a> {
             ("initial_latent", V::Span(initial_latent)),
             ("latent_min", V::Span(latent_min)),
             ("latent_max", V::Span(latent_max)),
+            ("collider_shapes", V::Span(collider_shapes)),
         ]
     }
 }

@@ -218,6 +218,11 @@ impl<'m, 'a> Placement<'m, 'a> {
         }
     }
 
+    /// The centroid of the handle targets: the encoding origin of a body without strand roots.
+    pub fn centroid(&self) -> Vector3<f32> {
+        self.centroid
+    }
+
     /// Origin `o` of an encoded vertex whose origin index is `origin`.
     pub fn origin(&self, origin: u32) -> Vector3<f32> {
         match self.model.root_slots().get(origin as usize) {

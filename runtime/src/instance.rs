@@ -5,6 +5,7 @@ use core::fmt;
 
 use nalgebra::Vector3;
 
+use crate::collider::{features, ColliderState, FEATURES_PER_COLLIDER, MAX_COLLIDERS};
 use crate::decode::{
     consecutive, consecutive_ascending, decode_run, decoder_features, placed_free, put, walk_chains, ListCursors,
     Origins, OutputRows,
@@ -73,6 +74,18 @@ pub enum StepError {
     /// The model was trained at the one frame time [`Model::dt`] (it does not take the frame
     /// time as an input) and another was given.
     FixedFrameTime,
+    /// More colliders were given than the model has slots.
+    ColliderCount {
+        /// Collider slots of the model.
+        slots: usize,
+        /// Colliders given.
+        found: usize,
+    },
+    /// The state of this collider holds a NaN or an infinity.
+    ColliderNotFinite {
+        /// Index of the collider.
+        collider: usize,
+    },
 }
 
 /// Relative difference from [`Model::dt`] within which a model of one frame time accepts a
@@ -119,6 +132,10 @@ impl fmt::Display for StepError {
                 f,
                 "the model was trained at one frame time (its `dt`) and does not take another"
             ),
+            StepError::ColliderCount { slots, found } => {
+                write!(f, "{found} colliders given, the model has {slots} collider slots")
+            }
+            StepError::ColliderNotFinite { collider } => write!(f, "state of collider {collider} is not finite"),
         }
     }
 }
@@ -258,6 +275,20 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
     /// frame time accepts only its own ([`FRAME_TIME_TOLERANCE`]). Bad input is refused and
     /// leaves the instance unchanged.
     pub fn step_dt(&mut self, model: &ValidModel, bc: &[HandleMotion], dt: f32) -> Result<Stepped, StepError> {
+        self.step_with(model, bc, &[], dt)
+    }
+
+    /// [`Instance::step_dt`] with the run-time colliders of this frame, one per collider slot
+    /// of the model ([`Model::colliders`]) in slot order; slots past the end of `colliders`
+    /// are empty (read as absent, [`crate::collider::features`]). A model without slots takes
+    /// none.
+    pub fn step_with(
+        &mut self,
+        model: &ValidModel,
+        bc: &[HandleMotion],
+        colliders: &[ColliderState],
+        dt: f32,
+    ) -> Result<Stepped, StepError> {
         let (k, s) = self.check_sizes(model).map_err(StepError::Model)?;
         let m = model.model();
         if !(dt.is_finite() && dt > 0.0) {
@@ -275,17 +306,36 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         if let Some(handle) = bc.iter().position(|b| !b.is_finite()) {
             return Err(StepError::NotFinite { handle });
         }
+        let slots = m.colliders();
+        if colliders.len() > slots {
+            return Err(StepError::ColliderCount {
+                slots,
+                found: colliders.len(),
+            });
+        }
+        if let Some(collider) = colliders.iter().position(|c| !c.is_finite()) {
+            return Err(StepError::ColliderNotFinite { collider });
+        }
         let mut signal = [0.0; S];
         for (chunk, motion) in signal.chunks_exact_mut(SIGNAL_PER_HANDLE).zip(bc) {
             chunk.copy_from_slice(&motion.signal());
         }
         let time = [dt];
-        let parts: [&[f32]; 6] = [
+        let mut touch = [0.0f32; MAX_COLLIDERS * FEATURES_PER_COLLIDER];
+        if slots > 0 {
+            let place = Placement::new(m, &signal[..s]);
+            let origin = place.centroid();
+            for (slot, out) in touch.chunks_exact_mut(FEATURES_PER_COLLIDER).take(slots).enumerate() {
+                out.copy_from_slice(&features(&place.frame, &origin, m.diagonal, colliders.get(slot)));
+            }
+        }
+        let parts: [&[f32]; 7] = [
             &self.z[..k],
             &self.z_prev[..k],
             &signal[..s],
             &self.signal[..s],
             &self.signal_prev[..s],
+            &touch[..slots * FEATURES_PER_COLLIDER],
             if m.timed() { &time } else { &[] },
         ];
         let h = last_hidden::<H>(&m.weights(), m.integrator, &parts);

@@ -292,6 +292,12 @@ pub struct Model<'a> {
     pub latent_min: Span,
     /// Largest value of each latent coordinate in the training data, in `floats`.
     pub latent_max: Span,
+    /// The run-time collider slots the integrator reads, four numbers each in `floats`: the
+    /// shape row `[code, a, b, c]` of [`crate::collider`] (sphere `[0, radius, 0, 0]`, capsule
+    /// `[1, radius, half_length, 0]`, box `[2, hx, hy, hz]`). Empty for a model without
+    /// collider inputs. Each slot adds [`crate::collider::FEATURES_PER_COLLIDER`] inputs after
+    /// the three signals (before the frame time).
+    pub collider_shapes: Span,
 }
 
 /// What is wrong with a model: the field and the problem.
@@ -390,10 +396,13 @@ impl<'a> Model<'a> {
     pub fn timed(&self) -> bool {
         self.dt_max > 0.0
     }
-    /// Length of the integrator's input: two latents, three signals, and the frame time when
-    /// [`Model::timed`].
+    /// Length of the integrator's input: two latents, three signals, the collider slots'
+    /// features, and the frame time when [`Model::timed`].
     pub fn integrator_input(&self) -> usize {
-        2 * self.latent as usize + 3 * self.bc_len as usize + usize::from(self.timed())
+        2 * self.latent as usize
+            + 3 * self.bc_len as usize
+            + crate::collider::FEATURES_PER_COLLIDER * self.colliders()
+            + usize::from(self.timed())
     }
     /// Widest hidden layer of either network (for a basis decoder, of its MLP and its
     /// features).
@@ -482,6 +491,14 @@ impl<'a> Model<'a> {
     /// Per-coordinate maximum of the training latents.
     pub fn latent_max(&self) -> &'a [f32] {
         self.floats_of(self.latent_max)
+    }
+    /// The collider slots' shape rows (four numbers each, see [`Model::collider_shapes`]).
+    pub fn collider_shape_rows(&self) -> &'a [f32] {
+        self.floats_of(self.collider_shapes)
+    }
+    /// Number of run-time collider slots the integrator reads.
+    pub fn colliders(&self) -> usize {
+        self.collider_shapes.len as usize / crate::collider::SHAPE_ROW
     }
 }
 

@@ -56,8 +56,8 @@ pub struct Payload {
     pub latent_max: Vec<f32>,
     /// Decoder: latent -> encoded state.
     pub decoder: Vec<LayerData>,
-    /// Integrator: `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` (then the frame time when
-    /// `dt_range` is not zero) -> latent increment.
+    /// Integrator: `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`, then the collider slots'
+    /// features, then the frame time when `dt_range` is not zero -> latent increment.
     pub integrator: Vec<LayerData>,
     /// Triangles to draw, three indices into `surface_vertices` each: the boundary faces of a
     /// tet mesh (outward), the triangles of a 2D mesh or cloth, none for rods. Last, so that a
@@ -68,8 +68,11 @@ pub struct Payload {
     pub decoder_basis: bool,
     /// Shortest and longest frame time (seconds) the integrator was trained at, when it takes
     /// the frame time as its last input; `[0, 0]` for a model of the one frame time `dt` (see
-    /// [`crate::Model::dt_max`]). Last: a format-5 payload is this one without it.
+    /// [`crate::Model::dt_max`]). A format-5 payload is this one without it and what follows.
     pub dt_range: [f64; 2],
+    /// The run-time collider slots' shape rows, four numbers each (see
+    /// [`crate::Model::collider_shapes`]); empty for a model without collider inputs.
+    pub collider_shapes: Vec<f32>,
 }
 
 /// One rod strand of the bend encoding (see [`crate::Chain`]).
@@ -171,6 +174,7 @@ mod tests {
             surface_triangles: vec![0, 1, 2],
             decoder_basis: false,
             dt_range: [0.0; 2],
+            collider_shapes: vec![],
         }
     }
 
@@ -263,6 +267,7 @@ mod tests {
             decoder,
             decoder_basis: true,
             dt_range: [0.0; 2],
+            collider_shapes: vec![],
             ..payload()
         }
     }
@@ -369,6 +374,7 @@ mod tests {
         let p = Payload {
             decoder_basis: false,
             dt_range: [0.0; 2],
+            collider_shapes: vec![],
             ..with_basis(vec![layer(4, 1, 0.7), layer(3, 4, 1.3)], 3)
         };
         assert_eq!(refused(p), Some(("decoder", Problem::Unsupported)));

@@ -33,6 +33,11 @@ impl Model<'_> {
             ("initial_latent", self.initial_latent, k),
             ("latent_min", self.latent_min, k),
             ("latent_max", self.latent_max, k),
+            (
+                "collider_shapes",
+                self.collider_shapes,
+                self.collider_shapes.len as usize,
+            ),
         ];
         for (field, span, len) in float_spans {
             let values = span.of(self.floats).ok_or(ModelError {
@@ -86,6 +91,7 @@ impl Model<'_> {
         }
         self.validate_decoder(k)?;
         self.validate_frame_times()?;
+        self.validate_colliders()?;
         self.validate_network("integrator", self.integrator, self.integrator_input(), k)?;
         if !self.params.iter().all(|v| v.is_finite()) {
             return fail("params", Problem::NotFinite);
@@ -93,6 +99,20 @@ impl Model<'_> {
         // Exponent bits all set: a half-precision infinity or NaN.
         if self.halves.iter().any(|h| h & 0x7c00 == 0x7c00) {
             return fail("halves", Problem::NotFinite);
+        }
+        Ok(())
+    }
+
+    /// The collider slots: whole shape rows, at most [`crate::collider::MAX_COLLIDERS`], each a
+    /// known shape with positive sizes.
+    fn validate_colliders(&self) -> Result<(), ModelError> {
+        use crate::collider::{shape_from_row, MAX_COLLIDERS, SHAPE_ROW};
+        let rows = self.collider_shape_rows();
+        if !rows.len().is_multiple_of(SHAPE_ROW) || rows.len() / SHAPE_ROW > MAX_COLLIDERS {
+            return fail("collider_shapes", Problem::Unsupported);
+        }
+        if rows.chunks_exact(SHAPE_ROW).any(|r| shape_from_row(r).is_none()) {
+            return fail("collider_shapes", Problem::Domain);
         }
         Ok(())
     }

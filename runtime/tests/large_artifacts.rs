@@ -66,6 +66,7 @@ fn one_large_handle() -> Payload {
         surface_triangles: (0..n as u32 - 2).flat_map(|i| [i, i + 1, i + 2]).collect(),
         decoder_basis: false,
         dt_range: [0.0; 2],
+        collider_shapes: vec![],
     }
 }
 
@@ -106,6 +107,7 @@ fn one_large_strand() -> Payload {
         surface_triangles: vec![],
         decoder_basis: false,
         dt_range: [0.0; 2],
+        collider_shapes: vec![],
     }
 }
 

@@ -36,6 +36,7 @@ fn header(sources: &[PathBuf], out: &Path) {
     config.export.rename = HashMap::from([
         ("HandleMotion".to_string(), "MochiHandleMotion".to_string()),
         ("Collider".to_string(), "MochiCollider".to_string()),
+        ("ColliderState".to_string(), "MochiColliderState".to_string()),
     ]);
     config.enumeration.prefix_with_name = true;
     let mut builder = cbindgen::Builder::new().with_config(config);

@@ -30,6 +30,27 @@
 #define BOX 2
 
 /**
+ * Numbers of a collider slot's shape row in a model (`[code, a, b, c]`).
+ */
+#define SHAPE_ROW 4
+
+/**
+ * Most collider slots a model may have.
+ */
+#define MAX_COLLIDERS 8
+
+/**
+ * Inputs the integrator reads per collider slot ([`features`]).
+ */
+#define FEATURES_PER_COLLIDER 9
+
+/**
+ * Beyond this many rest diagonals from the body's encoding origin a collider reads as absent
+ * ([`features`]).
+ */
+#define FAR_DIAGONALS 2.0
+
+/**
  * What a call did. Non-negative: success; negative: refused, nothing changed (except
  * [`MochiStatus::DecodeNotFinite`], which writes the rest positions).
  */
@@ -81,7 +102,8 @@ enum MochiStatus
   MochiStatus_FrameTime = -7,
   /**
    * A collider has an unknown shape, a size that is not positive or a non-finite number,
-   * or the margin is negative or not finite.
+   * the margin is negative or not finite, or more collider states were given than the
+   * model has slots.
    */
   MochiStatus_Collider = -8,
 };
@@ -143,6 +165,10 @@ typedef struct MochiModelInfo {
    * [`mochi_instance_step_dt`] takes any positive frame time, otherwise only `dt`.
    */
   float dt_max;
+  /**
+   * Run-time collider slots ([`mochi_instance_step_colliders`]).
+   */
+  uint32_t colliders;
 } MochiModelInfo;
 
 /**
@@ -179,6 +205,30 @@ typedef struct MochiHandleMotion {
    */
   float rotation[3];
 } MochiHandleMotion;
+
+/**
+ * A collider slot's state in a frame, as the host gives it: the pose of the shape's frame and
+ * its motion over the step that ends at the frame (the layout of a dataset's
+ * `collider_states` row).
+ */
+typedef struct MochiColliderState {
+  /**
+   * World position of the shape frame's origin.
+   */
+  float center[3];
+  /**
+   * Rotation of the shape frame, a rotation vector (radians).
+   */
+  float rotation[3];
+  /**
+   * Linear velocity of the centre (units / s).
+   */
+  float linear_velocity[3];
+  /**
+   * Angular velocity (rad / s, world axes).
+   */
+  float angular_velocity[3];
+} MochiColliderState;
 
 /**
  * One analytic collider at its pose this frame.
@@ -251,6 +301,24 @@ MochiStatus mochi_instance_step_dt(const struct MochiModel *model,
                                    const struct MochiHandleMotion *motions,
                                    size_t count,
                                    float dt);
+
+/**
+ * [`mochi_instance_step_dt`] with this frame's run-time colliders: `ncolliders` states, at
+ * most the model's collider slots (`colliders` of [`MochiModelInfo`]), in slot order; the
+ * slots past them are empty. A state that is not finite, or more states than slots, is
+ * refused ([`MochiStatus::Collider`]).
+ *
+ * # Safety
+ * As [`mochi_instance_step`]; `colliders` null (with `ncolliders` 0) or `ncolliders` readable
+ * states.
+ */
+MochiStatus mochi_instance_step_colliders(const struct MochiModel *model,
+                                          struct MochiInstance *instance,
+                                          const struct MochiHandleMotion *motions,
+                                          size_t count,
+                                          const struct MochiColliderState *colliders,
+                                          size_t ncolliders,
+                                          float dt);
 
 /**
  * Writes the world positions of every vertex (`state_len` floats) into `out`.

@@ -48,6 +48,7 @@ fn model(latent: usize) -> MochiModel {
         surface_triangles: vec![0, 1, 2],
         decoder_basis: false,
         dt_range: [0.0; 2],
+        collider_shapes: vec![],
     };
     let storage: &'static mut OwnedModel = Box::leak(Box::default());
     let valid = storage.load(&payload.to_section().unwrap()).unwrap();

@@ -26,7 +26,8 @@ use mochi_sim::error::InputError;
 const SINGLE_SECTION_VERSION: u32 = 2;
 /// The last format without `decoder_basis` (every decoder a residual MLP), still read.
 const MLP_DECODER_VERSION: u32 = 4;
-/// The last format whose models step at one frame time (no `dt_range`).
+/// The last format whose models step at one frame time and take no colliders (no `dt_range`,
+/// no `collider_shapes`).
 const ONE_FRAME_TIME_VERSION: u32 = 5;
 
 /// Weights and biases smaller than this fraction (`2^-40`) of their layer's largest weight are
@@ -115,6 +116,7 @@ impl Artifact {
             surface_triangles: self.drawn_triangles()?,
             decoder_basis: self.decoder_basis,
             dt_range: self.dt_range,
+            collider_shapes: self.collider_shapes.clone(),
         };
         let training = TrainingSection {
             scene: self.scene.clone(),
@@ -205,6 +207,7 @@ impl Artifact {
             decoder_basis: p.decoder_basis,
             integrator: layers(p.integrator)?,
             dt_range: p.dt_range,
+            collider_shapes: p.collider_shapes,
             summary: t.summary,
         })
     }
@@ -253,8 +256,9 @@ impl Artifact {
                 training.push(0);
             }
             if version <= ONE_FRAME_TIME_VERSION {
-                // Format 6 appended `dt_range` ([0, 0]: one frame time; two f64 of 8 bytes).
-                model.extend([0; 16]);
+                // Format 6 appended `dt_range` ([0, 0]: one frame time; two f64 of 8 bytes)
+                // and `collider_shapes` (none: an empty list, one byte).
+                model.extend([0; 17]);
             }
             Artifact::from_sections(
                 Payload::decode(&model).map_err(decode("model section"))?,
@@ -352,8 +356,9 @@ mod tests {
         let (bytes, artifact) = tiny();
         let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
         let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
-        // Format 5 is format 6 without the model section's last field (`dt_range`, 16 bytes).
-        let mut old = envelope::wrap(MAGIC, ONE_FRAME_TIME_VERSION, &model[..model.len() - 16]);
+        // Format 5 is format 6 without the model section's last fields (`dt_range`, 16 bytes,
+        // and an empty `collider_shapes`, 1 byte).
+        let mut old = envelope::wrap(MAGIC, ONE_FRAME_TIME_VERSION, &model[..model.len() - 17]);
         old.extend(envelope::wrap(TRAINING_MAGIC, ONE_FRAME_TIME_VERSION, training));
         assert_eq!(Artifact::parse(&old).unwrap(), artifact);
         let mut runtime = mochi_runtime::OwnedModel::default();

@@ -235,6 +235,9 @@ pub struct Artifact {
     /// Shortest and longest frame time the integrator was trained at when it takes the frame
     /// time as an input (`[0, 0]`: one frame time, `dt`); see `mochi_runtime::Model::dt_max`.
     pub dt_range: [f64; 2],
+    /// The run-time collider slots the integrator reads, a shape row `[code, a, b, c]` each
+    /// (`mochi_runtime::Model::collider_shapes`); empty for a model without collider inputs.
+    pub collider_shapes: Vec<f32>,
     /// How it was made.
     pub summary: TrainingSummary,
 }
@@ -382,7 +385,10 @@ impl Artifact {
             (
                 "integrator",
                 &self.integrator,
-                2 * k + 3 * self.bc_len as usize + usize::from(self.timed()),
+                2 * k
+                    + 3 * self.bc_len as usize
+                    + mochi_runtime::collider::FEATURES_PER_COLLIDER * (self.collider_shapes.len() / 4)
+                    + usize::from(self.timed()),
                 k,
             ),
         ];

@@ -88,6 +88,7 @@ pub fn build_artifact(
             .dataset
             .frame_times()
             .map_or([0.0; 2], |(shortest, longest)| [shortest, longest]),
+        collider_shapes: Vec::new(),
         summary,
     };
     artifact.validate().map_err(|(field, message)| ArtifactError::Invalid {

@@ -1,9 +1,13 @@
-//! The frame time as an input of the integrator: a timed model (`dt_range` in the artifact)
-//! reads the frame time after the signals and steps by any positive one, a model of one frame
-//! time refuses others, bad frame times change nothing, and an artifact of the previous format
-//! (5, without `dt_range`) loads and steps exactly as the same model written in this one.
+//! What the integrator reads besides latents and signals. The frame time: a timed model
+//! (`dt_range` in the artifact) reads it after everything else and steps by any positive one, a
+//! model of one frame time refuses others, bad frame times change nothing, and an artifact of
+//! the previous format (5, without `dt_range` and collider slots) loads and steps exactly as the
+//! same model written in this one. Run-time colliders: a model with collider slots reads each
+//! slot's features in the body's encoding frame (absent and far colliders alike), and refuses
+//! too many or non-finite colliders and malformed slots.
 
 use mochi_runtime::artifact::{FORMAT_VERSION, MAGIC, OLDEST_READ_VERSION};
+use mochi_runtime::collider::{ColliderState, FAR_DIAGONALS, FEATURES_PER_COLLIDER};
 use mochi_runtime::envelope::{self, EnvelopeError};
 use mochi_runtime::network::activation::swish;
 use mochi_runtime::payload::{HandleData, LayerData, Payload};
@@ -21,15 +25,22 @@ const DT: f64 = 1.0 / 30.0;
 /// weight 1 into every hidden unit and its output layer sums them, so one step adds
 /// `HIDDEN * swish(dt)` to the latent; untimed, the same weights sit on the last signal.
 fn payload(timed: bool) -> Payload {
+    payload_with(timed, &[], None)
+}
+
+/// [`payload`] with collider slots (shape rows of four numbers each); with `read`, the input
+/// layer reads that input instead of the last one.
+fn payload_with(timed: bool, slots: &[f32], read: Option<u64>) -> Payload {
     let layer = |rows: u64, cols: u64, weights: Vec<f32>| LayerData {
         rows,
         cols,
         weights,
         bias: vec![0.0; rows as usize],
     };
-    let input = 2 + 3 * 12 + u64::from(timed);
+    let input = 2 + 3 * 12 + (FEATURES_PER_COLLIDER * slots.len() / 4) as u64 + u64::from(timed);
+    let column = read.unwrap_or(input - 1);
     let first: Vec<f32> = (0..HIDDEN * input)
-        .map(|i| if i % input == input - 1 { 1.0 } else { 0.0 })
+        .map(|i| if i % input == column { 1.0 } else { 0.0 })
         .collect();
     Payload {
         dt: DT,
@@ -62,6 +73,7 @@ fn payload(timed: bool) -> Payload {
         surface_triangles: vec![0, 1, 2],
         decoder_basis: false,
         dt_range: if timed { [1.0 / 120.0, 1.0 / 30.0] } else { [0.0; 2] },
+        collider_shapes: slots.to_vec(),
     }
 }
 
@@ -138,9 +150,10 @@ fn a_model_of_one_frame_time_refuses_another_and_bad_frame_times_change_nothing(
 fn a_format_5_artifact_loads_and_steps_as_the_same_model_in_this_format() {
     let p = payload(false);
     let current = p.to_section().unwrap();
-    // Format 5's payload is this one without its last field (`dt_range`, two f64).
+    // Format 5's payload is this one without its last fields (`dt_range`, two f64, and the
+    // empty `collider_shapes`, one byte).
     let encoded = p.encode().unwrap();
-    let old = envelope::wrap(MAGIC, OLDEST_READ_VERSION, &encoded[..encoded.len() - 16]);
+    let old = envelope::wrap(MAGIC, OLDEST_READ_VERSION, &encoded[..encoded.len() - 17]);
     assert_eq!(OLDEST_READ_VERSION, 5);
     assert_eq!(FORMAT_VERSION, 6);
     let (a, b) = (load(&current), load(&old));
@@ -156,7 +169,7 @@ fn a_format_5_artifact_loads_and_steps_as_the_same_model_in_this_format() {
         assert_eq!(xs, ys, "frame {f}");
     }
     // A format-6 payload cut short is refused, not read as format 5.
-    let cut = envelope::wrap(MAGIC, FORMAT_VERSION, &encoded[..encoded.len() - 16]);
+    let cut = envelope::wrap(MAGIC, FORMAT_VERSION, &encoded[..encoded.len() - 17]);
     assert!(OwnedModel::default().load(&cut).is_err());
     // Older and newer formats are refused naming the version.
     for version in [4, 7] {
@@ -204,4 +217,106 @@ fn frame_time_ranges_are_validated_naming_the_field() {
         ),
         "{err:?}"
     );
+}
+
+/// The first collider feature (its centre's x in the encoding frame) read by the test model
+/// of one slot (a capsule), after one step with the collider at `state` (none: absent) and the
+/// handle turned by `turn` about z.
+fn latent_with_collider(state: Option<ColliderState>, turn: f32) -> f32 {
+    let storage = load(
+        &payload_with(false, &[1.0, 0.05, 0.1, 0.0], Some(2 + 36))
+            .to_section()
+            .unwrap(),
+    );
+    let model = storage.model().unwrap();
+    assert_eq!(
+        (model.model().colliders(), model.model().integrator_input()),
+        (1, 2 + 36 + 9)
+    );
+    let mut body = AnyInstance::new(&model).unwrap();
+    let motion = [HandleMotion {
+        rotation: [0.0, 0.0, turn],
+        ..HandleMotion::default()
+    }];
+    let given: Vec<ColliderState> = state.into_iter().collect();
+    body.step_with(&model, &motion, &given, DT as f32).unwrap();
+    body.latent()[0]
+}
+
+#[test]
+fn collider_slots_are_read_in_the_encoding_frame_and_far_ones_as_absent() {
+    // The handle's targets are vertices 0 and 1, at rest: their centroid (0.5, 0) is the origin.
+    let at = |x: f32, y: f32| ColliderState {
+        center: [x, y, 0.0],
+        ..ColliderState::default()
+    };
+    let step = |feature: f32| HIDDEN as f32 * swish(feature);
+    let z = latent_with_collider(Some(at(0.8, 0.1)), 0.0);
+    assert!((z - step(0.3)).abs() < 1e-6, "{z} vs {}", step(0.3));
+    // Absent, or farther than FAR_DIAGONALS rest diagonals: the centre reads as straight up
+    // (x = 0) in the frame, the same numbers.
+    let diagonal = 2f32.sqrt();
+    let far = latent_with_collider(Some(at(0.5 + 1.01 * FAR_DIAGONALS * diagonal, 0.0)), 0.0);
+    assert_eq!(far, latent_with_collider(None, 0.0));
+    assert_eq!(far, step(0.0));
+    // A model that does not rotate with its handle reads world axes whatever the turn.
+    assert_eq!(latent_with_collider(Some(at(0.8, 0.1)), 1.0), z);
+}
+
+#[test]
+fn bad_colliders_are_refused_and_change_nothing() {
+    let storage = load(
+        &payload_with(false, &[0.0, 0.1, 0.0, 0.0], Some(2 + 36))
+            .to_section()
+            .unwrap(),
+    );
+    let model = storage.model().unwrap();
+    let mut body = AnyInstance::new(&model).unwrap();
+    let start = body;
+    let fine = ColliderState::default();
+    let nan = ColliderState {
+        linear_velocity: [0.0, f32::NAN, 0.0],
+        ..fine
+    };
+    assert_eq!(
+        body.step_with(&model, &motion(0.0), &[fine, fine], DT as f32),
+        Err(StepError::ColliderCount { slots: 1, found: 2 })
+    );
+    assert_eq!(
+        body.step_with(&model, &motion(0.0), &[nan], DT as f32),
+        Err(StepError::ColliderNotFinite { collider: 0 })
+    );
+    assert_eq!(body, start);
+    // A model without slots takes none.
+    let plain = load(&payload(false).to_section().unwrap());
+    let plain = plain.model().unwrap();
+    let mut other = AnyInstance::new(&plain).unwrap();
+    assert_eq!(
+        other.step_with(&plain, &motion(0.0), &[fine], DT as f32),
+        Err(StepError::ColliderCount { slots: 0, found: 1 })
+    );
+}
+
+#[test]
+fn malformed_collider_slots_are_refused_naming_the_field() {
+    let too_many: Vec<f32> = (0..9).flat_map(|_| [0.0, 0.1, 0.0, 0.0]).collect();
+    for (rows, problem) in [
+        (vec![0.0, 0.1, 0.0], Problem::Unsupported),
+        (too_many, Problem::Unsupported),
+        (vec![5.0, 0.1, 0.0, 0.0], Problem::Domain),
+        (vec![0.0, -0.1, 0.0, 0.0], Problem::Domain),
+        (vec![2.0, 0.1, 0.1, 0.0], Problem::Domain),
+        (vec![1.0, 0.1, f32::NAN, 0.0], Problem::NotFinite),
+    ] {
+        let p = payload_with(false, &rows, None);
+        let err = OwnedModel::default().load(&p.to_section().unwrap()).err();
+        assert_eq!(
+            err,
+            Some(LoadError::Invalid(ModelError {
+                field: "collider_shapes",
+                problem
+            })),
+            "{rows:?}"
+        );
+    }
 }
