@@ -9,13 +9,15 @@ Opens URL (the page with ?test=1), then chooses every model the page offers in i
 the way a person does (the value set, a change event), and waits until the page has stepped and
 drawn N frames of it. For each model it prints the page's line
 
-    page: model=NAME frames=N moved=D status=S drawn=P ms=T
+    page: model=NAME frames=N moved=D status=S drawn=P ms=T pushed=K
 
 and saves a screenshot OUTDIR/wasm-page-NAME.png (the first model's also as
 OUTDIR/wasm-page.png). Fails (exit 1) when a model does not load, its frames do not advance,
 its surface does not move (D <= 1e-3 of the diagonal), a step is refused (S < 0), less than
 1% of the canvas is drawn (P, pixels read back that are not background), no time per frame
-is reported (T <= 0), or a model named with --expect is not offered.
+is reported (T <= 0), the ball the synthetic mouse sweeps through the body from frame 60 pushed
+no drawn vertex out (K = 0: the run-time collider did not reach the surface), or a model named
+with --expect is not offered.
 """
 
 import argparse
@@ -29,7 +31,7 @@ import sys
 import tempfile
 import time
 
-LINE = re.compile(r"model=(\S+) frames=(\d+) moved=([0-9.]+) status=(-?\d+) drawn=(\d+) ms=([0-9.]+)")
+LINE = re.compile(r"model=(\S+) frames=(\d+) moved=([0-9.]+) status=(-?\d+) drawn=(\d+) ms=([0-9.]+) pushed=(\d+)")
 
 
 class Browser:
@@ -125,6 +127,7 @@ def wait_for(browser, name, frames, seconds):
 def check(line):
     m = LINE.search(line)
     name, moved, status, drawn, ms = m.group(1), float(m.group(3)), int(m.group(4)), int(m.group(5)), float(m.group(6))
+    pushed = int(m.group(7))
     width, height = 800, 480
     problems = []
     if not moved > 1e-3:
@@ -135,6 +138,8 @@ def check(line):
         problems.append("less than 1% of the canvas is drawn")
     if not ms > 0:
         problems.append("no time per frame")
+    if pushed == 0:
+        problems.append("the ball pushed no drawn vertex out")
     return name, problems
 
 

@@ -15,6 +15,7 @@
 use core::fmt::Write as _;
 use core::ptr::{addr_of, addr_of_mut};
 
+use mochi_runtime::collider::{push_out, Collider, ColliderState};
 use mochi_runtime::model::{MAX_HANDLES, MAX_LAYERS};
 use mochi_runtime::{AnyInstance, Handle, HandleMotion, HandlePose, Layer, Storage, ValidModel};
 use mochi_target_common::{run, CHECKPOINTS};
@@ -41,6 +42,7 @@ const INVALID_MODEL: i32 = -2;
 const STEP_REFUSED: i32 = -3;
 const DECODE_REFUSED: i32 = -4;
 const LOAD_REFUSED: i32 = -5;
+const COLLIDER_REFUSED: i32 = -6;
 
 /// The loaded model's storage (room: [`slab`]).
 type Viewer = Storage<
@@ -59,6 +61,10 @@ struct State {
     current: Option<ValidModel<'static>>,
     body: Option<AnyInstance>,
     pose: HandlePose,
+    /// The page's collider, when it has one: its last pose, and how many drawn vertices it
+    /// pushed out after the last step.
+    collider: Option<Collider>,
+    pushed: u32,
     checksums: [u64; CHECKPOINTS.len()],
     error: ErrorText,
 }
@@ -89,6 +95,8 @@ static mut STATE: State = State {
         translation: [0.0; 3],
         rotation: [0.0; 3],
     },
+    collider: None,
+    pushed: 0,
     checksums: [0; CHECKPOINTS.len()],
     error: ErrorText {
         bytes: [0; ERROR_CAPACITY],
@@ -322,16 +330,59 @@ pub extern "C" fn mochi_step_pose_dt(dt: f32, tx: f32, ty: f32, tz: f32, rx: f32
     };
     let motion = HandleMotion::from_poses(&s.pose, &pose, dt);
     let bc = [motion; MAX_HANDLES];
-    let status = match body.step_dt(model, &bc[..model.model().handles.len()], dt) {
+    // A model with collider slots reads the page's collider in its first slot (its velocity
+    // from the last two poses is set by `mochi_set_collider`).
+    let touch = match (s.collider, model.model().colliders()) {
+        (Some(c), 1..) => Some(ColliderState {
+            center: c.center,
+            rotation: c.rotation,
+            ..ColliderState::default()
+        }),
+        _ => None,
+    };
+    let status = match body.step_with(model, &bc[..model.model().handles.len()], touch.as_slice(), dt) {
         Ok(stepped) => stepped as i32,
         Err(_) => return STEP_REFUSED,
     };
     s.pose = pose;
     let len = model.model().surface_len();
-    match body.decode_surface_into(model, &mut surface()[..len]) {
-        Ok(()) => status,
-        Err(_) => DECODE_REFUSED,
+    if body.decode_surface_into(model, &mut surface()[..len]).is_err() {
+        return DECODE_REFUSED;
     }
+    // The run-time correction: drawn vertices inside the collider go to its surface.
+    s.pushed = 0;
+    if let Some(c) = s.collider {
+        match push_out(&mut surface()[..len], model.model().dim(), &[c], 0.0) {
+            Ok(n) => s.pushed = n as u32,
+            Err(_) => return COLLIDER_REFUSED,
+        }
+    }
+    status
+}
+
+/// Puts the page's collider (a sphere of `radius` at `(x, y, z)`) in the scene, or takes it
+/// out (`radius` <= 0). Each step then pushes the drawn vertices inside it out to its surface
+/// ([`mochi_pushed`] says how many) and a model with collider slots reads it as its first.
+/// Returns 0, or a negative code for a non-finite number (nothing changed).
+#[no_mangle]
+pub extern "C" fn mochi_set_collider(radius: f32, x: f32, y: f32, z: f32) -> i32 {
+    let s = state();
+    if !(radius.is_finite() && x.is_finite() && y.is_finite() && z.is_finite()) {
+        return COLLIDER_REFUSED;
+    }
+    s.collider = (radius > 0.0).then_some(Collider {
+        shape: mochi_runtime::collider::SPHERE,
+        size: [radius, 0.0, 0.0],
+        center: [x, y, z],
+        rotation: [0.0; 3],
+    });
+    OK
+}
+
+/// Drawn vertices the page's collider pushed out after the last step.
+#[no_mangle]
+pub extern "C" fn mochi_pushed() -> u32 {
+    state().pushed
 }
 
 /// The positions after the last reference run (`vertex_count * dim` floats of the generated

@@ -5,12 +5,18 @@
 // decode of the drawn vertices (mochi_step_pose), measured with performance.now() and
 // averaged over the last frames.
 //
+// With Shift held, the mouse moves a ball (a run-time collider, mochi_set_collider) through
+// the body instead, on the vertical plane through its centre; the drawn vertices inside the
+// ball are pushed out to its surface after each step (the runtime's correction), and a model
+// trained with collider slots also reads it.
+//
 // With ?test=1 the mouse is synthetic (the same handler gets generated events) and #status
 // holds a machine-readable line for the headless-browser check (scripts/check-page.py):
-//   model=NAME frames=N moved=D status=S drawn=P ms=T
+//   model=NAME frames=N moved=D status=S drawn=P ms=T pushed=K
 // (frames since the model was chosen, largest drawn-vertex displacement from rest as a
 // fraction of the diagonal, the last step's status, non-background pixels of the last
-// read-back frame, mean milliseconds per frame).
+// read-back frame, mean milliseconds per frame, most drawn vertices the ball pushed out in one
+// step; the synthetic mouse sweeps the ball through the body from frame 60 on).
 import { SurfaceView } from "./render.js";
 
 const params = new URLSearchParams(location.search);
@@ -106,6 +112,8 @@ async function choose(name) {
     target: { t: [0, 0, 0], r: [0, 0, 0] },
     frames: 0,
     moved: 0,
+    ball: null,
+    pushed: 0,
     status: 0,
     drawn: 0,
     times: [],
@@ -131,6 +139,16 @@ function onMove(event) {
   if (!active) return;
   const r = canvas.getBoundingClientRect();
   const along = { horizontal: (event.clientX - r.left) / r.width - 0.5, vertical: 0.5 - (event.clientY - r.top) / r.height };
+  if (event.shiftKey) {
+    // The ball, a tenth of the diagonal across, over the body's rest box.
+    const c = view.centre;
+    const reach = 0.6 * active.diagonal;
+    active.ball = {
+      centre: [c[0] + 2 * along.horizontal * reach, c[1] + 2 * along.vertical * reach, c[2]],
+      radius: 0.1 * active.diagonal,
+    };
+    return;
+  }
   const target = { t: [0, 0, 0], r: [0, 0, 0] };
   for (const [direction, [kind, axis]] of Object.entries(active.mouse)) {
     if (kind === "move") target.t[axis] = 2 * along[direction] * 0.15 * active.diagonal;
@@ -168,8 +186,12 @@ function frame() {
       a.pose.r[c] += clamp(0.15 * (a.target.r[c] - a.pose.r[c]), maxTurn);
     }
     const start = performance.now();
+    if (a.ball) m.mochi_set_collider(a.ball.radius, ...a.ball.centre);
+    else m.mochi_set_collider(0, 0, 0, 0);
     a.status = m.mochi_step_pose_dt(dt, ...a.pose.t, ...a.pose.r);
     a.times.push(performance.now() - start);
+    a.pushed = Math.max(a.pushed, m.mochi_pushed());
+    view.setBall(a.ball);
     if (a.times.length > TIMED_FRAMES) a.times.shift();
     const x = surface(a.dim, a.count);
     view.draw(x);
@@ -182,7 +204,7 @@ function frame() {
     timing.textContent = `time per frame: ${ms.toFixed(3)} ms (latent step + decode of the drawn vertices, mean of the last ${a.times.length} frames)`;
     if (testMode) {
       if (a.frames % 10 === 0) a.drawn = view.drawnPixels();
-      statusLine.textContent = `model=${a.name} frames=${a.frames} moved=${a.moved.toFixed(5)} status=${a.status} drawn=${a.drawn} ms=${ms.toFixed(4)}`;
+      statusLine.textContent = `model=${a.name} frames=${a.frames} moved=${a.moved.toFixed(5)} status=${a.status} drawn=${a.drawn} ms=${ms.toFixed(4)} pushed=${a.pushed}`;
     } else {
       statusLine.textContent = a.status < 0 ? `step refused (status ${a.status})` : "";
     }
@@ -195,13 +217,24 @@ function frame() {
 function schedule() {
   if (testMode) {
     const r = canvas.getBoundingClientRect();
-    const phase = (2 * Math.PI * (active?.frames ?? 0)) / 90;
+    const frames = active?.frames ?? 0;
+    const phase = (2 * Math.PI * frames) / 90;
     canvas.dispatchEvent(
       new MouseEvent("mousemove", {
         clientX: r.left + r.width * (0.5 + 0.4 * Math.sin(phase)),
         clientY: r.top + r.height * (0.5 + 0.4 * Math.cos(phase)),
       }),
     );
+    // From frame 60 the ball sweeps left and right through the body's middle.
+    if (frames >= 60) {
+      canvas.dispatchEvent(
+        new MouseEvent("mousemove", {
+          shiftKey: true,
+          clientX: r.left + r.width * (0.5 + 0.3 * Math.sin(phase)),
+          clientY: r.top + 0.5 * r.height,
+        }),
+      );
+    }
     setTimeout(frame, 1000 / 60);
   } else {
     requestAnimationFrame(frame);

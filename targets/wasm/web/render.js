@@ -101,6 +101,25 @@ export class SurfaceView {
       gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
     }
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.indexBuffer);
+    // The page's collider: a unit sphere's mesh, placed and scaled each frame.
+    this.ballVao = gl.createVertexArray();
+    gl.bindVertexArray(this.ballVao);
+    this.ballPositions = gl.createBuffer();
+    this.ballNormals = gl.createBuffer();
+    for (const [name, buffer] of [["position", this.ballPositions], ["normal", this.ballNormals]]) {
+      const at = gl.getAttribLocation(program, name);
+      gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+      gl.enableVertexAttribArray(at);
+      gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
+    }
+    this.sphere = unitSphere(24, 16);
+    this.ballIndices = gl.createBuffer();
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.ballIndices);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, this.sphere.triangles, gl.STATIC_DRAW);
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.ballNormals);
+    gl.bufferData(gl.ARRAY_BUFFER, this.sphere.points, gl.STATIC_DRAW);
+    this.ball = null;
+    gl.bindVertexArray(this.vao);
     gl.enable(gl.DEPTH_TEST);
     this.camera = { yaw: -0.55, pitch: 0.3, zoom: 1 };
     this.colour = [0.36, 0.55, 0.82];
@@ -124,6 +143,11 @@ export class SurfaceView {
     }
     this.centre = [0, 1, 2].map((c) => 0.5 * (lo[c] + hi[c]));
     this.radius = Math.max(0.5 * Math.hypot(...sub(hi, lo)), 1e-6);
+  }
+
+  /** Shows the collider as a sphere at `centre` of `radius`, or hides it (`null`). */
+  setBall(ball) {
+    this.ball = ball;
   }
 
   /** Turns the camera by a drag of (dx, dy) pixels. */
@@ -186,6 +210,18 @@ export class SurfaceView {
     } else {
       gl.drawArrays(gl.POINTS, 0, this.count);
     }
+    if (this.ball) {
+      const { centre, radius } = this.ball;
+      const unit = this.sphere.points;
+      const placed = new Float32Array(unit.length);
+      for (let i = 0; i < unit.length; i++) placed[i] = centre[i % 3] + radius * unit[i];
+      gl.uniform3fv(this.uniforms.colour, [0.6, 0.6, 0.6]);
+      gl.bindVertexArray(this.ballVao);
+      gl.bindBuffer(gl.ARRAY_BUFFER, this.ballPositions);
+      gl.bufferData(gl.ARRAY_BUFFER, placed, gl.DYNAMIC_DRAW);
+      gl.drawElements(gl.TRIANGLES, this.sphere.triangles.length, gl.UNSIGNED_INT, 0);
+      gl.bindVertexArray(this.vao);
+    }
   }
 
   /** Pixels of the last frame that are not background (read back; call right after draw). */
@@ -200,4 +236,24 @@ export class SurfaceView {
     }
     return drawn;
   }
+}
+
+/** A unit sphere of `slices` x `stacks` quads: its points (also its normals) and triangles. */
+function unitSphere(slices, stacks) {
+  const points = [];
+  for (let j = 0; j <= stacks; j++) {
+    const theta = (Math.PI * j) / stacks;
+    for (let i = 0; i <= slices; i++) {
+      const phi = (2 * Math.PI * i) / slices;
+      points.push(Math.sin(theta) * Math.cos(phi), Math.cos(theta), Math.sin(theta) * Math.sin(phi));
+    }
+  }
+  const triangles = [];
+  for (let j = 0; j < stacks; j++) {
+    for (let i = 0; i < slices; i++) {
+      const a = j * (slices + 1) + i, b = a + slices + 1;
+      triangles.push(a, b, a + 1, a + 1, b, b + 1);
+    }
+  }
+  return { points: new Float32Array(points), triangles: new Uint32Array(triangles) };
 }
