@@ -341,6 +341,11 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         let h = last_hidden::<H>(&m.weights(), m.integrator, &parts);
         let mut increment = [0.0f32; K];
         OutputRows::new(m.weights(), m.integrator, &h).rows(0, &mut increment[..k]);
+        if m.timed() {
+            // A timed network predicts the increment of a frame of the model's `dt`.
+            let scale = dt / m.dt;
+            increment[..k].iter_mut().for_each(|v| *v *= scale);
+        }
         let mut z = self.z;
         z.iter_mut().zip(&increment[..k]).for_each(|(z, dz)| *z += dz);
         let mut status = Stepped::Ok;

@@ -224,7 +224,8 @@ pub struct Model<'a> {
     /// trained at the one frame time [`Model::dt`].
     pub dt_min: f32,
     /// Longest frame time the integrator was trained at. When positive, the integrator takes
-    /// the frame time (seconds) as one more input after the boundary-condition signals and
+    /// the frame time (seconds) as its last input, a step adds `dt / Model::dt` times the
+    /// network's increment (the network predicts a frame of `Model::dt` at every rate), and
     /// [`crate::Instance::step_dt`] steps by any positive frame time (outside
     /// `dt_min..=dt_max` the motion is an extrapolation); when 0 the model steps by [`Model::dt`]
     /// only.

@@ -23,7 +23,8 @@ const DT: f64 = 1.0 / 30.0;
 /// A 2D triangle (vertices 0 and 1 held by one handle, vertex 2 free) with a one-number latent.
 /// The integrator's input layer reads only the frame time (when `timed`, its last input) with
 /// weight 1 into every hidden unit and its output layer sums them, so one step adds
-/// `HIDDEN * swish(dt)` to the latent; untimed, the same weights sit on the last signal.
+/// `HIDDEN * swish(dt) * dt / DT` to the latent; untimed, the same weights sit on the last
+/// signal.
 fn payload(timed: bool) -> Payload {
     payload_with(timed, &[], None)
 }
@@ -110,7 +111,8 @@ fn a_timed_model_reads_the_frame_time_after_the_signals() {
     assert_eq!(m.integrator_input(), 2 + 36 + 1);
     for dt in [1.0 / 120.0, 1.0 / 72.0, 1.0 / 30.0, 1.0 / 20.0] {
         let z = latent_after(&model, &[dt, dt]);
-        let want = 2.0 * HIDDEN as f32 * swish(dt);
+        // Two steps of the network's increment, each scaled by dt over the model's frame time.
+        let want = 2.0 * HIDDEN as f32 * swish(dt) * (dt / m.dt);
         assert!((z - want).abs() <= 1e-6 * want, "dt {dt}: latent {z}, expected {want}");
     }
     // `step` is a step of the model's own `dt`, bit for bit.

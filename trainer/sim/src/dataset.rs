@@ -65,6 +65,19 @@ pub struct SequencePlan {
     pub dt: Option<f64>,
 }
 
+impl SequencePlan {
+    /// Its frames after the initial one: its split's frames of the scene's `dt`
+    /// ([`DatasetSpec::frames_of`]), and at another frame time as many as cover the same
+    /// seconds of motion (120 frames per second: four times those of 30).
+    pub fn frames(&self, spec: &DatasetSpec, scene_dt: f64) -> usize {
+        let frames = spec.frames_of(self.split);
+        match self.dt {
+            Some(dt) => (frames as f64 * scene_dt / dt).round().max(1.0) as usize,
+            None => frames,
+        }
+    }
+}
+
 /// Frames between the speed draws of a `dataset.varied` training sequence.
 pub const VARIED_PIECE_FRAMES: usize = 30;
 
@@ -382,16 +395,16 @@ pub fn generate(
     let todo: Vec<SequencePlan> = plan(&spec)
         .into_iter()
         .filter(|p| split.is_none_or(|s| s == p.split))
-        .filter(|p| overwrite || !is_current(&sequence_path(dir, p), spec.frames_of(p.split), p.dt))
+        .filter(|p| overwrite || !is_current(&sequence_path(dir, p), p.frames(&spec, problem.scene.dt), p.dt))
         .collect();
-    let total: usize = todo.iter().map(|p| spec.frames_of(p.split)).sum();
+    let total: usize = todo.iter().map(|p| p.frames(&spec, problem.scene.dt)).sum();
     let name = problem.scene.name.clone();
     progress.start(total as u64);
     let start = Instant::now();
     let mut report = GenerateReport::default();
     for plan in &todo {
         progress.message(&format!("{name} {}", plan.name));
-        let seq = problem.plan_sequence(plan, spec.frames_of(plan.split));
+        let seq = problem.plan_sequence(plan, plan.frames(&spec, problem.scene.dt));
         // A sequence at another frame time is simulated by the scene built with that step.
         let mut rebuilt = match plan.dt {
             Some(dt) if dt != problem.scene.dt => {
@@ -452,7 +465,7 @@ pub fn load(problem: &BuiltScene, dir: &Path, split: Split) -> Result<Vec<(Seque
             ));
         }
         let traj = Trajectory::read_npz(&path)?;
-        let frames = spec.frames_of(split);
+        let frames = plan.frames(&spec, problem.scene.dt);
         if traj.num_frames() != frames + 1 || traj.dim != problem.mesh.dim {
             return Err(InputError::file(
                 &path,

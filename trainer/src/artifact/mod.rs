@@ -271,7 +271,11 @@ impl Artifact {
     /// The integrator as a runnable network.
     pub fn integrator(&self) -> Result<ExportedIntegrator, NetworkError> {
         let mlp = ExportedMlp::from_layers(self.integrator.clone())?;
-        ExportedIntegrator::new(self.latent as usize, mlp)
+        let exported = ExportedIntegrator::new(self.latent as usize, mlp)?;
+        Ok(match self.timed() {
+            true => exported.timed_at(self.dt),
+            false => exported,
+        })
     }
 
     /// Checks every size and index, and that all numbers are finite; returns the offending

@@ -60,9 +60,18 @@ pub fn distill_integrator(
             )))
         }
     };
+    // A timed teacher's increments scale with the frame time (the input's last number); the
+    // student's normalisation is fitted at the reference frame time, as its own training's.
+    let reference = teacher.reference_dt();
     let increments = |qs: &[Vec<f32>]| -> TrainResult<Vec<Vec<f32>>> {
         qs.iter()
-            .map(|q| Ok(teach(q)?.iter().zip(q).map(|(z, p)| z - p).collect()))
+            .map(|q| {
+                let scale = match (reference, q.last()) {
+                    (Some(r), Some(&dt)) => (dt as f64 / r) as f32,
+                    _ => 1.0,
+                };
+                Ok(teach(q)?.iter().zip(q).map(|(z, p)| (z - p) / scale).collect())
+            })
             .collect()
     };
     let input_norm = Normalisation::fit(&inputs).map_err(|e| TrainError::Invalid(e.to_string()))?;
@@ -73,6 +82,7 @@ pub fn distill_integrator(
         hidden: shape.hidden,
         blocks: shape.blocks,
         timed,
+        reference_dt: reference.unwrap_or(0.0),
     };
     let inverse: Vec<f32> = increment_norm.std.iter().map(|s| 1.0 / s).collect();
     let inverse = Tensor::from_vec(inverse, (1, k), &Device::Cpu)?;

@@ -54,6 +54,8 @@ pub struct IntegratorData<'a> {
     /// Whether the integrator takes the frame time as an input (the scene's dataset spans a
     /// range of frame rates, `dataset.frame_rates`).
     pub timed: bool,
+    /// The scene's frame time, to which a timed integrator's increments are scaled.
+    pub reference_dt: f64,
     pub(crate) encoding: &'a Encoding,
 }
 
@@ -92,6 +94,7 @@ impl<'a> IntegratorData<'a> {
         let k = ae.spec().latent;
         let bc_len = SIGNAL_PER_HANDLE * problem.handles.len();
         let timed = problem.scene.dataset.frame_rates.is_some();
+        let reference_dt = problem.scene.dt;
         let mut latents = Vec::new();
         let mut decoded = Vec::new();
         for seq in sequences {
@@ -138,11 +141,18 @@ impl<'a> IntegratorData<'a> {
                     t,
                     timed.then_some(seq.trajectory.dt),
                 ));
+                // A timed integrator's increments scale with the frame time: its network
+                // predicts them at the scene's.
+                let scale = if timed {
+                    (seq.trajectory.dt / reference_dt) as f32
+                } else {
+                    1.0
+                };
                 increments.push(
                     latents[s][t]
                         .iter()
                         .zip(&latents[s][t - 1])
-                        .map(|(a, b)| a - b)
+                        .map(|(a, b)| (a - b) / scale)
                         .collect(),
                 );
                 samples.push(sample);
@@ -168,6 +178,7 @@ impl<'a> IntegratorData<'a> {
             inputs,
             latent_range: (lo, hi),
             timed,
+            reference_dt,
             encoding,
         })
     }
@@ -398,6 +409,7 @@ pub(crate) mod fixtures {
             hidden: 16,
             blocks: 1,
             timed: data.timed,
+            reference_dt: data.reference_dt,
         };
         LatentIntegrator::new(int_spec, data.input_norm.clone(), data.increment_norm.clone(), 2).unwrap()
     }

@@ -444,6 +444,7 @@ pub(crate) fn train_integrator(
         hidden: shape.width,
         blocks: spec.integrator.blocks,
         timed: data.timed,
+        reference_dt: data.reference_dt,
     };
     let augmentation = Augmentation {
         noise: spec.noise,

@@ -373,7 +373,8 @@ pub struct DatasetSpec {
     /// host's own frame rate (72, 90, 120 Hz on a headset): the sequences' rates spread
     /// geometrically over the range (in an order shuffled by the seed, so that rates and speed
     /// levels do not go together), each sequence the scene's motion at that rate over the same
-    /// number of frames, simulated with a time step of one frame. Test sequences stay at the
+    /// seconds (`frames` of `dt`: 120 frames per second gives four times the frames of 30),
+    /// simulated with a time step of one frame. Test sequences stay at the
     /// scene's own `dt` (`mochi eval --rates` measures others). Default none: every sequence at
     /// `dt`.
     pub frame_rates: Option<[f64; 2]>,

@@ -11,7 +11,7 @@ use super::layout::MlpSpec;
 use super::mlp::ResMlp;
 
 /// Sizes of the latent integrator `z_t = I(z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2})`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub(crate) struct IntegratorSpec {
     /// Latent size `k`.
     pub latent: usize,
@@ -25,6 +25,11 @@ pub(crate) struct IntegratorSpec {
     /// range of frame rates). Absent in checkpoints written before it existed: `false`.
     #[serde(default)]
     pub timed: bool,
+    /// For a timed integrator, the frame time its increments are scaled to (the scene's `dt`):
+    /// a step adds `dt / reference_dt` times the network's increment, so the network predicts
+    /// a latent velocity of one scale at every rate.
+    #[serde(default)]
+    pub reference_dt: f64,
 }
 
 impl IntegratorSpec {
@@ -144,11 +149,13 @@ pub(crate) struct LatentIntegrator {
 }
 
 /// A frozen integrator: `z_t = q[..latent] + mlp(q)` with the normalisations folded into
-/// `mlp`'s first and last layers.
+/// `mlp`'s first and last layers (for a timed one, `+ (dt / reference_dt) mlp(q)`, `dt` the
+/// input's last number).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExportedIntegrator {
     latent: usize,
     mlp: ExportedMlp,
+    reference_dt: Option<f64>,
 }
 
 impl ExportedIntegrator {
@@ -159,7 +166,22 @@ impl ExportedIntegrator {
         if spec.output != latent || spec.input < 2 * latent {
             return invalid(format!("integrator network {spec:?} does not fit latent size {latent}"));
         }
-        Ok(ExportedIntegrator { latent, mlp })
+        Ok(ExportedIntegrator {
+            latent,
+            mlp,
+            reference_dt: None,
+        })
+    }
+
+    /// The same network as a timed integrator whose increments scale with `dt / reference_dt`.
+    pub fn timed_at(mut self, reference_dt: f64) -> Self {
+        self.reference_dt = Some(reference_dt);
+        self
+    }
+
+    /// The frame time a timed integrator's increments are scaled to (`None`: untimed).
+    pub fn reference_dt(&self) -> Option<f64> {
+        self.reference_dt
     }
 
     /// Latent size.
@@ -175,6 +197,10 @@ impl ExportedIntegrator {
     /// One step from a packed input `q`.
     pub fn step(&self, q: &[f32]) -> ModelResult<Vec<f32>> {
         let mut z = forward_exported(&self.mlp, q)?;
+        if let (Some(reference), Some(&dt)) = (self.reference_dt, q.last()) {
+            let scale = (dt as f64 / reference) as f32;
+            z.iter_mut().for_each(|v| *v *= scale);
+        }
         z.iter_mut().zip(&q[..self.latent]).for_each(|(z, prev)| *z += prev);
         Ok(z)
     }
@@ -236,6 +262,14 @@ impl LatentIntegrator {
             .forward(&normalised)?
             .broadcast_mul(&self.increment_std)?
             .broadcast_add(&self.increment_mean)?;
+        let increment = match self.spec.timed {
+            // The frame time is the last input: the increment scales with it.
+            true => {
+                let dt = q.narrow(1, self.spec.input() - 1, 1)?;
+                increment.broadcast_mul(&dt.affine(1.0 / self.spec.reference_dt, 0.0)?)?
+            }
+            false => increment,
+        };
         q.narrow(1, 0, self.spec.latent)? + increment
     }
 
@@ -269,7 +303,11 @@ impl LatentIntegrator {
             row.iter_mut().for_each(|w| *w = (*w as f64 * s) as f32);
             last.bias[r] = (last.bias[r] as f64 * s + mean[r] as f64) as f32;
         }
-        ExportedIntegrator::new(self.spec.latent, ExportedMlp::from_layers(layers)?)
+        let exported = ExportedIntegrator::new(self.spec.latent, ExportedMlp::from_layers(layers)?)?;
+        Ok(match self.spec.timed {
+            true => exported.timed_at(self.spec.reference_dt),
+            false => exported,
+        })
     }
 }
 
@@ -287,6 +325,7 @@ mod tests {
             hidden: 32,
             blocks: 2,
             timed: false,
+            reference_dt: 0.0,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         // Features of very different scales, as latents and boundary velocities are.
@@ -340,6 +379,46 @@ mod tests {
     }
 
     #[test]
+    fn a_timed_integrator_scales_its_increment_with_the_frame_time_in_candle_and_export() {
+        let spec = IntegratorSpec {
+            latent: 3,
+            bc: 2,
+            hidden: 16,
+            blocks: 1,
+            timed: true,
+            reference_dt: 1.0 / 30.0,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let mut inputs = random_rows(8, spec.input(), 1.0, &mut rng);
+        for (row, dt) in inputs
+            .iter_mut()
+            .zip([1.0 / 30.0, 1.0 / 60.0, 1.0 / 120.0, 1.0 / 24.0].iter().cycle())
+        {
+            *row.last_mut().unwrap() = *dt as f32;
+        }
+        let norm = Normalisation::fit(&inputs).unwrap();
+        let integrator = LatentIntegrator::new(spec, norm, Normalisation::identity(3), 4).unwrap();
+        randomise(&integrator.parameters(), 0.3, &mut rng);
+        let candle = tensor_to_rows(&integrator.forward(&as_tensor(&inputs)).unwrap()).unwrap();
+        let exported = integrator.export().unwrap();
+        assert_eq!(exported.reference_dt(), Some(1.0 / 30.0));
+        for (q, z) in inputs.iter().zip(&candle) {
+            let step = exported.step(q).unwrap();
+            let scale = *q.last().unwrap() * 30.0;
+            let unscaled = forward_exported(exported.mlp(), q).unwrap();
+            for i in 0..3 {
+                assert!(
+                    (step[i] - z[i]).abs() <= 1e-5 * z[i].abs().max(1.0),
+                    "{} vs {}",
+                    step[i],
+                    z[i]
+                );
+                assert!((step[i] - (q[i] + scale * unscaled[i])).abs() <= 1e-6 * step[i].abs().max(1.0));
+            }
+        }
+    }
+
+    #[test]
     fn integrator_pack_orders_inputs() {
         let t = |v: &[f32]| Tensor::from_slice(v, (1, v.len()), &Device::Cpu).unwrap();
         let q = LatentIntegrator::pack(&t(&[1., 2.]), &t(&[3., 4.]), &t(&[5.]), &t(&[6.]), &t(&[7.])).unwrap();
@@ -384,6 +463,7 @@ mod tests {
             hidden: 8,
             blocks: 0,
             timed: false,
+            reference_dt: 0.0,
         };
         let wrong = LatentIntegrator::new(spec, Normalisation::identity(6), Normalisation::identity(2), 0);
         assert!(wrong.is_err());
