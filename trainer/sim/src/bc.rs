@@ -1,6 +1,7 @@
 //! Boundary conditions: handles (sets of prescribed vertices) moved rigidly by
-//! piecewise-constant linear and angular velocities, and the random motions that datasets
-//! sample from speed ranges with a seed.
+//! piecewise-constant linear and angular velocities, analytic colliders' paths
+//! ([`colliders`]), and the random motions that datasets sample from speed ranges with a
+//! seed.
 
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
@@ -8,6 +9,9 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 type V3 = Vector3<f64>;
+
+pub mod colliders;
+pub use colliders::{ColliderMotionSpec, ColliderTrack};
 
 /// Numbers per handle in the boundary-condition signal: linear velocity (3), angular
 /// velocity (3), translation (3) and rotation vector (3) of the handle's pose.
@@ -117,13 +121,16 @@ impl Track {
     }
 }
 
-/// The boundary conditions of one sequence: one track per handle.
-#[derive(Clone, Debug, PartialEq)]
+/// The boundary conditions of one sequence: one track per handle and one per collider.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct BcSequence {
     /// Tracks, in the scene's handle order.
     pub tracks: Vec<Track>,
     /// Number of frames after the initial one (also for scenes without handles).
     pub frames: usize,
+    /// The analytic colliders' paths, in the scene's collider order (empty without
+    /// colliders).
+    pub colliders: Vec<ColliderTrack>,
 }
 
 impl BcSequence {
@@ -163,7 +170,12 @@ impl BcSequence {
                     .collect(),
             })
             .collect();
-        BcSequence { tracks, frames }
+        let colliders = self.colliders.iter().map(|c| c.every(stride, frames)).collect();
+        BcSequence {
+            tracks,
+            frames,
+            colliders,
+        }
     }
 
     /// This sequence in `factor` times smaller steps (the inverse of [`Self::every`]): each
@@ -199,7 +211,13 @@ impl BcSequence {
         BcSequence {
             tracks,
             frames: self.frames * factor,
+            colliders: self.colliders.iter().map(|c| c.refined(factor)).collect(),
         }
+    }
+
+    /// The colliders' poses at `frame`.
+    pub fn collider_poses(&self, frame: usize) -> Vec<crate::contact::ColliderPose> {
+        self.colliders.iter().map(|c| c.poses[frame]).collect()
     }
 
     /// The boundary-condition signal at `frame`: per handle, linear and angular velocity,
@@ -383,6 +401,7 @@ mod tests {
         let seq = BcSequence {
             tracks: vec![track],
             frames,
+            colliders: Vec::new(),
         };
         let t = seq.targets(&[h], 30, 3);
         assert!((t[0] - (0.3 + 1.2f64.cos())).abs() < 1e-12 && (t[1] - 1.2f64.sin()).abs() < 1e-12);
@@ -407,6 +426,7 @@ mod tests {
         let seq = BcSequence {
             tracks: vec![track.clone()],
             frames: 10,
+            colliders: Vec::new(),
         };
         let strided = seq.every(3);
         assert_eq!(strided.frames(), 3);
@@ -441,6 +461,7 @@ mod tests {
         let seq = BcSequence {
             tracks: vec![Track::from_segments(&segments, 10, dt)],
             frames: 10,
+            colliders: Vec::new(),
         };
         let fine = seq.refined(4, dt);
         assert_eq!(fine.frames(), 40);
