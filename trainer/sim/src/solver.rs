@@ -7,6 +7,8 @@
 //! factorised with faer's sparse Cholesky, whose symbolic analysis is computed once and
 //! reused across iterations and steps.
 
+#[cfg(test)]
+mod collider_tests;
 mod contact;
 #[cfg(test)]
 mod contact_tests;

@@ -57,22 +57,12 @@ pub const CAPSULE_CODE: f64 = 1.0;
 pub const BOX_CODE: f64 = 2.0;
 
 impl ColliderShape {
-    /// The largest distance from the frame's origin to a point of the shape: how far a
-    /// rotation by an angle `theta` can move a point of it (`theta` times this).
+    /// The largest distance from the frame's origin to a point of the shape.
     pub fn bounding_radius(&self) -> f64 {
         match *self {
             ColliderShape::Sphere { radius } => radius,
             ColliderShape::Capsule { radius, half_length } => half_length + radius,
             ColliderShape::Box { half_extents } => V3::from(half_extents).norm(),
-        }
-    }
-
-    /// How far a rotation can move the shape's surface per radian: zero for a sphere (a
-    /// rotation about its centre leaves it in place), the bounding radius otherwise.
-    pub fn rotation_lever(&self) -> f64 {
-        match self {
-            ColliderShape::Sphere { .. } => 0.0,
-            _ => self.bounding_radius(),
         }
     }
 

@@ -3,19 +3,24 @@
 //! [`super::ccd`] does on primitive distances).
 //!
 //! Over a step a vertex moves on the line from `p0` to `p1` while a collider moves from
-//! pose `P0` to pose `P1` as [`ColliderPose::towards`] moves it (its centre on a line, its
-//! rotation at a constant angular velocity through the angle `theta`). No point of the
-//! shape then moves faster than `|c1 - c0| + theta l` per unit of the step, `l` its
-//! [`ColliderShape::rotation_lever`], so the vertex's distance to the solid shrinks at most
-//! at the rate `L = |p1 - p0| + |c1 - c0| + theta l` (a distance to a set is 1-Lipschitz in
-//! the point and in each of the set's points). From a time where the distance is `d`, the
-//! step may advance by `eta d / L` and the distance stays above `(1 - eta) d`. Advances add
-//! up until the distance has fallen below `(1 - eta)` times its start value; the time
-//! returned is the end of that last advance, so at every time up to it the vertex is
-//! outside the collider by at least `(1 - eta)^2` of its start distance. The bound is conservative
-//! (the distance rarely shrinks at the rate `L`), never optimistic.
+//! pose `P0` to pose `P1` as [`ColliderPose::towards`] moves it: its centre on the line from
+//! `c0` to `c1`, its rotation at the constant angular velocity `w` (the rotation vector
+//! from `R0` to `R1`). In the collider's own frame the vertex is at `q = R^T (p - c)`, whose
+//! speed is that of the vertex relative to the collider's rigid motion at it,
+//! `|dp - dc - w x (p - c)|` with `p - c = (p0 - c0) + t (dp - dc)`, so at most
+//! `L = |dp - dc - w x (p0 - c0)| + |w| |dp - dc|` over the step (`w` is left out for a
+//! sphere, which a rotation about its centre leaves in place). The distance to the shape is
+//! 1-Lipschitz in `q`, so it shrinks at most at the rate `L`. A vertex that the Newton step
+//! carries along with the collider thus has `L` near zero and is not held back. From a time
+//! where the distance is `d`, the step may advance by `eta d / L` and the distance stays
+//! above `(1 - eta) d`. Advances add up until the distance has fallen below `(1 - eta)`
+//! times its start value; the time returned is the end of that last advance, so at every
+//! time up to it the vertex is outside the collider by at least `(1 - eta)^2` of its start
+//! distance. The bound is conservative (the distance rarely shrinks at the rate `L`), never
+//! optimistic.
 
-use super::collider::{Collider, ColliderPose};
+use super::collider::{Collider, ColliderPose, ColliderShape};
+use nalgebra::Vector3;
 
 /// `eta`: each advance closes at most this share of the remaining distance (IPC toolkit's
 /// additive CCD uses the same 0.9).
@@ -36,8 +41,13 @@ pub fn collider_max_step(collider: &Collider, to: &ColliderPose, p0: &[f64], p1:
     if !(finite && d0 > 0.0) {
         return 0.0;
     }
-    let dp = ((0..3).map(|i| (p1[i] - p0[i]).powi(2)).sum::<f64>()).sqrt();
-    let rate = dp + (to.center - from.center).norm() + from.angle_to(to) * collider.shape.rotation_lever();
+    let (a, b) = (Vector3::new(p0[0], p0[1], p0[2]), Vector3::new(p1[0], p1[1], p1[2]));
+    let relative = (b - a) - (to.center - from.center);
+    let w = match collider.shape {
+        ColliderShape::Sphere { .. } => Vector3::zeros(),
+        _ => (to.rotation * from.rotation.inverse()).scaled_axis(),
+    };
+    let rate = (relative - w.cross(&(a - from.center))).norm() + w.norm() * relative.norm();
     if !rate.is_finite() {
         return 0.0;
     }
