@@ -118,8 +118,9 @@ impl ColliderShape {
         }
     }
 
-    /// Signed distance of the local point `q` to the surface (negative inside).
-    fn local_signed_distance(&self, q: V3) -> f64 {
+    /// Signed distance of the point `q`, in the shape's own frame, to its surface (negative
+    /// inside); a convex function of `q`.
+    pub fn signed_distance_local(&self, q: V3) -> f64 {
         match *self {
             ColliderShape::Sphere { radius } => q.norm() - radius,
             ColliderShape::Capsule { radius, half_length } => {
@@ -239,6 +240,6 @@ impl Collider {
     /// depth inside.
     pub fn signed_distance(&self, p: &[f64]) -> f64 {
         let q = self.pose.rotation.inverse() * (V3::new(p[0], p[1], p[2]) - self.pose.center);
-        self.shape.local_signed_distance(q)
+        self.shape.signed_distance_local(q)
     }
 }
