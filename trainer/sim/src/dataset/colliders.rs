@@ -11,6 +11,9 @@ use crate::solver::StepError;
 use crate::trajectory::{ColliderFrames, Trajectory, COLLIDER_LAYOUT};
 use rand::Rng;
 
+#[cfg(test)]
+mod tests;
+
 /// Added to a sequence's seed, with [`COLLIDER_SEED_STRIDE`] per collider, for its path:
 /// apart from the seeds of the handles' motions.
 const COLLIDER_SEED_OFFSET: u64 = 0xc011_1de5;
