@@ -17,6 +17,7 @@ pub mod ccd;
 pub mod collider;
 pub mod collider_barrier;
 pub mod collider_ccd;
+pub mod collider_friction;
 pub mod distance;
 pub mod friction;
 pub mod friction_potential;

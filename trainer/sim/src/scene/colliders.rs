@@ -31,8 +31,8 @@
 //! `share`) rests at its **parked pose**, [`PARKED_DIAGONALS`] rest diagonals above the
 //! centre of the body's rest bounding box: far from anything it could touch.
 //!
-//! Colliders need a `[contact]` table (its `dhat` and barrier stiffness serve them) and a 3D
-//! body; they act on the body's surface vertices, frictionless.
+//! Colliders need a `[contact]` table (its `dhat`, barrier stiffness and `friction` serve
+//! them) and a 3D body; they act on the body's surface vertices.
 
 use crate::bc::ColliderMotionSpec;
 use crate::contact::{ColliderPose, ColliderShape};

@@ -1,13 +1,15 @@
 //! Analytic colliders in the full-space solve: a sphere and a turning box pressed into a
 //! soft cube held at its base never get a vertex inside them, reach their poses exactly at
-//! the end of every step, and deform the body.
+//! the end of every step, and deform the body; with friction, a plate dragged across the
+//! top carries the top along.
 
 use crate::contact::ColliderPose;
 use crate::scene::{BuiltScene, Scene};
 use std::path::Path;
 
-/// A 0.1 m soft cube (2 x 2 x 2 cells) held at its base, with the collider `collider`.
-fn held_cube(collider: &str) -> BuiltScene {
+/// A 0.1 m soft cube (2 x 2 x 2 cells) held at its base, with the collider `collider` and
+/// the friction coefficient `friction`.
+fn held_cube(collider: &str, friction: f64) -> BuiltScene {
     let text = format!(
         r#"
 name = "held-cube"
@@ -24,6 +26,7 @@ poisson = 0.4
 density = 1000.0
 [contact]
 dhat = 1e-3
+friction = {friction}
 [[handles]]
 name = "base"
 select = {{ side = {{ axis = 1, end = "min" }} }}
@@ -69,7 +72,7 @@ fn press(problem: &mut BuiltScene, poses: &[ColliderPose]) -> f64 {
 
 #[test]
 fn a_sphere_pressed_into_a_held_cube_pushes_its_top_down_and_stays_outside() {
-    let mut problem = held_cube("shape = \"sphere\"\nradius = 0.03");
+    let mut problem = held_cube("shape = \"sphere\"\nradius = 0.03", 0.0);
     // From 3 cm over the top down to 2 cm into it, 5 mm per step, then held.
     let poses: Vec<ColliderPose> = (0..16)
         .map(|f| ColliderPose::new([0.05, 0.16 - 0.005 * (f.min(10) as f64), 0.05], [0.0; 3]))
@@ -82,7 +85,7 @@ fn a_sphere_pressed_into_a_held_cube_pushes_its_top_down_and_stays_outside() {
 
 #[test]
 fn a_turning_box_swept_into_a_held_cube_stays_outside_its_vertices() {
-    let mut problem = held_cube("shape = \"box\"\nhalf_extents = [0.08, 0.01, 0.015]");
+    let mut problem = held_cube("shape = \"box\"\nhalf_extents = [0.08, 0.01, 0.015]", 0.0);
     // Descends onto the top while turning about the vertical by 0.05 rad per step.
     let poses: Vec<ColliderPose> = (0..12)
         .map(|f| {
@@ -92,4 +95,29 @@ fn a_turning_box_swept_into_a_held_cube_stays_outside_its_vertices() {
         .collect();
     let lowest = press(&mut problem, &poses);
     assert!(lowest < 0.1 - 0.01, "top centre only reached {lowest}");
+}
+
+#[test]
+fn a_plate_dragged_across_the_top_carries_it_along_only_with_friction() {
+    // A plate wider than the cube comes down from 2 mm over its top to 4 mm into it, then
+    // slides 2 cm along x.
+    let poses: Vec<ColliderPose> = (0..20)
+        .map(|f| {
+            let f = f as f64;
+            let y = 0.112 - 0.0015 * f.min(4.0);
+            ColliderPose::new([0.05 + 0.002 * (f - 10.0).max(0.0), y, 0.05], [0.0; 3])
+        })
+        .collect();
+    let mut shift = Vec::new();
+    for friction in [0.0, 0.8] {
+        let mut problem = held_cube("shape = \"box\"\nhalf_extents = [0.1, 0.01, 0.1]", friction);
+        press(&mut problem, &poses);
+        let x = problem.simulator.positions();
+        let rest = &problem.mesh.rest;
+        let top: Vec<usize> = (0..rest.len() / 3).filter(|&v| rest[3 * v + 1] > 0.1 - 1e-9).collect();
+        let mean = top.iter().map(|&v| x[3 * v] - rest[3 * v]).sum::<f64>() / top.len() as f64;
+        shift.push(mean);
+    }
+    assert!(shift[0].abs() < 1e-3, "frictionless plate moved the top by {}", shift[0]);
+    assert!(shift[1] > 3e-3, "the plate with friction moved the top by only {}", shift[1]);
 }

@@ -463,6 +463,8 @@ impl Contact {
             .barrier
             .min_squared_distance(&ext)
             .min(self.collider_min_squared_distance(x));
+        let mu = self.settings.friction;
+        self.lag_collider_friction(x, friction_dt.filter(|_| mu > 0.0).map(|dt| (mu, self.settings.epsv * dt)));
         self.friction = friction_dt.filter(|_| self.settings.friction > 0.0).map(|dt| {
             FrictionPotential::lagged(
                 &self.barrier,
@@ -527,6 +529,7 @@ impl Contact {
         ]
         .into_iter()
         .chain(self.friction.iter().map(|f| (f as &dyn StencilEnergy, 1.0)))
+        .chain(self.colliders.friction.iter().map(|f| (f as &dyn StencilEnergy, 1.0)))
     }
 
     /// `kappa B(x) + D(x)` over the loaded pairs (infinite where a pair touches).

@@ -231,3 +231,58 @@ fn shape_parameters_round_trip_and_poses_interpolate_at_a_constant_rate() {
     let q = a.carry(p, &b);
     assert!(((q - b.center).norm() - (p - a.center).norm()).abs() < 1e-12);
 }
+
+#[test]
+fn collider_friction_matches_finite_differences_and_resists_slip() {
+    use crate::contact::collider_friction::ColliderFriction;
+    let dhat = 0.08;
+    let colliders = vec![sphere(), capsule(), cuboid()];
+    let mut x = Vec::new();
+    for (c, q, d) in features() {
+        if d > 0.0 {
+            x.extend_from_slice(&world(&c, q));
+        }
+    }
+    let n = x.len() / 3;
+    let barrier = ColliderBarrier::new((0..n).collect(), colliders, dhat);
+    // Each collider moves and turns a little over the step.
+    let goals: Vec<ColliderPose> = barrier
+        .poses()
+        .iter()
+        .map(|p| ColliderPose {
+            center: p.center + V3::new(0.01, -0.02, 0.005),
+            rotation: nalgebra::UnitQuaternion::from_scaled_axis(V3::new(0.0, 0.05, 0.02)) * p.rotation,
+        })
+        .collect();
+    let eps_u = 1e-3;
+    let friction = ColliderFriction::lagged(&barrier, &x, &goals, 10.0, 0.4, eps_u);
+    assert!(friction.len() >= 6, "{} stencils", friction.len());
+    assert_eq!(ColliderFriction::lagged(&barrier, &x, &goals, 10.0, 0.0, eps_u).len(), 0);
+    // Slipping vertices (beyond eps_u) and nearly sticking ones.
+    let mut g = rng(9);
+    for scale in [0.03, 3e-4] {
+        let moved: Vec<f64> = x.iter().zip(random_vec(&mut g, x.len())).map(|(a, r)| a + scale * r).collect();
+        assert_all_stencils(&friction, &moved, 1e-9, 1e-5);
+    }
+    // One vertex on a capsule's side that moves 2 cm along its axis: left behind, the
+    // vertex feels friction that pulls it along; carried with the capsule, none beyond the
+    // smoothing's floor.
+    let c = capsule();
+    let p = world(&c, [0.12, 0.0, 0.0]);
+    let axis = c.pose.rotation * V3::y();
+    let goal = ColliderPose {
+        center: c.pose.center + 0.02 * axis,
+        ..c.pose
+    };
+    let one = ColliderBarrier::new(vec![0], vec![c], 0.05);
+    let friction = ColliderFriction::lagged(&one, &p, &[goal], 10.0, 0.4, eps_u);
+    assert_eq!(friction.len(), 1);
+    let mut out = Local::default();
+    let behind = friction.eval(0, &p, Want::Gradient, &mut out);
+    let pull = -V3::new(out.grad[0], out.grad[1], out.grad[2]);
+    assert!(pull.dot(&axis) > 0.9 * pull.norm() && pull.norm() > 0.0, "pull {pull:?}");
+    let along: Vec<f64> = (0..3).map(|i| p[i] + 0.02 * axis[i]).collect();
+    let carried = friction.eval(0, &along, Want::Value, &mut out);
+    // The floor is `mu N f0(0) = mu N eps_u / 3`, a sixtieth of 2 cm of slip here.
+    assert!(carried < 0.02 * behind, "carried {carried} vs behind {behind}");
+}

@@ -10,19 +10,23 @@
 //! vertex `p` as moving the vertex by `-(dc + dtheta x (p - c))`), the CCD bound of
 //! [`crate::contact::collider_ccd`] covers the colliders' motion along the path of
 //! [`ColliderPose::towards`], and the line search moves them the same fraction as the body.
+//! With `[contact] friction`, lagged friction ([`ColliderFriction`]) resists slip against
+//! them as against meshes.
 
 use super::Contact;
 use crate::contact::collider_ccd::colliders_max_step;
+use crate::contact::collider_friction::ColliderFriction;
 use crate::contact::{Collider, ColliderBarrier, ColliderPose};
 use crate::energy::{self, StencilEnergy};
 use nalgebra::Vector3;
 
-/// The colliders' barrier (holding their current poses) and where they must be at the end
-/// of the current solve, when they are not there yet.
+/// The colliders' barrier (holding their current poses), where they must be at the end
+/// of the current solve when they are not there yet, and their lagged friction.
 #[derive(Clone, Debug)]
 pub(super) struct MovingColliders {
     pub(super) barrier: ColliderBarrier,
     pub(super) goal: Option<Vec<ColliderPose>>,
+    pub(super) friction: Option<ColliderFriction>,
 }
 
 impl MovingColliders {
@@ -31,6 +35,7 @@ impl MovingColliders {
         MovingColliders {
             barrier: ColliderBarrier::new(vertices, colliders, dhat),
             goal: None,
+            friction: None,
         }
     }
 }
@@ -112,6 +117,17 @@ impl Contact {
                 out[3 * v + i] -= kappa * (0..3).map(|j| row[j] * carried[j]).sum::<f64>();
             }
         });
+    }
+
+    /// Lags the colliders' friction at the body positions `x` (start of a solve) with the
+    /// coefficient `mu` and smoothing displacement `eps_u`, or drops it (`None`).
+    pub(super) fn lag_collider_friction(&mut self, x: &[f64], friction: Option<(f64, f64)>) {
+        let goals = self.collider_goal();
+        let kappa = self.kappa;
+        let b = &self.colliders.barrier;
+        self.colliders.friction = friction
+            .filter(|_| !b.is_empty())
+            .map(|(mu, eps_u)| ColliderFriction::lagged(b, x, &goals, kappa, mu, eps_u));
     }
 
     /// The smallest squared distance of a surface vertex to a collider at `x`.
