@@ -83,6 +83,23 @@ pub struct ColliderFrames {
     pub states: Vec<Vec<f64>>,
 }
 
+impl ColliderFrames {
+    /// The colliders (shapes at their poses) at `frame`; rows that are not shapes are left
+    /// out (a validated trajectory has none).
+    pub fn colliders_at(&self, frame: usize) -> Vec<crate::contact::Collider> {
+        self.shapes
+            .iter()
+            .zip(self.states[frame].chunks(COLLIDER_STATE))
+            .filter_map(|(row, s)| {
+                Some(crate::contact::Collider {
+                    shape: crate::contact::ColliderShape::from_parameters(*row)?,
+                    pose: crate::contact::ColliderPose::new([s[0], s[1], s[2]], [s[3], s[4], s[5]]),
+                })
+            })
+            .collect()
+    }
+}
+
 /// Numbers per collider in a `collider_states` row.
 pub const COLLIDER_STATE: usize = crate::bc::colliders::STATE_PER_COLLIDER;
 

@@ -143,24 +143,11 @@ fn collider_states(barrier: &ColliderBarrier, seq: &BcSequence, frame: usize) ->
 /// `traj` (negative: the deepest penetration), or `None` without colliders.
 pub fn closest_collider_approach(traj: &Trajectory, vertices: &[usize]) -> Option<f64> {
     let c = traj.colliders.as_ref()?;
-    let shapes: Vec<_> = c
-        .shapes
+    let closest = traj
+        .positions
         .iter()
-        .filter_map(|row| crate::contact::ColliderShape::from_parameters(*row))
-        .collect();
-    let stride = crate::trajectory::COLLIDER_STATE;
-    let mut closest = f64::INFINITY;
-    for (x, states) in traj.positions.iter().zip(&c.states) {
-        let colliders = shapes
-            .iter()
-            .zip(states.chunks(stride))
-            .map(|(shape, s)| crate::contact::Collider {
-                shape: *shape,
-                pose: ColliderPose::new([s[0], s[1], s[2]], [s[3], s[4], s[5]]),
-            })
-            .collect();
-        let barrier = ColliderBarrier::new(vertices.to_vec(), colliders, 1.0);
-        closest = closest.min(barrier.min_signed_distance(x));
-    }
+        .enumerate()
+        .map(|(frame, x)| ColliderBarrier::new(vertices.to_vec(), c.colliders_at(frame), 1.0).min_signed_distance(x))
+        .fold(f64::INFINITY, f64::min);
     Some(closest)
 }
