@@ -197,11 +197,9 @@ impl Trajectory {
             if c.shapes.len() != k {
                 return Err(("collider_shapes", format!("{} rows for {k} colliders", c.shapes.len())));
             }
-            if let Some(row) = c
-                .shapes
-                .iter()
-                .find(|r| crate::contact::ColliderShape::from_parameters(**r).is_none() || !r.iter().all(|v| v.is_finite()))
-            {
+            if let Some(row) = c.shapes.iter().find(|r| {
+                crate::contact::ColliderShape::from_parameters(**r).is_none() || !r.iter().all(|v| v.is_finite())
+            }) {
                 return Err(("collider_shapes", format!("{row:?} is not a shape row")));
             }
             check_table("collider_states", &c.states, frames, k * COLLIDER_STATE)?;

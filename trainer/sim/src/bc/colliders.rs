@@ -156,7 +156,7 @@ impl ColliderMotionSpec {
             return Err(("speed", format!("needs finite 0 <= min <= max, got [{lo}, {hi}]")));
         }
         if let Some(r) = &self.region {
-            if let Some(i) = (0..3).find(|&i| !(r.min[i] <= r.max[i])) {
+            if let Some(i) = (0..3).find(|&i| r.min[i].partial_cmp(&r.max[i]).is_none_or(|o| o.is_gt())) {
                 return Err(("region.max", format!("must be at least `min` along axis {i}")));
             }
         }
@@ -172,7 +172,10 @@ impl ColliderMotionSpec {
             return Err(("hold_frames", format!("needs min <= max, got [{h0}, {h1}]")));
         }
         if !(self.clearance.is_finite() && self.clearance >= 0.0) {
-            return Err(("clearance", format!("must be finite and non-negative, got {}", self.clearance)));
+            return Err((
+                "clearance",
+                format!("must be finite and non-negative, got {}", self.clearance),
+            ));
         }
         if !(0.0..=1.0).contains(&self.share) {
             return Err(("share", format!("must be in [0, 1], got {}", self.share)));
@@ -278,7 +281,11 @@ impl ColliderMotionSpec {
 fn segment_distance(p: &V3, a: &V3, b: &V3) -> f64 {
     let ab = b - a;
     let len2 = ab.norm_squared();
-    let t = if len2 > 0.0 { ((p - a).dot(&ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if len2 > 0.0 {
+        ((p - a).dot(&ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (p - (a + t * ab)).norm()
 }
 

@@ -88,7 +88,11 @@ impl ColliderBarrier {
     pub fn min_signed_distance(&self, x: &[f64]) -> f64 {
         self.vertices
             .iter()
-            .flat_map(|&v| self.colliders.iter().map(move |c| c.signed_distance(&x[3 * v..3 * v + 3])))
+            .flat_map(|&v| {
+                self.colliders
+                    .iter()
+                    .map(move |c| c.signed_distance(&x[3 * v..3 * v + 3]))
+            })
             .fold(f64::INFINITY, f64::min)
     }
 }

@@ -30,7 +30,14 @@ impl ColliderFriction {
     /// Friction with coefficient `mu` for the pairs of `barrier` within `dhat` at the lagged
     /// positions `x` (stiffness `kappa`), the colliders moving from their poses to `goals`
     /// over the step, smoothed below the displacement `eps_u` (`eps_v` times the step).
-    pub fn lagged(barrier: &ColliderBarrier, x: &[f64], goals: &[ColliderPose], kappa: f64, mu: f64, eps_u: f64) -> Self {
+    pub fn lagged(
+        barrier: &ColliderBarrier,
+        x: &[f64],
+        goals: &[ColliderPose],
+        kappa: f64,
+        mu: f64,
+        eps_u: f64,
+    ) -> Self {
         let mut out = ColliderFriction {
             eps_u,
             vertices: Vec::new(),

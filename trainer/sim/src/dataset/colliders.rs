@@ -102,7 +102,10 @@ impl BuiltScene {
 
     /// The colliders' rows of a trajectory's first frame (`None` without colliders).
     pub(super) fn collider_frames(&self, seq: &BcSequence) -> Option<ColliderFrames> {
-        let barrier = self.simulator.collider_barrier().filter(|b| !b.colliders().is_empty())?;
+        let barrier = self
+            .simulator
+            .collider_barrier()
+            .filter(|b| !b.colliders().is_empty())?;
         Some(ColliderFrames {
             names: (0..self.scene.colliders.len())
                 .map(|k| self.scene.colliders[k].name_or_default(k))

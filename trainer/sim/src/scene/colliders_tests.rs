@@ -40,7 +40,10 @@ fn every_bad_collider_field_is_refused_by_name() {
     assert!(e.message.contains("[contact]"), "{e}");
     // Shape fields: missing, foreign to the shape, out of range.
     refused("[[colliders]]\nshape = \"sphere\"\n", "colliders[0].radius");
-    refused("[[colliders]]\nshape = \"capsule\"\nradius = 0.01\n", "colliders[0].length");
+    refused(
+        "[[colliders]]\nshape = \"capsule\"\nradius = 0.01\n",
+        "colliders[0].length",
+    );
     refused("[[colliders]]\nshape = \"box\"\n", "colliders[0].half_extents");
     refused(
         "[[colliders]]\nshape = \"box\"\nhalf_extents = [0.1, 0.1, 0.1]\nradius = 0.1\n",
@@ -50,12 +53,18 @@ fn every_bad_collider_field_is_refused_by_name() {
         "[[colliders]]\nshape = \"sphere\"\nradius = 0.1\nhalf_extents = [0.1, 0.1, 0.1]\n",
         "colliders[0].half_extents",
     );
-    refused("[[colliders]]\nshape = \"sphere\"\nradius = 0.1\nlength = 0.2\n", "colliders[0].length");
+    refused(
+        "[[colliders]]\nshape = \"sphere\"\nradius = 0.1\nlength = 0.2\n",
+        "colliders[0].length",
+    );
     refused(
         &format!("{capsule}[[colliders]]\nshape = \"sphere\"\nradius = -0.1\n"),
         "colliders[1].radius",
     );
-    refused("[[colliders]]\nshape = \"capsule\"\nradius = 0.01\nlength = -1.0\n", "colliders[0].length");
+    refused(
+        "[[colliders]]\nshape = \"capsule\"\nradius = 0.01\nlength = -1.0\n",
+        "colliders[0].length",
+    );
     refused(
         "[[colliders]]\nshape = \"box\"\nhalf_extents = [0.1, 0.0, 0.1]\n",
         "colliders[0].half_extents[1]",
@@ -67,8 +76,14 @@ fn every_bad_collider_field_is_refused_by_name() {
     // Motion fields.
     let motion = |extra: &str| format!("{capsule}[colliders.motion]\nspeed = [0.1, 0.2]\n{extra}");
     parse(true, &motion("")).unwrap();
-    refused(&format!("{capsule}[colliders.motion]\nspeed = [0.3, 0.2]\n"), "colliders[0].motion.speed");
-    refused(&motion("directions = [[0.0, 0.0, 0.0]]\n"), "colliders[0].motion.directions");
+    refused(
+        &format!("{capsule}[colliders.motion]\nspeed = [0.3, 0.2]\n"),
+        "colliders[0].motion.speed",
+    );
+    refused(
+        &motion("directions = [[0.0, 0.0, 0.0]]\n"),
+        "colliders[0].motion.directions",
+    );
     refused(&motion("hold_frames = [5, 2]\n"), "colliders[0].motion.hold_frames");
     refused(&motion("clearance = -0.1\n"), "colliders[0].motion.clearance");
     refused(&motion("share = 1.5\n"), "colliders[0].motion.share");
@@ -92,6 +107,9 @@ fn colliders_start_parked_far_above_the_body() {
     assert_eq!(barrier.colliders().len(), 1);
     let center = barrier.colliders()[0].pose.center;
     let diagonal = built.mesh.rest_diagonal();
-    assert!((center.y - 0.05 - PARKED_DIAGONALS * diagonal).abs() < 1e-12, "{center:?}");
+    assert!(
+        (center.y - 0.05 - PARKED_DIAGONALS * diagonal).abs() < 1e-12,
+        "{center:?}"
+    );
     assert!(barrier.min_distance(built.simulator.positions()) > 5.0 * diagonal);
 }

@@ -118,6 +118,14 @@ fn a_plate_dragged_across_the_top_carries_it_along_only_with_friction() {
         let mean = top.iter().map(|&v| x[3 * v] - rest[3 * v]).sum::<f64>() / top.len() as f64;
         shift.push(mean);
     }
-    assert!(shift[0].abs() < 1e-3, "frictionless plate moved the top by {}", shift[0]);
-    assert!(shift[1] > 3e-3, "the plate with friction moved the top by only {}", shift[1]);
+    assert!(
+        shift[0].abs() < 1e-3,
+        "frictionless plate moved the top by {}",
+        shift[0]
+    );
+    assert!(
+        shift[1] > 3e-3,
+        "the plate with friction moved the top by only {}",
+        shift[1]
+    );
 }

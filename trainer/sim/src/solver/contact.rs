@@ -464,7 +464,10 @@ impl Contact {
             .min_squared_distance(&ext)
             .min(self.collider_min_squared_distance(x));
         let mu = self.settings.friction;
-        self.lag_collider_friction(x, friction_dt.filter(|_| mu > 0.0).map(|dt| (mu, self.settings.epsv * dt)));
+        self.lag_collider_friction(
+            x,
+            friction_dt.filter(|_| mu > 0.0).map(|dt| (mu, self.settings.epsv * dt)),
+        );
         self.friction = friction_dt.filter(|_| self.settings.friction > 0.0).map(|dt| {
             FrictionPotential::lagged(
                 &self.barrier,

@@ -90,7 +90,9 @@ fn squared_distance_derivatives_match_finite_differences_on_every_feature() {
             continue;
         }
         let p = world(&c, q);
-        let r = fd(3, &p, 1e-7, |x: &[f64], want, out: &mut Local| c.squared_distance(x, want, out));
+        let r = fd(3, &p, 1e-7, |x: &[f64], want, out: &mut Local| {
+            c.squared_distance(x, want, out)
+        });
         assert_fd(r, 1e-6, &format!("feature {k} of {:?}", c.shape));
     }
     // Random points outside each shape (in every region).
@@ -103,7 +105,9 @@ fn squared_distance_derivatives_match_finite_differences_on_every_feature() {
             if c.signed_distance(&p) < 1e-3 {
                 continue;
             }
-            let r = fd(3, &p, 1e-7, |x: &[f64], want, out: &mut Local| c.squared_distance(x, want, out));
+            let r = fd(3, &p, 1e-7, |x: &[f64], want, out: &mut Local| {
+                c.squared_distance(x, want, out)
+            });
             assert_fd(r, 1e-5, &format!("{:?} at {q:?}", c.shape));
             checked += 1;
         }
@@ -257,11 +261,18 @@ fn collider_friction_matches_finite_differences_and_resists_slip() {
     let eps_u = 1e-3;
     let friction = ColliderFriction::lagged(&barrier, &x, &goals, 10.0, 0.4, eps_u);
     assert!(friction.len() >= 6, "{} stencils", friction.len());
-    assert_eq!(ColliderFriction::lagged(&barrier, &x, &goals, 10.0, 0.0, eps_u).len(), 0);
+    assert_eq!(
+        ColliderFriction::lagged(&barrier, &x, &goals, 10.0, 0.0, eps_u).len(),
+        0
+    );
     // Slipping vertices (beyond eps_u) and nearly sticking ones.
     let mut g = rng(9);
     for scale in [0.03, 3e-4] {
-        let moved: Vec<f64> = x.iter().zip(random_vec(&mut g, x.len())).map(|(a, r)| a + scale * r).collect();
+        let moved: Vec<f64> = x
+            .iter()
+            .zip(random_vec(&mut g, x.len()))
+            .map(|(a, r)| a + scale * r)
+            .collect();
         assert_all_stencils(&friction, &moved, 1e-9, 1e-5);
     }
     // One vertex on a capsule's side that moves 2 cm along its axis: left behind, the
@@ -280,7 +291,10 @@ fn collider_friction_matches_finite_differences_and_resists_slip() {
     let mut out = Local::default();
     let behind = friction.eval(0, &p, Want::Gradient, &mut out);
     let pull = -V3::new(out.grad[0], out.grad[1], out.grad[2]);
-    assert!(pull.dot(&axis) > 0.9 * pull.norm() && pull.norm() > 0.0, "pull {pull:?}");
+    assert!(
+        pull.dot(&axis) > 0.9 * pull.norm() && pull.norm() > 0.0,
+        "pull {pull:?}"
+    );
     let along: Vec<f64> = (0..3).map(|i| p[i] + 0.02 * axis[i]).collect();
     let carried = friction.eval(0, &along, Want::Value, &mut out);
     // The floor is `mu N f0(0) = mu N eps_u / 3`, a sixtieth of 2 cm of slip here.

@@ -62,7 +62,11 @@ fn collider_paths_start_outside_the_body_at_the_sequence_speed_and_are_seeded() 
     let ball = &a.colliders[0];
     assert_eq!(ball.poses.len(), 31);
     // The start lies above the body's box grown by the radius and the clearance.
-    assert!(ball.poses[0].center.y >= 0.1 + 0.03 + 0.005 - 1e-12, "{:?}", ball.poses[0]);
+    assert!(
+        ball.poses[0].center.y >= 0.1 + 0.03 + 0.005 - 1e-12,
+        "{:?}",
+        ball.poses[0]
+    );
     // No frame moves faster than the top speed (0.6 m/s), and it reaches an aim point.
     for (w, v) in ball.poses.windows(2).zip(&ball.velocities[1..]) {
         let step = (w[1].center - w[0].center).norm();
