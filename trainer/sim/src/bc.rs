@@ -1,6 +1,7 @@
 //! Boundary conditions: handles (sets of prescribed vertices) moved rigidly by
-//! piecewise-constant linear and angular velocities, and the random motions that datasets
-//! sample from speed ranges with a seed.
+//! piecewise-constant linear and angular velocities, analytic colliders' paths
+//! ([`colliders`]), and the random motions that datasets sample from speed ranges with a
+//! seed.
 
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
@@ -8,6 +9,9 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 type V3 = Vector3<f64>;
+
+pub mod colliders;
+pub use colliders::{ColliderMotionSpec, ColliderTrack};
 
 /// Numbers per handle in the boundary-condition signal: linear velocity (3), angular
 /// velocity (3), translation (3) and rotation vector (3) of the handle's pose.
@@ -117,13 +121,16 @@ impl Track {
     }
 }
 
-/// The boundary conditions of one sequence: one track per handle.
-#[derive(Clone, Debug, PartialEq)]
+/// The boundary conditions of one sequence: one track per handle and one per collider.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct BcSequence {
     /// Tracks, in the scene's handle order.
     pub tracks: Vec<Track>,
     /// Number of frames after the initial one (also for scenes without handles).
     pub frames: usize,
+    /// The analytic colliders' paths, in the scene's collider order (empty without
+    /// colliders).
+    pub colliders: Vec<ColliderTrack>,
 }
 
 impl BcSequence {
@@ -163,7 +170,12 @@ impl BcSequence {
                     .collect(),
             })
             .collect();
-        BcSequence { tracks, frames }
+        let colliders = self.colliders.iter().map(|c| c.every(stride, frames)).collect();
+        BcSequence {
+            tracks,
+            frames,
+            colliders,
+        }
     }
 
     /// This sequence in `factor` times smaller steps (the inverse of [`Self::every`]): each
@@ -199,6 +211,7 @@ impl BcSequence {
         BcSequence {
             tracks,
             frames: self.frames * factor,
+            colliders: self.colliders.iter().map(|c| c.refined(factor)).collect(),
         }
     }
 
@@ -213,7 +226,19 @@ impl BcSequence {
                 velocities: t.velocities[..=frames].to_vec(),
             })
             .collect();
-        BcSequence { tracks, frames }
+        let colliders = self
+            .colliders
+            .iter()
+            .map(|c| ColliderTrack {
+                poses: c.poses[..=frames].to_vec(),
+                velocities: c.velocities[..=frames].to_vec(),
+            })
+            .collect();
+        BcSequence {
+            tracks,
+            frames,
+            colliders,
+        }
     }
 
     /// The same motion (this sequence's steps last `dt` seconds) seen at another frame time
@@ -275,7 +300,34 @@ impl BcSequence {
                 Track { poses, velocities }
             })
             .collect();
-        BcSequence { tracks, frames }
+        // The colliders' poses at the new frames' times, each between the two old frames
+        // around it (held after the last), velocities by differences.
+        let colliders = self
+            .colliders
+            .iter()
+            .map(|c| {
+                let poses = (0..=frames)
+                    .map(|f| {
+                        let (whole, rest) = locate(f as f64 * new_dt);
+                        match c.poses.get(whole + 1) {
+                            Some(next) if rest > 0.0 => c.poses[whole].towards(next, rest / dt),
+                            _ => c.poses[whole.min(c.poses.len() - 1)],
+                        }
+                    })
+                    .collect();
+                ColliderTrack::from_poses(poses, new_dt)
+            })
+            .collect();
+        BcSequence {
+            tracks,
+            frames,
+            colliders,
+        }
+    }
+
+    /// The colliders' poses at `frame`.
+    pub fn collider_poses(&self, frame: usize) -> Vec<crate::contact::ColliderPose> {
+        self.colliders.iter().map(|c| c.poses[frame]).collect()
     }
 
     /// The boundary-condition signal at `frame`: per handle, linear and angular velocity,
@@ -459,6 +511,7 @@ mod tests {
         let seq = BcSequence {
             tracks: vec![track],
             frames,
+            colliders: Vec::new(),
         };
         let t = seq.targets(&[h], 30, 3);
         assert!((t[0] - (0.3 + 1.2f64.cos())).abs() < 1e-12 && (t[1] - 1.2f64.sin()).abs() < 1e-12);
@@ -483,6 +536,7 @@ mod tests {
         let seq = BcSequence {
             tracks: vec![track.clone()],
             frames: 10,
+            colliders: Vec::new(),
         };
         let strided = seq.every(3);
         assert_eq!(strided.frames(), 3);
@@ -517,6 +571,7 @@ mod tests {
         let seq = BcSequence {
             tracks: vec![Track::from_segments(&segments, 10, dt)],
             frames: 10,
+            colliders: Vec::new(),
         };
         let fine = seq.refined(4, dt);
         assert_eq!(fine.frames(), 40);
@@ -555,9 +610,17 @@ mod tests {
             },
         ];
         let dt = 0.1;
+        // A collider moving along x at 1 unit/s while turning about z at 0.5 rad/s.
+        let collider = ColliderTrack::from_poses(
+            (0..=10)
+                .map(|f| crate::contact::ColliderPose::new([0.1 * f as f64, 0.0, 0.0], [0.0, 0.0, 0.05 * f as f64]))
+                .collect(),
+            dt,
+        );
         let seq = BcSequence {
             tracks: vec![Track::from_segments(&segments, 10, dt)],
             frames: 10,
+            colliders: vec![collider],
         };
         let close = |a: &BcSequence, b: &BcSequence| {
             assert_eq!(a.frames(), b.frames());
@@ -608,6 +671,13 @@ mod tests {
             let (x1, _, a1) = exact(f as f64 * new_dt);
             assert!((v[0] * new_dt - (x1 - x0)).abs() < 1e-12 && (v[5] * new_dt - (a1 - a0)).abs() < 1e-12);
         }
+        // The collider at each new frame's time, on its straight path and steady turn.
+        for (f, pose) in fine.colliders[0].poses.iter().enumerate() {
+            let time = (f as f64 * new_dt).min(1.0);
+            assert!((pose.center.x - time).abs() < 1e-12, "frame {f}");
+            assert!((pose.rotation_vector()[2] - 0.5 * time).abs() < 1e-12, "frame {f}");
+        }
+        assert_eq!(seq.first(6).colliders[0].poses, seq.colliders[0].poses[..=6]);
         // Past the end (frame 10 at 1 s) the handles hold still.
         let long = seq.resampled(dt, new_dt, 40);
         assert_eq!(long.tracks[0].poses[40], long.tracks[0].poses[30]);

@@ -1,7 +1,11 @@
 //! Datasets: boundary-condition sequences sampled from a scene's motion ranges, simulated
 //! in full space and written as trajectories. Training speeds are evenly spaced over the
 //! scene's ranges; test speeds are held out between them, beyond the top of the range,
-//! and include a sudden speed drop.
+//! and include a sudden speed drop. Handles and analytic colliders ([`colliders`]) move at
+//! the same speed levels.
+
+mod colliders;
+pub use colliders::closest_collider_approach;
 
 use crate::bc::{self, BcSequence, Track};
 use crate::error::{InputError, SimError};
@@ -233,7 +237,8 @@ impl BuiltScene {
     }
 
     /// The boundary conditions of a sequence: scripted handles follow their script;
-    /// handles with a motion sample it with the plan's speeds; others stay put.
+    /// handles with a motion sample it with the plan's speeds; others stay put; colliders
+    /// follow paths drawn from the seed (see [`BuiltScene::collider_tracks`]).
     pub fn sequence(&self, speeds: &SpeedPlan, frames: usize, seed: u64) -> BcSequence {
         let dt = self.scene.dt;
         let tracks = self
@@ -261,7 +266,18 @@ impl BuiltScene {
                 Track::from_segments(&segments, frames, dt)
             })
             .collect();
-        BcSequence { tracks, frames }
+        let mut seq = BcSequence {
+            tracks,
+            frames,
+            colliders: Vec::new(),
+        };
+        let handles: Vec<[f64; 3]> = seq
+            .targets(&self.handles, 0, self.mesh.dim)
+            .chunks(self.mesh.dim)
+            .map(|p| [0, 1, 2].map(|i| p.get(i).copied().unwrap_or(0.0)))
+            .collect();
+        seq.colliders = self.collider_tracks(speeds, frames, seed, &handles);
+        seq
     }
 
     /// Simulates `seq` from the scene's initial state and records the trajectory.
@@ -291,6 +307,7 @@ impl BuiltScene {
     pub fn start(&mut self, seq: &BcSequence) -> Result<Trajectory, StepError> {
         let dim = self.mesh.dim;
         self.simulator.reset(&self.mesh.rest.clone());
+        self.place_colliders(seq)?;
         let targets0 = seq.targets(&self.handles, 0, dim);
         if self.scene.start == Start::Static {
             self.simulator.solve_static(&targets0)?;
@@ -310,7 +327,7 @@ impl BuiltScene {
             }
         }
         let energies = self.simulator.energies();
-        Ok(Trajectory {
+        let mut traj = Trajectory {
             scene: self.scene.name.clone(),
             dt: self.scene.dt,
             dim,
@@ -338,13 +355,17 @@ impl BuiltScene {
                     "per handle: velocity(3), angular_velocity(3), translation(3), rotation_vector(3)".into(),
                 ),
             ],
-        })
+            colliders: self.collider_frames(seq),
+        };
+        traj.meta.extend(self.collider_meta());
+        Ok(traj)
     }
 
     /// Steps to `frame` of `seq` and appends it to `traj`.
     pub fn advance(&mut self, seq: &BcSequence, frame: usize, traj: &mut Trajectory) -> Result<StepReport, StepError> {
         let dim = self.mesh.dim;
         let start = Instant::now();
+        self.move_colliders(seq, frame)?;
         let report: StepReport = self.simulator.step(&seq.targets(&self.handles, frame, dim))?;
         let seconds = start.elapsed().as_secs_f64();
         traj.positions.push(self.simulator.positions().to_vec());
@@ -356,6 +377,7 @@ impl BuiltScene {
         if let (Some(o), Some(at)) = (&mut traj.obstacles, self.simulator.obstacle_positions()) {
             o.positions.push(at.to_vec());
         }
+        self.record_colliders(seq, frame, traj);
         Ok(report)
     }
 }
@@ -371,6 +393,9 @@ pub struct GenerateReport {
     pub step_seconds: Vec<f64>,
     /// Newton iterations per step.
     pub newton_iterations: Vec<f64>,
+    /// The smallest signed distance of a surface vertex to an analytic collider over every
+    /// simulated frame (negative: a penetration depth); `None` without colliders.
+    pub collider_min_distance: Option<f64>,
 }
 
 /// The file of sequence `plan` in dataset directory `dir`.
@@ -424,6 +449,10 @@ pub fn generate(
         traj.meta.push(("sequence".into(), plan.description.clone()));
         traj.meta.push(("seed".into(), plan.seed.to_string()));
         traj.write_npz(&sequence_path(dir, plan))?;
+        let surface = problem.simulator.collider_barrier().map(|b| b.vertices().to_vec());
+        if let Some(closest) = surface.and_then(|v| closest_collider_approach(&traj, &v)) {
+            report.collider_min_distance = Some(report.collider_min_distance.map_or(closest, |m| m.min(closest)));
+        }
         report.step_seconds.extend_from_slice(&traj.step_seconds[1..]);
         report
             .newton_iterations

@@ -149,6 +149,14 @@ pub enum StepError {
         /// The largest shift tried.
         shift: f64,
     },
+    /// The wrong number of collider poses was given.
+    #[error("expected a pose for each of the {expected} colliders, got {got}")]
+    ColliderCount {
+        /// Colliders of the scene.
+        expected: usize,
+        /// Poses passed.
+        got: usize,
+    },
     /// The adaptive model could not be updated or its system solved.
     #[error("adaptive solver, Newton iteration {iteration}: {message}")]
     Adaptive {

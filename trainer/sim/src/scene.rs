@@ -1,6 +1,6 @@
 //! Scenes: TOML files describing a body (mesh, material), its environment (time step,
-//! gravity, obstacles, loads), its boundary conditions (handles and their motions) and
-//! how datasets are sampled. `Scene::build` turns one into a ready [`Problem`].
+//! gravity, obstacles, loads, run-time colliders), its boundary conditions (handles and
+//! their motions) and how datasets are sampled. `Scene::build` turns one into a ready [`Problem`].
 
 use crate::bc::Handle;
 use crate::energy::external::{Collision, ConstantForce, Obstacle};
@@ -17,6 +17,9 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 mod checks;
+mod colliders;
+#[cfg(test)]
+mod colliders_tests;
 mod contact;
 #[cfg(test)]
 mod contact_tests;
@@ -25,6 +28,7 @@ mod regions;
 mod solver;
 mod spec;
 pub use checks::{MAX_LENGTH, MAX_MAGNITUDE, MAX_MATERIAL, MAX_ROTATION, MIN_MATERIAL, MIN_SIZE};
+pub use colliders::{parked_pose, ColliderSpec, ShapeKind, MAX_COLLIDERS, PARKED_DIAGONALS};
 pub use contact::{box_triangles, ContactSpec, ObstacleMesh};
 pub use document::{read_text, SceneDocument};
 pub use solver::SolverSpec;
@@ -71,6 +75,10 @@ pub struct Scene {
     /// IPC contact and its obstacle meshes (see [`ContactSpec`]); none when absent.
     #[serde(default)]
     pub contact: Option<ContactSpec>,
+    /// Analytic kinematic colliders and their dataset motions (see [`ColliderSpec`]); they
+    /// need `[contact]`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub colliders: Vec<ColliderSpec>,
     /// Prescribed vertex sets and their motions.
     #[serde(default)]
     pub handles: Vec<HandleSpec>,
@@ -125,7 +133,11 @@ impl Scene {
         let handles = self.build_handles(&mesh)?;
         let fixed: Vec<usize> = handles.iter().flat_map(|h| h.vertices.iter().copied()).collect();
         let contact = match &self.contact {
-            Some(c) => Some(c.build(crate::contact::ContactSurface::of_mesh(&mesh), &self.source)?),
+            Some(c) => {
+                let mut config = c.build(crate::contact::ContactSurface::of_mesh(&mesh), &self.source)?;
+                config.colliders = self.build_colliders(&mesh)?;
+                Some(config)
+            }
             None => None,
         };
         let simulator = Simulator::new(SimulatorConfig {
@@ -153,6 +165,29 @@ impl Scene {
             simulator,
             warnings,
         })
+    }
+
+    /// The analytic colliders at their parked poses (see [`ColliderSpec`]); a body that is not
+    /// 3D cannot have any.
+    pub fn build_colliders(&self, mesh: &Mesh) -> Result<Vec<crate::contact::Collider>, InputError> {
+        if !self.colliders.is_empty() && mesh.dim != 3 {
+            return Err(self.field_error("colliders", "colliders need a 3D body"));
+        }
+        let (lo, hi) = mesh.bounding_box(&mesh.rest);
+        self.colliders
+            .iter()
+            .enumerate()
+            .map(|(k, spec)| {
+                let shape = spec
+                    .shape()
+                    .map_err(|(f, msg)| self.field_error(format!("colliders[{k}].{f}"), msg))?;
+                let pose = crate::contact::ColliderPose {
+                    rotation: spec.orientation().rotation,
+                    ..parked_pose(lo, hi)
+                };
+                Ok(crate::contact::Collider { shape, pose })
+            })
+            .collect()
     }
 
     /// Lumped masses and the conservative energy terms of the scene's body: elastic terms

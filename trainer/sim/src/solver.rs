@@ -7,6 +7,8 @@
 //! factorised with faer's sparse Cholesky, whose symbolic analysis is computed once and
 //! reused across iterations and steps.
 
+#[cfg(test)]
+mod collider_tests;
 mod contact;
 #[cfg(test)]
 mod contact_tests;
@@ -189,6 +191,43 @@ impl Simulator {
     pub fn obstacle_positions(&self) -> Option<&[f64]> {
         let positions = self.contact.as_ref()?.obstacle_positions();
         (!positions.is_empty()).then_some(positions)
+    }
+
+    /// The analytic colliders' barrier (their shapes and current poses), if the simulator
+    /// has contact.
+    pub fn collider_barrier(&self) -> Option<&crate::contact::ColliderBarrier> {
+        self.contact.as_ref().map(Contact::collider_barrier)
+    }
+
+    /// Asks the analytic colliders to be at `poses` (one per collider, in the scene's order)
+    /// at the end of the next step; they move there during its solve, CCD-bounded like the
+    /// body. Until called again they stay there. A list of the wrong length is refused.
+    pub fn set_collider_poses(&mut self, poses: &[crate::contact::ColliderPose]) -> Result<(), StepError> {
+        let Some(c) = &mut self.contact else {
+            return Self::collider_count(0, poses.len());
+        };
+        Self::collider_count(c.num_colliders(), poses.len())?;
+        c.set_collider_goal(poses);
+        Ok(())
+    }
+
+    /// Places the analytic colliders at `poses` at once, without a solve (a sequence's first
+    /// frame). A list of the wrong length is refused.
+    pub fn place_colliders(&mut self, poses: &[crate::contact::ColliderPose]) -> Result<(), StepError> {
+        let Some(c) = &mut self.contact else {
+            return Self::collider_count(0, poses.len());
+        };
+        Self::collider_count(c.num_colliders(), poses.len())?;
+        c.place_colliders(poses);
+        Ok(())
+    }
+
+    fn collider_count(expected: usize, got: usize) -> Result<(), StepError> {
+        if expected == got {
+            Ok(())
+        } else {
+            Err(StepError::ColliderCount { expected, got })
+        }
     }
 
     /// The current barrier stiffness (0 without contact or before the first solve).
@@ -405,13 +444,14 @@ impl Simulator {
                 report.converged = true;
                 break;
             }
-            // A moving obstacle's remaining step `d_o` is part of this iteration's step; the
-            // body's Newton direction then answers `H_ff d_f = -g_f - H_fo d_o`.
-            let obstacle_step = self.contact.as_ref().and_then(Contact::obstacle_step);
+            // Moving obstacles' and colliders' remaining step `d_o` is part of this
+            // iteration's step; the body's Newton direction then answers
+            // `H_ff d_f = -g_f - H_fo d_o`.
+            let moving = self.contact.as_ref().and_then(Contact::kinematic_start);
             let mut push = Vec::new();
-            if let (Some(c), Some(d_o)) = (&self.contact, &obstacle_step) {
+            if let (Some(c), Some(_)) = (&self.contact, &moving) {
                 push = vec![0.0; x.len()];
-                c.add_obstacle_coupling(x, d_o, &mut push);
+                c.add_kinematic_coupling(x, &mut push);
             }
             for (k, &f) in self.free_index.iter().enumerate() {
                 if f != NOT_FREE {
@@ -437,7 +477,7 @@ impl Simulator {
                 .sum();
             // At the round-off floor the predicted decrease is below what the objective can
             // resolve: the iterate cannot get better, so stop there.
-            if -slope <= 1e-14 * e.abs() && obstacle_step.is_none() {
+            if -slope <= 1e-14 * e.abs() && moving.is_none() {
                 report.converged = true;
                 break;
             }
@@ -450,23 +490,20 @@ impl Simulator {
                 }
                 alpha = contact.line_search_bound(x, &trial);
             }
-            // While obstacles move, the objective is not the one being minimised yet (it
-            // changes with them): any collision-free step with a finite objective is taken.
-            let obstacles_from = obstacle_step
-                .as_ref()
-                .and(self.contact.as_ref())
-                .map(|c| c.obstacle_positions().to_vec());
+            // While obstacles or colliders move, the objective is not the one being minimised
+            // yet (it changes with them): any collision-free step with a finite objective is
+            // taken.
             while alpha > 0.0 {
                 for (k, &f) in self.free_index.iter().enumerate() {
                     if f != NOT_FREE {
                         trial[k] = x[k] + alpha * dir[f];
                     }
                 }
-                if let (Some(c), Some(from)) = (&mut self.contact, &obstacles_from) {
-                    c.move_obstacles(from, alpha);
+                if let (Some(c), Some(from)) = (&mut self.contact, &moving) {
+                    c.move_kinematic(from, alpha);
                 }
                 let et = self.objective(&trial, w_inertia, w_potential, None);
-                let accept = if obstacles_from.is_some() {
+                let accept = if moving.is_some() {
                     et.is_finite()
                 } else {
                     et.is_finite() && et <= e + 1e-4 * alpha * slope.min(0.0)
@@ -489,13 +526,12 @@ impl Simulator {
                 a.accept(alpha);
             }
             if let Some(c) = &mut self.contact {
-                if let Some(from) = &obstacles_from {
-                    c.move_obstacles(from, alpha);
-                    c.settle_obstacles();
+                if let Some(from) = &moving {
+                    c.move_kinematic(from, alpha);
                 }
                 c.end_iteration(x);
             }
-            let obstacles_moving = self.contact.as_ref().is_some_and(|c| c.obstacle_step().is_some());
+            let obstacles_moving = self.contact.as_ref().is_some_and(Contact::kinematic_pending);
             if (step_norm < self.settings.tolerance && !obstacles_moving) || alpha == 0.0 {
                 report.converged = step_norm < self.settings.tolerance && !obstacles_moving;
                 report.objective = self.objective(x, w_inertia, w_potential, None);

@@ -17,6 +17,17 @@
 //! | `meta` | unicode | `(m, 2)`: key, value rows |
 //! | `obstacle_faces` | uint32 | `(t, 3)`, only for scenes with obstacle meshes |
 //! | `obstacle_positions` | float64 | `(frames, o, 3)`, with `obstacle_faces` |
+//! | `collider_names` | unicode | `(K,)`, only for scenes with `[[colliders]]` |
+//! | `collider_shapes` | float64 | `(K, 4)`, with `collider_names` |
+//! | `collider_states` | float64 | `(frames, K, 12)`, with `collider_names` |
+//!
+//! A collider's shape row is `[code, a, b, c]`: sphere `[0, radius, 0, 0]`, capsule
+//! `[1, radius, half_length, 0]` (its segment along the local y axis), box
+//! `[2, hx, hy, hz]` (half side lengths). Its state row at a frame is its pose and velocity:
+//! centre (3), rotation vector (3, local to world), linear velocity (3) and angular velocity
+//! (3) over the step that ends at the frame (zero at frame 0); the metadata entry
+//! `collider_layout` says the same. Files written before colliders existed have none of
+//! these arrays and read as trajectories without colliders.
 //!
 //! Reading accepts compressed archives too (`numpy.savez_compressed`) and checks every
 //! array's presence, dtype and shape; errors name the file and the array.
@@ -55,7 +66,47 @@ pub struct Trajectory {
     pub meta: Vec<(String, String)>,
     /// The contact obstacle meshes, frame by frame (scenes with `[[contact.obstacles]]`).
     pub obstacles: Option<ObstacleFrames>,
+    /// The analytic colliders, frame by frame (scenes with `[[colliders]]`).
+    pub colliders: Option<ColliderFrames>,
 }
+
+/// Analytic colliders over a sequence: their names, shapes, and poses and velocities at
+/// every frame (the layout of the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColliderFrames {
+    /// Names, in the scene's order.
+    pub names: Vec<String>,
+    /// Shape rows `[code, a, b, c]` ([`crate::contact::ColliderShape::parameters`]).
+    pub shapes: Vec<[f64; 4]>,
+    /// Frames x (K * 12) states: per collider centre, rotation vector, velocity, angular
+    /// velocity.
+    pub states: Vec<Vec<f64>>,
+}
+
+impl ColliderFrames {
+    /// The colliders (shapes at their poses) at `frame`; rows that are not shapes are left
+    /// out (a validated trajectory has none).
+    pub fn colliders_at(&self, frame: usize) -> Vec<crate::contact::Collider> {
+        self.shapes
+            .iter()
+            .zip(self.states[frame].chunks(COLLIDER_STATE))
+            .filter_map(|(row, s)| {
+                Some(crate::contact::Collider {
+                    shape: crate::contact::ColliderShape::from_parameters(*row)?,
+                    pose: crate::contact::ColliderPose::new([s[0], s[1], s[2]], [s[3], s[4], s[5]]),
+                })
+            })
+            .collect()
+    }
+}
+
+/// Numbers per collider in a `collider_states` row.
+pub const COLLIDER_STATE: usize = crate::bc::colliders::STATE_PER_COLLIDER;
+
+/// The `collider_layout` metadata entry.
+pub const COLLIDER_LAYOUT: &str = "collider_shapes rows: [code, a, b, c] with sphere [0, radius, 0, 0], \
+     capsule [1, radius, half_length (along local y), 0], box [2, hx, hy, hz]; collider_states per collider: \
+     center(3), rotation_vector(3), velocity(3), angular_velocity(3)";
 
 /// Contact obstacle meshes over a sequence: their triangles, and their vertices at every
 /// frame (scripted obstacles move).
@@ -141,6 +192,21 @@ impl Trajectory {
                 ));
             }
         }
+        if let Some(c) = &self.colliders {
+            let k = c.names.len();
+            if c.shapes.len() != k {
+                return Err(("collider_shapes", format!("{} rows for {k} colliders", c.shapes.len())));
+            }
+            if let Some(row) = c.shapes.iter().find(|r| {
+                crate::contact::ColliderShape::from_parameters(**r).is_none() || !r.iter().all(|v| v.is_finite())
+            }) {
+                return Err(("collider_shapes", format!("{row:?} is not a shape row")));
+            }
+            check_table("collider_states", &c.states, frames, k * COLLIDER_STATE)?;
+            for name in &c.names {
+                check_text("collider_names", name)?;
+            }
+        }
         check_text("scene", &self.scene)?;
         for name in &self.energy_names {
             check_text("energy_names", name)?;
@@ -200,6 +266,16 @@ impl Trajectory {
                 "obstacle_positions",
                 &[frames, count, 3],
                 o.positions.iter().flatten().copied(),
+            )?;
+        }
+        if let Some(c) = &self.colliders {
+            let k = c.names.len() as u64;
+            npz.strings("collider_names", &[k], c.names.iter().map(String::as_str))?;
+            npz.array("collider_shapes", &[k, 4], c.shapes.iter().flatten().copied())?;
+            npz.array(
+                "collider_states",
+                &[frames, k, COLLIDER_STATE as u64],
+                c.states.iter().flatten().copied(),
             )?;
         }
         npz.finish()
@@ -291,6 +367,22 @@ impl Trajectory {
             None
         };
 
+        let colliders = if npz.has("collider_names") {
+            let names = npz.array("collider_names")?;
+            let [k] = names.dims::<1>()?;
+            let names = names.into_vec::<String>("unicode string")?;
+            let shapes = npz.array("collider_shapes")?;
+            shapes.expect_shape(&[k as u64, 4])?;
+            let shapes = shapes.into_vec::<f64>("float64")?;
+            let shapes = shapes.chunks(4).map(|r| [r[0], r[1], r[2], r[3]]).collect();
+            let states = npz.array("collider_states")?;
+            states.expect_shape(&[frames as u64, k as u64, COLLIDER_STATE as u64])?;
+            let states = rows(states.into_vec::<f64>("float64")?, frames, k * COLLIDER_STATE);
+            Some(ColliderFrames { names, shapes, states })
+        } else {
+            None
+        };
+
         let trajectory = Trajectory {
             scene,
             dt,
@@ -303,6 +395,7 @@ impl Trajectory {
             step_seconds,
             meta,
             obstacles,
+            colliders,
         };
         trajectory
             .check()

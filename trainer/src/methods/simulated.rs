@@ -37,10 +37,7 @@ impl Simulated {
             setting: setting.into(),
             problem,
             substeps,
-            fine: BcSequence {
-                tracks: Vec::new(),
-                frames: 0,
-            },
+            fine: BcSequence::default(),
             embedded: None,
             enriched: (0.0, 0),
         })
@@ -81,10 +78,7 @@ impl Simulated {
             setting,
             problem,
             substeps: 1,
-            fine: BcSequence {
-                tracks: Vec::new(),
-                frames: 0,
-            },
+            fine: BcSequence::default(),
             embedded: Some((embedding, out)),
             enriched: (0.0, 0),
         })

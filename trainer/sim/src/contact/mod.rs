@@ -3,7 +3,8 @@
 //! closest-feature classification, the edge-edge mollifier, the log barrier on squared
 //! distances with its adaptive stiffness, the building blocks of lagged smoothed friction,
 //! the contact surface of a mesh, the broad phase that finds candidate pairs, continuous
-//! collision detection that bounds every step, and an exact intersection check.
+//! collision detection that bounds every step, an exact intersection check, and analytic
+//! kinematic colliders (spheres, capsules, boxes) with their barrier and step bound.
 //!
 //! Conventions follow IPC's toolkit (squared distances, `b(d^2, dhat^2)`, tangent bases and
 //! closest-point coordinates) so every quantity compares with it one to one
@@ -13,6 +14,10 @@ pub mod barrier;
 pub mod barrier_potential;
 pub mod broad_phase;
 pub mod ccd;
+pub mod collider;
+pub mod collider_barrier;
+pub mod collider_ccd;
+pub mod collider_friction;
 pub mod distance;
 pub mod friction;
 pub mod friction_potential;
@@ -24,4 +29,6 @@ pub mod surface;
 mod tests;
 
 pub use barrier::{barrier, barrier_first_derivative, barrier_second_derivative};
+pub use collider::{Collider, ColliderPose, ColliderShape};
+pub use collider_barrier::ColliderBarrier;
 pub use surface::ContactSurface;

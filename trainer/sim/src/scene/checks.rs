@@ -13,7 +13,7 @@
 //! strains of 1e3. Without these bounds a modulus of 1.5e308 passes as finite and makes
 //! every Hessian entry infinite.
 
-use super::{BoxSpec, HandleSpec, MeshSpec, ObstacleMesh, Scene, Selection};
+use super::{BoxSpec, ColliderSpec, HandleSpec, MeshSpec, ObstacleMesh, Scene, Selection, MAX_COLLIDERS};
 use crate::energy::external::Obstacle;
 use crate::material::ElementMaterial;
 
@@ -286,6 +286,60 @@ fn check_obstacle(field: &str, o: &Obstacle) -> Result<(), Bad> {
     }
 }
 
+/// The angle (norm, rad) of a rotation vector, if it is finite and at most [`MAX_ROTATION`];
+/// otherwise the field `field` and why.
+fn check_rotation(field: String, r: &[f64; 3]) -> Result<(), Bad> {
+    // The norm scaled by the largest component, which cannot overflow.
+    let largest = r.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    let angle = if largest > 0.0 {
+        largest * r.iter().map(|c| (c / largest).powi(2)).sum::<f64>().sqrt()
+    } else {
+        0.0
+    };
+    if !angle.is_finite() || angle > MAX_ROTATION {
+        return Err((
+            field,
+            format!(
+                "the rotation vector's angle (its norm, in radians) must be finite and at most \
+                 2 pi = {MAX_ROTATION:.4} rad, got {}",
+                show(angle)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A collider's numbers (at `colliders[k]`): its sizes, rotation and motion.
+fn check_collider(field: &str, c: &ColliderSpec) -> Result<(), Bad> {
+    let f = |name: &str| format!("{field}.{name}");
+    c.shape().map_err(|(name, msg)| (f(name), msg))?;
+    if let Some(r) = c.radius {
+        check(f("radius"), r, SIZE)?;
+    }
+    if let Some(l) = c.length {
+        check(f("length"), l, DISTANCE)?;
+    }
+    if let Some(h) = &c.half_extents {
+        check_each(&f("half_extents"), h, SIZE)?;
+    }
+    if let Some(r) = &c.rotation {
+        check_rotation(f("rotation"), r)?;
+    }
+    if let Some(m) = &c.motion {
+        let g = |name: &str| format!("{field}.motion.{name}");
+        m.validate().map_err(|(name, msg)| (g(name), msg))?;
+        check_each(&g("speed"), &m.speed, RATE)?;
+        if let Some(r) = &m.region {
+            check_box(&g("region"), r, false)?;
+        }
+        for (k, d) in m.directions.iter().enumerate() {
+            check_each(&format!("{}[{k}]", g("directions")), d, COMPONENT)?;
+        }
+        check(g("clearance"), m.clearance, DISTANCE)?;
+    }
+    Ok(())
+}
+
 /// An obstacle mesh's numbers (at `contact.obstacles[k]`): corners, scale, offset, keyframes
 /// and the rotation vector, whose angle (its norm) is at most [`MAX_ROTATION`].
 fn check_obstacle_mesh(field: &str, o: &ObstacleMesh) -> Result<(), Bad> {
@@ -300,23 +354,7 @@ fn check_obstacle_mesh(field: &str, o: &ObstacleMesh) -> Result<(), Bad> {
         ObstacleMesh::Box { min, max, rotation, .. } => {
             check_box(field, &BoxSpec { min: *min, max: *max }, true)?;
             if let Some(r) = rotation {
-                // The norm scaled by the largest component, which cannot overflow.
-                let largest = r.iter().fold(0.0f64, |m, c| m.max(c.abs()));
-                let angle = if largest > 0.0 {
-                    largest * r.iter().map(|c| (c / largest).powi(2)).sum::<f64>().sqrt()
-                } else {
-                    0.0
-                };
-                if !angle.is_finite() || angle > MAX_ROTATION {
-                    return Err((
-                        f("rotation"),
-                        format!(
-                            "the rotation vector's angle (its norm, in radians) must be finite and at most \
-                             2 pi = {MAX_ROTATION:.4} rad, got {}",
-                            show(angle)
-                        ),
-                    ));
-                }
+                check_rotation(f("rotation"), r)?;
             }
             Ok(())
         }
@@ -390,6 +428,21 @@ impl Scene {
             for (k, o) in c.obstacles.iter().enumerate() {
                 check_obstacle_mesh(&format!("contact.obstacles[{k}]"), o)?;
             }
+        }
+        if self.colliders.len() > MAX_COLLIDERS {
+            return Err((
+                "colliders".into(),
+                format!("at most {MAX_COLLIDERS} colliders, got {}", self.colliders.len()),
+            ));
+        }
+        if !self.colliders.is_empty() && self.contact.is_none() {
+            return bad(
+                "colliders",
+                "colliders act through IPC contact: add a `[contact]` table (its `dhat` serves them)",
+            );
+        }
+        for (k, c) in self.colliders.iter().enumerate() {
+            check_collider(&format!("colliders[{k}]"), c)?;
         }
         if let Some(v) = &self.initial_velocity {
             check_each("initial_velocity", v, COMPONENT)?;

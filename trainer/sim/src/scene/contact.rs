@@ -163,6 +163,7 @@ impl ContactSpec {
             settings: self.settings(),
             surface,
             obstacles,
+            colliders: Vec::new(),
         })
     }
 }

@@ -1,7 +1,8 @@
 //! IPC contact in the incremental potential (`docs/design.md`, decision 8): the barrier
 //! `kappa B(x)` and lagged friction `D(x)` over the contact surface of the body and of
-//! static obstacle meshes, the adaptive stiffness `kappa`, and the collision-free bound on
-//! every line-search step.
+//! obstacle meshes, the barrier between the body's surface vertices and analytic colliders
+//! (`colliders`), the adaptive stiffness `kappa`, and the collision-free bound on every
+//! line-search step.
 //!
 //! The body's positions `x` and the obstacles' fixed positions are stacked into one
 //! *extended* vector (obstacle vertices numbered after the body's), over which the contact
@@ -30,10 +31,13 @@ use crate::contact::friction_potential::FrictionPotential;
 use crate::contact::stiffness::{
     initial_barrier_stiffness, update_barrier_stiffness, MIN_STIFFNESS_SCALE, UPDATE_DISTANCE_FRACTION,
 };
-use crate::contact::ContactSurface;
+use crate::contact::{Collider, ColliderPose, ContactSurface};
 use crate::energy::{self, Local, StencilEnergy};
+use colliders::MovingColliders;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
+
+mod colliders;
 
 /// Contact parameters (the scene's `[contact]` table).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -122,6 +126,25 @@ pub struct ContactConfig {
     pub surface: ContactSurface,
     /// Obstacle meshes, static or moved by a script.
     pub obstacles: Vec<ContactObstacle>,
+    /// Analytic kinematic colliders at their initial poses (3D bodies), moved by
+    /// [`super::Simulator::set_collider_poses`].
+    pub colliders: Vec<Collider>,
+}
+
+/// What contact carries from one solve to the next (see [`Contact::carried`]).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Carried {
+    obstacles: Vec<f64>,
+    kappa: f64,
+    prev_min_d2: f64,
+    colliders: Vec<ColliderPose>,
+}
+
+/// Where the moving obstacles and colliders were when an iteration began, for the line
+/// search to move them from.
+pub(super) struct KinematicStart {
+    obstacles: Option<Vec<f64>>,
+    colliders: Option<Vec<ColliderPose>>,
 }
 
 /// Contact state of a [`super::Simulator`].
@@ -137,6 +160,8 @@ pub(super) struct Contact {
     /// Where moving obstacles must be at the end of the current solve, when they are not yet.
     obstacle_goal: Option<Vec<f64>>,
     barrier: BarrierPotential,
+    /// The colliders' barrier and their goal.
+    colliders: MovingColliders,
     friction: Option<FrictionPotential>,
     kappa: f64,
     prev_min_d2: f64,
@@ -155,8 +180,10 @@ impl Contact {
             settings,
             mut surface,
             obstacles,
+            colliders,
         } = config;
         let dim = surface.dim;
+        let colliders = MovingColliders::new(surface.vertices.clone(), colliders, settings.dhat);
         let body_len = rest.len();
         let mut obstacle_positions = Vec::new();
         let mut obstacle_scripts = Vec::new();
@@ -197,6 +224,7 @@ impl Contact {
             obstacle_scripts,
             obstacle_goal: None,
             barrier: BarrierPotential::new(surface, ext, settings.dhat),
+            colliders,
             friction: None,
             kappa: 0.0,
             prev_min_d2: f64::INFINITY,
@@ -208,10 +236,15 @@ impl Contact {
         }
     }
 
-    /// What carries from one solve to the next: obstacle positions, barrier stiffness and
-    /// the last minimum squared distance.
-    pub(super) fn carried(&self) -> (Vec<f64>, f64, f64) {
-        (self.obstacle_positions.clone(), self.kappa, self.prev_min_d2)
+    /// What carries from one solve to the next: obstacle positions, barrier stiffness, the
+    /// last minimum squared distance and the colliders' poses.
+    pub(super) fn carried(&self) -> Carried {
+        Carried {
+            obstacles: self.obstacle_positions.clone(),
+            kappa: self.kappa,
+            prev_min_d2: self.prev_min_d2,
+            colliders: self.colliders.barrier.poses(),
+        }
     }
 
     /// A lower bound of the distance between any two contact primitives at the last
@@ -221,12 +254,15 @@ impl Contact {
     }
 
     /// Restores what [`Contact::carried`] returned.
-    pub(super) fn restore(&mut self, (positions, kappa, prev_min_d2): (Vec<f64>, f64, f64)) {
-        if positions.len() == self.obstacle_positions.len() {
-            self.obstacle_positions = positions;
+    pub(super) fn restore(&mut self, carried: Carried) {
+        if carried.obstacles.len() == self.obstacle_positions.len() {
+            self.obstacle_positions = carried.obstacles;
         }
-        self.kappa = kappa;
-        self.prev_min_d2 = prev_min_d2;
+        if carried.colliders.len() == self.num_colliders() {
+            self.place_colliders(&carried.colliders);
+        }
+        self.kappa = carried.kappa;
+        self.prev_min_d2 = carried.prev_min_d2;
     }
 
     /// Asks the moving obstacles to be where their scripts put them at `time` by the end of
@@ -266,6 +302,40 @@ impl Contact {
         if self.obstacle_goal.as_ref() == Some(&self.obstacle_positions) {
             self.obstacle_goal = None;
         }
+    }
+
+    /// Where the moving obstacles and colliders are now, when any has yet to reach its goal
+    /// in this solve (`None` when nothing moves).
+    pub(super) fn kinematic_start(&self) -> Option<KinematicStart> {
+        let obstacles = self.obstacle_goal.as_ref().map(|_| self.obstacle_positions.clone());
+        let colliders = self.colliders.goal.as_ref().map(|_| self.colliders.barrier.poses());
+        (obstacles.is_some() || colliders.is_some()).then_some(KinematicStart { obstacles, colliders })
+    }
+
+    /// Moves the moving obstacles and colliders `alpha` of the way from `from` to their
+    /// goals; at `alpha = 1` they are there, which is then reached.
+    pub(super) fn move_kinematic(&mut self, from: &KinematicStart, alpha: f64) {
+        if let Some(o) = &from.obstacles {
+            self.move_obstacles(o, alpha);
+            self.settle_obstacles();
+        }
+        if let Some(c) = &from.colliders {
+            self.move_colliders(c, alpha);
+        }
+    }
+
+    /// Whether an obstacle or a collider has yet to reach its goal in this solve.
+    pub(super) fn kinematic_pending(&self) -> bool {
+        self.obstacle_goal.is_some() || self.colliders.goal.is_some()
+    }
+
+    /// Adds into `out` (body-length) how the contact Hessian couples the body to what is
+    /// left of the obstacles' and colliders' motion (their linearised push).
+    pub(super) fn add_kinematic_coupling(&self, x: &[f64], out: &mut [f64]) {
+        if let Some(d_o) = self.obstacle_step() {
+            self.add_obstacle_coupling(x, &d_o, out);
+        }
+        self.add_collider_coupling(x, out);
     }
 
     /// Places the obstacles where their scripts put them at `time`, at once (no solve).
@@ -371,6 +441,7 @@ impl Contact {
         let ext = self.extended(x);
         let mut gb = vec![0.0; ext.len()];
         energy::add_gradient(&self.barrier, 1.0, &ext, &mut gb);
+        energy::add_gradient(&self.colliders.barrier, 1.0, &ext, &mut gb);
         gb.truncate(self.body_len);
         let mut ge = rest_gradient.to_vec();
         for (k, &f) in free.iter().enumerate() {
@@ -388,7 +459,15 @@ impl Contact {
             MIN_STIFFNESS_SCALE,
         );
         self.kappa = self.kappa.max(init.kappa).min(init.max);
-        self.prev_min_d2 = self.barrier.min_squared_distance(&ext);
+        self.prev_min_d2 = self
+            .barrier
+            .min_squared_distance(&ext)
+            .min(self.collider_min_squared_distance(x));
+        let mu = self.settings.friction;
+        self.lag_collider_friction(
+            x,
+            friction_dt.filter(|_| mu > 0.0).map(|dt| (mu, self.settings.epsv * dt)),
+        );
         self.friction = friction_dt.filter(|_| self.settings.friction > 0.0).map(|dt| {
             FrictionPotential::lagged(
                 &self.barrier,
@@ -414,7 +493,7 @@ impl Contact {
         let c = self.filtered(Candidates::swept(self.surface(), &e0, &e1, self.settings.dhat));
         self.broad_phase_seconds += clock.elapsed().as_secs_f64();
         let clock = Instant::now();
-        let t = max_step_over(&c, self.surface(), &e0, &e1, 0.0, &self.ccd);
+        let t = max_step_over(&c, self.surface(), &e0, &e1, 0.0, &self.ccd).min(self.collider_bound(x0, x1));
         self.ccd_seconds += clock.elapsed().as_secs_f64();
         self.barrier.set_candidates(&c);
         t
@@ -422,7 +501,10 @@ impl Contact {
 
     /// Updates the stiffness after a Newton step that ended at `x`.
     pub(super) fn end_iteration(&mut self, x: &[f64]) {
-        let min_d2 = self.barrier.min_squared_distance(&self.extended(x));
+        let min_d2 = self
+            .barrier
+            .min_squared_distance(&self.extended(x))
+            .min(self.collider_min_squared_distance(x));
         let max = initial_barrier_stiffness(
             self.bbox_diagonal,
             self.settings.dhat,
@@ -444,8 +526,13 @@ impl Contact {
     }
 
     fn terms(&self) -> impl Iterator<Item = (&dyn StencilEnergy, f64)> {
-        std::iter::once((&self.barrier as &dyn StencilEnergy, self.kappa))
-            .chain(self.friction.iter().map(|f| (f as &dyn StencilEnergy, 1.0)))
+        [
+            (&self.barrier as &dyn StencilEnergy, self.kappa),
+            (&self.colliders.barrier as &dyn StencilEnergy, self.kappa),
+        ]
+        .into_iter()
+        .chain(self.friction.iter().map(|f| (f as &dyn StencilEnergy, 1.0)))
+        .chain(self.colliders.friction.iter().map(|f| (f as &dyn StencilEnergy, 1.0)))
     }
 
     /// `kappa B(x) + D(x)` over the loaded pairs (infinite where a pair touches).
@@ -458,7 +545,8 @@ impl Contact {
     /// solve loaded (which hold every pair within `dhat` of its result; none before the
     /// first solve).
     pub(super) fn barrier_value(&self, x: &[f64]) -> f64 {
-        self.kappa * energy::value(&self.barrier, &self.extended(x))
+        let ext = self.extended(x);
+        self.kappa * (energy::value(&self.barrier, &ext) + energy::value(&self.colliders.barrier, &ext))
     }
 
     /// Adds the gradient of [`Self::value`] over the body's dofs into `grad`; returns the value.

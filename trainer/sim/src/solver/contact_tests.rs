@@ -144,6 +144,7 @@ density = 1000.0
             },
             surface: ContactSurface::of_mesh(&mesh),
             obstacles: Vec::new(),
+            colliders: Vec::new(),
         }),
     })
 }

@@ -11,7 +11,7 @@ pub struct SimState {
     x_prev: Vec<f64>,
     v_prev: Vec<f64>,
     steps: usize,
-    contact: Option<(Vec<f64>, f64, f64)>,
+    contact: Option<super::contact::Carried>,
 }
 
 impl SimState {
@@ -23,7 +23,8 @@ impl SimState {
 
 impl Simulator {
     /// The state between steps: positions and velocities (with the previous ones BDF2
-    /// uses), the step count, and contact's obstacle positions and barrier stiffness.
+    /// uses), the step count, and contact's obstacle positions, collider poses and barrier
+    /// stiffness.
     pub fn state(&self) -> SimState {
         SimState {
             x: self.x.clone(),

@@ -42,6 +42,13 @@ fn sample() -> Trajectory {
                 .map(|f| (0..12).map(|i| i as f64 * 0.25 - 0.01 * f as f64).collect())
                 .collect(),
         }),
+        colliders: Some(ColliderFrames {
+            names: vec!["finger".into(), "ball".into()],
+            shapes: vec![[1.0, 0.02, 0.05, 0.0], [0.0, 0.1, 0.0, 0.0]],
+            states: (0..frames)
+                .map(|f| (0..2 * COLLIDER_STATE).map(|i| (i as f64 - f as f64) * 0.125).collect())
+                .collect(),
+        }),
     }
 }
 
@@ -75,6 +82,7 @@ fn trajectory_round_trip_without_bc_energies_or_meta_in_2d() {
         step_seconds: vec![0.0, 0.5],
         meta: vec![],
         obstacles: None,
+        colliders: None,
     };
     t.write_npz(&path).unwrap();
     assert_eq!(Trajectory::read_npz(&path).unwrap(), t);
@@ -244,4 +252,56 @@ np.savez_compressed(sys.argv[2], **{k: d[k] for k in d.files})
     assert_eq!(values, vec![t.positions[2][4 * 3 + 1], t.energies[3][1]]);
     let from_numpy = Trajectory::read_npz(&dir.path().join("from_numpy.npz")).unwrap();
     assert_eq!(from_numpy, t);
+}
+
+#[test]
+fn a_trajectory_written_before_colliders_existed_still_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.npz");
+    let t = sample();
+    // The archive of a file from before colliders: the same arrays without the three.
+    t.write_arrays(&path).unwrap();
+    let src = std::fs::read(&path).unwrap();
+    let mut zin = zip::ZipArchive::new(Cursor::new(src)).unwrap();
+    let mut zout = zip::ZipWriter::new(File::create(&path).unwrap());
+    for i in 0..zin.len() {
+        let entry = zin.by_index(i).unwrap();
+        if !entry.name().starts_with("collider_") {
+            zout.raw_copy_file(entry).unwrap();
+        }
+    }
+    zout.finish().unwrap();
+    let old = Trajectory::read_npz(&path).unwrap();
+    assert_eq!(old.colliders, None);
+    assert_eq!(Trajectory { colliders: None, ..t }, old);
+}
+
+#[test]
+fn collider_arrays_of_the_wrong_shape_name_the_array() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad-colliders.npz");
+    let mut t = sample();
+    t.colliders.as_mut().unwrap().states[2].pop();
+    let e = t.write_npz(&path).unwrap_err();
+    assert!(e.to_string().contains("collider_states"), "{e}");
+    let mut t = sample();
+    t.colliders.as_mut().unwrap().shapes[1][0] = 9.0;
+    assert!(t.validate().unwrap_err().starts_with("collider_shapes"));
+    // A states array of another shape in the file.
+    let t = sample();
+    let mut zout = write_without(&path, &t, "collider_states");
+    let mut npy = Vec::new();
+    let mut w = npyz::WriteOptions::<f64>::new()
+        .default_dtype()
+        .shape(&[4, 2, 11])
+        .writer(&mut npy)
+        .begin_nd()
+        .unwrap();
+    w.extend(vec![0.0; 88]).unwrap();
+    w.finish().unwrap();
+    zout.start_file("collider_states.npy", entry_options()).unwrap();
+    io::Write::write_all(&mut zout, &npy).unwrap();
+    zout.finish().unwrap();
+    let e = Trajectory::read_npz(&path).unwrap_err();
+    assert_eq!(e.location, crate::Location::Field("collider_states".into()), "{e}");
 }

@@ -124,6 +124,13 @@ pub(crate) fn make_dataset(name: &str, out: Option<PathBuf>) -> Result<()> {
         mean(&report.newton_iterations),
         dir.display()
     );
+    if let Some(closest) = report.collider_min_distance {
+        println!(
+            "{}: closest approach of a surface vertex to a collider {closest:.3e} m ({})",
+            scene.name,
+            if closest > 0.0 { "no penetration" } else { "PENETRATED" }
+        );
+    }
     Ok(())
 }
 

@@ -384,6 +384,7 @@ fn encoding_bad_input_is_an_error() {
         step_seconds: vec![0.0],
         meta: vec![],
         obstacles: None,
+        colliders: None,
     };
     assert!(is_length(enc.encode_trajectory(&traj)));
     traj.dim = 3;

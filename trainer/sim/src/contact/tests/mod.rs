@@ -6,6 +6,7 @@ mod broad_phase;
 mod ccd;
 mod ccd_near_parallel;
 mod closest_point;
+mod collider;
 mod degenerate;
 mod distance;
 mod friction;
