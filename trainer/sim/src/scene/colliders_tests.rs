@@ -113,3 +113,22 @@ fn colliders_start_parked_far_above_the_body() {
     );
     assert!(barrier.min_distance(built.simulator.positions()) > 5.0 * diagonal);
 }
+
+#[test]
+fn a_scene_with_colliders_writes_back_to_the_same_tables() {
+    let text = "[[colliders]]\nname = \"finger\"\nshape = \"capsule\"\nradius = 0.01\nlength = 0.05\n\
+                rotation = [0.0, 0.0, 0.5]\n[colliders.motion]\nspeed = [0.1, 0.2]\n\
+                region = { min = [0.0, 0.05, 0.0], max = [0.1, 0.12, 0.1] }\nhold_frames = [2, 4]\n";
+    let scene = parse(true, text).unwrap();
+    let written = toml::to_string(&scene).unwrap();
+    let again = Scene::parse(&written, Path::new("poke-test.toml")).unwrap();
+    assert_eq!(again.colliders, scene.colliders);
+    assert_eq!(again.colliders[0].name_or_default(0), "finger");
+    assert_eq!(
+        parse(true, "[[colliders]]\nshape = \"sphere\"\nradius = 0.1\n")
+            .unwrap()
+            .colliders[0]
+            .name_or_default(3),
+        "collider-3"
+    );
+}
