@@ -147,6 +147,15 @@ fn reference(path: &Path, line: usize, argument: &str, counts: [usize; 3]) -> Re
 /// Reads an STL file's facets into a surface; corners with bit-identical coordinates are one
 /// vertex (as the file's writer meant them).
 pub(super) fn read_stl(path: &Path, bytes: &[u8]) -> Result<Surface, InputError> {
+    // `stl_io` takes a file as ASCII only when it starts with "solid " (a space); writers also
+    // put a tab or a line end there, and such a file would be misread as binary.
+    let spaced;
+    let bytes = if bytes.starts_with(b"solid") && bytes.get(5).is_some_and(|&b| b != b' ' && b.is_ascii_whitespace()) && !binary_length(bytes) {
+        spaced = [b"solid ".as_slice(), &bytes[5..]].concat();
+        spaced.as_slice()
+    } else {
+        bytes
+    };
     let mut cursor = std::io::Cursor::new(bytes);
     let facets = stl_io::create_stl_reader(&mut cursor)
         .map_err(|e| InputError::file(path, format!("not a readable STL file: {e}")))?;
@@ -171,4 +180,12 @@ pub(super) fn read_stl(path: &Path, bytes: &[u8]) -> Result<Surface, InputError>
         triangles: 0..surface.triangles.len(),
     });
     Ok(surface)
+}
+
+/// Whether the length of `bytes` is that of a binary STL of the triangle count in its header.
+fn binary_length(bytes: &[u8]) -> bool {
+    bytes.len() >= 84 && {
+        let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
+        bytes.len() == 84 + 50 * count
+    }
 }

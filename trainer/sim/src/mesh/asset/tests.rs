@@ -247,7 +247,8 @@ fn gltf_and_glb_apply_node_transforms_and_names() {
 fn binary_and_ascii_stl_read_the_same_cube() {
     let dir = tempfile::tempdir().unwrap();
     let binary = write(&dir, "cube.stl", &binary_stl(&CUBE_VERTICES, &CUBE_TRIANGLES));
-    let mut ascii = String::from("solid cube\n");
+    // A tab after `solid`, as some writers put it.
+    let mut ascii = String::from("solid\tcube\n");
     for t in CUBE_TRIANGLES {
         ascii += "facet normal 0 0 0\nouter loop\n";
         for v in t {
