@@ -132,7 +132,8 @@ def write_medit(path, points, tets):
 def mesh(vertices, faces, mesher, edge_length, epsilon, threads):
     if mesher == "tetgen":
         points, tets, seconds = mesh_tetgen(vertices, faces, edge_length)
-        version = subprocess.run(["tetgen", "-h"], capture_output=True, text=True).stdout.split("\n")[0].strip()
+        query = subprocess.run(["dpkg-query", "-W", "-f", "${Version}", "tetgen"], capture_output=True, text=True)
+        version = f"tetgen {query.stdout.strip() or 'unknown'}"
     else:
         import pytetwild
 

@@ -297,28 +297,26 @@ fn json_number(line: &str, key: &str) -> Option<f64> {
     token.parse().ok()
 }
 
-/// The handle: the smallest named part of an asset with several (a glTF node, an OBJ
-/// object), by its bounding box; else the bottom of the body along y (glTF's up).
+/// The handle: of an asset with several named parts (glTF nodes, OBJ objects), the part whose
+/// bounding box holds the fewest tet vertices; else the bottom of the body along y (glTF's up).
 fn choose_handle(surface: &Surface, mesh: &Mesh) -> HandleChoice {
-    let named: Vec<&mochi_sim::mesh::asset::Part> = surface.parts.iter().filter(|p| p.name.is_some()).collect();
-    if named.len() >= 2 {
-        if let Some(part) = named.iter().min_by_key(|p| p.triangles.len()) {
-            let (lo, hi) = surface.part_bounds(part);
-            let pad = 0.01 * surface.diagonal();
-            let (lo, hi) = (lo.map(|c| c - pad), hi.map(|c| c + pad));
-            let inside = mesh
-                .rest
-                .chunks_exact(3)
-                .filter(|p| (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]))
-                .count();
-            if inside >= 3 {
-                return HandleChoice::Part {
-                    name: part.name.clone().unwrap_or_default(),
-                    min: lo,
-                    max: hi,
-                    vertices: inside,
-                };
-            }
+    let pad = 0.01 * surface.diagonal();
+    let in_box = |lo: [f64; 3], hi: [f64; 3]| {
+        mesh.rest
+            .chunks_exact(3)
+            .filter(|p| (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]))
+            .count()
+    };
+    let named = surface.parts.iter().filter_map(|p| {
+        let (lo, hi) = surface.part_bounds(p);
+        let (lo, hi) = (lo.map(|c| c - pad), hi.map(|c| c + pad));
+        Some((p.name.clone()?, lo, hi, in_box(lo, hi)))
+    });
+    let parts: Vec<(String, [f64; 3], [f64; 3], usize)> = named.collect();
+    if parts.len() >= 2 {
+        // The part whose box holds the fewest tet vertices (at least 3): the rest stays free.
+        if let Some((name, min, max, vertices)) = parts.into_iter().filter(|p| p.3 >= 3).min_by_key(|p| p.3) {
+            return HandleChoice::Part { name, min, max, vertices };
         }
     }
     let (lo, hi) = mesh.bounding_box(&mesh.rest);
