@@ -21,7 +21,8 @@ stdout: mesher, vertices, tets, seconds (the mesher's call alone, wall time), mi
 --self-check: a sphere (an icosahedron subdivided three times, 1,280 triangles) meshed by
 fTetWild at two edge lengths: the tets must be consistently oriented with no flat ones, the
 mesh volume within 2% of the surface's, the finer mesh must have more vertices, and every input
-vertex must lie within the envelope of the tet mesh's boundary. Prints
+vertex must lie within the envelope of the tet mesh's boundary, and no file may be left
+behind. Prints
 `tetwild self-check: N passed, F failed`.
 """
 
@@ -64,16 +65,25 @@ def surface_volume(vertices, faces):
 def mesh_tetwild(vertices, faces, edge_length, epsilon, threads):
     import pytetwild
 
-    start = time.perf_counter()
-    points, tets = pytetwild.tetrahedralize(
-        vertices,
-        faces.astype(np.int32),
-        edge_length_abs=edge_length,
-        epsilon=epsilon,
-        num_threads=threads,
-        quiet=True,
-    )
-    return np.asarray(points, np.float64), np.asarray(tets, np.int64), time.perf_counter() - start
+    # fTetWild writes a `__tracked_surface.stl` into the working directory: run it in a
+    # temporary one.
+    here = os.getcwd()
+    with tempfile.TemporaryDirectory() as tmp:
+        os.chdir(tmp)
+        try:
+            start = time.perf_counter()
+            points, tets = pytetwild.tetrahedralize(
+                vertices,
+                faces.astype(np.int32),
+                edge_length_abs=edge_length,
+                epsilon=epsilon,
+                num_threads=threads,
+                quiet=True,
+            )
+            seconds = time.perf_counter() - start
+        finally:
+            os.chdir(here)
+    return np.asarray(points, np.float64), np.asarray(tets, np.int64), seconds
 
 
 def mesh_tetgen(vertices, faces, edge_length):
@@ -203,6 +213,7 @@ def self_check():
         failed += not ok
         print(("ok   " if ok else "FAIL ") + what)
 
+    before = sorted(os.listdir("."))
     runs = {}
     for edge in (0.5, 0.25):
         points, tets, stats = mesh(vertices, faces, "ftetwild", edge, 1e-3, 0)
@@ -220,6 +231,7 @@ def self_check():
         out = os.path.join(tmp, "sphere.mesh")
         write_medit(out, runs[0.5][0], runs[0.5][1])
         check(sorted(os.listdir(tmp)) == ["sphere.mesh"], "the mesh is written with no temporary file left")
+    check(sorted(os.listdir(".")) == before, "the mesher leaves no file in the working directory")
     print(f"tetwild self-check: {passed} passed, {failed} failed")
     return failed == 0
 
