@@ -114,13 +114,19 @@ pub fn mesh_asset(options: &MeshOptions) -> Result<MeshOutcome> {
         .clone()
         .unwrap_or_else(|| Path::new("out").join("assets").join(&name).join(format!("{name}.mesh")));
     if mesh_path.extension().and_then(|e| e.to_str()) != Some("mesh") {
-        bail!("{}: the tet mesh is written as MEDIT, so its name must end in .mesh", mesh_path.display());
+        bail!(
+            "{}: the tet mesh is written as MEDIT, so its name must end in .mesh",
+            mesh_path.display()
+        );
     }
     if let Some(dir) = mesh_path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     let beside = |suffix: &str| {
-        let stem = mesh_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let stem = mesh_path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
         mesh_path.with_file_name(format!("{stem}{suffix}"))
     };
     let (surface_path, render_path, scene_path) = (beside(".surface.npz"), beside(".render.npz"), beside(".toml"));
@@ -128,7 +134,8 @@ pub fn mesh_asset(options: &MeshOptions) -> Result<MeshOutcome> {
 
     let runs = tetrahedralise(&repaired, &surface_path, &mesh_path, options)?;
     let mesh = load(&mesh_path, MeshKind::Solid).with_context(|| "reading the mesher's output back")?;
-    let render = RenderEmbedding::new(&surface, &mesh).map_err(|e| anyhow!("{}: embedding the render mesh: {e}", mesh_path.display()))?;
+    let render = RenderEmbedding::new(&surface, &mesh)
+        .map_err(|e| anyhow!("{}: embedding the render mesh: {e}", mesh_path.display()))?;
     render.write_npz(&render_path)?;
     let diagonal = surface.diagonal();
     let handle = choose_handle(&surface, &mesh);
@@ -155,10 +162,19 @@ pub fn mesh_asset(options: &MeshOptions) -> Result<MeshOutcome> {
 
 /// The asset's file stem as a scene name: letters, digits, `-` and `_`.
 fn asset_name(asset: &Path) -> String {
-    let stem = asset.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = asset
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let name: String = stem
         .chars()
-        .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c.to_ascii_lowercase() } else { '-' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c.to_ascii_lowercase()
+            } else {
+                '-'
+            }
+        })
         .collect();
     if name.is_empty() {
         "asset".into()
@@ -195,7 +211,12 @@ fn mesher_script() -> PathBuf {
 /// Runs the mesher until the resolution is met (one run for an edge length; up to three for a
 /// vertex count, each edge length corrected from the last counts), keeping the last run's mesh
 /// at `mesh_path`.
-fn tetrahedralise(repaired: &Repaired, surface: &Path, mesh_path: &Path, options: &MeshOptions) -> Result<Vec<MesherRun>> {
+fn tetrahedralise(
+    repaired: &Repaired,
+    surface: &Path,
+    mesh_path: &Path,
+    options: &MeshOptions,
+) -> Result<Vec<MesherRun>> {
     let diagonal = {
         let s = Surface {
             positions: repaired.positions.clone(),
@@ -229,7 +250,8 @@ fn tetrahedralise(repaired: &Repaired, surface: &Path, mesh_path: &Path, options
         // from the last two runs where there are two, else 1/2.5.
         let exponent = match runs.as_slice() {
             [.., a, b] if a.vertices != b.vertices && a.edge_length != b.edge_length => {
-                let slope = ((b.vertices as f64).ln() - (a.vertices as f64).ln()) / (b.edge_length.ln() - a.edge_length.ln());
+                let slope =
+                    ((b.vertices as f64).ln() - (a.vertices as f64).ln()) / (b.edge_length.ln() - a.edge_length.ln());
                 if slope < -0.5 {
                     -1.0 / slope
                 } else {
@@ -246,7 +268,11 @@ fn tetrahedralise(repaired: &Repaired, surface: &Path, mesh_path: &Path, options
 /// One run of the mesher script, with a spinner while it works.
 fn run_mesher(surface: &Path, mesh_path: &Path, edge: f64, options: &MeshOptions) -> Result<MesherRun> {
     let script = mesher_script();
-    let spinner = if options.bar { ProgressBar::new_spinner() } else { ProgressBar::hidden() };
+    let spinner = if options.bar {
+        ProgressBar::new_spinner()
+    } else {
+        ProgressBar::hidden()
+    };
     spinner.set_style(
         ProgressStyle::with_template("{spinner} {msg} {elapsed}").unwrap_or_else(|_| ProgressStyle::default_spinner()),
     );
@@ -266,7 +292,14 @@ fn run_mesher(surface: &Path, mesh_path: &Path, edge: f64, options: &MeshOptions
     let stdout = String::from_utf8_lossy(&output.stdout);
     if !output.status.success() {
         let stderr = String::from_utf8_lossy(&output.stderr);
-        let tail: Vec<&str> = stderr.lines().rev().take(6).collect::<Vec<_>>().into_iter().rev().collect();
+        let tail: Vec<&str> = stderr
+            .lines()
+            .rev()
+            .take(6)
+            .collect::<Vec<_>>()
+            .into_iter()
+            .rev()
+            .collect();
         bail!(
             "{}: the mesher failed ({}):\n{}",
             options.asset.display(),
@@ -274,7 +307,11 @@ fn run_mesher(surface: &Path, mesh_path: &Path, edge: f64, options: &MeshOptions
             tail.join("\n")
         );
     }
-    let line = stdout.lines().rev().find(|l| l.trim_start().starts_with('{')).unwrap_or("");
+    let line = stdout
+        .lines()
+        .rev()
+        .find(|l| l.trim_start().starts_with('{'))
+        .unwrap_or("");
     let number = |key: &str| -> Result<f64> {
         json_number(line, key).ok_or_else(|| anyhow!("the mesher's summary has no `{key}`: `{line}`"))
     };
@@ -316,16 +353,28 @@ fn choose_handle(surface: &Surface, mesh: &Mesh) -> HandleChoice {
     if parts.len() >= 2 {
         // The part whose box holds the fewest tet vertices (at least 3): the rest stays free.
         if let Some((name, min, max, vertices)) = parts.into_iter().filter(|p| p.3 >= 3).min_by_key(|p| p.3) {
-            return HandleChoice::Part { name, min, max, vertices };
+            return HandleChoice::Part {
+                name,
+                min,
+                max,
+                vertices,
+            };
         }
     }
     let (lo, hi) = mesh.bounding_box(&mesh.rest);
     let extent = (hi[1] - lo[1]).max(f64::MIN_POSITIVE);
     let mut tolerance = 0.05;
     loop {
-        let count = mesh.rest.chunks_exact(3).filter(|p| p[1] - lo[1] <= tolerance * extent).count();
+        let count = mesh
+            .rest
+            .chunks_exact(3)
+            .filter(|p| p[1] - lo[1] <= tolerance * extent)
+            .count();
         if count >= 3 || tolerance >= 0.5 {
-            return HandleChoice::Bottom { tolerance, vertices: count };
+            return HandleChoice::Bottom {
+                tolerance,
+                vertices: count,
+            };
         }
         tolerance *= 2.0;
     }

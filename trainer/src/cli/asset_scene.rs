@@ -74,7 +74,10 @@ pub fn scene_toml(
         HandleChoice::Part { name, .. } => toml_string(name),
         HandleChoice::Bottom { .. } => "\"base\"".into(),
     };
-    let mesh_file = mesh_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    let mesh_file = mesh_path
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let last = runs.last();
     let report = &repaired.report;
     format!(
@@ -121,7 +124,11 @@ seed = 1
 beyond = 1.5
 "#,
         asset = asset.display(),
-        asset_file = asset.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default().replace('"', "'"),
+        asset_file = asset
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default()
+            .replace('"', "'"),
         summary = report.summary(),
         vertices = mesh.num_vertices(),
         tets = mesh.num_elements(),

@@ -150,7 +150,10 @@ pub(super) fn read_stl(path: &Path, bytes: &[u8]) -> Result<Surface, InputError>
     // `stl_io` takes a file as ASCII only when it starts with "solid " (a space); writers also
     // put a tab or a line end there, and such a file would be misread as binary.
     let spaced;
-    let bytes = if bytes.starts_with(b"solid") && bytes.get(5).is_some_and(|&b| b != b' ' && b.is_ascii_whitespace()) && !binary_length(bytes) {
+    let bytes = if bytes.starts_with(b"solid")
+        && bytes.get(5).is_some_and(|&b| b != b' ' && b.is_ascii_whitespace())
+        && !binary_length(bytes)
+    {
         spaced = [b"solid ".as_slice(), &bytes[5..]].concat();
         spaced.as_slice()
     } else {
