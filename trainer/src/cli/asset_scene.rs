@@ -84,7 +84,8 @@ pub fn scene_toml(
         r#"# Written by `mochi mesh {asset}`: edit freely. The tet mesh {mesh_file} is in the asset's
 # units and frame; the render mesh rides on it through {name}.render.npz.
 # Repair: {summary}
-# Tet mesh: {vertices} vertices, {tets} tets (fTetWild, target edge {edge:.4e} in asset units).
+# Tet mesh: {vertices} vertices, {tets} tets (fTetWild, target edge {edge:.4e} in asset units,
+# envelope {epsilon:.1e} of the diagonal).
 name = {quoted_name}
 description = "Surface asset {asset_file} as a soft body: {handle_words}, shaken at varying speeds, under gravity"
 dt = 0.0333333333333333
@@ -133,6 +134,7 @@ beyond = 1.5
         vertices = mesh.num_vertices(),
         tets = mesh.num_elements(),
         edge = last.map_or(0.0, |r| r.edge_length),
+        epsilon = last.map_or(0.0, |r| r.epsilon),
         quoted_name = toml_string(name),
         quoted_mesh = toml_string(&mesh_file),
         handle_words = handle.describe().replace('`', "").replace('"', "'"),

@@ -69,8 +69,8 @@ pub(crate) fn mesh_asset(
     }
     for run in &outcome.runs {
         println!(
-            "fTetWild: edge {:.4e} -> {} vertices, {} tets in {:.2} s",
-            run.edge_length, run.vertices, run.tets, run.seconds
+            "fTetWild: edge {:.4e}, envelope {:.1e} -> {} vertices, {} tets in {:.2} s",
+            run.edge_length, run.epsilon, run.vertices, run.tets, run.seconds
         );
     }
     println!(
