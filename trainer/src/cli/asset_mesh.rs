@@ -38,8 +38,9 @@ pub const MAX_EPSILON: f64 = 1.6e-2;
 pub enum Resolution {
     /// Target tet edge length, in the asset's units.
     EdgeLength(f64),
-    /// Target number of tet-mesh vertices (met within 20% in up to four mesher runs; the
-    /// surface envelope is widened where the surface's detail holds the count up).
+    /// Target number of tet-mesh vertices: up to four mesher runs stop within 20% of it, the
+    /// surface envelope widened where the surface's detail holds the count up; the run closest
+    /// to it is kept (the count is a target, not a promise).
     Vertices(usize),
 }
 
@@ -86,7 +87,7 @@ pub struct MeshOutcome {
     pub render_size: (usize, usize),
     /// Named parts of the asset.
     pub parts: Vec<String>,
-    /// Every mesher run (the last one kept).
+    /// Every mesher run (the one kept last).
     pub runs: Vec<MesherRun>,
     /// The kept tet mesh's vertices and tets.
     pub tet_size: (usize, usize),
@@ -218,9 +219,9 @@ fn mesher_script() -> PathBuf {
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/tetwild.sh"))
 }
 
-/// Runs the mesher until the resolution is met (one run for an edge length; up to three for a
-/// vertex count, each edge length corrected from the last counts), keeping the last run's mesh
-/// at `mesh_path`.
+/// Runs the mesher until the resolution is met (one run for an edge length; up to four for a
+/// vertex count, each edge length corrected from the last counts), keeping the run closest to
+/// the target at `mesh_path`; it comes last in the returned runs.
 fn tetrahedralise(
     repaired: &Repaired,
     surface: &Path,
@@ -248,35 +249,60 @@ fn tetrahedralise(
         Some(Resolution::Vertices(n)) => bail!("--vertices must be at least 4, got {n}"),
     };
     let mut epsilon = DEFAULT_EPSILON;
-    loop {
-        let run = run_mesher(surface, mesh_path, edge, epsilon, options)?;
-        let made = run.vertices as f64;
-        runs.push(run);
-        let Some(n) = target else { break };
-        let ratio = made / n as f64;
-        if (ratio - 1.0).abs() <= 0.2 || runs.len() == 4 {
-            break;
-        }
-        // Vertices go as about edge^-3 in the volume, edge^-2 on the surface: the exponent
-        // from the last two runs where there are two, else 1/2.5.
-        let exponent = match runs.as_slice() {
-            [.., a, b] if a.vertices != b.vertices && a.edge_length != b.edge_length => {
-                let slope =
-                    ((b.vertices as f64).ln() - (a.vertices as f64).ln()) / (b.edge_length.ln() - a.edge_length.ln());
-                if slope < -0.5 {
-                    -1.0 / slope
-                } else {
-                    // The count hardly follows the edge: the surface's detail inside the
-                    // envelope holds it; a wider envelope lets fTetWild simplify the surface.
-                    if ratio > 1.0 {
-                        epsilon = (4.0 * epsilon).min(MAX_EPSILON);
-                    }
-                    0.4
-                }
+    // Each run's mesh in a file of its own beside the output; the one closest to the target
+    // is renamed to `mesh_path` and the others removed.
+    let run_path = |k: usize| temporary_beside(&mesh_path.with_extension(format!("run{k}.mesh")));
+    let outcome = (|| -> Result<()> {
+        loop {
+            let run = run_mesher(surface, &run_path(runs.len()), edge, epsilon, options)?;
+            let made = run.vertices as f64;
+            runs.push(run);
+            let Some(n) = target else { return Ok(()) };
+            let ratio = made / n as f64;
+            if (ratio - 1.0).abs() <= 0.2 || runs.len() == 4 {
+                return Ok(());
             }
-            _ => 0.4,
-        };
-        edge *= ratio.powf(exponent);
+            // Vertices go as about edge^-3 in the volume, edge^-2 on the surface: the exponent
+            // from the last two runs at this envelope where there are two, else 1/2.5.
+            let exponent = match runs.as_slice() {
+                [.., a, b] if a.epsilon == b.epsilon && a.vertices != b.vertices && a.edge_length != b.edge_length => {
+                    let slope = ((b.vertices as f64).ln() - (a.vertices as f64).ln())
+                        / (b.edge_length.ln() - a.edge_length.ln());
+                    if slope < -0.5 {
+                        -1.0 / slope
+                    } else {
+                        // The count hardly follows the edge: the surface's detail inside the
+                        // envelope holds it; a wider envelope lets fTetWild simplify it.
+                        if ratio > 1.0 {
+                            epsilon = (2.0 * epsilon).min(MAX_EPSILON);
+                        }
+                        0.4
+                    }
+                }
+                _ => 0.4,
+            };
+            edge *= ratio.powf(exponent);
+        }
+    })();
+    let best = target.map_or(runs.len().saturating_sub(1), |n| {
+        let miss = |r: &MesherRun| (r.vertices as f64 / n as f64).ln().abs();
+        (0..runs.len())
+            .min_by(|&a, &b| miss(&runs[a]).total_cmp(&miss(&runs[b])))
+            .unwrap_or(0)
+    });
+    let kept = match outcome {
+        Ok(()) => {
+            std::fs::rename(run_path(best), mesh_path).with_context(|| format!("writing {}", mesh_path.display()))
+        }
+        Err(e) => Err(e),
+    };
+    for k in 0..=runs.len() {
+        let _ = std::fs::remove_file(run_path(k));
+    }
+    kept?;
+    if best + 1 != runs.len() {
+        let kept_run = runs.remove(best);
+        runs.push(kept_run);
     }
     Ok(runs)
 }

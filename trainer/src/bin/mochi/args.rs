@@ -43,9 +43,9 @@ pub(crate) enum Command {
         /// Target tet edge length, in the asset's units (default: 1/20 of the diagonal).
         #[arg(long, conflicts_with = "vertices")]
         edge_length: Option<f64>,
-        /// Target number of tet-mesh vertices (met within 20% in up to four mesher runs, the
+        /// Target number of tet-mesh vertices: up to four mesher runs stop within 20% of it, the
         /// surface envelope widened up to 1.6% of the diagonal where the surface's detail holds
-        /// the count up).
+        /// the count up; the closest run is kept.
         #[arg(long)]
         vertices: Option<usize>,
         /// The tet mesh to write (`.mesh`); the scene, render embedding and repaired surface
