@@ -11,6 +11,8 @@
 #   scripts/tetwild.sh tetgen SURFACE.npz OUT.mesh [--edge-length L]
 #       the same with TetGen (`tetgen -pq1.414a...`; apt-get install tetgen)
 #   scripts/tetwild.sh self-check     # seconds: a sphere meshed at two resolutions, checked
+#   scripts/tetwild.sh check-render NAME.mesh NAME.render.npz   # a `mochi mesh` output's
+#       render embedding: weights within tolerance, rest positions rebuilt within their distance
 #   scripts/tetwild.sh setup          # only make the virtual environment
 #
 # 1. a virtual environment target/tetwild-venv with pytetwild, pyvista and numpy from PyPI
@@ -40,6 +42,10 @@ shift
 case "$cmd" in
   setup) ;;
   self-check) "$venv/bin/python" scripts/tetwild_run.py --self-check "$@" ;;
+  check-render)
+    [ $# -ge 2 ] || usage
+    "$venv/bin/python" scripts/tetwild_run.py "$1" "$2" --check-render
+    ;;
   run)
     [ $# -ge 2 ] || usage
     "$venv/bin/python" scripts/tetwild_run.py "$1" "$2" "${@:3}"

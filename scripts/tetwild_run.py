@@ -5,6 +5,7 @@ scripts/tetwild.sh, which makes the virtual environment:
     python tetwild_run.py SURFACE.npz OUT.mesh [--edge-length L] [--epsilon E] [--threads N]
     python tetwild_run.py SURFACE.npz OUT.mesh --mesher tetgen [--edge-length L]
     python tetwild_run.py --self-check
+    python tetwild_run.py --check-render NAME.mesh NAME.render.npz
 
 SURFACE.npz: `vertices` (n, 3) float64, `faces` (m, 3) integer, the surface `mochi mesh`
 repaired (welded, outward). `--edge-length` is the target tet edge length in the surface's
@@ -24,6 +25,11 @@ mesh volume within 2% of the surface's, the finer mesh must have more vertices, 
 vertex must lie within the envelope of the tet mesh's boundary, and no file may be left
 behind. Prints
 `tetwild self-check: N passed, F failed`.
+
+--check-render: a `mochi mesh` output's render embedding against its tet mesh, read with numpy
+alone: every weight within [-1e-9, 1 + 1e-9] and summing to one, every render vertex's rest
+position rebuilt from its tet within its stored `distance`; prints the largest distance
+relative to the diagonal and exits non-zero on a failure.
 """
 
 import argparse
@@ -236,6 +242,34 @@ def self_check():
     return failed == 0
 
 
+def read_medit_vertices(path):
+    lines = open(path).read().split("\n")
+    start = [l.strip() for l in lines].index("Vertices")
+    count = int(lines[start + 1])
+    return np.array([[float(x) for x in l.split()[:3]] for l in lines[start + 2 : start + 2 + count]])
+
+
+def check_render(mesh_path, render_path):
+    points = read_medit_vertices(mesh_path)
+    with np.load(render_path) as d:
+        positions, weights, tet_vertices, distance = (d[k] for k in ("positions", "weights", "tet_vertices", "distance"))
+    diag = diagonal(positions)
+    rebuilt = (weights[:, :, None] * points[tet_vertices]).sum(axis=1)
+    error = np.linalg.norm(rebuilt - positions, axis=1)
+    ok = (
+        weights.min() >= -1e-9
+        and weights.max() <= 1 + 1e-9
+        and np.allclose(weights.sum(axis=1), 1.0, atol=1e-12)
+        and np.all(error <= distance + 1e-9 * diag)
+    )
+    print(
+        f"{render_path}: {len(positions)} render vertices, weights in [{weights.min():.2e}, {weights.max():.6f}], "
+        f"rest positions within their distance: {bool(np.all(error <= distance + 1e-9 * diag))}, "
+        f"largest distance {distance.max() / diag:.2e} of the diagonal"
+    )
+    return bool(ok)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("surface", nargs="?")
@@ -245,7 +279,10 @@ def main():
     parser.add_argument("--epsilon", type=float, default=1e-3)
     parser.add_argument("--threads", type=int, default=0)
     parser.add_argument("--self-check", action="store_true")
+    parser.add_argument("--check-render", action="store_true")
     args = parser.parse_args()
+    if args.check_render:
+        sys.exit(0 if check_render(args.surface, args.out) else 1)
     if args.self_check:
         sys.exit(0 if self_check() else 1)
     if not args.surface or not args.out:
