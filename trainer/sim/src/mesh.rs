@@ -1,6 +1,7 @@
 //! Meshes: rest positions and elements of solids (tets), 2D bodies (triangles), cloth
 //! (triangles in 3D) and rods (polylines).
 
+pub mod asset;
 pub mod embedding;
 pub mod io;
 mod mass;

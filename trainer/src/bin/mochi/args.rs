@@ -33,6 +33,33 @@ pub(crate) enum Command {
         #[arg(long)]
         retrain: bool,
     },
+    /// A surface asset (glTF, OBJ, STL) in: repaired (welded, oriented outward; holes,
+    /// non-manifold edges and self-intersections reported), tetrahedralised by fTetWild
+    /// (`scripts/tetwild.sh`), its render mesh embedded in the tets, and a scene for `mochi
+    /// train` written beside the tet mesh.
+    Mesh {
+        /// The asset: `.gltf`, `.glb`, `.obj` or `.stl`.
+        asset: PathBuf,
+        /// Target tet edge length, in the asset's units (default: 1/20 of the diagonal).
+        #[arg(long, conflicts_with = "vertices")]
+        edge_length: Option<f64>,
+        /// Target number of tet-mesh vertices: up to four mesher runs stop within 20% of it, the
+        /// surface envelope widened up to 1.6% of the diagonal where the surface's detail holds
+        /// the count up; the closest run is kept.
+        #[arg(long)]
+        vertices: Option<usize>,
+        /// The tet mesh to write (`.mesh`); the scene, render embedding and repaired surface
+        /// go beside it. Default: out/assets/NAME/NAME.mesh.
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Mesh an open, non-manifold or self-intersecting surface anyway (fTetWild takes the
+        /// inside by winding number) instead of refusing it; the defects are still reported.
+        #[arg(long)]
+        accept_defects: bool,
+        /// The mesher's threads (0: all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
     /// Simulate one boundary-condition sequence of a scene in full space.
     Simulate {
         /// Scene name (shipped: see `mochi scenes`) or path to a scene TOML file.

@@ -18,6 +18,76 @@ fn default_out(scene: &Scene, file: &str) -> PathBuf {
     Path::new("out").join(&scene.name).join(file)
 }
 
+/// `mochi mesh`: the asset's tet mesh, render embedding and scene, and a summary.
+pub(crate) fn mesh_asset(
+    asset: PathBuf,
+    edge_length: Option<f64>,
+    vertices: Option<usize>,
+    out: Option<PathBuf>,
+    accept_defects: bool,
+    threads: usize,
+) -> Result<()> {
+    use mochi_trainer::cli::asset_mesh::{self, MeshOptions, Resolution};
+    let resolution = match (edge_length, vertices) {
+        (Some(l), _) => Some(Resolution::EdgeLength(l)),
+        (None, Some(n)) => Some(Resolution::Vertices(n)),
+        (None, None) => None,
+    };
+    let outcome = asset_mesh::mesh_asset(&MeshOptions {
+        asset,
+        resolution,
+        out,
+        accept_defects,
+        threads,
+        bar: true,
+    })?;
+    let r = &outcome.repaired.report;
+    println!(
+        "input: {} render vertices, {} triangles{}",
+        outcome.render_size.0,
+        outcome.render_size.1,
+        if outcome.parts.is_empty() {
+            String::new()
+        } else {
+            format!(", parts {}", outcome.parts.join(", "))
+        }
+    );
+    println!(
+        "repair: {} welded vertices; {} degenerate, {} duplicate triangles dropped; {} flipped (orientation); \
+         {} component(s); {} hole(s), {} non-manifold edge(s), {} self-intersection(s)",
+        r.welded_vertices,
+        r.degenerate_triangles,
+        r.duplicate_triangles,
+        r.flipped_triangles,
+        r.components,
+        r.holes,
+        r.non_manifold_edges,
+        r.self_intersections
+    );
+    for warning in &outcome.repaired.warnings {
+        println!("warning: {warning}");
+    }
+    for run in &outcome.runs {
+        println!(
+            "fTetWild: edge {:.4e}, envelope {:.1e} -> {} vertices, {} tets in {:.2} s",
+            run.edge_length, run.epsilon, run.vertices, run.tets, run.seconds
+        );
+    }
+    println!(
+        "tet mesh: {} vertices, {} tets; render vertices at most {:.2e} of the diagonal from their tets; handle: {}",
+        outcome.tet_size.0, outcome.tet_size.1, outcome.max_render_distance, outcome.handle
+    );
+    println!(
+        "-> {} (scene), {}, {}, {} in {:.1} s",
+        outcome.scene_path.display(),
+        outcome.mesh_path.display(),
+        outcome.render_path.display(),
+        outcome.surface_path.display(),
+        outcome.seconds
+    );
+    Ok(())
+}
+
 pub(crate) fn simulate(
     name: &str,
     frames: usize,

@@ -13,8 +13,8 @@ use mochi_trainer::{shipped_scene_names, Recipe, Reporter};
 
 use args::{Bench, Cli, Command};
 use commands::{
-    bench_reduced, bench_runtime, bench_sim, compare, demo, eval_models, eval_rates, make_dataset, simulate,
-    train_scene,
+    bench_reduced, bench_runtime, bench_sim, compare, demo, eval_models, eval_rates, make_dataset, mesh_asset,
+    simulate, train_scene,
 };
 
 /// Reports on the terminal: stages and messages as lines on stdout, progress as bars.
@@ -53,6 +53,14 @@ fn run(cli: Cli) -> Result<()> {
             png_frames,
         } => simulate(&scene, frames, out, level, seed, obj, obj_every, &png_frames),
         Command::Dataset { scene, out } => make_dataset(&scene, out),
+        Command::Mesh {
+            asset,
+            edge_length,
+            vertices,
+            out,
+            accept_defects,
+            threads,
+        } => mesh_asset(asset, edge_length, vertices, out, accept_defects, threads),
         Command::Demo {
             scene,
             out,

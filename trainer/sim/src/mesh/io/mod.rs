@@ -15,6 +15,7 @@ mod tetgen;
 use std::path::Path;
 
 use medit::parse_medit;
+pub(crate) use obj::obj_statements;
 use obj::parse_obj;
 use tetgen::parse_node_ele;
 

@@ -195,7 +195,7 @@ pub(super) fn parse_obj(text: &str, file: &Path, kind: MeshKind) -> Result<Mesh,
 
 /// The statements of an `.obj` file: (first line, tokens), with `#` comments removed and
 /// lines ending in `\` joined to the next.
-fn obj_statements(text: &str) -> Vec<(usize, Vec<&str>)> {
+pub(crate) fn obj_statements(text: &str) -> Vec<(usize, Vec<&str>)> {
     let mut statements: Vec<(usize, Vec<&str>)> = Vec::new();
     let mut continuing = false;
     for (i, line) in text.lines().enumerate() {
