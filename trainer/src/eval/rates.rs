@@ -265,11 +265,13 @@ fn cell_text(cell: &RateCell) -> String {
         RateCell::Cannot(why) => why.clone(),
         RateCell::Measured(m) => {
             let stable: Vec<String> = m.iter().map(|x| x.stable_frames.to_string()).collect();
-            format!(
-                "{:.3}%, stable {}",
-                100.0 * cell.mean_of(|x| x.mean_error),
-                stable.join(" / ")
-            )
+            let error = cell.mean_of(|x| x.mean_error);
+            // A rollout that blew up inside the measured seconds has no finite mean error.
+            let error = match error.is_finite() {
+                true => format!("{:.3}%", 100.0 * error),
+                false => "blew up".into(),
+            };
+            format!("{error}, stable {}", stable.join(" / "))
         }
     }
 }
