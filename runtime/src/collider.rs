@@ -30,12 +30,7 @@ pub const BOX: u32 = 2;
 
 type V3 = Vector3<f32>;
 
-/// Numbers of a collider slot's shape row in a model (`[code, a, b, c]`).
-pub const SHAPE_ROW: usize = 4;
-/// Most collider slots a model may have.
-pub const MAX_COLLIDERS: usize = 8;
-/// Inputs the integrator reads per collider slot ([`features`]).
-pub const FEATURES_PER_COLLIDER: usize = 9;
+pub use crate::model::{FEATURES_PER_COLLIDER, MAX_COLLIDERS, SHAPE_ROW};
 /// Beyond this many rest diagonals from the body's encoding origin a collider reads as absent
 /// ([`features`]).
 pub const FAR_DIAGONALS: f32 = 2.0;

@@ -17,6 +17,14 @@
 
 use core::fmt;
 
+/// Numbers of a collider slot's shape row in a model (`[code, a, b, c]`, [`Model::collider_shapes`]).
+pub const SHAPE_ROW: usize = 4;
+/// Most collider slots a model may have.
+pub const MAX_COLLIDERS: usize = 8;
+/// Inputs the integrator reads per collider slot (`collider::features`: centre, rotation and
+/// velocity in the encoding frame).
+pub const FEATURES_PER_COLLIDER: usize = 9;
+
 /// Largest number of handles a model may have.
 pub const MAX_HANDLES: usize = 16;
 /// Largest number of layers in one network (input, output and 2 per residual block).
@@ -294,9 +302,9 @@ pub struct Model<'a> {
     /// Largest value of each latent coordinate in the training data, in `floats`.
     pub latent_max: Span,
     /// The run-time collider slots the integrator reads, four numbers each in `floats`: the
-    /// shape row `[code, a, b, c]` of [`crate::collider`] (sphere `[0, radius, 0, 0]`, capsule
+    /// shape row `[code, a, b, c]` of the `collider` module (sphere `[0, radius, 0, 0]`, capsule
     /// `[1, radius, half_length, 0]`, box `[2, hx, hy, hz]`). Empty for a model without
-    /// collider inputs. Each slot adds [`crate::collider::FEATURES_PER_COLLIDER`] inputs after
+    /// collider inputs. Each slot adds [`FEATURES_PER_COLLIDER`] inputs after
     /// the three signals (before the frame time).
     pub collider_shapes: Span,
 }
@@ -402,7 +410,7 @@ impl<'a> Model<'a> {
     pub fn integrator_input(&self) -> usize {
         2 * self.latent as usize
             + 3 * self.bc_len as usize
-            + crate::collider::FEATURES_PER_COLLIDER * self.colliders()
+            + FEATURES_PER_COLLIDER * self.colliders()
             + usize::from(self.timed())
     }
     /// Widest hidden layer of either network (for a basis decoder, of its MLP and its
@@ -499,7 +507,7 @@ impl<'a> Model<'a> {
     }
     /// Number of run-time collider slots the integrator reads.
     pub fn colliders(&self) -> usize {
-        self.collider_shapes.len as usize / crate::collider::SHAPE_ROW
+        self.collider_shapes.len as usize / SHAPE_ROW
     }
 }
 

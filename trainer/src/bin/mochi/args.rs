@@ -245,9 +245,10 @@ pub(crate) enum Command {
         #[arg(long, default_value = "f32", value_parser = parse_weights)]
         weights: mochi_runtime::WeightFormat,
     },
-    /// Rewrite artifacts of an older format (2, 3) in place in the current one; fields
+    /// Rewrite artifacts of an older format (2-5) in place in the current one; fields
     /// unchanged, weights too except that values below 2^-40 of their layer's largest weight
-    /// are written as zero (the runtime and codegen read only the current format).
+    /// are written as zero (the runtime and codegen read only the current format and the one
+    /// before it).
     Upgrade {
         /// Artifacts (`SCENE.mochi`).
         #[arg(required = true)]
