@@ -216,24 +216,27 @@ fn too_small_storage_names_the_field_that_did_not_fit() {
 #[test]
 fn wrong_magic_and_version_are_named() {
     let mut bytes = artifact_bytes();
-    assert_eq!(mochi_runtime::ARTIFACT_VERSION, 5);
+    assert_eq!(mochi_runtime::ARTIFACT_VERSION, 6);
     // Format 1 (before `encoding.chains`), 2 (one section), 3 (no triangles in the model
-    // section), 4 (no `decoder_basis`) and a future format 6.
-    for version in [1, 2, 3, 4, 6] {
+    // section), 4 (no `decoder_basis`) and a future format 7; the runtime reads 6 and 5.
+    for version in [1, 2, 3, 4, 7] {
         bytes[8] = version;
         let expected = EnvelopeError::Version {
             found: version as u32,
-            expected: 5,
+            expected: 6,
         };
         assert_eq!(load(&bytes), Err(LoadError::Envelope(expected)));
-        if (2..=4).contains(&version) {
-            continue; // the trainer reads formats 2, 3 and 4, and these bytes are none of them
+        if (2..=5).contains(&version) {
+            continue; // the trainer reads formats 2 to 5, and these bytes are none of them
         }
         let trainer = mochi_trainer::artifact::Artifact::from_bytes(&bytes, std::path::Path::new("old.mochi"))
             .unwrap_err()
             .to_string();
         assert!(trainer.contains(&format!("version {version}")), "{trainer}");
     }
+    // Format-6 bytes labelled 5 are read as format 5, which ends two fields earlier.
+    bytes[8] = 5;
+    assert_eq!(load(&bytes), Err(LoadError::TrailingBytes));
     bytes[0] = b'X';
     assert_eq!(load(&bytes), Err(LoadError::Envelope(EnvelopeError::BadMagic)));
 }
