@@ -30,21 +30,6 @@
 #define BOX 2
 
 /**
- * Numbers of a collider slot's shape row in a model (`[code, a, b, c]`).
- */
-#define SHAPE_ROW 4
-
-/**
- * Most collider slots a model may have.
- */
-#define MAX_COLLIDERS 8
-
-/**
- * Inputs the integrator reads per collider slot ([`features`]).
- */
-#define FEATURES_PER_COLLIDER 9
-
-/**
  * Beyond this many rest diagonals from the body's encoding origin a collider reads as absent
  * ([`features`]).
  */
