@@ -221,6 +221,19 @@ fn spread_frame_times(plans: &mut [SequencePlan], seed: u64, shortest: f64, long
 }
 
 impl BuiltScene {
+    /// This scene built with the time step `dt`, when `dt` is given and is not its own
+    /// (`None`: step this one).
+    pub fn at_frame_time(&self, dt: Option<f64>) -> Result<Option<BuiltScene>, InputError> {
+        match dt {
+            Some(dt) if dt != self.scene.dt => {
+                let mut scene = self.scene.clone();
+                scene.dt = dt;
+                scene.build().map(Some)
+            }
+            _ => Ok(None),
+        }
+    }
+
     /// The boundary conditions of `plan` over `frames` frames at its frame time: the scene's
     /// motion sampled at `dt` ([`Self::sequence`]) and, for a plan at another frame time, the
     /// same motion seen at that one ([`BcSequence::resampled`]).
@@ -431,14 +444,7 @@ pub fn generate(
         progress.message(&format!("{name} {}", plan.name));
         let seq = problem.plan_sequence(plan, plan.frames(&spec, problem.scene.dt));
         // A sequence at another frame time is simulated by the scene built with that step.
-        let mut rebuilt = match plan.dt {
-            Some(dt) if dt != problem.scene.dt => {
-                let mut scene = problem.scene.clone();
-                scene.dt = dt;
-                Some(scene.build()?)
-            }
-            _ => None,
-        };
+        let mut rebuilt = problem.at_frame_time(plan.dt)?;
         let simulator = rebuilt.as_mut().unwrap_or(problem);
         let mut traj = simulator.run(&seq, progress).map_err(|source| SimError::Step {
             scene: name.clone(),

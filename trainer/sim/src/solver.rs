@@ -193,43 +193,6 @@ impl Simulator {
         (!positions.is_empty()).then_some(positions)
     }
 
-    /// The analytic colliders' barrier (their shapes and current poses), if the simulator
-    /// has contact.
-    pub fn collider_barrier(&self) -> Option<&crate::contact::ColliderBarrier> {
-        self.contact.as_ref().map(Contact::collider_barrier)
-    }
-
-    /// Asks the analytic colliders to be at `poses` (one per collider, in the scene's order)
-    /// at the end of the next step; they move there during its solve, CCD-bounded like the
-    /// body. Until called again they stay there. A list of the wrong length is refused.
-    pub fn set_collider_poses(&mut self, poses: &[crate::contact::ColliderPose]) -> Result<(), StepError> {
-        let Some(c) = &mut self.contact else {
-            return Self::collider_count(0, poses.len());
-        };
-        Self::collider_count(c.num_colliders(), poses.len())?;
-        c.set_collider_goal(poses);
-        Ok(())
-    }
-
-    /// Places the analytic colliders at `poses` at once, without a solve (a sequence's first
-    /// frame). A list of the wrong length is refused.
-    pub fn place_colliders(&mut self, poses: &[crate::contact::ColliderPose]) -> Result<(), StepError> {
-        let Some(c) = &mut self.contact else {
-            return Self::collider_count(0, poses.len());
-        };
-        Self::collider_count(c.num_colliders(), poses.len())?;
-        c.place_colliders(poses);
-        Ok(())
-    }
-
-    fn collider_count(expected: usize, got: usize) -> Result<(), StepError> {
-        if expected == got {
-            Ok(())
-        } else {
-            Err(StepError::ColliderCount { expected, got })
-        }
-    }
-
     /// The current barrier stiffness (0 without contact or before the first solve).
     pub fn contact_stiffness(&self) -> f64 {
         self.contact.as_ref().map_or(0.0, Contact::kappa)

@@ -25,7 +25,7 @@ use mochi_sim::mesh::io::{load, MeshKind};
 use mochi_sim::npz::NpzOut;
 use mochi_sim::Mesh;
 
-use super::asset_scene::{scene_toml, HandleChoice};
+use super::asset_scene::{scene_toml, HandleChoice, MesherRun};
 
 /// fTetWild's envelope (relative to the diagonal) for an edge length: its own default.
 pub const DEFAULT_EPSILON: f64 = 1e-3;
@@ -60,22 +60,6 @@ pub struct MeshOptions {
     pub threads: usize,
     /// Draw a spinner while the mesher runs.
     pub bar: bool,
-}
-
-/// One mesher run.
-#[derive(Clone, Debug, PartialEq)]
-pub struct MesherRun {
-    /// Target edge length given.
-    pub edge_length: f64,
-    /// fTetWild's envelope: how far the tet mesh's surface may be from the asset's, relative
-    /// to the bounding-box diagonal.
-    pub epsilon: f64,
-    /// Vertices and tets made.
-    pub vertices: usize,
-    /// Tets made.
-    pub tets: usize,
-    /// The mesher's own time (s).
-    pub seconds: f64,
 }
 
 /// What `mochi mesh` did.

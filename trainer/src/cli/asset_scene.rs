@@ -7,7 +7,21 @@ use std::path::Path;
 use mochi_sim::mesh::asset::repair::Repaired;
 use mochi_sim::Mesh;
 
-use super::asset_mesh::MesherRun;
+/// One mesher run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MesherRun {
+    /// Target edge length given.
+    pub edge_length: f64,
+    /// fTetWild's envelope: how far the tet mesh's surface may be from the asset's, relative
+    /// to the bounding-box diagonal.
+    pub epsilon: f64,
+    /// Vertices and tets made.
+    pub vertices: usize,
+    /// Tets made.
+    pub tets: usize,
+    /// The mesher's own time (s).
+    pub seconds: f64,
+}
 
 /// Which vertices the scene's handle takes, in the asset's frame.
 #[derive(Clone, Debug, PartialEq)]

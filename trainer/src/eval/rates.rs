@@ -14,6 +14,7 @@
 
 use std::path::PathBuf;
 
+use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::{self, SequencePlan, Split};
 use mochi_sim::BuiltScene;
 
@@ -91,7 +92,7 @@ pub fn evaluate_rates(paths: &[PathBuf], options: &RatesOptions, report: &dyn Re
         .first()
         .ok_or_else(|| TrainerError::invalid("no artifact given"))?
         .1;
-    let (problem, _) = rebuild_problem(&first.artifact)?;
+    let (mut problem, _) = rebuild_problem(&first.artifact)?;
     let mut encodings = Vec::new();
     for (path, model) in &models {
         let same_body = model.artifact.rest == first.artifact.rest && model.artifact.handles == first.artifact.handles;
@@ -108,24 +109,29 @@ pub fn evaluate_rates(paths: &[PathBuf], options: &RatesOptions, report: &dyn Re
     let mut rows = Vec::new();
     for &rate in &options.rates {
         let dt = 1.0 / rate;
-        let mut scene = problem.scene.clone();
-        scene.dt = dt;
-        let mut at_rate = scene.build()?;
         let measured = ((options.seconds * rate).round() as usize).max(1);
         let frames = options.stability_frames.max(measured);
+        // The motions seen at this rate, then the scene stepped at it.
+        let motions: Vec<BcSequence> = plans
+            .iter()
+            .map(|plan| {
+                let seen = SequencePlan {
+                    dt: Some(dt),
+                    ..plan.clone()
+                };
+                problem.plan_sequence(&seen, frames)
+            })
+            .collect();
+        let mut rebuilt = problem.at_frame_time(Some(dt))?;
+        let at_rate = rebuilt.as_mut().unwrap_or(&mut problem);
         let mut cells: Vec<Vec<RolloutMetrics>> = vec![Vec::new(); models.len()];
-        for plan in &plans {
-            let seen = SequencePlan {
-                dt: Some(dt),
-                ..plan.clone()
-            };
-            let bc = problem.plan_sequence(&seen, frames);
+        for (plan, bc) in plans.iter().zip(&motions) {
             let reference = at_rate.run(&bc.first(measured), &report.frames(&format!("{rate} Hz {}", plan.name)))?;
             for (((_, model), encoding), cell) in models.iter().zip(&encodings).zip(&mut cells) {
                 if !steps_at(&model.artifact, dt) {
                     continue;
                 }
-                let metrics = rollout(model, &at_rate, encoding, &bc, frames, &reference, measured)?;
+                let metrics = rollout(model, at_rate, encoding, bc, frames, &reference, measured)?;
                 report.message(&format!(
                     "{rate} Hz {} {}: mean error {:.3}%, stable {} / {frames}",
                     label(&model.artifact),

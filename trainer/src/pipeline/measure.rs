@@ -46,7 +46,7 @@ pub(crate) fn measure(artifact: &Artifact, inputs: &SelectionInputs<'_>, row: &m
         let frames = reference.num_frames() - 1;
         let bc = problem.plan_sequence(plan, frames);
         // A sequence at another frame time is measured in the scene stepped at it.
-        let at_rate = at_frame_time(problem, plan.dt)?;
+        let at_rate = problem.at_frame_time(plan.dt)?;
         let metrics = rollout(
             &model,
             at_rate.as_ref().unwrap_or(problem),
@@ -79,16 +79,4 @@ pub(crate) fn measure(artifact: &Artifact, inputs: &SelectionInputs<'_>, row: &m
         row.candle_microseconds = 1e6 * t.candle;
     }
     Ok(())
-}
-
-/// `problem`'s scene built with the time step `dt` when it is not the scene's own.
-pub(crate) fn at_frame_time(problem: &BuiltScene, dt: Option<f64>) -> TrainerResult<Option<BuiltScene>> {
-    match dt {
-        Some(dt) if dt != problem.scene.dt => {
-            let mut scene = problem.scene.clone();
-            scene.dt = dt;
-            Ok(Some(scene.build()?))
-        }
-        _ => Ok(None),
-    }
 }

@@ -18,6 +18,7 @@ use crate::contact::collider_ccd::colliders_max_step;
 use crate::contact::collider_friction::ColliderFriction;
 use crate::contact::{Collider, ColliderBarrier, ColliderPose};
 use crate::energy::{self, StencilEnergy};
+use crate::solver::StepError;
 use nalgebra::Vector3;
 
 /// The colliders' barrier (holding their current poses), where they must be at the end
@@ -133,5 +134,45 @@ impl Contact {
     /// The smallest squared distance of a surface vertex to a collider at `x`.
     pub(super) fn collider_min_squared_distance(&self, x: &[f64]) -> f64 {
         self.colliders.barrier.min_distance(x).powi(2)
+    }
+}
+
+/// The simulator's side of the colliders: what a caller asks of them.
+impl crate::solver::Simulator {
+    /// The analytic colliders' barrier (their shapes and current poses), if the simulator
+    /// has contact.
+    pub fn collider_barrier(&self) -> Option<&ColliderBarrier> {
+        self.contact.as_ref().map(Contact::collider_barrier)
+    }
+
+    /// Asks the analytic colliders to be at `poses` (one per collider, in the scene's order)
+    /// at the end of the next step; they move there during its solve, CCD-bounded like the
+    /// body. Until called again they stay there. A list of the wrong length is refused.
+    pub fn set_collider_poses(&mut self, poses: &[ColliderPose]) -> Result<(), StepError> {
+        let Some(c) = &mut self.contact else {
+            return Self::collider_count(0, poses.len());
+        };
+        Self::collider_count(c.num_colliders(), poses.len())?;
+        c.set_collider_goal(poses);
+        Ok(())
+    }
+
+    /// Places the analytic colliders at `poses` at once, without a solve (a sequence's first
+    /// frame). A list of the wrong length is refused.
+    pub fn place_colliders(&mut self, poses: &[ColliderPose]) -> Result<(), StepError> {
+        let Some(c) = &mut self.contact else {
+            return Self::collider_count(0, poses.len());
+        };
+        Self::collider_count(c.num_colliders(), poses.len())?;
+        c.place_colliders(poses);
+        Ok(())
+    }
+
+    fn collider_count(expected: usize, got: usize) -> Result<(), StepError> {
+        if expected == got {
+            Ok(())
+        } else {
+            Err(StepError::ColliderCount { expected, got })
+        }
     }
 }
