@@ -2,6 +2,7 @@
 //! (triangles in 3D) and rods (polylines).
 
 pub mod asset;
+mod bounds;
 pub mod embedding;
 pub mod io;
 mod mass;
@@ -9,6 +10,7 @@ pub mod parts;
 pub mod procedural;
 mod validate;
 
+pub use bounds::BoxSpec;
 use nalgebra::Vector3;
 
 pub(crate) use mass::lumped_masses;

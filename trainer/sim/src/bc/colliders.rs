@@ -107,7 +107,7 @@ pub struct ColliderMotionSpec {
     pub speed: [f64; 2],
     /// Box the aim points are drawn in (default: the body's rest bounding box).
     #[serde(default)]
-    pub region: Option<crate::scene::BoxSpec>,
+    pub region: Option<crate::mesh::BoxSpec>,
     /// Directions of the first approach to choose from (default: uniform over all).
     #[serde(default)]
     pub directions: Vec<[f64; 3]>,

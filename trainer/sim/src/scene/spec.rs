@@ -197,21 +197,7 @@ pub struct RegionSpec {
     pub density: Option<f64>,
 }
 
-/// An axis-aligned box.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BoxSpec {
-    /// Lower corner.
-    pub min: [f64; 3],
-    /// Upper corner.
-    pub max: [f64; 3],
-}
-
-impl BoxSpec {
-    pub(crate) fn contains(&self, p: [f64; 3]) -> bool {
-        (0..3).all(|i| p[i] >= self.min[i] && p[i] <= self.max[i])
-    }
-}
+pub use crate::mesh::BoxSpec;
 
 /// Which vertices a handle or load acts on.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
