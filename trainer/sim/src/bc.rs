@@ -330,6 +330,13 @@ impl BcSequence {
         self.colliders.iter().map(|c| c.poses[frame]).collect()
     }
 
+    /// The colliders' states at `frame`, one row of a trajectory's `collider_states`: per
+    /// collider centre, rotation vector, velocity and angular velocity
+    /// ([`colliders::STATE_PER_COLLIDER`] numbers).
+    pub fn collider_states(&self, frame: usize) -> Vec<f64> {
+        self.colliders.iter().flat_map(|c| c.state(frame)).collect()
+    }
+
     /// The boundary-condition signal at `frame`: per handle, linear and angular velocity,
     /// translation and rotation vector ([`SIGNAL_PER_HANDLE`] numbers).
     pub fn signal(&self, frame: usize) -> Vec<f64> {

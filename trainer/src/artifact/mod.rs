@@ -248,6 +248,11 @@ impl Artifact {
         self.dt_range[1] > 0.0
     }
 
+    /// Number of run-time collider slots the integrator reads.
+    pub fn colliders(&self) -> usize {
+        self.collider_shapes.len() / mochi_runtime::collider::SHAPE_ROW
+    }
+
     /// Length of an encoded state (`dim` per encoded vertex, 2 with strand bends).
     pub fn encoded_len(&self) -> usize {
         let per_vertex = if self.encoding.chains.is_empty() {
@@ -391,7 +396,7 @@ impl Artifact {
                 &self.integrator,
                 2 * k
                     + 3 * self.bc_len as usize
-                    + mochi_runtime::collider::FEATURES_PER_COLLIDER * (self.collider_shapes.len() / 4)
+                    + mochi_runtime::collider::FEATURES_PER_COLLIDER * self.colliders()
                     + usize::from(self.timed()),
                 k,
             ),

@@ -34,6 +34,7 @@ pub mod adaptive;
 pub mod adaptive_bench;
 pub mod compare;
 pub mod network_export;
+pub mod penetration;
 pub mod rates;
 pub mod reduced;
 pub mod reduced_bench;
@@ -431,6 +432,41 @@ fn report_markdown(scene: &str, reports: &[ModelReport], reference_seconds: f64,
                 reference_seconds / cost
             );
         }
+    }
+    s + &penetration_table(reports)
+}
+
+/// The colliders' table of the report (empty for a scene without run-time colliders): per
+/// model and sequence, how deep the surface went into the colliders over the stable frames,
+/// and the same with the runtime's push-out correction.
+fn penetration_table(reports: &[ModelReport]) -> String {
+    let rows: Vec<_> = reports
+        .iter()
+        .flat_map(|r| r.sequences.iter().map(move |(plan, m)| (r, plan, m)))
+        .filter_map(|(r, plan, m)| m.penetration.as_ref().map(|p| (r, plan, p)))
+        .collect();
+    let Some((_, _, first)) = rows.first() else {
+        return String::new();
+    };
+    let mut s = format!(
+        "\n## Colliders\n\nPenetration of the surface vertices into the run-time colliders over each rollout's stable \
+         frames (`dhat` = {:.1e} m), and with the runtime's push-out (`collider::push_out`) of the decoded surface; \
+         its error is over the accuracy frames.\n\n| model | sequence | deepest | frames with a vertex inside | \
+         deeper than dhat | deepest, pushed out | mean err % pushed out |\n|---|---|---|---|---|---|---|\n",
+        first.dhat
+    );
+    for (r, plan, p) in rows {
+        s += &format!(
+            "| {} | {} | {:.2} mm ({:.1} dhat) | {:.1}% | {:.1}% | {:.2} mm | {:.3} |\n",
+            label(r),
+            plan.name,
+            1e3 * p.max_depth,
+            p.max_depth / p.dhat,
+            100.0 * p.inside_share,
+            100.0 * p.deep_share,
+            1e3 * p.pushed_max_depth,
+            100.0 * p.pushed_mean_error
+        );
     }
     s
 }

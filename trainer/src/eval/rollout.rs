@@ -12,7 +12,8 @@ use mochi_sim::BuiltScene;
 
 use crate::artifact::Artifact;
 use crate::error::{TrainerError, TrainerResult};
-use crate::learn::encoding::{decode_world, pack_signals, Encoding};
+use crate::eval::penetration::{Penetration, PenetrationMeter};
+use crate::learn::encoding::{collider_inputs, decode_world, pack_signals, Encoding};
 use crate::learn::network::{ExportedIntegrator, FrozenDecoder};
 use crate::learn::recipe::{Recipe, RodEncoding};
 use crate::progress::Reporter;
@@ -145,6 +146,9 @@ pub struct RolloutMetrics {
     pub step_seconds: f64,
     /// Seconds per full decode (network and world frame).
     pub decode_seconds: f64,
+    /// Penetration into the scene's run-time colliders over the stable frames (`None`
+    /// without colliders).
+    pub penetration: Option<Penetration>,
 }
 
 /// Largest norm of an encoded vertex's values (`per_vertex` each): its distance from its
@@ -177,17 +181,20 @@ pub fn roll(
     for t in 1..=frames {
         signals.rotate_right(1);
         signals[0] = bc.signal(t);
+        let targets = bc.targets(&problem.handles, t, dim);
+        let frame = encoding.frame(&targets)?;
+        let states = bc.collider_states(t);
         let clock = Instant::now();
+        let colliders = collider_inputs(a.colliders(), &frame, &targets, dim, a.diagonal, &states);
         let q_in = pack_signals(
             &z_prev,
             &z_prev2,
             [&signals[0], &signals[1], &signals[2]],
+            &colliders,
             a.timed().then_some(problem.scene.dt),
         );
         let z = model.integrator.step(&q_in)?;
         let mid = Instant::now();
-        let targets = bc.targets(&problem.handles, t, dim);
-        let frame = encoding.frame(&targets)?;
         let q = model.decoder.decode(&z)?;
         let x = decode_world(encoding, &q, &frame, &targets)?;
         step_time += (mid - clock).as_secs_f64();
@@ -280,6 +287,7 @@ pub fn rollout(
     };
     let (mut ke_ours, mut ke_ref) = (0.0, 0.0);
     let mut rolled = 0;
+    let mut meter = PenetrationMeter::new(problem);
     // A rollout that drifts off the reference is diverged, but rolls on to measure how long
     // it stays bounded.
     let (step_time, decode_time) = roll(model, problem, encoding, bc, frames, |t, z, q, x| {
@@ -292,6 +300,10 @@ pub fn rollout(
                 metrics.divergence = Some(reason);
             }
             return false;
+        }
+        if let Some(meter) = &mut meter {
+            let compared = (t <= measured).then(|| (&reference.positions[t][..], a.diagonal));
+            meter.frame(x, &bc.collider_poses(t), compared);
         }
         if t <= measured {
             let xr = &reference.positions[t];
@@ -308,6 +320,7 @@ pub fn rollout(
         x_prev.copy_from_slice(x);
         true
     })?;
+    metrics.penetration = meter.map(PenetrationMeter::finish);
     let done = rolled.max(1) as f64;
     metrics.step_seconds = step_time / done;
     metrics.decode_seconds = decode_time / done;
@@ -324,4 +337,4 @@ pub fn rollout(
     Ok(metrics)
 }
 
-pub use crate::methods::learned::motions;
+pub use crate::methods::learned::{collider_states, motions};

@@ -12,11 +12,12 @@ use std::time::Instant;
 
 use candle_core::{Device, Tensor};
 use mochi_codegen::{format_name, Options, Quantized};
+use mochi_runtime::collider::{push_out, Collider, ColliderState, FEATURES_PER_COLLIDER};
 use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, WeightFormat};
 
 use crate::artifact::Artifact;
 use crate::error::{bail, Context, TrainerResult as Result};
-use crate::eval::rollout::motions;
+use crate::eval::rollout::{collider_states, motions};
 use crate::eval::{self, LoadedModel};
 use crate::learn::encoding::pack_signals;
 use crate::learn::network::{Decoder, ResMlp};
@@ -47,6 +48,11 @@ pub struct RuntimeTiming {
     pub full: f64,
     /// Seconds per frame: runtime step + surface decode.
     pub surface: f64,
+    /// Run-time collider slots the model reads (stepped with the test sequence's colliders).
+    pub colliders: usize,
+    /// Seconds per frame of `collider::push_out` of the full decoded state (0 without
+    /// colliders).
+    pub push_out: f64,
     /// Seconds per frame: candle batch-1 integrator + decoder forward.
     pub candle: f64,
     /// Multiply-adds of one integrator + full decoder forward.
@@ -129,7 +135,12 @@ pub(crate) fn bench_artifact(
         .find(|p| p.split == Split::Test)
         .context("the scene has no test sequence")?;
     let bc = problem.sequence(&plan.speeds, frames, plan.seed);
-    let script: Vec<Vec<HandleMotion>> = (1..=frames).map(|t| motions(&bc, t)).collect();
+    let script: Vec<ScriptFrame> = (1..=frames)
+        .map(|t| ScriptFrame {
+            motions: motions(&bc, t),
+            colliders: collider_states(&bc, t, m.colliders()),
+        })
+        .collect();
 
     let trainer = LoadedModel::new(artifact.clone())?;
     let reference = eval::stable_rollout(&trainer, &problem, &encoding, &bc, frames)?;
@@ -165,6 +176,8 @@ pub(crate) fn bench_artifact(
             surface_len: m.surface_len(),
             full: measured.full,
             surface: measured.surface,
+            colliders: m.colliders(),
+            push_out: measured.push_out,
             candle,
             // A bend-encoded model's decode also walks every strand, a step per vertex.
             multiply_adds: mochi_runtime::network::multiply_adds(m.integrator)
@@ -179,10 +192,29 @@ pub(crate) fn bench_artifact(
     Ok(timings)
 }
 
+/// One frame of the benchmark's motion: the handles' motions and the colliders' states.
+pub struct ScriptFrame {
+    /// Per handle.
+    pub motions: Vec<HandleMotion>,
+    /// Per collider slot of the model.
+    pub colliders: Vec<ColliderState>,
+}
+
+impl ScriptFrame {
+    /// One runtime step of `body` with this frame's handles and colliders.
+    fn step<const K: usize, const S: usize, const H: usize>(
+        &self,
+        body: &mut Instance<K, S, H>,
+        model: &ValidModel,
+    ) -> std::result::Result<Stepped, mochi_runtime::StepError> {
+        body.step_with(model, &self.motions, &self.colliders, model.model().dt)
+    }
+}
+
 /// What the runtime rollout needs.
 struct Run<'a> {
     model: &'a ValidModel<'a>,
-    script: &'a [Vec<HandleMotion>],
+    script: &'a [ScriptFrame],
     reference: &'a [Vec<f64>],
     diagonal: f64,
 }
@@ -190,6 +222,7 @@ struct Run<'a> {
 struct Measured {
     full: f64,
     surface: f64,
+    push_out: f64,
     state_bytes: usize,
     disagreement: f64,
     compared: usize,
@@ -201,7 +234,7 @@ struct Measured {
 /// documented departures from the trainer); and how many frames were compared.
 pub fn agreement<const K: usize, const S: usize, const H: usize>(
     model: &ValidModel,
-    script: &[Vec<HandleMotion>],
+    script: &[ScriptFrame],
     reference: &[Vec<f64>],
     diagonal: f64,
 ) -> Result<(f64, usize)> {
@@ -210,7 +243,7 @@ pub fn agreement<const K: usize, const S: usize, const H: usize>(
     let mut x = vec![0.0f32; m.state_len()];
     let (mut worst, mut compared) = (0.0f64, 0);
     for (bc, r) in script.iter().zip(reference) {
-        if body.step(model, bc)? != Stepped::Ok {
+        if bc.step(&mut body, model)? != Stepped::Ok {
             break;
         }
         body.decode_into(model, &mut x)?;
@@ -229,18 +262,36 @@ fn measure<const K: usize, const S: usize, const H: usize>(run: &Run) -> Result<
     let frames = run.script.len();
     let mut body = fresh()?;
     let full = seconds_per_call(frames, |i| {
-        let _ = body.step(model, &run.script[i % frames]);
+        let _ = run.script[i % frames].step(&mut body, model);
         let _ = body.decode_into(model, &mut x);
     });
     let mut body = fresh()?;
     let mut surface_x = vec![0.0f32; m.surface_len()];
     let surface = seconds_per_call(frames, |i| {
-        let _ = body.step(model, &run.script[i % frames]);
+        let _ = run.script[i % frames].step(&mut body, model);
         let _ = body.decode_surface_into(model, &mut surface_x);
     });
+    let push_out = match m.colliders() {
+        0 => 0.0,
+        _ => {
+            let posed = |states: &[ColliderState]| -> Vec<Collider> {
+                states
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(slot, s)| m.collider_at(slot, s))
+                    .collect()
+            };
+            let shapes: Vec<Collider> = (0..frames).flat_map(|i| posed(&run.script[i].colliders)).collect();
+            let per_frame = shapes.len() / frames.max(1);
+            seconds_per_call(frames, |i| {
+                let _ = push_out(&mut x, m.dim(), &shapes[i * per_frame..(i + 1) * per_frame], 0.0);
+            })
+        }
+    };
     Ok(Measured {
         full,
         surface,
+        push_out,
         state_bytes: std::mem::size_of::<Instance<K, S, H>>(),
         disagreement,
         compared,
@@ -270,10 +321,19 @@ fn run_for_sizes(k: usize, s: usize, hidden: usize, run: &Run) -> Result<Measure
 /// Seconds per frame of candle's batch-1 forward of the integrator and the decoder (weights
 /// from the same artifact), rolling out the same script; the frame transform is left out, so
 /// candle does less work than the runtime here.
-fn candle_seconds(trainer: &LoadedModel, script: &[Vec<HandleMotion>], k: usize) -> Result<f64> {
+fn candle_seconds(trainer: &LoadedModel, script: &[ScriptFrame], k: usize) -> Result<f64> {
     let integrator = ResMlp::from_exported(trainer.integrator.mlp())?;
     let decoder = Decoder::from_frozen(&trainer.decoder)?;
-    let signal = |i: usize| -> Vec<f64> { script[i].iter().flat_map(|m| m.signal()).map(f64::from).collect() };
+    let signal = |i: usize| -> Vec<f64> {
+        script[i]
+            .motions
+            .iter()
+            .flat_map(|m| m.signal())
+            .map(f64::from)
+            .collect()
+    };
+    // Collider inputs of the right length (candle's cost does not depend on their values).
+    let colliders = vec![0.0f32; FEATURES_PER_COLLIDER * trainer.artifact.colliders()];
     // A timed model steps at its own frame time here.
     let dt = trainer.artifact.timed().then_some(trainer.artifact.dt);
     let initial = trainer.artifact.initial_latent.clone();
@@ -284,7 +344,7 @@ fn candle_seconds(trainer: &LoadedModel, script: &[Vec<HandleMotion>], k: usize)
     let frames = script.len();
     let seconds = seconds_per_call(frames, |i| {
         let p0 = signal(i % frames);
-        let input = pack_signals(&z, &z_prev, [&p0, &p1, &p2], dt);
+        let input = pack_signals(&z, &z_prev, [&p0, &p1, &p2], &colliders, dt);
         let result = (|| -> candle_core::Result<Vec<f32>> {
             let x = Tensor::from_slice(&input, (1, input.len()), &Device::Cpu)?;
             let increment = integrator.forward(&x)?;
@@ -313,15 +373,20 @@ pub fn table(timings: &[RuntimeTiming]) -> String {
         "Runtime kernels on this CPU: `f32` {:?} (`mochi_runtime::network::fast`), `f16` canonical sum, int8 integer sum.\n\n",
         mochi_runtime::network::fast::width()
     );
-    s += "| artifact | weights | latent | step + full decode | step + surface decode | candle batch-1 | runtime speed-up | GFLOP/s | weights | instance state | max disagreement (frames) |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+    s += "| artifact | weights | latent | colliders | step + full decode | step + surface decode | push-out | candle batch-1 | runtime speed-up | GFLOP/s | weights | instance state | max disagreement (frames) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for t in timings {
+        let push = match t.colliders {
+            0 => "-".to_string(),
+            _ => format!("{:.1} µs", 1e6 * t.push_out),
+        };
         s += &format!(
-            "| {} | {} | {} | {:.1} µs | {:.1} µs | {:.1} µs | {:.1}x | {:.2} | {:.1} KiB | {} B | {:.1e} ({}) |\n",
+            "| {} | {} | {} | {} | {:.1} µs | {:.1} µs | {push} | {:.1} µs | {:.1}x | {:.2} | {:.1} KiB | {} B | {:.1e} ({}) |\n",
             t.path
                 .file_name()
                 .map_or(t.scene.clone(), |n| n.to_string_lossy().into_owned()),
             format_name(t.weights),
             t.latent,
+            t.colliders,
             1e6 * t.full,
             1e6 * t.surface,
             1e6 * t.candle,

@@ -37,8 +37,11 @@ pub struct DistilledIntegrator {
 
 /// Distils `teacher` into an integrator of `shape`. `rollout(step)` rolls a stepping function
 /// over the training motions and returns the packed inputs it met; `config` sets each fit.
+/// The teacher reads `bc` boundary-condition numbers per signal and `colliders` collider
+/// slots (and the frame time when it is timed).
 pub fn distill_integrator(
     teacher: &ExportedIntegrator,
+    (bc, colliders): (usize, usize),
     shape: IntegratorDistillShape,
     config: &TrainConfig,
     mut rollout: impl FnMut(&Step) -> TrainResult<Vec<Vec<f32>>>,
@@ -49,17 +52,21 @@ pub fn distill_integrator(
     let Some(width) = inputs.first().map(Vec::len) else {
         return Err(TrainError::Invalid("the teacher's rollouts visited no input".into()));
     };
-    // Three signals of one length, then the frame time for a timed integrator (signals are
-    // 12 numbers per handle, so the two layouts cannot be confused).
-    let (bc, timed) = match width.checked_sub(2 * k).map(|rest| (rest / 3, rest % 3)) {
-        Some((bc, 0)) => (bc, false),
-        Some((bc, 1)) => (bc, true),
-        _ => {
-            return Err(TrainError::Invalid(format!(
-                "packed inputs of {width} values for latent size {k}"
-            )))
-        }
+    let timed = teacher.reference_dt().is_some();
+    let layout = IntegratorSpec {
+        latent: k,
+        bc,
+        hidden: shape.hidden,
+        blocks: shape.blocks,
+        colliders,
+        timed,
+        reference_dt: teacher.reference_dt().unwrap_or(0.0),
     };
+    if width != layout.input() || width != teacher.mlp().spec().input {
+        return Err(TrainError::Invalid(format!(
+            "packed inputs of {width} values for latent size {k}, {bc} signal numbers and {colliders} collider slots"
+        )));
+    }
     // A timed teacher's increments scale with the frame time (the input's last number); the
     // student's normalisation is fitted at the reference frame time, as its own training's.
     let reference = teacher.reference_dt();
@@ -76,14 +83,7 @@ pub fn distill_integrator(
     };
     let input_norm = Normalisation::fit(&inputs).map_err(|e| TrainError::Invalid(e.to_string()))?;
     let increment_norm = Normalisation::fit(&increments(&inputs)?).map_err(|e| TrainError::Invalid(e.to_string()))?;
-    let spec = IntegratorSpec {
-        latent: k,
-        bc,
-        hidden: shape.hidden,
-        blocks: shape.blocks,
-        timed,
-        reference_dt: reference.unwrap_or(0.0),
-    };
+    let spec = layout;
     let inverse: Vec<f32> = increment_norm.std.iter().map(|s| 1.0 / s).collect();
     let inverse = Tensor::from_vec(inverse, (1, k), &Device::Cpu)?;
     let student = LatentIntegrator::new(spec, input_norm, increment_norm, config.seed)

@@ -12,7 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use crate::learn::encoding::decode_world;
-use crate::learn::loss::PhysicsLoss;
+use crate::learn::loss::{ColliderContact, PhysicsLoss};
 use crate::learn::network::{tensor_to_rows, Autoencoder, LatentIntegrator};
 use crate::learn::samples::{candle_err, perturbed, rolled_inputs, to_tensor, Augmentation, IntegratorData, SampleRef};
 use crate::learn::train::{Batch, BatchLoss};
@@ -39,9 +39,16 @@ impl<'a> PhysicsObjective<'a> {
         bc_weight: f64,
         min_speed: f64,
     ) -> Result<Self, InputError> {
+        let colliders = (data.colliders > 0).then(|| collider_contact(problem)).flatten();
         let losses = (0..rayon::current_num_threads().max(1))
-            .map(|_| PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, Some(bc_weight)))
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|_| {
+                let loss = PhysicsLoss::new(&problem.scene, &problem.mesh, &problem.handles, Some(bc_weight))?;
+                Ok(match &colliders {
+                    Some(c) => loss.with_colliders(c.clone()),
+                    None => loss,
+                })
+            })
+            .collect::<Result<Vec<_>, InputError>>()?;
         Ok(PhysicsObjective {
             data,
             ae,
@@ -147,6 +154,8 @@ impl<'a> PhysicsObjective<'a> {
                     let (prev, prev2) = &prevs[i];
                     let dt = data.sequences[s.sequence].trajectory.dt;
                     loss.set_dt(dt);
+                    let (previous, current) = data.collider_poses(s);
+                    loss.set_collider_poses(&previous, &current);
                     let value = loss.value_and_gradient(&x, prev, prev2, targets, &mut grad);
                     // A sample at another frame time is weighted by (dt / scene dt)^2: the loss
                     // times dt^2 is the solver's own objective, whose curvature (M + dt^2 K) is
@@ -178,6 +187,17 @@ impl<'a> PhysicsObjective<'a> {
             value: total / m as f64,
         })
     }
+}
+
+/// The colliders' part of the physics loss of `problem`'s body: the simulator's collider
+/// barrier at the stiffest stiffness its solver uses, with the scene's friction; `None`
+/// without colliders.
+pub(crate) fn collider_contact(problem: &BuiltScene) -> Option<ColliderContact> {
+    let barrier = problem.simulator.collider_barrier()?.clone();
+    let (_, kappa) = problem.simulator.barrier_stiffness_range()?;
+    let contact = problem.scene.contact.as_ref()?;
+    let friction = (contact.friction > 0.0).then_some((contact.friction, contact.epsv));
+    (!barrier.colliders().is_empty()).then(|| ColliderContact::new(barrier, kappa, friction))
 }
 
 #[cfg(test)]

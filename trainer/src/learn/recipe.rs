@@ -169,6 +169,10 @@ pub struct LatentSpec {
     pub seed: u64,
     /// What the latent space of a rods scene encodes (`positions` or `bends`).
     pub rods: RodEncoding,
+    /// Whether the integrator takes the scene's run-time colliders (`[[colliders]]`) as
+    /// inputs, and the physics loss their barrier (default true; false trains a model that
+    /// cannot see them, for comparison).
+    pub collider_inputs: bool,
     /// Model selection over cost (`[latent.selection]`).
     pub selection: SelectionSpec,
 }
@@ -308,12 +312,23 @@ impl Default for LatentSpec {
             stretch: 0.0,
             seed: 0,
             rods: RodEncoding::Positions,
+            collider_inputs: true,
             selection: SelectionSpec::default(),
         }
     }
 }
 
 impl LatentSpec {
+    /// The collider slots a model of `scene` reads: its colliders, or none when
+    /// `collider_inputs` is off.
+    pub fn collider_slots(&self, scene: &mochi_sim::scene::Scene) -> usize {
+        if self.collider_inputs {
+            scene.colliders.len()
+        } else {
+            0
+        }
+    }
+
     /// Checks ranges; returns the offending field (relative to `latent`) and a message.
     pub fn validate(&self) -> Result<(), (String, String)> {
         let positive = |v: f64| v.is_finite() && v > 0.0;

@@ -6,10 +6,11 @@ use candle_core::Tensor;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::learn::encoding::{decode_world, pack_signals, Encoding, Frame};
+use crate::learn::encoding::{collider_inputs, decode_world, pack_signals, Encoding, Frame};
 use crate::learn::network::{rows_to_tensor, tensor_to_rows, Autoencoder, LatentIntegrator, Normalisation};
 use crate::learn::sequences::EncodedSequence;
 use mochi_sim::bc::SIGNAL_PER_HANDLE;
+use mochi_sim::contact::ColliderPose;
 use mochi_sim::BuiltScene;
 
 /// Where a training sample of the integrator comes from.
@@ -43,7 +44,13 @@ pub struct IntegratorData<'a> {
     pub decoded: Vec<Vec<Vec<f64>>>,
     /// One sample per predicted frame.
     pub samples: Vec<SampleRef>,
-    /// Packed inputs `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`, one per sample.
+    /// Run-time collider slots the integrator reads (0: none, or a model trained without
+    /// collider inputs).
+    pub colliders: usize,
+    /// The collider slots' inputs per sequence and frame (empty rows without slots).
+    pub collider_inputs: Vec<Vec<Vec<f32>>>,
+    /// Packed inputs `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` (then collider inputs and
+    /// the frame time, as the integrator takes them), one per sample.
     pub inputs: Vec<Vec<f32>>,
     /// Normalisation of the packed inputs.
     pub input_norm: Normalisation,
@@ -84,12 +91,15 @@ pub enum SamplesError {
 }
 
 impl<'a> IntegratorData<'a> {
-    /// Encodes every frame with `ae` and packs one sample per predicted frame.
+    /// Encodes every frame with `ae` and packs one sample per predicted frame, with the
+    /// states of `colliders` collider slots (the scene's colliders, or 0 for a model without
+    /// collider inputs).
     pub fn new(
         problem: &BuiltScene,
         encoding: &'a Encoding,
         ae: &Autoencoder,
         sequences: &'a [EncodedSequence],
+        colliders: usize,
     ) -> Result<Self, SamplesError> {
         let k = ae.spec().latent;
         let bc_len = SIGNAL_PER_HANDLE * problem.handles.len();
@@ -121,6 +131,19 @@ impl<'a> IntegratorData<'a> {
             latents.push(z_seq);
             decoded.push(world);
         }
+        let diagonal = problem.mesh.rest_diagonal();
+        let dim = encoding.dim();
+        let touch: Vec<Vec<Vec<f32>>> = sequences
+            .iter()
+            .map(|seq| {
+                (0..seq.encoded.len())
+                    .map(|t| {
+                        let states = seq.trajectory.colliders.as_ref().map_or(&[][..], |c| &c.states[t][..]);
+                        collider_inputs(colliders, &seq.frames[t], &seq.targets[t], dim, diagonal, states)
+                    })
+                    .collect()
+            })
+            .collect();
         let mut samples = Vec::new();
         let mut inputs = Vec::new();
         let mut increments = Vec::new();
@@ -138,6 +161,7 @@ impl<'a> IntegratorData<'a> {
                     &latents[s][t - 1],
                     &latents[s][sample.prev2()],
                     &seq.trajectory.bc_signal,
+                    &touch[s][t],
                     t,
                     timed.then_some(seq.trajectory.dt),
                 ));
@@ -176,6 +200,8 @@ impl<'a> IntegratorData<'a> {
             decoded,
             samples,
             inputs,
+            colliders,
+            collider_inputs: touch,
             latent_range: (lo, hi),
             timed,
             reference_dt,
@@ -189,6 +215,19 @@ impl<'a> IntegratorData<'a> {
         self.timed.then(|| self.sequences[sequence].trajectory.dt)
     }
 
+    /// The colliders' poses at the frame before `sample`'s predicted frame and at it (empty
+    /// without collider inputs).
+    pub(crate) fn collider_poses(&self, sample: SampleRef) -> (Vec<ColliderPose>, Vec<ColliderPose>) {
+        let tracks = self.sequences[sample.sequence].trajectory.colliders.as_ref();
+        let poses = |frame: usize| -> Vec<ColliderPose> {
+            tracks
+                .filter(|_| self.colliders > 0)
+                .map(|c| c.colliders_at(frame).iter().map(|c| c.pose).collect())
+                .unwrap_or_default()
+        };
+        (poses(sample.frame - 1), poses(sample.frame))
+    }
+
     /// Target of the predicted frame of `sample`.
     pub(crate) fn step(&self, sample: SampleRef) -> (&Frame, &[f64]) {
         let seq = &self.sequences[sample.sequence];
@@ -196,14 +235,22 @@ impl<'a> IntegratorData<'a> {
     }
 }
 
-/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` (then `dt`, for an integrator that takes the
-/// frame time) for predicting frame `t` from the signal of every frame (frame indices below 0
-/// clamp to 0, the body at rest).
-pub fn pack(z_prev: &[f32], z_prev2: &[f32], signal: &[Vec<f64>], t: usize, dt: Option<f64>) -> Vec<f32> {
+/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`, then the collider inputs `colliders` of frame
+/// `t` (and `dt`, for an integrator that takes the frame time) for predicting frame `t` from
+/// the signal of every frame (frame indices below 0 clamp to 0, the body at rest).
+pub fn pack(
+    z_prev: &[f32],
+    z_prev2: &[f32],
+    signal: &[Vec<f64>],
+    colliders: &[f32],
+    t: usize,
+    dt: Option<f64>,
+) -> Vec<f32> {
     pack_signals(
         z_prev,
         z_prev2,
         [&signal[t], &signal[t.saturating_sub(1)], &signal[t.saturating_sub(2)]],
+        colliders,
         dt,
     )
 }
@@ -312,6 +359,7 @@ pub fn rolled_inputs(
                     &r.z_prev,
                     &r.z_prev2,
                     signal,
+                    &data.collider_inputs[r.sample.sequence][r.next],
                     r.next,
                     data.input_time(r.sample.sequence),
                 )
@@ -330,7 +378,8 @@ pub fn rolled_inputs(
         .map(|r| {
             let signal = &data.sequences[r.sample.sequence].trajectory.bc_signal;
             let dt = data.input_time(r.sample.sequence);
-            (r.sample, pack(&r.z_prev, &r.z_prev2, signal, r.sample.frame, dt))
+            let touch = &data.collider_inputs[r.sample.sequence][r.sample.frame];
+            (r.sample, pack(&r.z_prev, &r.z_prev2, signal, touch, r.sample.frame, dt))
         })
         .unzip())
 }
@@ -397,7 +446,7 @@ pub(crate) mod fixtures {
     impl TinyBeam {
         /// The integrator's training set of the beam.
         pub(crate) fn data(&self) -> IntegratorData<'_> {
-            IntegratorData::new(&self.problem, &self.encoding, &self.ae, &self.sequences).unwrap()
+            IntegratorData::new(&self.problem, &self.encoding, &self.ae, &self.sequences, 0).unwrap()
         }
     }
 
@@ -408,6 +457,7 @@ pub(crate) mod fixtures {
             bc: data.bc_len,
             hidden: 16,
             blocks: 1,
+            colliders: data.colliders,
             timed: data.timed,
             reference_dt: data.reference_dt,
         };
@@ -432,7 +482,7 @@ mod tests {
         let signal = &beam.sequences[0].trajectory.bc_signal;
         let k = data.latent;
         let step = |z1: &[f32], z2: &[f32], t: usize| -> Vec<f32> {
-            let row = pack(z1, z2, signal, t, None);
+            let row = pack(z1, z2, signal, &[], t, None);
             tensor_to_rows(&integrator.forward(&to_tensor(&[&row], row.len()).unwrap()).unwrap()).unwrap()[0].clone()
         };
         // Packed input of frame `t` after `steps` own steps from ground truth.
@@ -444,7 +494,7 @@ mod tests {
                 let next = step(&z1, &z2, f);
                 z2 = std::mem::replace(&mut z1, next);
             }
-            pack(&z1, &z2, signal, t, None)
+            pack(&z1, &z2, signal, &[], t, None)
         };
         let samples: Vec<SampleRef> = (1..data.samples.len() + 1)
             .map(|frame| SampleRef { sequence: 0, frame })

@@ -3,11 +3,13 @@
 //! and full decode, and its multiply-adds are the networks' (plus a strand walk for
 //! bend-encoded rods).
 
+use mochi_runtime::collider::ColliderState;
 use mochi_runtime::{AnyInstance, HandleMotion, ValidModel, SIGNAL_PER_HANDLE};
 use mochi_sim::bc::BcSequence;
 
 use super::method::{Method, StepCost};
 use crate::error::{TrainerError, TrainerResult};
+use crate::learn::encoding::collider_state;
 
 /// A model stepped by the runtime.
 pub struct LearnedRuntime<'m> {
@@ -73,9 +75,10 @@ impl Method for LearnedRuntime<'_> {
 
     fn step(&mut self, bc: &BcSequence, frame: usize) -> TrainerResult<StepCost> {
         let motion = motions(bc, frame);
+        let colliders = collider_states(bc, frame, self.model.model().colliders());
         let clock = super::clock::Stopwatch::start();
         self.body
-            .step_dt(self.model, &motion, self.dt)
+            .step_with(self.model, &motion, &colliders, self.dt)
             .map_err(|e| TrainerError::invalid(format!("runtime step refused: {e:?}")))?;
         self.body
             .decode_into(self.model, &mut self.x32)
@@ -103,5 +106,15 @@ pub fn motions(bc: &BcSequence, t: usize) -> Vec<HandleMotion> {
             s.iter_mut().zip(c).for_each(|(s, &v)| *s = v as f32);
             HandleMotion::from_signal(&s)
         })
+        .collect()
+}
+
+/// The states of the first `slots` colliders of `bc` at frame `t`, as the runtime takes them.
+pub fn collider_states(bc: &BcSequence, t: usize, slots: usize) -> Vec<ColliderState> {
+    let states = bc.collider_states(t);
+    states
+        .chunks_exact(mochi_sim::bc::colliders::STATE_PER_COLLIDER)
+        .take(slots)
+        .map(collider_state)
         .collect()
 }

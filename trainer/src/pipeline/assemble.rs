@@ -88,7 +88,7 @@ pub fn build_artifact(
             .dataset
             .frame_times()
             .map_or([0.0; 2], |(shortest, longest)| [shortest, longest]),
-        collider_shapes: Vec::new(),
+        collider_shapes: collider_shape_rows(problem, data.colliders),
         summary,
     };
     artifact.validate().map_err(|(field, message)| ArtifactError::Invalid {
@@ -96,6 +96,21 @@ pub fn build_artifact(
         message: format!("built an invalid artifact: {message}"),
     })?;
     Ok(artifact)
+}
+
+/// The shape rows `[code, a, b, c]` of the first `slots` colliders of `problem` (the
+/// integrator's collider slots).
+fn collider_shape_rows(problem: &BuiltScene, slots: usize) -> Vec<f32> {
+    let shapes = problem
+        .simulator
+        .collider_barrier()
+        .map(|b| b.shapes())
+        .unwrap_or_default();
+    shapes
+        .iter()
+        .take(slots)
+        .flat_map(|s| s.parameters().map(|v| v as f32))
+        .collect()
 }
 
 /// Everything the artifacts are made of.

@@ -8,8 +8,8 @@ use crate::error::{TrainerError, TrainerResult};
 use crate::eval::rollout::{rebuild_problem, roll, LoadedModel};
 use crate::learn::distill::{distill_decoder, distill_encoder, distill_outputs, DistillShape, Distilled};
 use crate::learn::distill_integrator::{distill_integrator, DistilledIntegrator, IntegratorDistillShape, Step};
-use crate::learn::encoding::pack_signals;
-use crate::learn::train::{AdamWConfig, TrainConfig};
+use crate::learn::encoding::{collider_inputs, pack_signals};
+use crate::learn::train::{AdamWConfig, TrainConfig, TrainError};
 use mochi_sim::dataset::{self, Split};
 
 /// Settings of a distillation; every field has the default named in its documentation.
@@ -197,7 +197,7 @@ pub fn distill_artifact_integrator(
     shape: IntegratorDistillShape,
     options: &DistillOptions,
 ) -> TrainerResult<(Artifact, DistilledIntegrator)> {
-    let (problem, _) = rebuild_problem(artifact)?;
+    let (problem, encoding) = rebuild_problem(artifact)?;
     let model = LoadedModel::new(artifact.clone())?;
     let spec = &problem.scene.dataset;
     let frames = options.frames.unwrap_or(spec.frames);
@@ -219,6 +219,7 @@ pub fn distill_artifact_integrator(
             .zip(lo.iter().zip(hi))
             .all(|(v, (l, h))| v.is_finite() && *v >= l - (h - l) && *v <= h + (h - l))
     };
+    let dim = problem.mesh.dim;
     let rollout = |step: &Step| {
         let mut inputs = Vec::new();
         for (bc, dt) in &sequences {
@@ -228,7 +229,20 @@ pub fn distill_artifact_integrator(
             for t in 1..=frames {
                 signals.rotate_right(1);
                 signals[0] = bc.signal(t);
-                let q = pack_signals(&z_prev, &z_prev2, [&signals[0], &signals[1], &signals[2]], *dt);
+                let targets = bc.targets(&problem.handles, t, dim);
+                let frame = encoding
+                    .frame(&targets)
+                    .map_err(|e| TrainError::Invalid(e.to_string()))?;
+                let states = bc.collider_states(t);
+                let colliders =
+                    collider_inputs(artifact.colliders(), &frame, &targets, dim, artifact.diagonal, &states);
+                let q = pack_signals(
+                    &z_prev,
+                    &z_prev2,
+                    [&signals[0], &signals[1], &signals[2]],
+                    &colliders,
+                    *dt,
+                );
                 let z = step(&q)?;
                 inputs.push(q);
                 if !inside(&z) {
@@ -240,7 +254,13 @@ pub fn distill_artifact_integrator(
         Ok(inputs)
     };
     let config = train_config(format!("distill-integrator-{}", artifact.scene), options);
-    let distilled = distill_integrator(&model.integrator, shape, &config, rollout)?;
+    let distilled = distill_integrator(
+        &model.integrator,
+        (artifact.bc_len as usize, artifact.colliders()),
+        shape,
+        &config,
+        rollout,
+    )?;
     let mut out = artifact.clone();
     out.integrator = distilled.integrator.mlp().layers().into_iter().cloned().collect();
     Ok((out, distilled))

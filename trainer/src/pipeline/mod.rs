@@ -103,7 +103,14 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
     let selected = &decoders[kept.decoder].selected;
 
     // The supervised baseline of the kept model (same decoder, same width).
-    let data = IntegratorData::new(problem, &frames.encoding, &selected.autoencoder, &frames.sequences)?;
+    let colliders = spec.collider_slots(&problem.scene);
+    let data = IntegratorData::new(
+        problem,
+        &frames.encoding,
+        &selected.autoencoder,
+        &frames.sequences,
+        colliders,
+    )?;
     let name = format!("integrator ({})", Method::Supervised.label());
     report.stage(&name);
     let clock = Instant::now();

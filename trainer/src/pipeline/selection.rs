@@ -235,7 +235,14 @@ pub(crate) fn train_candidates(
     for &d in &chosen {
         let trial = &decoders[d];
         let ae = &trial.selected.autoencoder;
-        let data = IntegratorData::new(inputs.problem, &inputs.frames.encoding, ae, &inputs.frames.sequences)?;
+        let colliders = spec.collider_slots(&inputs.problem.scene);
+        let data = IntegratorData::new(
+            inputs.problem,
+            &inputs.frames.encoding,
+            ae,
+            &inputs.frames.sequences,
+            colliders,
+        )?;
         for width in spec.selection.widths(spec.integrator.hidden) {
             let default = trial.family == DecoderCandidate::Mlp && width == spec.integrator.hidden;
             let tag = if default {

@@ -443,6 +443,7 @@ pub(crate) fn train_integrator(
         bc: data.bc_len,
         hidden: shape.width,
         blocks: spec.integrator.blocks,
+        colliders: data.colliders,
         timed: data.timed,
         reference_dt: data.reference_dt,
     };

@@ -118,6 +118,32 @@ impl ColliderShape {
         }
     }
 
+    /// The gradient of [`Self::signed_distance_local`] at `q`: the unit direction from the
+    /// closest surface point outward (inside a box, the normal of the nearest face). Where it
+    /// is not defined (the centre of a sphere, the axis of a capsule) a fixed unit direction.
+    pub fn signed_distance_gradient_local(&self, q: V3) -> V3 {
+        let unit = |r: V3, fallback: V3| r.try_normalize(0.0).unwrap_or(fallback);
+        match *self {
+            ColliderShape::Sphere { .. } => unit(q, V3::y()),
+            ColliderShape::Capsule { half_length, .. } => {
+                unit(q - V3::new(0.0, q.y.clamp(-half_length, half_length), 0.0), V3::x())
+            }
+            ColliderShape::Box { half_extents: h } => {
+                let excess = V3::from_fn(|i, _| q[i].abs() - h[i]);
+                let outside = V3::from_fn(|i, _| excess[i].max(0.0).copysign(q[i]));
+                match outside.try_normalize(0.0) {
+                    Some(n) => n,
+                    None => {
+                        let i = excess.imax();
+                        let mut n = V3::zeros();
+                        n[i] = 1.0f64.copysign(q[i]);
+                        n
+                    }
+                }
+            }
+        }
+    }
+
     /// Signed distance of the point `q`, in the shape's own frame, to its surface (negative
     /// inside); a convex function of `q`.
     pub fn signed_distance_local(&self, q: V3) -> f64 {
@@ -241,5 +267,16 @@ impl Collider {
     pub fn signed_distance(&self, p: &[f64]) -> f64 {
         let q = self.pose.rotation.inverse() * (V3::new(p[0], p[1], p[2]) - self.pose.center);
         self.shape.signed_distance_local(q)
+    }
+
+    /// [`Self::signed_distance`] of the point `p` and its gradient (a unit vector, world
+    /// axes; see [`ColliderShape::signed_distance_gradient_local`]).
+    pub fn signed_distance_and_gradient(&self, p: &[f64]) -> (f64, V3) {
+        let rot = self.pose.rotation;
+        let q = rot.inverse() * (V3::new(p[0], p[1], p[2]) - self.pose.center);
+        (
+            self.shape.signed_distance_local(q),
+            rot * self.shape.signed_distance_gradient_local(q),
+        )
     }
 }

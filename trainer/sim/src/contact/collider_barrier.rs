@@ -14,7 +14,7 @@
 //! collider between its vertices by about the sagitta of the shape over an edge. Shapes much
 //! larger than the body's surface edges keep that small.
 
-use super::barrier::barrier_of_squared_distance;
+use super::barrier::{barrier, barrier_first_derivative, barrier_of_squared_distance, barrier_second_derivative};
 use super::collider::{Collider, ColliderPose, ColliderShape};
 use crate::energy::{Local, StencilEnergy, Want};
 
@@ -94,6 +94,60 @@ impl ColliderBarrier {
                     .map(move |c| c.signed_distance(&x[3 * v..3 * v + 3]))
             })
             .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// The barrier of [`ColliderBarrier::floored_value_and_gradient`] held at `floor` and below:
+/// the second-order expansion of `b(d^2, dhat^2)` in the signed distance `d` at `floor`, as
+/// `(value, derivative)` at `d`.
+fn floored_barrier(d: f64, floor: f64, dhat: f64) -> (f64, f64) {
+    let dhat2 = dhat * dhat;
+    let s = floor * floor;
+    let (b, db, ddb) = (
+        barrier(s, dhat2),
+        barrier_first_derivative(s, dhat2),
+        barrier_second_derivative(s, dhat2),
+    );
+    // d/dd b(d^2) = 2 d b'(d^2); d^2/dd^2 b(d^2) = 2 b'(d^2) + 4 d^2 b''(d^2).
+    let (slope, curvature) = (2.0 * floor * db, 2.0 * db + 4.0 * s * ddb);
+    let h = d - floor;
+    (b + slope * h + 0.5 * curvature * h * h, slope + curvature * h)
+}
+
+impl ColliderBarrier {
+    /// The barrier `B(x)` as a loss on states that may penetrate (a network's predictions):
+    /// every (vertex, collider) pair at least `floor` (`0 < floor < dhat`) from the surface
+    /// counts exactly as in `B`; a pair nearer than `floor`, or inside the collider, counts
+    /// the second-order expansion of its barrier in the signed distance at `floor` (convex,
+    /// finite everywhere, growing with the depth). Adds `weight` times the gradient into
+    /// `grad` (3 numbers per vertex of `x`) and returns the unweighted value. Pairs are
+    /// summed in a fixed order.
+    pub fn floored_value_and_gradient(&self, x: &[f64], floor: f64, weight: f64, grad: &mut [f64]) -> f64 {
+        let dhat = self.dhat;
+        let mut total = 0.0;
+        for &v in &self.vertices {
+            let p = &x[3 * v..3 * v + 3];
+            for c in &self.colliders {
+                let (d, normal) = c.signed_distance_and_gradient(p);
+                if d >= dhat {
+                    continue;
+                }
+                let (value, slope) = if d >= floor {
+                    let s = d * d;
+                    (
+                        barrier(s, dhat * dhat),
+                        2.0 * d * barrier_first_derivative(s, dhat * dhat),
+                    )
+                } else {
+                    floored_barrier(d, floor, dhat)
+                };
+                total += value;
+                for i in 0..3 {
+                    grad[3 * v + i] += weight * slope * normal[i];
+                }
+            }
+        }
+        total
     }
 }
 

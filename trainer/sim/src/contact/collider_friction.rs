@@ -38,6 +38,30 @@ impl ColliderFriction {
         mu: f64,
         eps_u: f64,
     ) -> Self {
+        Self::lagged_above(barrier, x, goals, (kappa, mu, eps_u), None)
+    }
+
+    /// [`Self::lagged`] for states that may penetrate (a training loss on a network's
+    /// predictions; [`ColliderBarrier::floored_value_and_gradient`]): pairs nearer than
+    /// `floor`, or inside a collider, take part with the normal force at `floor` and the
+    /// normal of the signed distance.
+    pub fn lagged_floored(
+        barrier: &ColliderBarrier,
+        x: &[f64],
+        goals: &[ColliderPose],
+        (kappa, mu, eps_u): (f64, f64, f64),
+        floor: f64,
+    ) -> Self {
+        Self::lagged_above(barrier, x, goals, (kappa, mu, eps_u), Some(floor))
+    }
+
+    fn lagged_above(
+        barrier: &ColliderBarrier,
+        x: &[f64],
+        goals: &[ColliderPose],
+        (kappa, mu, eps_u): (f64, f64, f64),
+        floor: Option<f64>,
+    ) -> Self {
         let mut out = ColliderFriction {
             eps_u,
             vertices: Vec::new(),
@@ -48,22 +72,19 @@ impl ColliderFriction {
             return out;
         }
         let dhat = barrier.dhat();
-        let mut local = Local::default();
         for s in 0..barrier.len() {
             let (v, c) = barrier.pair(s);
             let collider = &barrier.colliders()[c];
             let p = &x[3 * v..3 * v + 3];
-            let d2 = collider.squared_distance(p, Want::Gradient, &mut local);
-            if !(d2 > 0.0 && d2 < dhat * dhat) {
+            let (d, n) = collider.signed_distance_and_gradient(p);
+            let lowest = floor.unwrap_or(0.0);
+            if d >= dhat || (floor.is_none() && d <= 0.0) {
                 continue;
             }
-            let normal_force = barrier_force_magnitude(d2, dhat, kappa);
+            let normal_force = barrier_force_magnitude(d.max(lowest).powi(2), dhat, kappa);
             if normal_force <= 0.0 {
                 continue;
             }
-            let d = d2.sqrt();
-            // The gradient of d^2 is 2 d n.
-            let n = Vector3::new(local.grad[0], local.grad[1], local.grad[2]) / (2.0 * d);
             let here = Vector3::new(p[0], p[1], p[2]);
             let contact = here - d * n;
             let carried = collider.pose.carry(contact, &goals[c]) - contact;

@@ -15,6 +15,8 @@ pub const UPDATE_DISTANCE_FRACTION: f64 = 1e-9;
 pub struct BarrierStiffness {
     /// The stiffness to start with.
     pub kappa: f64,
+    /// The smallest stiffness.
+    pub min: f64,
     /// The largest stiffness (100 times the smallest).
     pub max: f64,
 }
@@ -48,6 +50,7 @@ pub fn initial_barrier_stiffness(
     };
     BarrierStiffness {
         kappa: balance.max(min).min(max),
+        min,
         max,
     }
 }

@@ -115,6 +115,10 @@ pub(crate) enum Command {
         /// `latent.selection.integrator_widths`.
         #[arg(long)]
         integrator_width: Option<usize>,
+        /// Train a model that does not see the scene's run-time colliders (no collider inputs,
+        /// no collider barrier in the loss; `latent.collider_inputs = false`), to compare with.
+        #[arg(long)]
+        without_collider_inputs: bool,
     },
     /// Evaluate trained models on the held-out test sequences (with their supervised baselines).
     Eval {

@@ -223,8 +223,15 @@ pub(crate) fn train_scene(
     latent_size: Option<usize>,
     decoder: Option<&str>,
     integrator_width: Option<usize>,
+    without_collider_inputs: bool,
 ) -> Result<()> {
     let mut recipe = Recipe::load(name)?;
+    if without_collider_inputs {
+        if recipe.scene.colliders.is_empty() {
+            bail!("--without-collider-inputs: scene `{name}` has no [[colliders]]");
+        }
+        recipe.latent.collider_inputs = false;
+    }
     if latent_size == Some(0) {
         bail!("--latent must be at least 1");
     }

@@ -74,7 +74,16 @@ fn run(cli: Cli) -> Result<()> {
             latent,
             decoder,
             integrator_width,
-        } => train_scene(&scene, out, resume, latent, decoder.as_deref(), integrator_width),
+            without_collider_inputs,
+        } => train_scene(
+            &scene,
+            out,
+            resume,
+            latent,
+            decoder.as_deref(),
+            integrator_width,
+            without_collider_inputs,
+        ),
         Command::Eval {
             artifacts,
             out,

@@ -468,15 +468,23 @@ impl Encoding {
     }
 }
 
-/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` from the three signals, then the frame time `dt`
-/// (seconds) for an integrator that takes it as an input (`mochi_runtime::Model::timed`): the
-/// one owner of the integrator's input layout on the trainer's side (the runtime's
-/// `Instance::step_dt` packs the same).
-pub(crate) fn pack_signals(z_prev: &[f32], z_prev2: &[f32], signals: [&[f64]; 3], dt: Option<f64>) -> Vec<f32> {
+/// `[z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` from the three signals, then the collider
+/// slots' inputs `colliders` (`collider_inputs`; empty for a model without them), then the
+/// frame time `dt` (seconds) for an integrator that takes it as an input
+/// (`mochi_runtime::Model::timed`): the one owner of the integrator's input layout on the
+/// trainer's side (the runtime's `Instance::step_with` packs the same).
+pub(crate) fn pack_signals(
+    z_prev: &[f32],
+    z_prev2: &[f32],
+    signals: [&[f64]; 3],
+    colliders: &[f32],
+    dt: Option<f64>,
+) -> Vec<f32> {
     let mut row: Vec<f32> = z_prev.iter().chain(z_prev2).copied().collect();
     for p in signals {
         row.extend(p.iter().map(|&v| v as f32));
     }
+    row.extend_from_slice(colliders);
     row.extend(dt.map(|dt| dt as f32));
     row
 }

@@ -29,9 +29,11 @@
 //!
 //! `error`: what can go wrong; `frame`: the rotation and origins of a state (the Kabsch fit);
 //! `strands`: rod strands encoded by their bends (chains, the Cayley map); `codec`: the
-//! [`Encoding`] itself, which encodes and decodes states.
+//! [`Encoding`] itself, which encodes and decodes states, and the integrator's input layout;
+//! `collider_inputs`: run-time colliders seen from the encoding frame.
 
 mod codec;
+mod collider_inputs;
 pub mod error;
 mod frame;
 mod strands;
@@ -40,6 +42,7 @@ mod tests;
 
 pub(crate) use codec::pack_signals;
 pub use codec::{decode_world, Encoding};
+pub(crate) use collider_inputs::{collider_inputs, collider_state};
 pub use error::EncodingError;
 pub use frame::Frame;
 pub(crate) use frame::Origins;

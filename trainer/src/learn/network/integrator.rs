@@ -21,6 +21,10 @@ pub(crate) struct IntegratorSpec {
     pub hidden: usize,
     /// Residual blocks of the MLP.
     pub blocks: usize,
+    /// Run-time collider slots whose inputs (`mochi_runtime::collider::FEATURES_PER_COLLIDER`
+    /// each) follow the signals. Absent in checkpoints written before it existed: 0.
+    #[serde(default)]
+    pub colliders: usize,
     /// Whether the frame time `dt` follows the signals in the input (a model trained over a
     /// range of frame rates). Absent in checkpoints written before it existed: `false`.
     #[serde(default)]
@@ -33,10 +37,13 @@ pub(crate) struct IntegratorSpec {
 }
 
 impl IntegratorSpec {
-    /// Length of the packed input `q = [z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]` (then `dt`
-    /// when [`IntegratorSpec::timed`]).
+    /// Length of the packed input `q = [z_{t-1}, z_{t-2}, p_t, p_{t-1}, p_{t-2}]`, then the
+    /// collider slots' inputs, then `dt` when [`IntegratorSpec::timed`].
     pub fn input(&self) -> usize {
-        2 * self.latent + 3 * self.bc + usize::from(self.timed)
+        2 * self.latent
+            + 3 * self.bc
+            + mochi_runtime::collider::FEATURES_PER_COLLIDER * self.colliders
+            + usize::from(self.timed)
     }
 
     fn mlp(&self) -> MlpSpec {
@@ -324,6 +331,7 @@ mod tests {
             bc: 3,
             hidden: 32,
             blocks: 2,
+            colliders: 0,
             timed: false,
             reference_dt: 0.0,
         };
@@ -385,6 +393,7 @@ mod tests {
             bc: 2,
             hidden: 16,
             blocks: 1,
+            colliders: 0,
             timed: true,
             reference_dt: 1.0 / 30.0,
         };
@@ -462,6 +471,7 @@ mod tests {
             bc: 1,
             hidden: 8,
             blocks: 0,
+            colliders: 0,
             timed: false,
             reference_dt: 0.0,
         };

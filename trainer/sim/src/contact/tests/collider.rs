@@ -300,3 +300,87 @@ fn collider_friction_matches_finite_differences_and_resists_slip() {
     // The floor is `mu N f0(0) = mu N eps_u / 3`, a sixtieth of 2 cm of slip here.
     assert!(carried < 0.02 * behind, "carried {carried} vs behind {behind}");
 }
+
+/// The floored barrier of a training loss is `B` where every pair is at least `floor` apart,
+/// finite with a finite-difference gradient everywhere else (inside each shape too), and its
+/// gradient pushes every vertex out of the collider, harder the deeper it is.
+#[test]
+fn the_floored_barrier_is_the_barrier_above_its_floor_and_pushes_out_below() {
+    let dhat = 0.08;
+    let floor = 0.01;
+    let colliders = vec![sphere(), capsule(), cuboid()];
+    // Points along a ray out of each feature, from inside to beyond dhat.
+    let mut rays = Vec::new();
+    for (c, q, _) in features() {
+        let (_, n) = c.signed_distance_and_gradient(&world(&c, q));
+        let surface: [f64; 3] = (V3::from(world(&c, q)) - c.signed_distance(&world(&c, q)) * n).into();
+        rays.push((c, surface, n));
+    }
+    let mut g = rng(11);
+    let mut checked = 0;
+    for (c, surface, n) in &rays {
+        let at = |t: f64| -> Vec<f64> { (V3::from(*surface) + t * n).as_slice().to_vec() };
+        let barrier = ColliderBarrier::new(vec![0], vec![*c], dhat);
+        let value = |x: &[f64]| {
+            let mut sink = vec![0.0; 3];
+            barrier.floored_value_and_gradient(x, floor, 1.0, &mut sink)
+        };
+        // Above the floor: the barrier itself.
+        for t in [0.011, 0.03, 0.07, 0.09] {
+            let x = at(t);
+            let exact = crate::energy::value(&barrier, &x);
+            assert!((value(&x) - exact).abs() <= 1e-12 * exact.abs().max(1e-30), "t {t}");
+        }
+        // Below it and inside: finite, larger the deeper, gradient against finite differences
+        // and pointing out.
+        let mut last = value(&at(floor));
+        for t in [0.005, 0.0005, -0.01, -0.03] {
+            let x = at(t);
+            let v = value(&x);
+            assert!(v.is_finite() && v > last, "t {t}: {v} after {last}");
+            last = v;
+            let mut grad = vec![0.0; 3];
+            barrier.floored_value_and_gradient(&x, floor, 1.0, &mut grad);
+            assert!(V3::from_column_slice(&grad).dot(n) < 0.0, "t {t}: does not push out");
+            let dir = random_vec(&mut g, 3);
+            let h = 1e-7;
+            let shifted = |s: f64| -> Vec<f64> { x.iter().zip(&dir).map(|(a, b)| a + s * b).collect() };
+            // Inside a box, on the bisector of two faces the signed distance has a crease.
+            let normal_at = |s: f64| c.signed_distance_and_gradient(&shifted(s)).1;
+            if (normal_at(h) - normal_at(-h)).norm() > 1e-2 {
+                continue;
+            }
+            let fd = (value(&shifted(h)) - value(&shifted(-h))) / (2.0 * h);
+            let analytic: f64 = grad.iter().zip(&dir).map(|(a, b)| a * b).sum();
+            assert!(
+                (fd - analytic).abs() <= 1e-5 * analytic.abs().max(1e-12),
+                "t {t}: {fd} vs {analytic}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 30, "{checked} finite-difference checks");
+    // Over many vertices and every shape at once: the sum over pairs, weighted.
+    let x: Vec<f64> = (0..40)
+        .flat_map(|_| random_vec(&mut g, 3).iter().map(|v| 0.4 * v).collect::<Vec<_>>())
+        .collect();
+    let all = ColliderBarrier::new((0..40).collect(), colliders, dhat);
+    let mut grad = vec![0.0; x.len()];
+    let total = all.floored_value_and_gradient(&x, floor, 2.0, &mut grad);
+    let mut single = vec![0.0; x.len()];
+    let sum: f64 = (0..40)
+        .map(|v| {
+            ColliderBarrier::new(vec![v], all.colliders().to_vec(), dhat).floored_value_and_gradient(
+                &x,
+                floor,
+                2.0,
+                &mut single,
+            )
+        })
+        .sum();
+    assert!((total - sum).abs() <= 1e-9 * total.abs().max(1.0));
+    assert!(grad
+        .iter()
+        .zip(&single)
+        .all(|(a, b)| (a - b).abs() <= 1e-9 * a.abs().max(1.0)));
+}

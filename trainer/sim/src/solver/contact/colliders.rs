@@ -131,6 +131,20 @@ impl Contact {
             .map(|(mu, eps_u)| ColliderFriction::lagged(b, x, &goals, kappa, mu, eps_u));
     }
 
+    /// IPC's range of the barrier stiffness for this body, `(kappa_min, kappa_max)`: where a
+    /// solve starts without contact, and the most it raises it to.
+    pub(crate) fn stiffness_range(&self) -> (f64, f64) {
+        let bounds = crate::contact::stiffness::initial_barrier_stiffness(
+            self.bbox_diagonal,
+            self.settings.dhat,
+            self.average_mass,
+            &[],
+            &[],
+            super::MIN_STIFFNESS_SCALE,
+        );
+        (bounds.min, bounds.max)
+    }
+
     /// The smallest squared distance of a surface vertex to a collider at `x`.
     pub(super) fn collider_min_squared_distance(&self, x: &[f64]) -> f64 {
         self.colliders.barrier.min_distance(x).powi(2)
@@ -143,6 +157,13 @@ impl crate::solver::Simulator {
     /// has contact.
     pub fn collider_barrier(&self) -> Option<&ColliderBarrier> {
         self.contact.as_ref().map(Contact::collider_barrier)
+    }
+
+    /// IPC's range of the barrier stiffness for this body, `(kappa_min, kappa_max)` (the
+    /// solver starts a solve at or above the first and raises it up to the second as
+    /// contacts close), if the simulator has contact.
+    pub fn barrier_stiffness_range(&self) -> Option<(f64, f64)> {
+        self.contact.as_ref().map(Contact::stiffness_range)
     }
 
     /// Asks the analytic colliders to be at `poses` (one per collider, in the scene's order)
