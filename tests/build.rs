@@ -16,6 +16,7 @@ fn main() {
         ("tiny", WeightFormat::Int8, "tiny_int8.rs"),
         ("beam", WeightFormat::Int8, "beam_int8.rs"),
         ("beam-m8", WeightFormat::Int8, "beam_m8_int8.rs"),
+        ("tiny-poke", WeightFormat::Int8, "tiny_poke_int8.rs"),
     ] {
         let artifact = format!("artifacts/{artifact}.mochi");
         if let Err(e) = build_rs_with(&artifact, out, &Options::weights(format)) {
@@ -25,6 +26,6 @@ fn main() {
 }
 
 /// The committed artifacts (see `artifacts/README.md`).
-fn mochi_tests_artifacts() -> [&'static str; 6] {
-    ["tiny", "beam", "strands", "beam-m8", "rods", "rods-m8"]
+fn mochi_tests_artifacts() -> [&'static str; 7] {
+    ["tiny", "beam", "strands", "beam-m8", "rods", "rods-m8", "tiny-poke"]
 }

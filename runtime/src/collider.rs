@@ -17,9 +17,9 @@
 
 use core::fmt;
 
-use nalgebra::{Matrix3, Rotation3, Vector3};
+use nalgebra::{Matrix3, Vector3};
 
-use crate::frame::rotation;
+use crate::frame::{rotation, rotation_vector};
 
 /// [`Collider::shape`] of a sphere (`size = [radius, 0, 0]`).
 pub const SPHERE: u32 = 0;
@@ -103,7 +103,7 @@ pub fn features(
     match near {
         Some(s) => {
             let centre = inverse * (V3::from(s.center) - origin);
-            let turned = Rotation3::from_matrix_unchecked(inverse * *rotation(&s.rotation).matrix()).scaled_axis();
+            let turned = V3::from(rotation_vector(&(inverse * *rotation(&s.rotation).matrix())));
             let velocity = inverse * V3::from(s.linear_velocity);
             for (i, v) in centre.iter().chain(turned.iter()).chain(velocity.iter()).enumerate() {
                 out[i] = *v;

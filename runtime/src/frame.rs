@@ -47,7 +47,7 @@ impl HandleMotion {
         let v = |a: [f32; 3]| Vector3::from(a);
         let linear = (v(current.translation) - v(previous.translation)) / dt;
         let step = rotation(&current.rotation) * rotation(&previous.rotation).inverse();
-        let angular = step.scaled_axis() / dt;
+        let angular = Vector3::from(rotation_vector(step.matrix())) / dt;
         HandleMotion {
             linear_velocity: linear.into(),
             angular_velocity: angular.into(),
@@ -112,6 +112,38 @@ pub(crate) fn rotation(rotation_vector: &[f32; 3]) -> Rotation3<f32> {
         z * y * c + x * sin,
         cos + z * z * c,
     ))
+}
+
+/// The rotation vector (axis times angle, the angle in `[0, pi]`) of the rotation matrix `m`,
+/// the inverse of [`rotation`]; in `libm` arithmetic like it, so every target computes the
+/// same bits (nalgebra's `scaled_axis` takes the platform's trigonometry where `std` is on).
+pub(crate) fn rotation_vector(m: &Matrix3<f32>) -> [f32; 3] {
+    // 2 sin(angle) times the axis, and cos(angle).
+    let v = [m[(2, 1)] - m[(1, 2)], m[(0, 2)] - m[(2, 0)], m[(1, 0)] - m[(0, 1)]];
+    let twice_sin = libm::sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    let cos = (0.5 * (m[(0, 0)] + m[(1, 1)] + m[(2, 2)] - 1.0)).clamp(-1.0, 1.0);
+    let angle = libm::atan2f(0.5 * twice_sin, cos);
+    if angle <= f32::EPSILON {
+        // Small angles: the skew part is the rotation vector to first order.
+        return v.map(|c| 0.5 * c);
+    }
+    if cos > -0.5 {
+        let scale = angle / twice_sin;
+        return v.map(|c| c * scale);
+    }
+    // Near a half turn the skew part vanishes: the axis from the symmetric part,
+    // m + m^T = 2 cos I + 2 (1 - cos) a a^T, its largest component first.
+    let d = 1.0 - cos;
+    let i = (0..3).fold(0, |best, k| if m[(k, k)] > m[(best, best)] { k } else { best });
+    let mut axis = [0.0f32; 3];
+    axis[i] = libm::sqrtf(((m[(i, i)] - cos) / d).max(0.0));
+    for k in (0..3).filter(|&k| k != i) {
+        axis[k] = (m[(i, k)] + m[(k, i)]) / (2.0 * d * axis[i]);
+    }
+    // The sign that agrees with the skew part.
+    let dot = axis[0] * v[0] + axis[1] * v[1] + axis[2] * v[2];
+    let sign = if dot < 0.0 { -1.0 } else { 1.0 };
+    axis.map(|c| sign * angle * c)
 }
 
 /// The world placement of a model's handles and its encoding frame for one frame of handle
@@ -406,5 +438,27 @@ mod tests {
         let place = Placement::new(&model, &[]);
         assert_eq!(place.target(MAX_HANDLES - 1), Vector3::new(5.0, 6.0, 7.0));
         assert_eq!(place.target(MAX_HANDLES), Vector3::zeros());
+    }
+
+    /// `rotation_vector` inverts `rotation` for angles from zero to a half turn, about axes
+    /// in every direction (the near-half-turn branch included).
+    #[test]
+    fn rotation_vector_is_the_inverse_of_rotation() {
+        let mut checked = 0;
+        for i in 0..40 {
+            let t = i as f32 * 0.61;
+            let axis = Vector3::new(libm::sinf(t), libm::cosf(1.7 * t), libm::sinf(2.3 * t + 0.4)).normalize();
+            for angle in [0.0, 1e-4, 0.3, 1.5, 2.5, 3.0, 3.1, 3.14] {
+                let r = (axis * angle).into();
+                let back = rotation_vector(rotation(&r).matrix());
+                let gap = (Vector3::from(back) - Vector3::from(r)).norm();
+                assert!(
+                    gap <= 1e-3 * angle.max(1e-2),
+                    "axis {axis:?} angle {angle}: {back:?} vs {r:?}"
+                );
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 320);
     }
 }

@@ -1,7 +1,7 @@
 //! Shared helpers of the workspace integration tests: models generated from the committed
 //! artifacts by `build.rs`.
 
-pub use mochi_trainer::eval::rollout::motions;
+pub use mochi_trainer::eval::rollout::{collider_states, motions};
 
 /// Generated from `artifacts/tiny.mochi`.
 pub mod tiny {
@@ -54,4 +54,15 @@ pub mod tiny_int8 {
 /// Generated from `artifacts/beam.mochi` with int8 weights (the integrator in `f16`).
 pub mod beam_int8 {
     include!(concat!(env!("OUT_DIR"), "/beam_int8.rs"));
+}
+
+/// Generated from `artifacts/tiny-poke.mochi` (a small block pressed by a moving ball: one
+/// run-time collider slot).
+pub mod tiny_poke {
+    include!(concat!(env!("OUT_DIR"), "/tiny_poke.rs"));
+}
+
+/// Generated from `artifacts/tiny-poke.mochi` with int8 weights (the integrator in `f16`).
+pub mod tiny_poke_int8 {
+    include!(concat!(env!("OUT_DIR"), "/tiny_poke_int8.rs"));
 }

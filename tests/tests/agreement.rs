@@ -16,9 +16,9 @@ use mochi_codegen::quantize::weights_f32;
 use mochi_runtime::{Model, OwnedModel, Stepped, ValidModel, WeightFormat};
 use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::{self, Split};
-use mochi_tests::motions;
+use mochi_tests::{collider_states, motions};
 use mochi_trainer::artifact::Artifact;
-use mochi_trainer::eval::runtime_bench::agreement;
+use mochi_trainer::eval::runtime_bench::{agreement, ScriptFrame};
 use mochi_trainer::eval::{self, LoadedModel as TrainerModel};
 
 const FRAMES: usize = 1000;
@@ -51,7 +51,12 @@ fn worst_disagreement<const K: usize, const S: usize, const H: usize>(artifact_p
     let mut longest = 0;
     for bc in &bcs {
         let reference = eval::stable_rollout(&trainer, &problem, &encoding, bc, FRAMES).unwrap();
-        let script: Vec<_> = (1..=FRAMES).map(|t| motions(bc, t)).collect();
+        let script: Vec<_> = (1..=FRAMES)
+            .map(|t| ScriptFrame {
+                motions: motions(bc, t),
+                colliders: collider_states(bc, t, model.model().colliders()),
+            })
+            .collect();
         let (disagreement, compared) = agreement::<K, S, H>(model, &script, &reference, artifact.diagonal).unwrap();
         worst = worst.max(disagreement);
         longest = longest.max(compared);
@@ -75,6 +80,23 @@ fn generated_tiny_model_agrees_with_the_trainer() {
     assert!(
         worst <= TOLERANCE,
         "generated tiny model is {worst:.2e} diagonals from the trainer"
+    );
+}
+
+/// A model with a run-time collider slot (the ball pressing the tiny block): the generated
+/// code steps with the test sequences' ball as the trainer does.
+#[test]
+fn generated_collider_model_agrees_with_the_trainer() {
+    use mochi_tests::tiny_poke;
+    let model = ValidModel::new(tiny_poke::MODEL).unwrap();
+    assert_eq!(model.model().colliders(), 1);
+    let worst = worst_disagreement::<{ tiny_poke::LATENT }, { tiny_poke::SIGNAL }, { tiny_poke::HIDDEN }>(
+        Path::new("artifacts/tiny-poke.mochi"),
+        &model,
+    );
+    assert!(
+        worst <= TOLERANCE,
+        "generated tiny-poke model is {worst:.2e} diagonals from the trainer"
     );
 }
 

@@ -1,6 +1,7 @@
 //! The runtime built for `aarch64-unknown-linux-gnu` and run under QEMU user-mode emulation by
 //! `scripts/run-aarch64.sh`: every shipped model (beam-m8, cloth-line-m24, rods-m8 and the
-//! kept beam) in every weight storage agrees with the host over the 1,000-frame reference
+//! kept beam) and the collider model tiny-poke (stepped with the script's collider) in every
+//! weight storage agrees with the host over the 1,000-frame reference
 //! script (int8 and `f16` bit for bit, `f32` within 1e-5 of the rest diagonal), with the NEON
 //! kernels, with the canonical code and without the dot-product extension; the NEON kernels
 //! take at most half the instructions per frame of the canonical code on beam-m8; the C
@@ -59,7 +60,7 @@ fn aarch64_runs_match_the_host_and_neon_halves_the_instructions() {
     let mut failures = Vec::new();
     let mut per_frame = BTreeMap::new();
     let mut runs: Vec<(&str, &str, &str)> = Vec::new();
-    for name in ["beam-m8", "cloth-line-m24", "rods-m8", "beam"] {
+    for name in ["beam-m8", "cloth-line-m24", "rods-m8", "beam", "tiny-poke"] {
         for weights in ["f32", "f16", "int8"] {
             runs.push((name, weights, "neon"));
         }

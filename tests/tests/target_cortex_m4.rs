@@ -7,7 +7,7 @@ use std::process::Command;
 
 use mochi_runtime::{Model, ValidModel};
 use mochi_target_common::host;
-use mochi_tests::{beam, beam_int8, beam_m8, beam_m8_int8, rods, rods_m8, tiny, tiny_int8};
+use mochi_tests::{beam, beam_int8, beam_m8, beam_m8_int8, rods, rods_m8, tiny, tiny_int8, tiny_poke, tiny_poke_int8};
 
 /// Runs the firmware for the artifact `name` with `weights` and checks it against `model`
 /// with an `Instance<K, S, H>`; returns the script's output (sizes and rates).
@@ -107,6 +107,24 @@ fn right_sized_rods_fit_one_mebibyte_of_flash_and_match_the_host() {
     );
     let (flash, ram) = kibibytes(&output);
     assert!(flash <= 1024.0 && ram <= 64.0, "{flash} KiB of flash, {ram} KiB of RAM");
+}
+
+/// A model with a run-time collider slot (`tiny-poke`: the ball circling the block's top as
+/// the reference script moves it) on the firmware: within the `f32` tolerance of the host, and
+/// bit-identical with int8 weights; prints its sizes and frames per second.
+#[test]
+fn collider_model_runs_on_the_firmware_and_matches_the_host() {
+    use tiny_poke::{HIDDEN, LATENT, SIGNAL};
+    for (weights, model) in [("f32", tiny_poke::MODEL), ("int8", tiny_poke_int8::MODEL)] {
+        let output = firmware_matches_the_host::<LATENT, SIGNAL, HIDDEN>("tiny-poke", weights, model);
+        let (flash, ram) = kibibytes(&output);
+        assert!(flash <= 1024.0 && ram <= 64.0, "{flash} KiB of flash, {ram} KiB of RAM");
+        let rate = output
+            .lines()
+            .find(|l| l.contains("frames/s"))
+            .expect("a frames-per-second line");
+        println!("tiny-poke {weights}: {flash} KiB of flash, {ram} KiB of RAM; {rate}");
+    }
 }
 
 /// Flash and RAM in KiB from the script's size line (`flash N B (X KiB of 1024) ... (Y KiB of

@@ -10,6 +10,7 @@
 //! the rest diagonal of the host's at every sampled frame of the 1,000.
 #![no_std]
 
+use mochi_runtime::collider::{ColliderState, MAX_COLLIDERS};
 use mochi_runtime::model::MAX_HANDLES;
 use mochi_runtime::{DecodeError, HandleMotion, Instance, SizeError, StepError, ValidModel};
 
@@ -43,12 +44,21 @@ pub fn sampled(weights: &str, frame: u32) -> bool {
 
 /// The fixed boundary-condition script: every handle sways along y and z and twists about x,
 /// with an amplitude of a tenth of the model's rest bounding-box diagonal (speeds inside the
-/// ranges the shipped scenes train on).
+/// ranges the shipped scenes train on); every run-time collider slot of a model that has them
+/// circles the top of the body's rest bounding box, turning as it goes
+/// ([`Script::collider`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Script {
     amplitude: f32,
     dt: f32,
+    /// Centre of the rest bounding box's top face.
+    top: [f32; 3],
+    /// Radius of the colliders' circle: a quarter of the rest diagonal.
+    circle: f32,
 }
+
+/// Seconds per turn of a collider round the body.
+const COLLIDER_PERIOD: f32 = 5.0;
 
 /// Seconds per sway period along y, along z, and of the twist.
 const PERIODS: [f32; 3] = [3.0, 4.5, 4.0];
@@ -58,9 +68,13 @@ const TWIST: f32 = 0.2;
 impl Script {
     /// The script for a model with rest positions `rest` (`dim` per vertex) and time step `dt`.
     pub fn new(rest: &[f32], dim: usize, dt: f32) -> Self {
+        let (lo, hi) = bounds(rest, dim);
+        let diagonal = diagonal(rest, dim);
         Script {
-            amplitude: 0.1 * diagonal(rest, dim),
+            amplitude: 0.1 * diagonal,
             dt,
+            top: [0.5 * (lo[0] + hi[0]), hi[1], 0.5 * (lo[2] + hi[2])],
+            circle: 0.25 * diagonal,
         }
     }
 
@@ -82,6 +96,40 @@ impl Script {
         (translation, [TWIST * phase(PERIODS[2]), 0.0, 0.0])
     }
 
+    /// Centre and rotation vector of collider slot `slot` of `slots` at the end of `frame`:
+    /// on a circle of a quarter diagonal round the centre of the rest bounding box's top face
+    /// (the slots evenly apart on it), turning about y once per turn round the body.
+    pub fn collider_pose(&self, frame: u32, slot: usize, slots: usize) -> ([f32; 3], [f32; 3]) {
+        let turns = frame as f32 * self.dt / COLLIDER_PERIOD + slot as f32 / slots.max(1) as f32;
+        let angle = 2.0 * core::f32::consts::PI * (turns - libm::floorf(turns));
+        let centre = [
+            self.top[0] + self.circle * libm::cosf(angle),
+            self.top[1],
+            self.top[2] + self.circle * libm::sinf(angle),
+        ];
+        // The rotation vector's angle in (-pi, pi].
+        let spin = if angle > core::f32::consts::PI {
+            angle - 2.0 * core::f32::consts::PI
+        } else {
+            angle
+        };
+        (centre, [0.0, spin, 0.0])
+    }
+
+    /// The state of collider slot `slot` of `slots` over the step that ends at `frame`
+    /// (velocities by finite difference of the poses, as [`Script::motion`]'s).
+    pub fn collider(&self, frame: u32, slot: usize, slots: usize) -> ColliderState {
+        let (c1, r1) = self.collider_pose(frame, slot, slots);
+        let (c0, _) = self.collider_pose(frame.saturating_sub(1), slot, slots);
+        let spin = 2.0 * core::f32::consts::PI / COLLIDER_PERIOD;
+        ColliderState {
+            center: c1,
+            rotation: r1,
+            linear_velocity: [0, 1, 2].map(|i| (c1[i] - c0[i]) / self.dt),
+            angular_velocity: [0.0, if frame == 0 { 0.0 } else { spin }, 0.0],
+        }
+    }
+
     /// The motion of every handle over the step that ends at `frame` (velocities by finite
     /// difference of the poses, the way an engine that tracks poses gets them).
     pub fn motion(&self, frame: u32) -> HandleMotion {
@@ -100,17 +148,25 @@ impl Script {
 
 /// Rest bounding-box diagonal of `rest` (`dim` coordinates per vertex).
 pub fn diagonal(rest: &[f32], dim: usize) -> f32 {
+    let (lo, hi) = bounds(rest, dim);
+    let squared: f32 = (0..3).map(|c| (hi[c] - lo[c]) * (hi[c] - lo[c])).sum();
+    libm::sqrtf(squared)
+}
+
+/// Rest bounding box of `rest` (`dim` coordinates per vertex; zero extent along the axes it
+/// lacks, and for no vertices).
+fn bounds(rest: &[f32], dim: usize) -> ([f32; 3], [f32; 3]) {
     let dim = dim.clamp(1, 3);
-    let mut squared = 0.0;
+    let (mut lo, mut hi) = ([0.0f32; 3], [0.0f32; 3]);
     for c in 0..dim {
         let values = rest.iter().skip(c).step_by(dim);
-        let lo = values.clone().fold(f32::INFINITY, |a, &b| a.min(b));
-        let hi = values.fold(f32::NEG_INFINITY, |a, &b| a.max(b));
-        if hi >= lo {
-            squared += (hi - lo) * (hi - lo);
+        let min = values.clone().fold(f32::INFINITY, |a, &b| a.min(b));
+        let max = values.fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        if max >= min {
+            (lo[c], hi[c]) = (min, max);
         }
     }
-    libm::sqrtf(squared)
+    (lo, hi)
 }
 
 /// FNV-1a (64-bit) over the bit patterns of every decoded coordinate of every frame, in
@@ -167,13 +223,20 @@ pub fn run<const K: usize, const S: usize, const H: usize>(
     mut visit: impl FnMut(u32, Checksum, &[f32]),
 ) -> Result<Checksum, RunError> {
     let script = Script::for_model(model);
-    let handles = model.model().handles.len().min(MAX_HANDLES);
+    let m = model.model();
+    let handles = m.handles.len().min(MAX_HANDLES);
+    let slots = m.colliders().min(MAX_COLLIDERS);
     let mut body = Instance::<K, S, H>::new(model).map_err(RunError::Size)?;
     let mut checksum = Checksum::default();
     let mut bc = [HandleMotion::REST; MAX_HANDLES];
+    let mut colliders = [ColliderState::default(); MAX_COLLIDERS];
     for frame in 1..=frames {
         bc[..handles].fill(script.motion(frame));
-        body.step(model, &bc[..handles]).map_err(RunError::Step)?;
+        for (slot, c) in colliders[..slots].iter_mut().enumerate() {
+            *c = script.collider(frame, slot, slots);
+        }
+        body.step_with(model, &bc[..handles], &colliders[..slots], m.dt)
+            .map_err(RunError::Step)?;
         body.decode_into(model, positions).map_err(RunError::Decode)?;
         checksum.update(positions);
         visit(frame, checksum, positions);
@@ -208,6 +271,24 @@ mod tests {
         // Velocity is the finite difference of the poses.
         let (t9, _) = script.pose(9);
         assert!((m.linear_velocity[1] - (m.translation[1] - t9[1]) / 0.02).abs() < 1e-6);
+    }
+
+    #[test]
+    fn colliders_circle_the_top_of_the_body_apart_and_turn() {
+        // A 3 x 4 box from the origin: its top face centre (1.5, 4, 0), diagonal 5.
+        let script = Script::new(&[0.0, 0.0, 0.0, 3.0, 4.0, 0.0], 3, 0.02);
+        let (c, r) = script.collider_pose(0, 0, 2);
+        assert_eq!((c, r), ([1.5 + 1.25, 4.0, 0.0], [0.0; 3]));
+        let (c, _) = script.collider_pose(0, 1, 2);
+        assert!((c[0] - (1.5 - 1.25)).abs() < 1e-6 && c[2].abs() < 1e-6, "{c:?}");
+        let s = script.collider(50, 0, 1);
+        let (c49, _) = script.collider_pose(49, 0, 1);
+        let radius = libm::sqrtf((s.center[0] - 1.5).powi(2) + s.center[2].powi(2));
+        assert!((radius - 1.25).abs() < 1e-5 && s.center[1] == 4.0);
+        assert!((s.linear_velocity[2] - (s.center[2] - c49[2]) / 0.02).abs() < 1e-4);
+        assert!(s.rotation[1] > 0.0 && s.angular_velocity[1] > 0.0);
+        // Past half a turn the rotation vector's angle stays in (-pi, pi].
+        assert!(script.collider(150, 0, 1).rotation[1] < 0.0);
     }
 }
 
