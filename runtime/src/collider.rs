@@ -186,6 +186,16 @@ impl Collider {
             }
     }
 
+    /// The largest distance from the centre to a point of the shape.
+    pub fn bounding_radius(&self) -> f32 {
+        let [a, b, c] = self.size;
+        match self.shape {
+            SPHERE => a,
+            CAPSULE => a + b,
+            _ => libm::sqrtf(a * a + b * b + c * c),
+        }
+    }
+
     /// `p` in the shape's own frame.
     fn local(&self, p: V3) -> V3 {
         rotation(&self.rotation).inverse() * (p - V3::from(self.center))
@@ -282,12 +292,23 @@ pub fn push_out(
     }
     let mut moved = 0;
     for c in colliders {
+        // The collider's frame once, and a bounding sphere that rules most vertices out
+        // before any rotation.
+        let turn = *rotation(&c.rotation).matrix();
+        let centre = V3::from(c.center);
+        let reach = c.bounding_radius() + margin;
         for v in positions.chunks_exact_mut(dim) {
-            let p = [v[0], v[1], if dim == 3 { v[2] } else { 0.0 }];
-            if let Some(to) = c.pushed(p, margin) {
-                v.copy_from_slice(&to[..dim]);
-                moved += 1;
+            let offset = V3::new(v[0], v[1], if dim == 3 { v[2] } else { 0.0 }) - centre;
+            if offset.norm_squared() > reach * reach {
+                continue;
             }
+            let q = turn.transpose() * offset;
+            if local_signed_distance(c, q) >= margin {
+                continue;
+            }
+            let to = centre + turn * local_pushed(c, q, margin);
+            v.copy_from_slice(&to.as_slice()[..dim]);
+            moved += 1;
         }
     }
     Ok(moved)

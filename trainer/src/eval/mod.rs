@@ -101,6 +101,26 @@ fn check_follows_plan(
             )
             .into());
         }
+        // The run-time colliders' paths too.
+        if let Some(stored) = &reference.colliders {
+            let planned = bc.collider_states(t);
+            let gap = planned
+                .iter()
+                .zip(&stored.states[t])
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            if gap > tolerance || planned.len() != stored.states[t].len() {
+                return Err(InputError::file(
+                    path,
+                    format!(
+                        "its colliders at frame {t} are {gap:.3e} from where the scene `{}` moves them \
+                         (made from another copy of the scene?); regenerate it with `mochi dataset`",
+                        problem.scene.name
+                    ),
+                )
+                .into());
+            }
+        }
     }
     Ok(())
 }

@@ -50,8 +50,8 @@ pub struct RuntimeTiming {
     pub surface: f64,
     /// Run-time collider slots the model reads (stepped with the test sequence's colliders).
     pub colliders: usize,
-    /// Seconds per frame of `collider::push_out` of the full decoded state (0 without
-    /// colliders).
+    /// Seconds per frame of `collider::push_out` of the decoded surface (what is drawn; 0
+    /// without colliders).
     pub push_out: f64,
     /// Seconds per frame: candle batch-1 integrator + decoder forward.
     pub candle: f64,
@@ -284,7 +284,12 @@ fn measure<const K: usize, const S: usize, const H: usize>(run: &Run) -> Result<
             let shapes: Vec<Collider> = (0..frames).flat_map(|i| posed(&run.script[i].colliders)).collect();
             let per_frame = shapes.len() / frames.max(1);
             seconds_per_call(frames, |i| {
-                let _ = push_out(&mut x, m.dim(), &shapes[i * per_frame..(i + 1) * per_frame], 0.0);
+                let _ = push_out(
+                    &mut surface_x,
+                    m.dim(),
+                    &shapes[i * per_frame..(i + 1) * per_frame],
+                    0.0,
+                );
             })
         }
     };
