@@ -5,14 +5,15 @@
 //! artifacts (`beam-m8`, `cloth-line-m24`), and for
 //! each one chosen in its model list steps frames, moves the surface under the (synthetic)
 //! mouse, draws it with WebGL2 (pixels read back) and shows a time per frame; screenshots are
-//! left behind.
+//! left behind. The collider model `tiny-poke` (int8) then runs the same way, its page's ball
+//! the model's collider input.
 
 use std::path::Path;
 use std::process::Command;
 
 use mochi_runtime::ValidModel;
 use mochi_target_common::host;
-use mochi_tests::tiny;
+use mochi_tests::{tiny, tiny_poke, tiny_poke_int8};
 
 #[test]
 fn wasm_module_matches_the_host_and_its_page_runs_in_chromium() {
@@ -71,4 +72,33 @@ fn wasm_module_matches_the_host_and_its_page_runs_in_chromium() {
             "screenshot of {line}"
         );
     }
+
+    // A model with a collider slot (tiny-poke, int8): in node its checksums equal the host's
+    // with the reference script's collider, and on the page the mouse's ball is its input.
+    // (After the first run: the two share the page's folder.)
+    let artifact = repo.join("tests/artifacts/tiny-poke.mochi");
+    let run = Command::new("bash")
+        .arg(&script)
+        .arg(&artifact)
+        .arg("int8")
+        .env("MOCHI_PAGE_MODELS", &artifact)
+        .output()
+        .unwrap_or_else(|e| panic!("running {}: {e}", script.display()));
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{} tiny-poke failed:\n{}\n{stdout}",
+        script.display(),
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let output = std::fs::read_to_string(repo.join("target/targets/wasm-tiny-poke-int8.txt")).unwrap();
+    let report = host::parse(&output).unwrap();
+    let model = ValidModel::new(tiny_poke_int8::MODEL).unwrap();
+    host::check::<{ tiny_poke::LATENT }, { tiny_poke::SIGNAL }, { tiny_poke::HIDDEN }>(&model, &report).unwrap();
+    let page = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("page: "))
+        .unwrap_or_else(|| panic!("no page line: {stdout}"));
+    assert_eq!(field(page, "model"), "tiny-poke", "{page}");
+    assert!(field(page, "pushed").parse::<u64>().unwrap() > 0, "{page}");
 }
