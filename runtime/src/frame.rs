@@ -448,7 +448,7 @@ mod tests {
         for i in 0..40 {
             let t = i as f32 * 0.61;
             let axis = Vector3::new(libm::sinf(t), libm::cosf(1.7 * t), libm::sinf(2.3 * t + 0.4)).normalize();
-            for angle in [0.0, 1e-4, 0.3, 1.5, 2.5, 3.0, 3.1, 3.14] {
+            for angle in [0.0, 1e-4, 0.3, 1.5, 2.5, 3.0, 3.1, 3.135] {
                 let r = (axis * angle).into();
                 let back = rotation_vector(rotation(&r).matrix());
                 let gap = (Vector3::from(back) - Vector3::from(r)).norm();

@@ -21,7 +21,7 @@ use mochi_sim::measure::vertex_errors;
 use mochi_sim::mesh::Elements;
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::eval::{rebuild_problem, LoadedModel};
-use mochi_trainer::learn::encoding::decode_world;
+use mochi_trainer::learn::encoding::{collider_inputs, decode_world};
 use mochi_trainer::learn::loss::PhysicsLoss;
 use mochi_trainer::learn::network::forward_exported;
 use mochi_trainer::learn::pack;
@@ -70,10 +70,20 @@ fn main() -> anyhow::Result<()> {
         for t in [2, 5, 20, 60, 100, 140].into_iter().filter(|&t| t <= last) {
             let (prev, prev2) = (world(&latents[t - 1], t - 1)?, world(&latents[t - 2], t - 2)?);
             let dt = model.artifact.timed().then_some(seq.trajectory.dt);
+            let states = seq.trajectory.colliders.as_ref().map_or(&[][..], |c| &c.states[t][..]);
+            let colliders = collider_inputs(
+                model.artifact.colliders(),
+                &seq.frames[t],
+                &seq.targets[t],
+                dim,
+                a.diagonal,
+                states,
+            );
             let predicted = model.integrator.step(&pack(
                 &latents[t - 1],
                 &latents[t - 2],
                 &seq.trajectory.bc_signal,
+                &colliders,
                 t,
                 dt,
             ))?;

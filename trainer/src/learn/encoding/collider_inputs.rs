@@ -15,7 +15,7 @@ use super::frame::{centroid, Frame};
 /// numbers per collider, the scene's order) in the encoding frame `frame` of the handle
 /// targets `targets` (`dim` numbers per handle vertex). A slot without a state reads as
 /// absent; `diagonal` is the body's rest bounding-box diagonal.
-pub(crate) fn collider_inputs(
+pub fn collider_inputs(
     slots: usize,
     frame: &Frame,
     targets: &[f64],
@@ -39,7 +39,7 @@ pub(crate) fn collider_inputs(
 }
 
 /// The runtime's [`ColliderState`] of one collider's [`STATE_PER_COLLIDER`] numbers.
-pub(crate) fn collider_state(s: &[f64]) -> ColliderState {
+pub fn collider_state(s: &[f64]) -> ColliderState {
     let three = |i: usize| [s[i] as f32, s[i + 1] as f32, s[i + 2] as f32];
     ColliderState {
         center: three(0),

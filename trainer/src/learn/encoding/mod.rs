@@ -42,7 +42,7 @@ mod tests;
 
 pub(crate) use codec::pack_signals;
 pub use codec::{decode_world, Encoding};
-pub(crate) use collider_inputs::{collider_inputs, collider_state};
+pub use collider_inputs::{collider_inputs, collider_state};
 pub use error::EncodingError;
 pub use frame::Frame;
 pub(crate) use frame::Origins;
