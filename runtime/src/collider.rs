@@ -19,7 +19,7 @@ use core::fmt;
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::frame::{rotation, rotation_vector};
+use crate::frame::rotation;
 
 /// [`Collider::shape`] of a sphere (`size = [radius, 0, 0]`).
 pub const SPHERE: u32 = 0;
@@ -86,10 +86,13 @@ impl ColliderState {
 
 /// The integrator's inputs for one collider slot, in the body's encoding frame (rotation
 /// `frame`, origin `origin`; a model's [`crate::frame::Placement`]): the centre `R^T (c - o)`,
-/// the rotation vector of `R^T R_c`, and the velocity `R^T v`. A collider farther than
-/// [`FAR_DIAGONALS`] rest diagonals from the origin, or an absent one (`None`), reads as
-/// absent: its centre `FAR_DIAGONALS * diagonal * R^T y` (above the body), rotation and
-/// velocity zero. The one definition: the trainer packs its training inputs with it too.
+/// the first two columns of `R^T R_c` (the shape's x and y axes: a continuous function of
+/// the orientation, where a rotation vector jumps from `pi a` to `-pi a` at a half turn, the
+/// orientation of a capsule pointing straight down), and the velocity `R^T v`. A collider
+/// farther than [`FAR_DIAGONALS`] rest diagonals from the origin, or an absent one (`None`),
+/// reads as absent: its centre `FAR_DIAGONALS * diagonal * R^T y` (above the body), axes
+/// those of the encoding frame, velocity zero. The one definition: the trainer packs its
+/// training inputs with it too.
 pub fn features(
     frame: &Matrix3<f32>,
     origin: &V3,
@@ -103,15 +106,17 @@ pub fn features(
     match near {
         Some(s) => {
             let centre = inverse * (V3::from(s.center) - origin);
-            let turned = V3::from(rotation_vector(&(inverse * *rotation(&s.rotation).matrix())));
+            let turned = inverse * *rotation(&s.rotation).matrix();
             let velocity = inverse * V3::from(s.linear_velocity);
-            for (i, v) in centre.iter().chain(turned.iter()).chain(velocity.iter()).enumerate() {
-                out[i] = *v;
+            let axes = turned.column(0).into_iter().chain(turned.column(1).into_iter());
+            for (o, v) in out.iter_mut().zip(centre.iter().chain(axes).chain(velocity.iter())) {
+                *o = *v;
             }
         }
         None => {
             let centre = inverse * (V3::y() * far);
             out[..3].copy_from_slice(centre.as_slice());
+            (out[3], out[7]) = (1.0, 1.0);
         }
     }
     out

@@ -187,3 +187,37 @@ fn bad_colliders_and_arguments_are_refused_and_change_nothing() {
     assert_eq!(p, start);
     assert_eq!(push_out(&mut p, 3, &[], 0.0), Ok(0));
 }
+
+/// The integrator's collider inputs: the centre and velocity in the encoding frame, the
+/// shape's axes continuous through a half turn (a capsule pointing straight down, turned a
+/// hair either way, reads almost the same), and a far or absent collider reads alike.
+#[test]
+fn features_are_the_pose_in_the_encoding_frame_and_continuous_through_a_half_turn() {
+    let quarter = core::f32::consts::FRAC_PI_2;
+    // The encoding frame turned a quarter about z, its origin at (1, 0, 0).
+    let frame = *crate::frame::rotation(&[0.0, 0.0, quarter]).matrix();
+    let origin = V3::new(1.0, 0.0, 0.0);
+    let state = |rotation: [f32; 3]| ColliderState {
+        center: [1.0, 0.5, 0.0],
+        rotation,
+        linear_velocity: [0.0, 2.0, 0.0],
+        angular_velocity: [0.0; 3],
+    };
+    let f = features(&frame, &origin, 1.0, Some(&state([0.0; 3])));
+    let close = |a: &[f32], b: &[f32], tol: f32| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol);
+    // Centre (0, 0.5, 0) seen from a frame turned +90 degrees about z: (0.5, 0, 0); the shape's
+    // x and y axes likewise; the velocity (0, 2, 0) as (2, 0, 0).
+    let want = [0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 2.0, 0.0, 0.0];
+    assert!(close(&f, &want, 1e-6), "{f:?}");
+    // Half a turn about x, a hair less and a hair more (the rotation vector flips sign there).
+    let pi = core::f32::consts::PI;
+    let below = features(&frame, &origin, 1.0, Some(&state([pi - 1e-3, 0.0, 0.0])));
+    let above = features(&frame, &origin, 1.0, Some(&state([-(pi - 1e-3), 0.0, 0.0])));
+    assert!(close(&below, &above, 3e-3), "{below:?} / {above:?}");
+    // Absent and far away read the same, the axes those of the frame.
+    let absent = features(&frame, &origin, 1.0, None);
+    let mut far = state([0.3, 0.2, 0.1]);
+    far.center = [1.0, 0.0, 5.0];
+    assert_eq!(absent, features(&frame, &origin, 1.0, Some(&far)));
+    assert_eq!(&absent[3..9], &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+}

@@ -21,9 +21,9 @@ use core::fmt;
 pub const SHAPE_ROW: usize = 4;
 /// Most collider slots a model may have.
 pub const MAX_COLLIDERS: usize = 8;
-/// Inputs the integrator reads per collider slot (`collider::features`: centre, rotation and
-/// velocity in the encoding frame).
-pub const FEATURES_PER_COLLIDER: usize = 9;
+/// Inputs the integrator reads per collider slot (`collider::features`: centre, the first two
+/// columns of the rotation, and velocity in the encoding frame).
+pub const FEATURES_PER_COLLIDER: usize = 12;
 
 /// Largest number of handles a model may have.
 pub const MAX_HANDLES: usize = 16;

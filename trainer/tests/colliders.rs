@@ -1,5 +1,5 @@
 //! Run-time colliders as inputs of the learned integrator, end to end on a tiny poked block:
-//! `mochi train` gives the model one collider slot (its shape in the artifact, nine inputs
+//! `mochi train` gives the model one collider slot (its shape in the artifact, twelve inputs
 //! more in the integrator), the trainer's rollout and the runtime agree with the colliders
 //! moving, the model reads them, a model trained without collider inputs has none, and
 //! `mochi eval` measures penetration with and without the runtime's push-out.
@@ -37,7 +37,7 @@ fn a_model_of_a_scene_with_colliders_reads_them_in_the_trainer_and_the_runtime_a
     let dir = tempfile::tempdir().unwrap();
     let path = train(dir.path(), "with", &fixture());
     let model = Artifact::read(&path).unwrap();
-    // One slot, the ball's shape row, and nine more integrator inputs than latents and signals.
+    // One slot, the ball's shape row, and twelve more integrator inputs than latents and signals.
     assert_eq!(model.collider_shapes, vec![SPHERE as f32, 0.02, 0.0, 0.0]);
     let k = model.latent as usize;
     let width = 2 * k + 3 * model.bc_len as usize + FEATURES_PER_COLLIDER;
