@@ -25,6 +25,6 @@ fn main() {
 }
 
 /// The committed artifacts (see `artifacts/README.md`).
-fn mochi_tests_artifacts() -> [&'static str; 6] {
-    ["tiny", "beam", "strands", "beam-m8", "rods", "rods-m8"]
+fn mochi_tests_artifacts() -> [&'static str; 7] {
+    ["tiny", "beam", "strands", "beam-m8", "rods", "rods-m8", "tiny-render"]
 }

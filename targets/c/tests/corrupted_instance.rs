@@ -49,6 +49,7 @@ fn model(latent: usize) -> MochiModel {
         decoder_basis: false,
         dt_range: [0.0; 2],
         collider_shapes: vec![],
+        render: Default::default(),
     };
     let storage: &'static mut OwnedModel = Box::leak(Box::default());
     let valid = storage.load(&payload.to_section().unwrap()).unwrap();
