@@ -171,3 +171,69 @@ fn per_vertex_u32(npz: &mut NpzFile, name: &'static str, n: usize) -> Result<Vec
     a.expect_shape(&[n as u64, 4])?;
     a.into_vec::<u32>("u32")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::procedural::box_tets;
+    use crate::scene::Scene;
+
+    /// `mesh` as a MEDIT file (1-based indices).
+    fn medit(mesh: &Mesh) -> String {
+        let Elements::Tets(tets) = &mesh.elements else {
+            unreachable!()
+        };
+        let mut s = format!(
+            "MeshVersionFormatted 1\nDimension 3\nVertices\n{}\n",
+            mesh.num_vertices()
+        );
+        for p in mesh.rest.chunks_exact(3) {
+            s += &format!("{} {} {} 0\n", p[0], p[1], p[2]);
+        }
+        s += &format!("Tetrahedra\n{}\n", tets.len());
+        for t in tets {
+            s += &format!("{} {} {} {} 0\n", t[0] + 1, t[1] + 1, t[2] + 1, t[3] + 1);
+        }
+        s + "End\n"
+    }
+
+    #[test]
+    fn a_scene_names_its_render_mesh_and_a_mismatched_one_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let mesh = box_tets([0.0, 0.0, 0.0], [2.0, 1.0, 1.0], [2, 1, 1]).unwrap();
+        std::fs::write(dir.path().join("body.mesh"), medit(&mesh)).unwrap();
+        let surface = Surface {
+            positions: vec![[0.5, 0.5, 0.5], [1.5, 0.2, 0.9], [1.9, 0.9, 0.1]],
+            triangles: vec![[0, 1, 2]],
+            ..Surface::default()
+        };
+        let render = RenderEmbedding::new(&surface, &mesh).unwrap();
+        render.write_npz(&dir.path().join("body.render.npz")).unwrap();
+        let scene = |render: &str| {
+            format!(
+                "name = \"body\"\n[mesh]\ntype = \"file\"\npath = \"body.mesh\"\nnormalize = true\n{render}\n\
+                 [material]\nyoungs = 1e5\npoisson = 0.4\ndensity = 1000.0\n"
+            )
+        };
+        let file = dir.path().join("body.toml");
+        let with = Scene::parse(&scene("render = \"body.render.npz\""), &file).unwrap();
+        let built = with.build_mesh().unwrap();
+        let read = with.render_embedding(&built).unwrap().unwrap();
+        assert_eq!(read.embedding, render.embedding);
+        assert_eq!(read.tets, render.tets);
+        let without = Scene::parse(&scene(""), &file).unwrap();
+        assert_eq!(without.render_embedding(&built).unwrap(), None);
+        // The archive of another mesh is refused, naming it.
+        let other = box_tets([0.0, 0.0, 0.0], [2.0, 1.0, 1.0], [3, 1, 1]).unwrap();
+        RenderEmbedding::new(&surface, &other)
+            .unwrap()
+            .write_npz(&dir.path().join("other.render.npz"))
+            .unwrap();
+        let wrong = Scene::parse(&scene("render = \"other.render.npz\""), &file).unwrap();
+        let e = wrong.render_embedding(&built).unwrap_err().to_string();
+        assert!(e.contains("other.render.npz") && e.contains("made for a mesh"), "{e}");
+        let missing = Scene::parse(&scene("render = \"none.render.npz\""), &file).unwrap();
+        let e = missing.render_embedding(&built).unwrap_err().to_string();
+        assert!(e.contains("none.render.npz"), "{e}");
+    }
+}
