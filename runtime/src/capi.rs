@@ -172,8 +172,10 @@ pub unsafe extern "C" fn mochi_model_render_mesh(
         return MochiStatus::NullPointer;
     };
     let m = model.0.model();
-    let pointer = |len: usize, p: *const u32| if len == 0 { core::ptr::null() } else { p };
-    *triangles = pointer(m.render_triangles().len(), m.render_triangles().as_ptr());
+    *triangles = match m.render_triangles() {
+        [] => core::ptr::null(),
+        values => values.as_ptr(),
+    };
     *uvs = match m.render_uvs() {
         [] => core::ptr::null(),
         values => values.as_ptr(),
