@@ -26,6 +26,6 @@ fn main() {
 }
 
 /// The committed artifacts (see `artifacts/README.md`).
-fn mochi_tests_artifacts() -> [&'static str; 7] {
-    ["tiny", "beam", "strands", "beam-m8", "rods", "rods-m8", "tiny-poke"]
+fn mochi_tests_artifacts() -> [&'static str; 8] {
+    ["tiny", "beam", "strands", "beam-m8", "rods", "rods-m8", "tiny-poke", "tiny-render"]
 }

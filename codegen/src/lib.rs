@@ -202,7 +202,7 @@ pub fn build_rs_with(artifact: impl AsRef<Path>, out_name: &str, options: &Optio
 /// the `MODEL` literal are written from the runtime's field list, [`Model::fields`].
 fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
     let mut s = String::new();
-    let sizes: [(&str, &str, usize); 15] = [
+    let sizes: [(&str, &str, usize); 16] = [
         ("LATENT", "Latent size.", m.latent as usize),
         (
             "SIGNAL",
@@ -226,6 +226,11 @@ fn emit(m: &Model, artifact_params: usize, name: &str) -> String {
             "SURFACE_LEN",
             "Length of a drawn-vertices state (`decode_surface_into`).",
             m.surface_len(),
+        ),
+        (
+            "RENDER_LEN",
+            "Length of the render mesh's positions and of its normals (`decode_render_into`; 0 without a render mesh).",
+            m.render_len(),
         ),
         (
             "WEIGHT_BYTES",

@@ -35,10 +35,11 @@ pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
 /// into the first (`surface_triangles`, over the drawn vertices); version 5 added decoders that
 /// end in a linear basis (`decoder_basis`); version 6 added the trained range of frame times
 /// (`dt_range`, for an integrator that takes the frame time as an input) and the run-time
-/// collider slots (`collider_shapes`). The runtime also
-/// reads version [`OLDEST_READ_VERSION`] (as a model of one frame time); other versions are
+/// collider slots (`collider_shapes`); version 7 added the render mesh embedded in the
+/// simulation mesh (`render`). The runtime also reads versions [`OLDEST_READ_VERSION`] (as a
+/// model of one frame time) and 6 (as a model without a render mesh); other versions are
 /// refused with [`EnvelopeError::Version`].
-pub const FORMAT_VERSION: u32 = 6;
+pub const FORMAT_VERSION: u32 = 7;
 
 /// Oldest artifact format version the runtime reads: 5, whose payload is this one without its
 /// last two fields (`dt_range`, `collider_shapes`).
@@ -235,7 +236,7 @@ where
     }
 
     /// Reads every field of the payload in the order of `payload::Payload` (a format-5 payload
-    /// ends before `dt_range`).
+    /// ends before `dt_range`, a format-6 payload before `render`).
     fn read(&mut self, payload: &[u8], version: u32) -> Result<(), LoadError> {
         let mut r = Reader {
             de: postcard::Deserializer::from_bytes(payload),
@@ -281,6 +282,12 @@ where
             let [lo, hi] = r.value::<[f64; 2]>("dt_range")?;
             (self.header.dt_min, self.header.dt_max) = (lo as f32, hi as f32);
             self.header.collider_shapes = r.seq("collider_shapes", &mut self.floats)?;
+        }
+        if version >= 7 {
+            self.header.render_anchors = r.seq("render.anchors", &mut self.indices)?;
+            self.header.render_weights = r.seq("render.weights", &mut self.floats)?;
+            self.header.render_triangles = r.seq("render.triangles", &mut self.indices)?;
+            self.header.render_uvs = r.seq("render.uvs", &mut self.floats)?;
         }
         match r.de.finalize() {
             Ok([]) => {}

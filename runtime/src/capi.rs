@@ -60,7 +60,8 @@ pub enum MochiStatus {
     NotFinite = -3,
     /// The model does not fit an instance, or is not the one the instance was created for.
     Size = -4,
-    /// The output buffer's length is not the model's state (or surface) length.
+    /// The output buffer's length is not the model's state (or surface, or render) length, or
+    /// buffers that must be distinct overlap.
     BufferLength = -5,
     /// The decoded state was not finite; the rest positions were written instead.
     DecodeNotFinite = -6,
@@ -100,6 +101,13 @@ pub struct MochiModelInfo {
     pub dt_max: f32,
     /// Run-time collider slots ([`mochi_instance_step_colliders`]).
     pub colliders: u32,
+    /// Floats of the render mesh's positions and of its normals
+    /// ([`mochi_instance_decode_render`]): 3 per render vertex, 0 without a render mesh.
+    pub render_len: u32,
+    /// Render triangles (three `u32` each, [`mochi_model_render_mesh`]).
+    pub render_triangles: u32,
+    /// Floats of the render mesh's texture coordinates (2 per render vertex, or 0).
+    pub render_uvs: u32,
 }
 
 /// The instance in `instance`'s memory.
@@ -135,6 +143,42 @@ pub unsafe extern "C" fn mochi_model_info(model: *const MochiModel, info: *mut M
         dt_min: m.dt_min,
         dt_max: m.dt_max,
         colliders: m.colliders() as u32,
+        render_len: m.render_len() as u32,
+        render_triangles: (m.render_triangles().len() / 3) as u32,
+        render_uvs: m.render_uvs().len() as u32,
+    };
+    MochiStatus::Ok
+}
+
+/// Writes where the render mesh's triangles (`3 * render_triangles` render-vertex indices,
+/// counter-clockwise seen from outside) and texture coordinates (`render_uvs` floats) of
+/// [`MochiModelInfo`] are into `triangles` and `uvs`: the model's own memory, valid as long as
+/// the model; null where there are none.
+///
+/// # Safety
+/// `model` must be null or come from a model export; `triangles` and `uvs` null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn mochi_model_render_mesh(
+    model: *const MochiModel,
+    triangles: *mut *const u32,
+    uvs: *mut *const f32,
+) -> MochiStatus {
+    // SAFETY: see the function's contract.
+    let (Some(model), Some(triangles), Some(uvs)) =
+        (unsafe { model.as_ref() }, unsafe { triangles.as_mut() }, unsafe {
+            uvs.as_mut()
+        })
+    else {
+        return MochiStatus::NullPointer;
+    };
+    let m = model.0.model();
+    *triangles = match m.render_triangles() {
+        [] => core::ptr::null(),
+        values => values.as_ptr(),
+    };
+    *uvs = match m.render_uvs() {
+        [] => core::ptr::null(),
+        values => values.as_ptr(),
     };
     MochiStatus::Ok
 }
@@ -281,6 +325,62 @@ pub unsafe extern "C" fn mochi_instance_decode_surface(
     unsafe { decode(model, instance, out, len, true) }
 }
 
+/// Writes the render mesh's positions and area-weighted unit normals (`len` floats each, the
+/// model's `render_len`) for the instance's current state into `positions` and `normals`, from
+/// the simulation positions it decodes into `scratch` (`scratch_len` floats, the model's
+/// `state_len`; its contents afterwards are that full decode). Buffers that overlap are refused
+/// with [`MochiStatus::BufferLength`]. A state that decodes to a non-finite value gives the
+/// render mesh at rest and [`MochiStatus::DecodeNotFinite`].
+///
+/// # Safety
+/// As [`mochi_instance_step`]; `scratch` null or `scratch_len` writable floats; `positions` and
+/// `normals` null or `len` writable floats each.
+#[no_mangle]
+pub unsafe extern "C" fn mochi_instance_decode_render(
+    model: *const MochiModel,
+    instance: *mut MochiInstance,
+    scratch: *mut f32,
+    scratch_len: usize,
+    positions: *mut f32,
+    normals: *mut f32,
+    len: usize,
+) -> MochiStatus {
+    // SAFETY: see the function's contract.
+    let (Some(model), Some(body)) = (unsafe { model.as_ref() }, unsafe { state(instance) }) else {
+        return MochiStatus::NullPointer;
+    };
+    if scratch.is_null() || positions.is_null() || normals.is_null() {
+        return MochiStatus::NullPointer;
+    }
+    let range = |p: *mut f32, n: usize| {
+        let start = p as usize;
+        (start, start.saturating_add(n.saturating_mul(size_of::<f32>())))
+    };
+    let buffers = [range(scratch, scratch_len), range(positions, len), range(normals, len)];
+    let overlap = |(a, b): (usize, usize), (c, d): (usize, usize)| a < d && c < b;
+    if overlap(buffers[0], buffers[1]) || overlap(buffers[0], buffers[2]) || overlap(buffers[1], buffers[2]) {
+        return MochiStatus::BufferLength;
+    }
+    // SAFETY: writable and disjoint (the function's contract, the overlap checked above).
+    let (sim, out, normals) = unsafe {
+        (
+            core::slice::from_raw_parts_mut(scratch, scratch_len),
+            core::slice::from_raw_parts_mut(positions, len),
+            core::slice::from_raw_parts_mut(normals, len),
+        )
+    };
+    status(body.decode_render_into(&model.0, sim, out, normals))
+}
+
+fn status(result: Result<(), DecodeError>) -> MochiStatus {
+    match result {
+        Ok(()) => MochiStatus::Ok,
+        Err(DecodeError::BufferLength { .. }) => MochiStatus::BufferLength,
+        Err(DecodeError::NotFinite) => MochiStatus::DecodeNotFinite,
+        Err(DecodeError::Model(_)) => MochiStatus::Size,
+    }
+}
+
 /// # Safety
 /// As [`mochi_instance_decode`].
 unsafe fn decode(
@@ -304,12 +404,7 @@ unsafe fn decode(
     } else {
         body.decode_into(&model.0, out)
     };
-    match result {
-        Ok(()) => MochiStatus::Ok,
-        Err(DecodeError::BufferLength { .. }) => MochiStatus::BufferLength,
-        Err(DecodeError::NotFinite) => MochiStatus::DecodeNotFinite,
-        Err(DecodeError::Model(_)) => MochiStatus::Size,
-    }
+    status(result)
 }
 
 /// Pushes every vertex of `positions` (`len` floats: a state or drawn-vertices buffer of

@@ -71,12 +71,16 @@ impl Model<'static> {
         latent_min: EMPTY_SPAN,
         latent_max: EMPTY_SPAN,
         collider_shapes: EMPTY_SPAN,
+        render_anchors: EMPTY_SPAN,
+        render_weights: EMPTY_SPAN,
+        render_triangles: EMPTY_SPAN,
+        render_uvs: EMPTY_SPAN,
     };
 }
 
 impl<'a> Model<'a> {
     /// Number of fields of a [`Model`].
-    pub const FIELDS: usize = 33;
+    pub const FIELDS: usize = 37;
 
     /// Every field with its name, in declaration order.
     pub fn fields(&self) -> [(&'static str, FieldValue<'a>); Model::FIELDS] {
@@ -115,6 +119,10 @@ impl<'a> Model<'a> {
             latent_min,
             latent_max,
             collider_shapes,
+            render_anchors,
+            render_weights,
+            render_triangles,
+            render_uvs,
         } = *self;
         [
             ("dim", V::U32(dim)),
@@ -150,6 +158,10 @@ impl<'a> Model<'a> {
             ("latent_min", V::Span(latent_min)),
             ("latent_max", V::Span(latent_max)),
             ("collider_shapes", V::Span(collider_shapes)),
+            ("render_anchors", V::Span(render_anchors)),
+            ("render_weights", V::Span(render_weights)),
+            ("render_triangles", V::Span(render_triangles)),
+            ("render_uvs", V::Span(render_uvs)),
         ]
     }
 }

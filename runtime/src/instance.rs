@@ -489,7 +489,7 @@ fn last_hidden<const H: usize>(weights: &Weights, layers: &[Layer], parts: &[&[f
     h
 }
 
-fn check_len(out: &[f32], expected: usize) -> Result<(), DecodeError> {
+pub(crate) fn check_len(out: &[f32], expected: usize) -> Result<(), DecodeError> {
     if out.len() == expected {
         Ok(())
     } else {

@@ -41,6 +41,7 @@ pub mod network;
 #[cfg(feature = "std")]
 pub mod payload;
 pub mod pool;
+pub mod render;
 #[allow(unsafe_code)]
 mod strand_lanes;
 mod validation;

@@ -307,6 +307,16 @@ pub struct Model<'a> {
     /// collider inputs. Each slot adds [`FEATURES_PER_COLLIDER`] inputs after
     /// the three signals (before the frame time).
     pub collider_shapes: Span,
+    /// The render mesh riding on the simulation mesh ([`crate::render`]): per render vertex,
+    /// the four simulation vertices of its tet, in `indices`. Empty without a render mesh.
+    pub render_anchors: Span,
+    /// Per render vertex, the barycentric weights of its four anchors, in `floats`.
+    pub render_weights: Span,
+    /// Render triangles, three render-vertex indices each, in `indices`.
+    pub render_triangles: Span,
+    /// Per render vertex, its texture coordinates `(u, v)`, in `floats`; empty when the asset
+    /// has none.
+    pub render_uvs: Span,
 }
 
 /// What is wrong with a model: the field and the problem.

@@ -73,6 +73,24 @@ pub struct Payload {
     /// The run-time collider slots' shape rows, four numbers each (see
     /// [`crate::Model::collider_shapes`]); empty for a model without collider inputs.
     pub collider_shapes: Vec<f32>,
+    /// The render mesh riding on the simulation mesh (all lists empty when there is none). A
+    /// format-6 payload is this one without it.
+    pub render: RenderData,
+}
+
+/// A render mesh embedded in the simulation mesh's tets (see [`crate::render`]): four
+/// simulation vertices and four barycentric weights per render vertex, the triangles over the
+/// render vertices and, where the asset has them, their texture coordinates.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RenderData {
+    /// Per render vertex, the four simulation vertices of its tet.
+    pub anchors: Vec<u32>,
+    /// Per render vertex, the four barycentric weights of those vertices.
+    pub weights: Vec<f32>,
+    /// Render triangles, three render-vertex indices each, counter-clockwise seen from outside.
+    pub triangles: Vec<u32>,
+    /// Per render vertex, its texture coordinates `(u, v)`; empty when the asset has none.
+    pub uvs: Vec<f32>,
 }
 
 /// One rod strand of the bend encoding (see [`crate::Chain`]).
@@ -175,6 +193,7 @@ mod tests {
             decoder_basis: false,
             dt_range: [0.0; 2],
             collider_shapes: vec![],
+            render: RenderData::default(),
         }
     }
 

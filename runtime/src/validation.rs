@@ -92,6 +92,7 @@ impl Model<'_> {
         self.validate_decoder(k)?;
         self.validate_frame_times()?;
         self.validate_colliders()?;
+        self.validate_render()?;
         self.validate_network("integrator", self.integrator, self.integrator_input(), k)?;
         if !self.params.iter().all(|v| v.is_finite()) {
             return fail("params", Problem::NotFinite);

@@ -2,7 +2,8 @@
 //! (`dt_range` in the artifact) reads it after everything else and steps by any positive one, a
 //! model of one frame time refuses others, bad frame times change nothing, and an artifact of
 //! the previous format (5, without `dt_range` and collider slots) loads and steps exactly as the
-//! same model written in this one. Run-time colliders: a model with collider slots reads each
+//! same model written in this one, and one of format 6 (without the render mesh) as the same
+//! model without one. Run-time colliders: a model with collider slots reads each
 //! slot's features in the body's encoding frame (absent and far colliders alike), and refuses
 //! too many or non-finite colliders and malformed slots.
 
@@ -10,7 +11,7 @@ use mochi_runtime::artifact::{FORMAT_VERSION, MAGIC, OLDEST_READ_VERSION};
 use mochi_runtime::collider::{ColliderState, FAR_DIAGONALS, FEATURES_PER_COLLIDER};
 use mochi_runtime::envelope::{self, EnvelopeError};
 use mochi_runtime::network::activation::swish;
-use mochi_runtime::payload::{HandleData, LayerData, Payload};
+use mochi_runtime::payload::{HandleData, LayerData, Payload, RenderData};
 use mochi_runtime::{
     AnyInstance, HandleMotion, LoadError, ModelError, OwnedModel, Problem, StepError, Stepped, ValidModel,
 };
@@ -75,6 +76,7 @@ fn payload_with(timed: bool, slots: &[f32], read: Option<u64>) -> Payload {
         decoder_basis: false,
         dt_range: if timed { [1.0 / 120.0, 1.0 / 30.0] } else { [0.0; 2] },
         collider_shapes: slots.to_vec(),
+        render: RenderData::default(),
     }
 }
 
@@ -148,19 +150,9 @@ fn a_model_of_one_frame_time_refuses_another_and_bad_frame_times_change_nothing(
     assert_eq!(timed_body, AnyInstance::new(&timed).unwrap());
 }
 
-#[test]
-fn a_format_5_artifact_loads_and_steps_as_the_same_model_in_this_format() {
-    let p = payload(false);
-    let current = p.to_section().unwrap();
-    // Format 5's payload is this one without its last fields (`dt_range`, two f64, and the
-    // empty `collider_shapes`, one byte).
-    let encoded = p.encode().unwrap();
-    let old = envelope::wrap(MAGIC, OLDEST_READ_VERSION, &encoded[..encoded.len() - 17]);
-    assert_eq!(OLDEST_READ_VERSION, 5);
-    assert_eq!(FORMAT_VERSION, 6);
-    let (a, b) = (load(&current), load(&old));
+/// Steps and decodes two loaded models side by side: the same latents and positions.
+fn same_rollouts(a: &OwnedModel, b: &OwnedModel) {
     let (a, b) = (a.model().unwrap(), b.model().unwrap());
-    assert!(!b.model().timed());
     let (mut x, mut y) = (AnyInstance::new(&a).unwrap(), AnyInstance::new(&b).unwrap());
     let (mut xs, mut ys) = ([0.0f32; 6], [0.0f32; 6]);
     for f in 0..20 {
@@ -170,11 +162,26 @@ fn a_format_5_artifact_loads_and_steps_as_the_same_model_in_this_format() {
         y.decode_into(&b, &mut ys).unwrap();
         assert_eq!(xs, ys, "frame {f}");
     }
-    // A format-6 payload cut short is refused, not read as format 5.
-    let cut = envelope::wrap(MAGIC, FORMAT_VERSION, &encoded[..encoded.len() - 17]);
+}
+
+#[test]
+fn a_format_5_artifact_loads_and_steps_as_the_same_model_in_this_format() {
+    let p = payload(false);
+    let current = p.to_section().unwrap();
+    // Format 5's payload is this one without its last fields (`dt_range`, two f64, the empty
+    // `collider_shapes`, one byte, and the empty render mesh, four bytes).
+    let encoded = p.encode().unwrap();
+    let old = envelope::wrap(MAGIC, OLDEST_READ_VERSION, &encoded[..encoded.len() - 21]);
+    assert_eq!(OLDEST_READ_VERSION, 5);
+    assert_eq!(FORMAT_VERSION, 7);
+    let (a, b) = (load(&current), load(&old));
+    assert!(!b.model().unwrap().model().timed());
+    same_rollouts(&a, &b);
+    // A format-7 payload cut short is refused, not read as format 5.
+    let cut = envelope::wrap(MAGIC, FORMAT_VERSION, &encoded[..encoded.len() - 21]);
     assert!(OwnedModel::default().load(&cut).is_err());
     // Older and newer formats are refused naming the version.
-    for version in [4, 7] {
+    for version in [4, 8] {
         let bytes = envelope::wrap(MAGIC, version, &encoded);
         assert_eq!(
             OwnedModel::default().load(&bytes).err(),
@@ -184,6 +191,26 @@ fn a_format_5_artifact_loads_and_steps_as_the_same_model_in_this_format() {
             }))
         );
     }
+}
+
+#[test]
+fn a_format_6_artifact_loads_and_steps_as_the_same_model_without_a_render_mesh() {
+    let p = payload(true);
+    let current = p.to_section().unwrap();
+    // Format 6's payload is this one without the render mesh (four empty lists, four bytes).
+    let encoded = p.encode().unwrap();
+    let old = envelope::wrap(MAGIC, 6, &encoded[..encoded.len() - 4]);
+    let (a, b) = (load(&current), load(&old));
+    let m = b.model().unwrap();
+    assert!(m.model().timed());
+    assert!(!m.model().has_render());
+    same_rollouts(&a, &b);
+    // A format-7 payload labelled 6 is refused for its trailing render mesh.
+    let labelled = envelope::wrap(MAGIC, 6, &encoded);
+    assert_eq!(
+        OwnedModel::default().load(&labelled).err(),
+        Some(LoadError::TrailingBytes)
+    );
 }
 
 #[test]

@@ -67,6 +67,7 @@ fn one_large_handle() -> Payload {
         decoder_basis: false,
         dt_range: [0.0; 2],
         collider_shapes: vec![],
+        render: Default::default(),
     }
 }
 
@@ -108,6 +109,7 @@ fn one_large_strand() -> Payload {
         decoder_basis: false,
         dt_range: [0.0; 2],
         collider_shapes: vec![],
+        render: Default::default(),
     }
 }
 

@@ -1,4 +1,5 @@
-//! Generates the model (`tests/artifacts/tiny.mochi`, or `MOCHI_ARTIFACT` with `MOCHI_WEIGHTS`)
+//! Generates the model (`tests/artifacts/tiny.mochi`, or `MOCHI_ARTIFACT` with `MOCHI_WEIGHTS`),
+//! the model with a render mesh (`tests/artifacts/tiny-render.mochi`)
 //! and the C header `mochi.h` (cbindgen over the runtime's C ABI and this crate's exports).
 
 use std::collections::HashMap;
@@ -8,6 +9,10 @@ fn main() {
     let manifest = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     let repo = manifest.join("../..");
     if let Err(e) = mochi_codegen::build_rs_from_env(repo.join("tests/artifacts/tiny.mochi"), "model.rs") {
+        panic!("codegen failed: {e}");
+    }
+    // A model with a render mesh, for the render decode's call.
+    if let Err(e) = mochi_codegen::build_rs(repo.join("tests/artifacts/tiny-render.mochi"), "render_model.rs") {
         panic!("codegen failed: {e}");
     }
     let sources = [

@@ -1,7 +1,9 @@
 /* An engine's view of mochi: links libmochi_c.a, creates several instances of one model in
  * its own memory, steps them with the reference boundary-condition script and prints a
  * checksum of the decoded positions and the positions every 10th frame, which must stay
- * within 1e-5 of the rest diagonal of the host runtime's (see tests/c_program.rs). Output protocol: the same lines as the Cortex-M4 and wasm targets. */
+ * within 1e-5 of the rest diagonal of the host runtime's (see tests/c_program.rs); then steps the
+ * same model with a render mesh and takes its render positions and normals in one call, checking
+ * the normals and the refusals. Output protocol: the same lines as the Cortex-M4 and wasm targets. */
 #include <stdio.h>
 #include <string.h>
 
@@ -113,6 +115,51 @@ int main(void) {
   ball.size[0] = -1.0f;
   if (mochi_push_out(model, pushed, info.state_len, &ball, 1, 0.0f, &moved) != MochiStatus_Collider)
     return fail("a bad collider was not refused", MochiStatus_Ok);
+
+  /* The render mesh: positions and normals in one call, through a scratch full decode. */
+  const MochiModel *dressed = mochi_model_tiny_render();
+  MochiModelInfo rinfo;
+  s = mochi_model_info(dressed, &rinfo);
+  if (s != MochiStatus_Ok || rinfo.render_len == 0 || rinfo.render_triangles == 0 || rinfo.render_uvs == 0)
+    return fail("render model info", s);
+  const uint32_t *triangles = NULL;
+  const float *uvs = NULL;
+  s = mochi_model_render_mesh(dressed, &triangles, &uvs);
+  if (s != MochiStatus_Ok || triangles == NULL || uvs == NULL) return fail("mochi_model_render_mesh", s);
+  static MochiInstance dressed_body;
+  static float scratch[1 << 16], rpos[1 << 16], rnormals[1 << 16];
+  if (rinfo.render_len > (1 << 16) || rinfo.state_len > (1 << 16)) return fail("render length", MochiStatus_BufferLength);
+  s = mochi_instance_init(dressed, &dressed_body);
+  if (s != MochiStatus_Ok) return fail("mochi_instance_init (render)", s);
+  for (uint32_t frame = 1; frame <= 30; frame++) {
+    s = mochi_reference_motion(frame, &motion);
+    if (s != MochiStatus_Ok) return fail("mochi_reference_motion", s);
+    for (uint32_t h = 0; h < rinfo.handles; h++) bc[h] = motion;
+    s = mochi_instance_step(dressed, &dressed_body, bc, rinfo.handles);
+    if (s < 0) return fail("mochi_instance_step (render)", s);
+    s = mochi_instance_decode_render(dressed, &dressed_body, scratch, rinfo.state_len, rpos, rnormals,
+                                     rinfo.render_len);
+    if (s != MochiStatus_Ok) return fail("mochi_instance_decode_render", s);
+  }
+  /* Every triangle's vertices exist and every normal of a vertex in a triangle is a unit vector. */
+  for (uint32_t t = 0; t < 3 * rinfo.render_triangles; t++) {
+    uint32_t v = triangles[t];
+    if (3 * v >= rinfo.render_len) return fail("a render triangle's vertex", MochiStatus_Ok);
+    float n2 = rnormals[3 * v] * rnormals[3 * v] + rnormals[3 * v + 1] * rnormals[3 * v + 1] +
+               rnormals[3 * v + 2] * rnormals[3 * v + 2];
+    if (n2 < 0.9999f || n2 > 1.0001f) return fail("a render normal is not of unit length", MochiStatus_Ok);
+  }
+  /* Refusals: a short buffer, overlapping buffers, a null pointer; a model without a render mesh
+     decodes an empty one. */
+  if (mochi_instance_decode_render(dressed, &dressed_body, scratch, rinfo.state_len, rpos, rnormals,
+                                   rinfo.render_len - 1) != MochiStatus_BufferLength ||
+      mochi_instance_decode_render(dressed, &dressed_body, scratch, rinfo.state_len, rpos, rpos + 3,
+                                   rinfo.render_len) != MochiStatus_BufferLength ||
+      mochi_instance_decode_render(dressed, &dressed_body, scratch, rinfo.state_len, NULL, rnormals,
+                                   rinfo.render_len) != MochiStatus_NullPointer ||
+      mochi_instance_decode_render(model, &bodies[0], scratch, info.state_len, rpos, rnormals, 0) != MochiStatus_Ok ||
+      info.render_len != 0)
+    return fail("render refusals", MochiStatus_Ok);
 
   printf("positions");
   for (uint32_t i = 0; i < info.state_len; i++) {

@@ -8,6 +8,12 @@ pub mod tiny {
     include!(concat!(env!("OUT_DIR"), "/tiny.rs"));
 }
 
+/// Generated from `artifacts/tiny-render.mochi` (`tiny` with a render mesh: its box's surface,
+/// 12 quads a side on every face, riding on its tets).
+pub mod tiny_render {
+    include!(concat!(env!("OUT_DIR"), "/tiny_render.rs"));
+}
+
 /// Generated from `artifacts/beam.mochi` (the shipped beam scene's self-supervised model).
 pub mod beam {
     include!(concat!(env!("OUT_DIR"), "/beam.rs"));

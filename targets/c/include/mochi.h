@@ -73,7 +73,8 @@ enum MochiStatus
    */
   MochiStatus_Size = -4,
   /**
-   * The output buffer's length is not the model's state (or surface) length.
+   * The output buffer's length is not the model's state (or surface, or render) length, or
+   * buffers that must be distinct overlap.
    */
   MochiStatus_BufferLength = -5,
   /**
@@ -154,6 +155,19 @@ typedef struct MochiModelInfo {
    * Run-time collider slots ([`mochi_instance_step_colliders`]).
    */
   uint32_t colliders;
+  /**
+   * Floats of the render mesh's positions and of its normals
+   * ([`mochi_instance_decode_render`]): 3 per render vertex, 0 without a render mesh.
+   */
+  uint32_t render_len;
+  /**
+   * Render triangles (three `u32` each, [`mochi_model_render_mesh`]).
+   */
+  uint32_t render_triangles;
+  /**
+   * Floats of the render mesh's texture coordinates (2 per render vertex, or 0).
+   */
+  uint32_t render_uvs;
 } MochiModelInfo;
 
 /**
@@ -251,6 +265,19 @@ extern "C" {
 MochiStatus mochi_model_info(const struct MochiModel *model, struct MochiModelInfo *info);
 
 /**
+ * Writes where the render mesh's triangles (`3 * render_triangles` render-vertex indices,
+ * counter-clockwise seen from outside) and texture coordinates (`render_uvs` floats) of
+ * [`MochiModelInfo`] are into `triangles` and `uvs`: the model's own memory, valid as long as
+ * the model; null where there are none.
+ *
+ * # Safety
+ * `model` must be null or come from a model export; `triangles` and `uvs` null or writable.
+ */
+MochiStatus mochi_model_render_mesh(const struct MochiModel *model,
+                                    const uint32_t **triangles,
+                                    const float **uvs);
+
+/**
  * Puts a new object of `model` at rest into `instance`.
  *
  * # Safety
@@ -328,6 +355,26 @@ MochiStatus mochi_instance_decode_surface(const struct MochiModel *model,
                                           size_t len);
 
 /**
+ * Writes the render mesh's positions and area-weighted unit normals (`len` floats each, the
+ * model's `render_len`) for the instance's current state into `positions` and `normals`, from
+ * the simulation positions it decodes into `scratch` (`scratch_len` floats, the model's
+ * `state_len`; its contents afterwards are that full decode). Buffers that overlap are refused
+ * with [`MochiStatus::BufferLength`]. A state that decodes to a non-finite value gives the
+ * render mesh at rest and [`MochiStatus::DecodeNotFinite`].
+ *
+ * # Safety
+ * As [`mochi_instance_step`]; `scratch` null or `scratch_len` writable floats; `positions` and
+ * `normals` null or `len` writable floats each.
+ */
+MochiStatus mochi_instance_decode_render(const struct MochiModel *model,
+                                         struct MochiInstance *instance,
+                                         float *scratch,
+                                         size_t scratch_len,
+                                         float *positions,
+                                         float *normals,
+                                         size_t len);
+
+/**
  * Pushes every vertex of `positions` (`len` floats: a state or drawn-vertices buffer of
  * `model`, `dim` per vertex) nearer than `margin` to one of `count` colliders, or inside it,
  * out to `margin` from its surface (`mochi_runtime::collider`); writes how many moves were
@@ -350,6 +397,12 @@ MochiStatus mochi_push_out(const struct MochiModel *model,
  * code was edited).
  */
 const struct MochiModel *mochi_model_tiny(void);
+
+/**
+ * The generated model with a render mesh (`tiny` with its box's surface riding on its tets),
+ * or null if it failed validation.
+ */
+const struct MochiModel *mochi_model_tiny_render(void);
 
 /**
  * The motion every handle of the generated model makes over the step that ends at `frame` in

@@ -1,5 +1,6 @@
 //! Static library for C and C++ engines: the runtime's C ABI (`mochi_instance_*`, see
-//! `include/mochi.h`) with one generated model (`mochi_model_tiny`), and the reference
+//! `include/mochi.h`) with one generated model (`mochi_model_tiny`) and the same with a render
+//! mesh (`mochi_model_tiny_render`), and the reference
 //! boundary-condition script every target runs (`mochi_reference_motion`), so that the C
 //! program in `main.c` can check its positions against the host's.
 
@@ -13,6 +14,12 @@ use mochi_target_common::Script;
 #[allow(missing_docs)]
 pub mod model {
     include!(concat!(env!("OUT_DIR"), "/model.rs"));
+}
+
+/// The generated model with a render mesh (`tests/artifacts/tiny-render.mochi`, see build.rs).
+#[allow(missing_docs)]
+pub mod render_model {
+    include!(concat!(env!("OUT_DIR"), "/render_model.rs"));
 }
 
 /// The C header, as cbindgen generated it for this build.
@@ -30,6 +37,16 @@ fn validated() -> Option<&'static MochiModel> {
 #[allow(unsafe_code)]
 pub extern "C" fn mochi_model_tiny() -> *const MochiModel {
     validated().map_or(core::ptr::null(), |m| m as *const MochiModel)
+}
+
+/// The generated model with a render mesh (`tiny` with its box's surface riding on its tets),
+/// or null if it failed validation.
+#[no_mangle] // exported under a fixed name: the lint counts that as unsafe code
+#[allow(unsafe_code)]
+pub extern "C" fn mochi_model_tiny_render() -> *const MochiModel {
+    static MODEL: OnceLock<Option<MochiModel>> = OnceLock::new();
+    let model = MODEL.get_or_init(|| MochiModel::new(render_model::MODEL).ok()).as_ref();
+    model.map_or(core::ptr::null(), |m| m as *const MochiModel)
 }
 
 /// The motion every handle of the generated model makes over the step that ends at `frame` in

@@ -5,8 +5,8 @@
 #![allow(unsafe_code)]
 
 use mochi_runtime::capi::{
-    mochi_instance_decode, mochi_instance_decode_surface, mochi_instance_init, mochi_instance_step, MochiInstance,
-    MochiModel, MochiStatus, MOCHI_INSTANCE_WORDS,
+    mochi_instance_decode, mochi_instance_decode_render, mochi_instance_decode_surface, mochi_instance_init,
+    mochi_instance_step, MochiInstance, MochiModel, MochiStatus, MOCHI_INSTANCE_WORDS,
 };
 use mochi_runtime::payload::{HandleData, LayerData, Payload};
 use mochi_runtime::{HandleMotion, OwnedModel, MAX_LATENT};
@@ -49,6 +49,7 @@ fn model(latent: usize) -> MochiModel {
         decoder_basis: false,
         dt_range: [0.0; 2],
         collider_shapes: vec![],
+        render: Default::default(),
     };
     let storage: &'static mut OwnedModel = Box::leak(Box::default());
     let valid = storage.load(&payload.to_section().unwrap()).unwrap();
@@ -100,6 +101,21 @@ fn an_instance_claiming_more_latent_than_its_room_gets_a_status() {
     );
     assert_eq!(
         unsafe { mochi_instance_decode_surface(&wide, &mut instance, out.as_mut_ptr(), 6) },
+        MochiStatus::Size
+    );
+    let (mut positions, mut normals) = ([0.0f32; 0], [0.0f32; 0]);
+    assert_eq!(
+        unsafe {
+            mochi_instance_decode_render(
+                &wide,
+                &mut instance,
+                out.as_mut_ptr(),
+                6,
+                positions.as_mut_ptr(),
+                normals.as_mut_ptr(),
+                0,
+            )
+        },
         MochiStatus::Size
     );
     assert_eq!(instance.opaque, before, "a refused call changes nothing");

@@ -126,6 +126,16 @@ impl Scene {
         build_mesh(&self.mesh, &self.source, "mesh")
     }
 
+    /// The render mesh riding on the scene's tet mesh (`mesh.render`), read and checked against
+    /// the built `mesh`; `None` when the scene names none.
+    pub fn render_embedding(&self, mesh: &Mesh) -> Result<Option<mesh::asset::render::RenderEmbedding>, InputError> {
+        let MeshSpec::File { render: Some(file), .. } = &self.mesh else {
+            return Ok(None);
+        };
+        let path = self.source.parent().unwrap_or(Path::new(".")).join(file);
+        mesh::asset::render::RenderEmbedding::read_for(&path, mesh).map(Some)
+    }
+
     /// Builds the mesh, energies, handles and simulator.
     pub fn build(&self) -> Result<BuiltScene, InputError> {
         let mesh = self.build_mesh()?;
@@ -384,6 +394,7 @@ fn build_mesh(spec: &MeshSpec, scene_file: &Path, field: &str) -> Result<Mesh, I
             normalize,
             scale,
             kind,
+            ..
         } => {
             let full = scene_file.parent().unwrap_or(Path::new(".")).join(path);
             let kind = match kind.as_deref() {

@@ -9,7 +9,8 @@
 //! The first section is exactly what the runtime reads (and all a device needs); the second
 //! holds what only the trainer reads. Files of format 2 (one section, the whole [`Artifact`]
 //! in postcard), 3 (the triangles to draw in the training section, [`super::format3`]) and 4
-//! (no `decoder_basis`: the payload ends before it) are still read; `mochi upgrade` rewrites
+//! (no `decoder_basis`: the payload ends before it), 5 (no `dt_range`, `collider_shapes`) and 6 (no
+//! `render`) are still read; `mochi upgrade` rewrites
 //! them in the current format.
 
 use std::path::Path;
@@ -29,6 +30,8 @@ const MLP_DECODER_VERSION: u32 = 4;
 /// The last format whose models step at one frame time and take no colliders (no `dt_range`,
 /// no `collider_shapes`).
 const ONE_FRAME_TIME_VERSION: u32 = 5;
+/// The last format without the render mesh (`render`).
+const NO_RENDER_VERSION: u32 = 6;
 
 /// Weights and biases smaller than this fraction (`2^-40`) of their layer's largest weight are
 /// written as zero.
@@ -117,6 +120,7 @@ impl Artifact {
             decoder_basis: self.decoder_basis,
             dt_range: self.dt_range,
             collider_shapes: self.collider_shapes.clone(),
+            render: self.render.clone(),
         };
         let training = TrainingSection {
             scene: self.scene.clone(),
@@ -208,6 +212,7 @@ impl Artifact {
             integrator: layers(p.integrator)?,
             dt_range: p.dt_range,
             collider_shapes: p.collider_shapes,
+            render: p.render,
             summary: t.summary,
         })
     }
@@ -227,7 +232,7 @@ impl Artifact {
         Ok(bytes)
     }
 
-    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 5, 4, 3 or 2), and checks that
+    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 6, 5, 4, 3 or 2), and checks that
     /// the runtime accepts what it reads of it.
     pub fn parse(bytes: &[u8]) -> Result<Artifact, ArtifactError> {
         let decode = |section| move |source| ArtifactError::Decode { section, source };
@@ -243,6 +248,8 @@ impl Artifact {
                 MLP_DECODER_VERSION
             } else if old(ONE_FRAME_TIME_VERSION) {
                 ONE_FRAME_TIME_VERSION
+            } else if old(NO_RENDER_VERSION) {
+                NO_RENDER_VERSION
             } else {
                 FORMAT_VERSION
             };
@@ -259,6 +266,10 @@ impl Artifact {
                 // Format 6 appended `dt_range` ([0, 0]: one frame time; two f64 of 8 bytes)
                 // and `collider_shapes` (none: an empty list, one byte).
                 model.extend([0; 17]);
+            }
+            if version <= NO_RENDER_VERSION {
+                // Format 7 appended the render mesh (none: four empty lists, a byte each).
+                model.extend([0; 4]);
             }
             Artifact::from_sections(
                 Payload::decode(&model).map_err(decode("model section"))?,
@@ -356,13 +367,26 @@ mod tests {
         let (bytes, artifact) = tiny();
         let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
         let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
-        // Format 5 is format 6 without the model section's last fields (`dt_range`, 16 bytes,
-        // and an empty `collider_shapes`, 1 byte).
-        let mut old = envelope::wrap(MAGIC, ONE_FRAME_TIME_VERSION, &model[..model.len() - 17]);
+        // Format 5 is format 7 without the model section's last fields (`dt_range`, 16 bytes,
+        // an empty `collider_shapes`, 1 byte, and no render mesh, 4 bytes).
+        let mut old = envelope::wrap(MAGIC, ONE_FRAME_TIME_VERSION, &model[..model.len() - 21]);
         old.extend(envelope::wrap(TRAINING_MAGIC, ONE_FRAME_TIME_VERSION, training));
         assert_eq!(Artifact::parse(&old).unwrap(), artifact);
         let mut runtime = mochi_runtime::OwnedModel::default();
         assert_eq!(runtime.load(&old).unwrap().model().dt_max, 0.0);
+    }
+
+    #[test]
+    fn artifact_of_format_6_is_still_read_by_the_trainer_and_the_runtime() {
+        let (bytes, artifact) = tiny();
+        let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
+        let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
+        // Format 6 is format 7 without the render mesh (four empty lists, 4 bytes).
+        let mut old = envelope::wrap(MAGIC, NO_RENDER_VERSION, &model[..model.len() - 4]);
+        old.extend(envelope::wrap(TRAINING_MAGIC, NO_RENDER_VERSION, training));
+        assert_eq!(Artifact::parse(&old).unwrap(), artifact);
+        let mut runtime = mochi_runtime::OwnedModel::default();
+        assert!(!runtime.load(&old).unwrap().model().has_render());
     }
 
     #[test]

@@ -13,6 +13,7 @@
 pub mod file;
 mod format3;
 pub mod reduced;
+pub mod render;
 pub mod section;
 
 use serde::{Deserialize, Serialize};
@@ -24,6 +25,8 @@ pub use mochi_runtime::artifact::{FORMAT_VERSION, MAGIC};
 /// One rod strand of the bend encoding (see [`crate::learn::encoding::Chain`]): the runtime's
 /// record, stored as is.
 pub use mochi_runtime::payload::ChainData;
+/// The render mesh embedded in the simulation mesh: the runtime's record, stored as is.
+pub use mochi_runtime::payload::RenderData;
 pub use section::{ArtifactError, TrainingSection, TRAINING_MAGIC};
 
 /// How an artifact's integrator was trained.
@@ -238,6 +241,9 @@ pub struct Artifact {
     /// The run-time collider slots the integrator reads, a shape row `[code, a, b, c]` each
     /// (`mochi_runtime::Model::collider_shapes`); empty for a model without collider inputs.
     pub collider_shapes: Vec<f32>,
+    /// The render mesh riding on the simulation mesh, from the scene's `mesh.render` (all
+    /// lists empty without one); see `mochi_runtime::render`.
+    pub render: RenderData,
     /// How it was made.
     pub summary: TrainingSummary,
 }

@@ -92,11 +92,16 @@ pub fn scene_toml(
         .file_name()
         .map(|f| f.to_string_lossy().into_owned())
         .unwrap_or_default();
+    // `mochi mesh` writes the render embedding beside the mesh: `STEM.render.npz`.
+    let render_file = mesh_path
+        .file_stem()
+        .map(|s| format!("{}.render.npz", s.to_string_lossy()))
+        .unwrap_or_default();
     let last = runs.last();
     let report = &repaired.report;
     format!(
         r#"# Written by `mochi mesh {asset}`: edit freely. The tet mesh {mesh_file} is in the asset's
-# units and frame; the render mesh rides on it through {name}.render.npz.
+# units and frame; the render mesh rides on it through {render_file}.
 # Repair: {summary}
 # Tet mesh: {vertices} vertices, {tets} tets (fTetWild, target edge {edge:.4e} in asset units,
 # envelope {epsilon:.1e} of the diagonal).
@@ -111,6 +116,9 @@ path = {quoted_mesh}
 # The body is simulated centred and 1 m across its largest extent (the handle box below is
 # in that frame); the render embedding's weights do not depend on the scale.
 normalize = true
+# The render mesh riding on the tets: trained models carry it (`mochi export`, the runtime's
+# render decode).
+render = {quoted_render}
 
 [material]
 # A soft default (a jelly): Young's modulus in Pa, density in kg/m^3.
@@ -151,6 +159,7 @@ beyond = 1.5
         epsilon = last.map_or(0.0, |r| r.epsilon),
         quoted_name = toml_string(name),
         quoted_mesh = toml_string(&mesh_file),
+        quoted_render = toml_string(&render_file),
         handle_words = handle.describe().replace('`', "").replace('"', "'"),
     )
 }

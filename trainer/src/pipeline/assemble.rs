@@ -89,6 +89,7 @@ pub fn build_artifact(
             .frame_times()
             .map_or([0.0; 2], |(shortest, longest)| [shortest, longest]),
         collider_shapes: collider_shape_rows(problem, data.colliders),
+        render: crate::artifact::render::render_data(problem)?,
         summary,
     };
     artifact.validate().map_err(|(field, message)| ArtifactError::Invalid {

@@ -72,6 +72,11 @@ pub enum MeshSpec {
         /// How to read an OBJ file (`cloth` or `rods`); ignored for other formats.
         #[serde(default)]
         kind: Option<String>,
+        /// A render mesh riding on this tet mesh: the `NAME.render.npz` that `mochi mesh`
+        /// writes beside it, relative to the scene file; a trained model then carries it and
+        /// the runtime decodes it. None by default.
+        #[serde(default)]
+        render: Option<PathBuf>,
     },
     /// Several bodies of one kind in one scene (`parts = [{ type = "box", ... }, ...]`),
     /// never joined by an element; they meet through contact (`[contact] self = true`).

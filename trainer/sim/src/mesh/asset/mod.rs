@@ -17,6 +17,7 @@
 mod gltf_reader;
 mod obj_stl;
 pub mod render;
+mod render_read;
 pub mod repair;
 #[cfg(test)]
 mod tests;

@@ -488,3 +488,51 @@ fn render_vertices_ride_inside_their_tets() {
 }
 
 use crate::mesh::Elements;
+
+#[test]
+fn render_archives_read_back_as_written_and_bad_ones_are_refused() {
+    let sim = box_tets([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2, 2, 2]).unwrap();
+    let positions = vec![[0.2, 0.3, 0.4], [0.8, 0.1, 0.5], [0.5, 0.9, 0.2], [1.1, 0.5, 0.5]];
+    let surface = Surface {
+        positions,
+        triangles: vec![[0, 1, 2], [1, 3, 2]],
+        normals: Some(vec![[0.0, 0.0, 1.0]; 4]),
+        uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]),
+        ..Surface::default()
+    };
+    let render = RenderEmbedding::new(&surface, &sim).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("a.render.npz");
+    render.write_npz(&path).unwrap();
+    let back = RenderEmbedding::read_npz(&path).unwrap();
+    assert_eq!(back.surface.parts.len(), 1);
+    let whole = RenderEmbedding {
+        surface: Surface {
+            parts: back.surface.parts.clone(),
+            ..render.surface.clone()
+        },
+        ..render.clone()
+    };
+    assert_eq!(back, whole);
+    assert_eq!(RenderEmbedding::read_for(&path, &sim).unwrap(), back);
+    let other = box_tets([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2, 2, 3]).unwrap();
+    let e = RenderEmbedding::read_for(&path, &other).unwrap_err().to_string();
+    assert!(
+        e.contains("sim_vertices") && e.contains("made for a mesh of 27 vertices"),
+        "{e}"
+    );
+    let refused = |edit: &dyn Fn(&mut RenderEmbedding)| {
+        let mut bad = render.clone();
+        edit(&mut bad);
+        bad.write_npz(&path).unwrap();
+        RenderEmbedding::read_npz(&path).unwrap_err().to_string()
+    };
+    let e = refused(&|r| r.embedding.anchors[1].weights[0] = 1.5);
+    assert!(e.contains("a.render.npz") && e.contains("weights"), "{e}");
+    let e = refused(&|r| r.sim_size.0 = 3);
+    assert!(e.contains("tet_vertices") && e.contains("3 simulation vertices"), "{e}");
+    let e = refused(&|r| r.surface.triangles[1][2] = 4);
+    assert!(e.contains("triangles") && e.contains("4 vertices"), "{e}");
+    let e = refused(&|r| r.sim_size.1 = 0);
+    assert!(e.contains("`tet`") || e.contains("tet"), "{e}");
+}
