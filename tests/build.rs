@@ -27,5 +27,14 @@ fn main() {
 
 /// The committed artifacts (see `artifacts/README.md`).
 fn mochi_tests_artifacts() -> [&'static str; 8] {
-    ["tiny", "beam", "strands", "beam-m8", "rods", "rods-m8", "tiny-poke", "tiny-render"]
+    [
+        "tiny",
+        "beam",
+        "strands",
+        "beam-m8",
+        "rods",
+        "rods-m8",
+        "tiny-poke",
+        "tiny-render",
+    ]
 }

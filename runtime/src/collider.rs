@@ -108,7 +108,7 @@ pub fn features(
             let centre = inverse * (V3::from(s.center) - origin);
             let turned = inverse * *rotation(&s.rotation).matrix();
             let velocity = inverse * V3::from(s.linear_velocity);
-            let axes = turned.column(0).into_iter().chain(turned.column(1).into_iter());
+            let axes = turned.column(0).into_iter().chain(turned.column(1));
             for (o, v) in out.iter_mut().zip(centre.iter().chain(axes).chain(velocity.iter())) {
                 *o = *v;
             }
