@@ -30,6 +30,7 @@ pub const BOX: u32 = 2;
 
 type V3 = Vector3<f32>;
 
+use crate::model::Model;
 pub use crate::model::{FEATURES_PER_COLLIDER, MAX_COLLIDERS, SHAPE_ROW};
 /// Beyond this many rest diagonals from the body's encoding origin a collider reads as absent
 /// ([`features`]).
@@ -54,6 +55,21 @@ pub fn shape_from_row(row: &[f32]) -> Option<(u32, [f32; 3])> {
         rotation: [0.0; 3],
     };
     probe.is_valid().then_some((shape, size))
+}
+
+/// Collider slot `slot` of `model`: its shape at the pose of `state` (what [`push_out`]
+/// takes); `None` for a slot the model does not have.
+pub fn slot_collider(model: &Model, slot: usize, state: &ColliderState) -> Option<Collider> {
+    let row = model
+        .collider_shape_rows()
+        .get(slot * SHAPE_ROW..(slot + 1) * SHAPE_ROW)?;
+    let (shape, size) = shape_from_row(row)?;
+    Some(Collider {
+        shape,
+        size,
+        center: state.center,
+        rotation: state.rotation,
+    })
 }
 
 /// A collider slot's state in a frame, as the host gives it: the pose of the shape's frame and

@@ -519,24 +519,6 @@ impl<'a> Model<'a> {
     pub fn colliders(&self) -> usize {
         self.collider_shapes.len as usize / SHAPE_ROW
     }
-    /// Collider slot `slot`'s shape at the pose of `state` (what `collider::push_out` takes);
-    /// `None` for a slot the model does not have.
-    pub fn collider_at(
-        &self,
-        slot: usize,
-        state: &crate::collider::ColliderState,
-    ) -> Option<crate::collider::Collider> {
-        let row = self
-            .collider_shape_rows()
-            .get(slot * SHAPE_ROW..(slot + 1) * SHAPE_ROW)?;
-        let (shape, size) = crate::collider::shape_from_row(row)?;
-        Some(crate::collider::Collider {
-            shape,
-            size,
-            center: state.center,
-            rotation: state.rotation,
-        })
-    }
 }
 
 /// Whether `v` ascends strictly.

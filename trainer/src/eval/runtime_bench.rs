@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use candle_core::{Device, Tensor};
 use mochi_codegen::{format_name, Options, Quantized};
-use mochi_runtime::collider::{push_out, Collider, ColliderState, FEATURES_PER_COLLIDER};
+use mochi_runtime::collider::{push_out, slot_collider, Collider, ColliderState, FEATURES_PER_COLLIDER};
 use mochi_runtime::{HandleMotion, Instance, OwnedModel, Stepped, ValidModel, WeightFormat};
 
 use crate::artifact::Artifact;
@@ -278,7 +278,7 @@ fn measure<const K: usize, const S: usize, const H: usize>(run: &Run) -> Result<
                 states
                     .iter()
                     .enumerate()
-                    .filter_map(|(slot, s)| m.collider_at(slot, s))
+                    .filter_map(|(slot, s)| slot_collider(m, slot, s))
                     .collect()
             };
             let shapes: Vec<Collider> = (0..frames).flat_map(|i| posed(&run.script[i].colliders)).collect();
