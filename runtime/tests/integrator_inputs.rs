@@ -260,7 +260,7 @@ fn latent_with_collider(state: Option<ColliderState>, turn: f32) -> f32 {
     let model = storage.model().unwrap();
     assert_eq!(
         (model.model().colliders(), model.model().integrator_input()),
-        (1, 2 + 36 + 9)
+        (1, 2 + 36 + mochi_runtime::collider::FEATURES_PER_COLLIDER)
     );
     let mut body = AnyInstance::new(&model).unwrap();
     let motion = [HandleMotion {
