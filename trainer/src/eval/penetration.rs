@@ -71,7 +71,10 @@ impl PenetrationMeter {
             .zip(poses)
             .map(|(&shape, &pose)| Collider { shape, pose })
             .collect();
-        let depth = deepest(&colliders, &self.vertices, |v| [x[3 * v], x[3 * v + 1], x[3 * v + 2]]);
+        let depth = deepest(
+            &colliders,
+            self.vertices.iter().map(|&v| [x[3 * v], x[3 * v + 1], x[3 * v + 2]]),
+        );
         let t = &mut self.totals;
         t.frames += 1;
         t.max_depth = t.max_depth.max(depth);
@@ -87,20 +90,18 @@ impl PenetrationMeter {
         if push_out(&mut self.scratch, 3, &runtime, 0.0).is_err() {
             return;
         }
-        let scratch = &self.scratch;
-        let pushed = deepest(&colliders, &(0..self.vertices.len()).collect::<Vec<_>>(), |k| {
-            [
-                scratch[3 * k] as f64,
-                scratch[3 * k + 1] as f64,
-                scratch[3 * k + 2] as f64,
-            ]
-        });
+        let pushed = deepest(
+            &colliders,
+            self.scratch
+                .chunks_exact(3)
+                .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]),
+        );
         t.pushed_max_depth = t.pushed_max_depth.max(pushed);
         if let Some((xr, diagonal)) = reference {
             let mut corrected = x.to_vec();
             for (k, &v) in self.vertices.iter().enumerate() {
                 for i in 0..3 {
-                    corrected[3 * v + i] = scratch[3 * k + i] as f64;
+                    corrected[3 * v + i] = self.scratch[3 * k + i] as f64;
                 }
             }
             self.pushed_errors
@@ -121,15 +122,10 @@ impl PenetrationMeter {
     }
 }
 
-/// Largest depth (m, 0 when outside) of the points `point(v)` of `vertices` inside any of
-/// `colliders`.
-fn deepest(colliders: &[Collider], vertices: &[usize], point: impl Fn(usize) -> [f64; 3]) -> f64 {
-    vertices
-        .iter()
-        .flat_map(|&v| {
-            let p = point(v);
-            colliders.iter().map(move |c| -c.signed_distance(&p))
-        })
+/// Largest depth (m, 0 when outside) of `points` inside any of `colliders`.
+fn deepest(colliders: &[Collider], points: impl Iterator<Item = [f64; 3]>) -> f64 {
+    points
+        .flat_map(|p| colliders.iter().map(move |c| -c.signed_distance(&p)))
         .fold(0.0, f64::max)
 }
 

@@ -42,18 +42,18 @@ pub struct ColliderContact {
     /// Friction coefficient and smoothing velocity (`[contact] friction`, `epsv`); `None`
     /// without friction.
     pub friction: Option<(f64, f64)>,
-    previous: Vec<ColliderPose>,
+    /// The same barrier posed at the frame before the predicted one (friction's lagged start).
+    start: ColliderBarrier,
 }
 
 impl ColliderContact {
     /// The colliders of `barrier` with stiffness `kappa` and friction `(mu, epsv)`.
     pub fn new(barrier: ColliderBarrier, kappa: f64, friction: Option<(f64, f64)>) -> Self {
-        let previous = barrier.poses();
         ColliderContact {
+            start: barrier.clone(),
             barrier,
             kappa,
             friction,
-            previous,
         }
     }
 }
@@ -101,7 +101,7 @@ impl PhysicsLoss {
         if let Some(c) = &mut self.colliders {
             let k = c.barrier.colliders().len();
             if previous.len() >= k && current.len() >= k {
-                c.previous = previous[..k].to_vec();
+                c.start.set_poses(&previous[..k]);
                 c.barrier.set_poses(&current[..k]);
             }
         }
@@ -164,10 +164,8 @@ fn collider_terms(c: &ColliderContact, dt: f64, x: &[f64], prev: &[f64], grad: &
     let floor = COLLIDER_FLOOR * c.barrier.dhat();
     let mut value = weight * c.barrier.floored_value_and_gradient(x, floor, weight, grad);
     if let Some((mu, epsv)) = c.friction {
-        let mut start = c.barrier.clone();
-        start.set_poses(&c.previous);
         let goals = c.barrier.poses();
-        let friction = ColliderFriction::lagged_floored(&start, prev, &goals, (c.kappa, mu, epsv * dt), floor);
+        let friction = ColliderFriction::lagged_floored(&c.start, prev, &goals, (c.kappa, mu, epsv * dt), floor);
         value += energy::add_gradient_sequential(&friction, 1.0 / (dt * dt), x, grad);
     }
     value

@@ -72,12 +72,12 @@ impl ColliderFriction {
             return out;
         }
         let dhat = barrier.dhat();
+        let lowest = floor.unwrap_or(0.0);
         for s in 0..barrier.len() {
             let (v, c) = barrier.pair(s);
             let collider = &barrier.colliders()[c];
             let p = &x[3 * v..3 * v + 3];
             let (d, n) = collider.signed_distance_and_gradient(p);
-            let lowest = floor.unwrap_or(0.0);
             if d >= dhat || (floor.is_none() && d <= 0.0) {
                 continue;
             }
