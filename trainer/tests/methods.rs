@@ -177,7 +177,10 @@ fn compare_runs_every_family_and_replays_a_peer() {
         .1;
     let mut kept = Vec::new();
     let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
-    run_sequence(&mut simulated, &bc, 12, &[], dim, diagonal, Some((&mut kept, 13))).unwrap();
+    // On one thread, as `compare` runs: the energies' parallel sums follow the threads.
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    pool.install(|| run_sequence(&mut simulated, &bc, 12, &[], dim, diagonal, Some((&mut kept, 13))))
+        .unwrap();
     std::fs::create_dir_all(peers.join("test-02")).unwrap();
     let recording = peers.join("test-02/xpbd-s1-i1.npz");
     let mut npz = NpzOut::create(&recording).unwrap();
