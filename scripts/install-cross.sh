@@ -15,6 +15,8 @@ for package in rustc-web rust-web-src rust-web-llvm lld-22 qemu-system-arm gcc-a
   dpkg -s "$package" >/dev/null 2>&1 || need+=("$package")
 done
 command -v node >/dev/null 2>&1 || need+=(nodejs)
+# npm installs the glTF validator (scripts/gltf.sh).
+command -v npm >/dev/null 2>&1 || need+=(npm)
 if [ ${#need[@]} -gt 0 ]; then
   sudo=""
   if [ "$(id -u)" -ne 0 ]; then sudo=sudo; fi
@@ -22,6 +24,6 @@ if [ ${#need[@]} -gt 0 ]; then
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
 fi
-for tool in /usr/bin/rustc rust-lld qemu-system-arm aarch64-linux-gnu-gcc qemu-aarch64 cc chromium node; do
+for tool in /usr/bin/rustc rust-lld qemu-system-arm aarch64-linux-gnu-gcc qemu-aarch64 cc chromium node npm; do
   command -v "$tool" >/dev/null 2>&1 || { echo "install-cross.sh: $tool is still missing after installing" >&2; exit 1; }
 done

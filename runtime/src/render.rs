@@ -146,13 +146,21 @@ pub fn render_positions(model: &ValidModel, sim: &[f32], out: &mut [f32]) -> Res
 }
 
 /// Area-weighted vertex normals of the render triangles at `positions` (3 floats per render
-/// vertex each): the sum of the cross products of each vertex's triangles' edges (twice their
-/// areas along their normals), normalised; zero for a vertex of no triangle or of triangles
-/// of no area.
+/// vertex each), as [`triangle_normals`] computes them.
 pub fn render_normals(model: &ValidModel, positions: &[f32], normals: &mut [f32]) -> Result<(), DecodeError> {
     let m = model.model();
     check_len(positions, m.render_len())?;
     check_len(normals, m.render_len())?;
+    triangle_normals(m.render_triangles(), positions, normals);
+    Ok(())
+}
+
+/// Area-weighted vertex normals of `triangles` (three indices into `positions` each) at
+/// `positions` (3 floats per vertex), written into `normals` (as long as `positions`): the
+/// sum of the cross products of each vertex's triangles' edges (twice their areas along their
+/// normals), normalised; zero for a vertex of no triangle or of triangles of no area. An
+/// index past `positions` reads as the origin and writes nowhere.
+pub fn triangle_normals(triangles: &[u32], positions: &[f32], normals: &mut [f32]) {
     let at = |s: &[f32], v: u32| {
         let i = 3 * v as usize;
         match s.get(i..i + 3) {
@@ -161,7 +169,7 @@ pub fn render_normals(model: &ValidModel, positions: &[f32], normals: &mut [f32]
         }
     };
     normals.fill(0.0);
-    for t in m.render_triangles().chunks_exact(3) {
+    for t in triangles.chunks_exact(3) {
         let (a, b, c) = (at(positions, t[0]), at(positions, t[1]), at(positions, t[2]));
         let n = (b - a).cross(&(c - a));
         for &v in t {
@@ -182,7 +190,6 @@ pub fn render_normals(model: &ValidModel, positions: &[f32], normals: &mut [f32]
         };
         o.copy_from_slice(unit.as_slice());
     }
-    Ok(())
 }
 
 impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {

@@ -20,6 +20,7 @@ pub mod artifact;
 pub mod cli;
 pub mod error;
 pub mod eval;
+pub mod export;
 pub mod learn;
 pub mod methods;
 pub mod pipeline;

@@ -258,6 +258,28 @@ pub(crate) enum Command {
         #[arg(required = true)]
         artifacts: Vec<PathBuf>,
     },
+    /// A trained model's rollout as a glTF 2.0 binary (`.glb`) that Blender and engines
+    /// open: its render mesh (or drawn surface) on one motion of its scene, one morph target
+    /// per frame played by an animation at the model's frame rate.
+    Export {
+        /// Artifact (`SCENE.mochi`).
+        artifact: PathBuf,
+        /// Output file (`.glb`); default: beside the artifact, `SCENE.glb`.
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Frames after the first.
+        #[arg(long, default_value_t = 120)]
+        frames: usize,
+        /// Speed level of the sampled handle motion (0: bottom, 1: top of the training range).
+        #[arg(long, default_value_t = 0.5)]
+        level: f64,
+        /// Seed of the sampled motion (default: the scene's dataset seed).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Weight storage the runtime steps with, as `mochi codegen --weights`.
+        #[arg(long, default_value = "f32", value_parser = parse_weights)]
+        weights: mochi_runtime::WeightFormat,
+    },
     /// Write an artifact's networks as the runtime runs them, with the runtime's rollout of
     /// the targets' reference script, to a numpy `.npz` archive (for `scripts/bench-jax.sh`).
     ExportWeights {

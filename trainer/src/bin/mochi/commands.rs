@@ -458,3 +458,48 @@ pub(crate) fn demo(name: &str, out: Option<PathBuf>, frames: usize, retrain: boo
     );
     Ok(())
 }
+
+/// `mochi export`: the model's rollout as a `.glb`, and a summary.
+pub(crate) fn export(
+    artifact: &Path,
+    out: Option<PathBuf>,
+    frames: usize,
+    level: f64,
+    seed: Option<u64>,
+    weights: mochi_runtime::WeightFormat,
+) -> Result<()> {
+    use mochi_trainer::export::{self, ExportOptions, ExportedMesh};
+    let options = ExportOptions {
+        frames,
+        level,
+        seed,
+        weights,
+    };
+    let animation = export::roll_out(artifact, &options)?;
+    let out = out.unwrap_or_else(|| artifact.with_extension("glb"));
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let bytes = export::glb::write(&animation, &out)?;
+    println!(
+        "{} -> {}: {} {} vertices, {} triangles, {} frames at {:.0} Hz ({} morph targets), {:.1} MiB{}",
+        artifact.display(),
+        out.display(),
+        match animation.mesh {
+            ExportedMesh::Render => "render mesh,",
+            ExportedMesh::Surface => "simulation surface,",
+        },
+        animation.vertices(),
+        animation.triangles.len() / 3,
+        animation.frames(),
+        1.0 / animation.dt,
+        animation.frames() - 1,
+        bytes as f64 / (1 << 20) as f64,
+        if animation.pushed_out > 0 {
+            format!(", {} vertex moves out of colliders", animation.pushed_out)
+        } else {
+            String::new()
+        }
+    );
+    Ok(())
+}

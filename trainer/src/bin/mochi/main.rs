@@ -184,6 +184,14 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
+        Command::Export {
+            artifact,
+            out,
+            frames,
+            level,
+            seed,
+            weights,
+        } => commands::export(&artifact, out, frames, level, seed, weights),
         Command::ExportWeights {
             artifact,
             out,
