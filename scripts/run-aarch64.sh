@@ -6,8 +6,8 @@
 # KERNELS: neon (default: the NEON kernels, SDOT for int8), canonical (the hand-written
 # kernels off: what the compiler makes of the portable loops), nodot (a CPU without the
 # dot-product extension, QEMU's Cortex-A72: int8 through SMLAL). Without arguments: every
-# shipped model (beam-m8, cloth-line-m24, rods-m8, beam) and the collider model tiny-poke in
-# f32, f16 and int8 with the NEON
+# shipped model (beam-m8, cloth-line-m24, rods-m8, beam), the collider model tiny-poke and the
+# render-mesh model tiny-render (its render pass too) in f32, f16 and int8 with the NEON
 # kernels, beam-m8 in all three with the canonical code, and beam-m8 int8 without SDOT.
 # Each run's output (the protocol every target prints, plus `instructions_per_frame`: step +
 # full decode, mean over 100 frames) goes to target/targets/aarch64-<name>-<weights>-<kernels>.txt,
@@ -24,7 +24,7 @@ if [ ! -d "$(/usr/bin/rustc --print sysroot)/lib/rustlib/src/rust/library/std" ]
 fi
 runs=("$@")
 if [ ${#runs[@]} -eq 0 ]; then
-  for model in beam-m8 cloth-line-m24 rods-m8 beam tiny-poke; do
+  for model in beam-m8 cloth-line-m24 rods-m8 beam tiny-poke tiny-render; do
     for weights in f32 f16 int8; do runs+=("$repo/tests/artifacts/$model.mochi:$weights:neon"); done
   done
   for weights in f32 f16 int8; do runs+=("$repo/tests/artifacts/beam-m8.mochi:$weights:canonical"); done

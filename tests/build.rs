@@ -17,6 +17,7 @@ fn main() {
         ("beam", WeightFormat::Int8, "beam_int8.rs"),
         ("beam-m8", WeightFormat::Int8, "beam_m8_int8.rs"),
         ("tiny-poke", WeightFormat::Int8, "tiny_poke_int8.rs"),
+        ("tiny-render", WeightFormat::Int8, "tiny_render_int8.rs"),
     ] {
         let artifact = format!("artifacts/{artifact}.mochi");
         if let Err(e) = build_rs_with(&artifact, out, &Options::weights(format)) {

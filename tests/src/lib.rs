@@ -14,6 +14,11 @@ pub mod tiny_render {
     include!(concat!(env!("OUT_DIR"), "/tiny_render.rs"));
 }
 
+/// Generated from `artifacts/tiny-render.mochi` with int8 weights (the integrator in `f16`).
+pub mod tiny_render_int8 {
+    include!(concat!(env!("OUT_DIR"), "/tiny_render_int8.rs"));
+}
+
 /// Generated from `artifacts/beam.mochi` (the shipped beam scene's self-supervised model).
 pub mod beam {
     include!(concat!(env!("OUT_DIR"), "/beam.rs"));

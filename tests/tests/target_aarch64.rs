@@ -1,7 +1,7 @@
 //! The runtime built for `aarch64-unknown-linux-gnu` and run under QEMU user-mode emulation by
 //! `scripts/run-aarch64.sh`: every shipped model (beam-m8, cloth-line-m24, rods-m8 and the
-//! kept beam) and the collider model tiny-poke (stepped with the script's collider) in every
-//! weight storage agrees with the host over the 1,000-frame reference
+//! kept beam), the collider model tiny-poke (stepped with the script's collider) and the
+//! render-mesh model tiny-render (its render decode too) in every weight storage agrees with the host over the 1,000-frame reference
 //! script (int8 and `f16` bit for bit, `f32` within 1e-5 of the rest diagonal), with the NEON
 //! kernels, with the canonical code and without the dot-product extension; the NEON kernels
 //! take at most half the instructions per frame of the canonical code on beam-m8; the C
@@ -60,7 +60,14 @@ fn aarch64_runs_match_the_host_and_neon_halves_the_instructions() {
     let mut failures = Vec::new();
     let mut per_frame = BTreeMap::new();
     let mut runs: Vec<(&str, &str, &str)> = Vec::new();
-    for name in ["beam-m8", "cloth-line-m24", "rods-m8", "beam", "tiny-poke"] {
+    for name in [
+        "beam-m8",
+        "cloth-line-m24",
+        "rods-m8",
+        "beam",
+        "tiny-poke",
+        "tiny-render",
+    ] {
         for weights in ["f32", "f16", "int8"] {
             runs.push((name, weights, "neon"));
         }
@@ -71,6 +78,13 @@ fn aarch64_runs_match_the_host_and_neon_halves_the_instructions() {
     runs.push(("beam-m8", "int8", "nodot"));
     for (name, weights, kernels) in runs {
         let report = report(name, weights, kernels);
+        if name == "tiny-render" {
+            assert_eq!(
+                report.render_checksums.len(),
+                4,
+                "{weights}: the render pass's checksums"
+            );
+        }
         if let Err(e) = matches_the_host(name, &report) {
             failures.push(format!("{name} {weights} {kernels}: {e}"));
         }

@@ -7,7 +7,10 @@ use std::process::Command;
 
 use mochi_runtime::{Model, ValidModel};
 use mochi_target_common::host;
-use mochi_tests::{beam, beam_int8, beam_m8, beam_m8_int8, rods, rods_m8, tiny, tiny_int8, tiny_poke, tiny_poke_int8};
+use mochi_tests::{
+    beam, beam_int8, beam_m8, beam_m8_int8, rods, rods_m8, tiny, tiny_int8, tiny_poke, tiny_poke_int8, tiny_render,
+    tiny_render_int8,
+};
 
 /// Runs the firmware for the artifact `name` with `weights` and checks it against `model`
 /// with an `Instance<K, S, H>`; returns the script's output (sizes and rates).
@@ -50,6 +53,34 @@ fn firmware_under_qemu_matches_the_host_bit_for_bit() {
     firmware_matches_the_host::<LATENT, SIGNAL, HIDDEN>("tiny", "f32", tiny::MODEL);
     // The int8 kernels too (int8 decoder, f16 integrator).
     firmware_matches_the_host::<LATENT, SIGNAL, HIDDEN>("tiny", "int8", tiny_int8::MODEL);
+}
+
+/// A model with a render mesh (`tiny-render`: 1,014 render vertices on its box's surface):
+/// the render decode on the firmware agrees with the host's (int8 bit for bit, `f32` within
+/// the tolerances), and its cost per frame is reported.
+#[test]
+fn render_decode_on_the_firmware_matches_the_host() {
+    use tiny_render::{HIDDEN, LATENT, SIGNAL};
+    for (weights, model) in [("f32", tiny_render::MODEL), ("int8", tiny_render_int8::MODEL)] {
+        let output = firmware_matches_the_host::<LATENT, SIGNAL, HIDDEN>("tiny-render", weights, model);
+        let report = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join(format!("../target/targets/cortex-m4-tiny-render-{weights}.txt")),
+        )
+        .unwrap();
+        let report = host::parse(&report).unwrap();
+        assert_eq!(report.render_checksums.len(), 4, "a render checksum per checkpoint");
+        let render = report
+            .render_instructions_per_frame
+            .expect("render decode instructions");
+        let (flash, ram) = kibibytes(&output);
+        println!(
+            "tiny-render {weights}: {flash} KiB of flash, {ram} KiB of RAM; render decode {render} instructions per frame \
+             (step + full decode {})",
+            report.instructions_per_frame.unwrap()
+        );
+        assert!(render > 1_014, "{render} instructions for 1,014 render vertices");
+    }
 }
 
 /// The shipped beam model with int8 weights links into 1 MiB of flash and runs in 64 KiB of

@@ -1,6 +1,6 @@
 //! Runs an artifact on the reference boundary-condition script (`mochi-target-common`) in a
 //! chosen weight storage and prints the report every target prints (checksums, sampled and
-//! final positions), so that a build for another CPU, run under emulation, can be checked
+//! final positions; for a model with a render mesh, the render pass too), so that a build for another CPU, run under emulation, can be checked
 //! against the host (`scripts/run-aarch64.sh`, `tests/tests/target_aarch64.rs`).
 //!
 //! ```text
@@ -20,7 +20,7 @@ use std::process::ExitCode;
 
 use mochi_codegen::{parse_format, Options, Quantized};
 use mochi_runtime::{AnyInstance, HandleMotion, OwnedModel, ValidModel};
-use mochi_target_common::{run, sampled, Script, CHECKPOINTS, FRAMES};
+use mochi_target_common::{run, run_render, sampled, Script, CHECKPOINTS, FRAMES};
 
 /// Marks a point of the run for the instruction-counting plugin (which finds it by the name in
 /// its symbol and prints its count when it starts); does nothing else.
@@ -96,6 +96,30 @@ fn body(args: &[String]) -> Result<(), String> {
         write(format_args!("{line}"))?;
     }
     write(format_args!("positions{}", hex(&positions)))?;
+    if model.model().has_render() {
+        // The script again through the render decode (render positions and normals).
+        let len = model.model().render_len();
+        let (mut render, mut normals) = (vec![0.0f32; len], vec![0.0f32; len]);
+        let mut sums = Vec::new();
+        run_render::<{ mochi_runtime::MAX_LATENT }, { mochi_runtime::MAX_SIGNAL }, { mochi_runtime::MAX_HIDDEN }>(
+            &model,
+            FRAMES,
+            &mut positions,
+            &mut render,
+            &mut normals,
+            |frame, sum, _, _| {
+                if CHECKPOINTS.contains(&frame) {
+                    sums.push(format!("render_checksum {frame} {:016x}", sum.0));
+                }
+            },
+        )
+        .map_err(|e| format!("the reference render run was refused: {e}"))?;
+        for line in &sums {
+            write(format_args!("{line}"))?;
+        }
+        write(format_args!("render_positions{}", hex(&render)))?;
+        write(format_args!("render_normals{}", hex(&normals)))?;
+    }
     timing(&model, &mut positions, timed)?;
     write(format_args!("timed_frames {timed}"))?;
     write(format_args!("status ok"))?;

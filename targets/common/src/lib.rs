@@ -14,6 +14,11 @@ use mochi_runtime::collider::{ColliderState, MAX_COLLIDERS};
 use mochi_runtime::model::MAX_HANDLES;
 use mochi_runtime::{DecodeError, HandleMotion, Instance, SizeError, StepError, ValidModel};
 
+/// How far a target's unit render normals may lie from the host's (the length of their
+/// difference) with `f32` weights: a normal is a difference of positions over an edge, so it
+/// moves by [`TOLERANCE`] times the diagonal over the edge length; 1e-3 is 0.06 degrees.
+pub const NORMAL_TOLERANCE: f32 = 1e-3;
+
 /// Frames of the reference run every target makes.
 pub const FRAMES: u32 = 1000;
 
@@ -222,12 +227,54 @@ pub fn run<const K: usize, const S: usize, const H: usize>(
     positions: &mut [f32],
     mut visit: impl FnMut(u32, Checksum, &[f32]),
 ) -> Result<Checksum, RunError> {
+    let mut checksum = Checksum::default();
+    step_script::<K, S, H>(model, frames, |frame, body| {
+        body.decode_into(model, positions).map_err(RunError::Decode)?;
+        checksum.update(positions);
+        visit(frame, checksum, positions);
+        Ok(())
+    })?;
+    Ok(checksum)
+}
+
+/// As [`run`], decoding the model's render mesh instead
+/// ([`mochi_runtime::Instance::decode_render_into`]: the full decode into `sim`, then the
+/// render positions and normals, `render_len` numbers each), the checksum folding in the
+/// positions and then the normals of every frame; `visit(frame, checksum, positions,
+/// normals)`. A model without a render mesh folds in nothing.
+pub fn run_render<const K: usize, const S: usize, const H: usize>(
+    model: &ValidModel,
+    frames: u32,
+    sim: &mut [f32],
+    positions: &mut [f32],
+    normals: &mut [f32],
+    mut visit: impl FnMut(u32, Checksum, &[f32], &[f32]),
+) -> Result<Checksum, RunError> {
+    let mut checksum = Checksum::default();
+    step_script::<K, S, H>(model, frames, |frame, body| {
+        body.decode_render_into(model, sim, positions, normals)
+            .map_err(RunError::Decode)?;
+        checksum.update(positions);
+        checksum.update(normals);
+        visit(frame, checksum, positions, normals);
+        Ok(())
+    })?;
+    Ok(checksum)
+}
+
+/// Steps `model` from rest through `frames` frames of the [`Script`] (every handle the same
+/// motion, each collider slot on its circle), handing the instance to `after_step(frame,
+/// body)` after each step.
+fn step_script<const K: usize, const S: usize, const H: usize>(
+    model: &ValidModel,
+    frames: u32,
+    mut after_step: impl FnMut(u32, &Instance<K, S, H>) -> Result<(), RunError>,
+) -> Result<(), RunError> {
     let script = Script::for_model(model);
     let m = model.model();
     let handles = m.handles.len().min(MAX_HANDLES);
     let slots = m.colliders().min(MAX_COLLIDERS);
     let mut body = Instance::<K, S, H>::new(model).map_err(RunError::Size)?;
-    let mut checksum = Checksum::default();
     let mut bc = [HandleMotion::REST; MAX_HANDLES];
     let mut colliders = [ColliderState::default(); MAX_COLLIDERS];
     for frame in 1..=frames {
@@ -237,11 +284,9 @@ pub fn run<const K: usize, const S: usize, const H: usize>(
         }
         body.step_with(model, &bc[..handles], &colliders[..slots], m.dt)
             .map_err(RunError::Step)?;
-        body.decode_into(model, positions).map_err(RunError::Decode)?;
-        checksum.update(positions);
-        visit(frame, checksum, positions);
+        after_step(frame, &body)?;
     }
-    Ok(checksum)
+    Ok(())
 }
 
 #[cfg(test)]
@@ -320,6 +365,16 @@ pub mod host {
         pub samples: Vec<(u32, Vec<f32>)>,
         /// Instructions per frame (step + full decode), where the target counts them.
         pub instructions_per_frame: Option<u64>,
+        /// `(frame, checksum)` of the render pass ([`super::run_render`]) per checkpoint;
+        /// empty for a model without a render mesh.
+        pub render_checksums: Vec<(u32, u64)>,
+        /// Render positions of the render pass's final frame.
+        pub render_positions: Vec<f32>,
+        /// Render normals of the render pass's final frame.
+        pub render_normals: Vec<f32>,
+        /// Instructions per frame of the render decode alone (full decode, render positions
+        /// and normals), where the target counts them.
+        pub render_instructions_per_frame: Option<u64>,
     }
 
     /// Parses a target's output:
@@ -330,6 +385,10 @@ pub mod host {
     /// frame <n> <8 hex digits per float>    (every SAMPLE_EVERY frames, f32 weights only)
     /// positions <8 hex digits per float>    (final frame)
     /// instructions_per_frame <count>        (optional)
+    /// render_checksum <frame> <16 hex digits> (one per checkpoint; a model with a render mesh)
+    /// render_positions <8 hex digits per float> (final frame of the render pass)
+    /// render_normals <8 hex digits per float>
+    /// render_instructions_per_frame <count> (optional)
     /// status ok
     /// ```
     pub fn parse(output: &str) -> Result<Report, String> {
@@ -355,6 +414,24 @@ pub mod host {
                     report
                         .samples
                         .push((n, floats(values).map_err(|e| format!("frame {n}: {e}"))?));
+                }
+                ["render_checksum", frame, hash] => report.render_checksums.push((
+                    frame
+                        .parse()
+                        .map_err(|e| format!("render_checksum frame `{frame}`: {e}"))?,
+                    u64::from_str_radix(hash, 16).map_err(|e| format!("render_checksum `{hash}`: {e}"))?,
+                )),
+                ["render_positions", values @ ..] => {
+                    report.render_positions = floats(values).map_err(|e| format!("render_positions: {e}"))?;
+                }
+                ["render_normals", values @ ..] => {
+                    report.render_normals = floats(values).map_err(|e| format!("render_normals: {e}"))?;
+                }
+                ["render_instructions_per_frame", n] => {
+                    report.render_instructions_per_frame = Some(
+                        n.parse()
+                            .map_err(|e| format!("render_instructions_per_frame `{n}`: {e}"))?,
+                    );
                 }
                 ["instructions_per_frame", n] => {
                     report.instructions_per_frame =
@@ -440,6 +517,74 @@ pub mod host {
             return Err(format!(
                 "checksums differ from the host's (positions within {worst:.1e} of the diagonal):\n  target {:x?}\n  host   {:x?}",
                 report.checksums, expected
+            ));
+        }
+        if m.has_render() {
+            worst = worst.max(check_render::<K, S, H>(model, report)?);
+        }
+        Ok(worst)
+    }
+
+    /// The render pass of `report` against the host's [`run_render`]: the final frame's render
+    /// positions within [`TOLERANCE`] of the rest diagonal, its normals within
+    /// [`NORMAL_TOLERANCE`], and for [`bit_identical`] storages the checksums at every
+    /// checkpoint. Returns the largest position distance / diagonal.
+    fn check_render<const K: usize, const S: usize, const H: usize>(
+        model: &ValidModel,
+        report: &Report,
+    ) -> Result<f32, String> {
+        let m = model.model();
+        let mut sim = vec![0.0f32; m.state_len()];
+        let (mut positions, mut normals) = (vec![0.0f32; m.render_len()], vec![0.0f32; m.render_len()]);
+        let mut expected = Vec::new();
+        run_render::<K, S, H>(
+            model,
+            report.frames,
+            &mut sim,
+            &mut positions,
+            &mut normals,
+            |frame, sum, _, _| {
+                if CHECKPOINTS.contains(&frame) {
+                    expected.push((frame, sum.0));
+                }
+            },
+        )
+        .map_err(|e| format!("host render run: {e}"))?;
+        let gap = |what: &str, target: &[f32], host: &[f32], scale: f32| -> Result<f32, String> {
+            if target.len() != host.len() {
+                return Err(format!(
+                    "target printed {} {what}, the render mesh has {}",
+                    target.len(),
+                    host.len()
+                ));
+            }
+            Ok(target
+                .chunks(3)
+                .zip(host.chunks(3))
+                .map(|(a, b)| libm::sqrtf(a.iter().zip(b).map(|(a, b)| (a - b) * (a - b)).sum::<f32>()) / scale)
+                .fold(0.0f32, |w, d| if d > w || d.is_nan() { d } else { w }))
+        };
+        let worst = gap(
+            "render positions",
+            &report.render_positions,
+            &positions,
+            diagonal(m.rest(), m.dim()),
+        )?;
+        if worst.is_nan() || worst > TOLERANCE {
+            return Err(format!(
+                "render positions differ from the host's by {worst:.3e} of the diagonal (limit {TOLERANCE:.0e})"
+            ));
+        }
+        let turn = gap("render normals", &report.render_normals, &normals, 1.0)?;
+        if turn.is_nan() || turn > NORMAL_TOLERANCE {
+            return Err(format!(
+                "render normals differ from the host's by {turn:.3e} (limit {NORMAL_TOLERANCE:.0e})"
+            ));
+        }
+        if bit_identical(&report.weights) && report.render_checksums != expected {
+            return Err(format!(
+                "render checksums differ from the host's:\n  target {:x?}\n  host   {:x?}",
+                report.render_checksums, expected
             ));
         }
         Ok(worst)

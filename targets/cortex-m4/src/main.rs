@@ -2,7 +2,9 @@
 //! (`mochi-target-common`) and prints, over semihosting, the checksum of its decoded positions
 //! (which must equal the host runtime's), the final positions, the instructions per frame
 //! (QEMU's instruction counting: run with `-icount shift=0`, read through SysTick) and the peak
-//! stack; then exits with the semihosting status.
+//! stack; for a model with a render mesh, the same script again through the render decode (its
+//! checksums, final render positions and normals, and the decode's instructions per frame);
+//! then exits with the semihosting status.
 #![no_std]
 #![no_main]
 
@@ -14,7 +16,7 @@ use cortex_m::peripheral::SYST;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hio};
 use mochi_runtime::{HandleMotion, ValidModel};
-use mochi_target_common::{run, sampled, Script, CHECKPOINTS, FRAMES};
+use mochi_target_common::{run, run_render, sampled, Script, CHECKPOINTS, FRAMES};
 
 #[allow(dead_code, missing_docs)]
 mod model {
@@ -30,6 +32,10 @@ const TIMED_FRAMES: u32 = 100;
 
 /// Decoded positions (in `.bss`, not on the stack).
 static mut POSITIONS: [f32; model::STATE_LEN] = [0.0; model::STATE_LEN];
+
+/// Render positions and normals of a model with a render mesh (empty without one).
+static mut RENDER_POSITIONS: [f32; model::RENDER_LEN] = [0.0; model::RENDER_LEN];
+static mut RENDER_NORMALS: [f32; model::RENDER_LEN] = [0.0; model::RENDER_LEN];
 
 /// Stack painting: every word between the end of the statics and the stack pointer gets this
 /// value before the run; the first word found changed afterwards is the stack's high-water mark.
@@ -85,9 +91,18 @@ fn body(out: &mut hio::HostStream, stack_floor: usize) -> Result<(), &'static st
         let _ = write!(out, " {:08x}", v.to_bits());
     }
     let _ = writeln!(out);
-    let (per_frame, per_tick) = timing(&model, positions)?;
+    // SAFETY: the only references to the render buffers, taken once.
+    let (render_positions, render_normals): (&mut [f32], &mut [f32]) =
+        unsafe { (&mut *addr_of_mut!(RENDER_POSITIONS), &mut *addr_of_mut!(RENDER_NORMALS)) };
+    if model.model().has_render() {
+        failed |= render_pass(out, &model, positions, render_positions, render_normals)?;
+    }
+    let (per_frame, per_tick, render_per_frame) = timing(&model, positions, render_positions, render_normals)?;
     let _ = writeln!(out, "instructions_per_frame {per_frame}");
     let _ = writeln!(out, "instructions_per_systick {per_tick}");
+    if model.model().has_render() {
+        let _ = writeln!(out, "render_instructions_per_frame {render_per_frame}");
+    }
     // SAFETY: reads the painted words below the stack (see `paint`).
     let stack = unsafe { stack_used(stack_floor) };
     let _ = writeln!(out, "stack_bytes {stack}");
@@ -98,11 +113,49 @@ fn body(out: &mut hio::HostStream, stack_floor: usize) -> Result<(), &'static st
     Ok(())
 }
 
+/// The reference script again with the render decode: its checksums at the checkpoints and
+/// the final frame's render positions and normals. Returns whether a write failed.
+fn render_pass(
+    out: &mut hio::HostStream,
+    model: &ValidModel,
+    sim: &mut [f32],
+    positions: &mut [f32],
+    normals: &mut [f32],
+) -> Result<bool, &'static str> {
+    let mut failed = false;
+    run_render::<{ model::LATENT }, { model::SIGNAL }, { model::HIDDEN }>(
+        model,
+        FRAMES,
+        sim,
+        positions,
+        normals,
+        |frame, sum, _, _| {
+            if CHECKPOINTS.contains(&frame) {
+                failed |= writeln!(out, "render_checksum {frame} {:016x}", sum.0).is_err();
+            }
+        },
+    )
+    .map_err(|_| "the reference render run was refused")?;
+    for (label, values) in [("render_positions", &*positions), ("render_normals", &*normals)] {
+        let _ = write!(out, "{label}");
+        for v in values {
+            let _ = write!(out, " {:08x}", v.to_bits());
+        }
+        failed |= writeln!(out).is_err();
+    }
+    Ok(failed)
+}
+
 /// Mean instructions per frame (step + full decode) over [`TIMED_FRAMES`] frames of the script,
 /// and the instructions per SysTick tick it was converted with (calibrated on a loop of known
 /// length: with `-icount shift=0` QEMU advances its virtual clock one nanosecond per
 /// instruction, and SysTick counts that clock).
-fn timing(model: &ValidModel, positions: &mut [f32]) -> Result<(u64, u64), &'static str> {
+fn timing(
+    model: &ValidModel,
+    positions: &mut [f32],
+    render_positions: &mut [f32],
+    render_normals: &mut [f32],
+) -> Result<(u64, u64, u64), &'static str> {
     let Some(peripherals) = cortex_m::Peripherals::take() else {
         return Err("peripherals taken twice");
     };
@@ -124,15 +177,22 @@ fn timing(model: &ValidModel, positions: &mut [f32]) -> Result<(u64, u64), &'sta
     let script = Script::for_model(model);
     let mut body = model::Instance::new(model).map_err(|_| "instance")?;
     let mut bc = [HandleMotion::REST; model::HANDLES];
-    let mut total = 0u64;
+    let (mut total, mut render) = (0u64, 0u64);
     for frame in 1..=TIMED_FRAMES {
         bc.fill(script.motion(frame));
         let start = SYST::get_current();
         body.step(model, &bc).map_err(|_| "step refused")?;
         body.decode_into(model, positions).map_err(|_| "decode refused")?;
         total += u64::from(start.wrapping_sub(SYST::get_current()) & 0x00ff_ffff);
+        if model.model().has_render() {
+            let start = SYST::get_current();
+            body.decode_render_into(model, positions, render_positions, render_normals)
+                .map_err(|_| "render decode refused")?;
+            render += u64::from(start.wrapping_sub(SYST::get_current()) & 0x00ff_ffff);
+        }
     }
-    Ok((total * per_tick / u64::from(TIMED_FRAMES), per_tick))
+    let frames = u64::from(TIMED_FRAMES);
+    Ok((total * per_tick / frames, per_tick, render * per_tick / frames))
 }
 
 /// `n` iterations of a two-instruction loop.
