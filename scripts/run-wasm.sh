@@ -60,7 +60,7 @@ t1=$(seconds)
 echo "module: $(stat -c %s "$module") bytes"
 
 node test.mjs "$module" "$name" "$weights" "$artifact" > "$out/wasm-$name-$weights.txt"
-grep -v '^positions\|^frame' "$out/wasm-$name-$weights.txt"
+grep -v '^positions\|^frame\|^render_positions\|^render_normals' "$out/wasm-$name-$weights.txt"
 t2=$(seconds)
 
 # The page, from a local server, in headless Chromium (no GPU, no sandbox: CI runs as root).

@@ -2,7 +2,8 @@
 // target prints (see mochi-target-common::host), for the host to compare with its own run;
 // then checks the viewer: the compiled model and the same artifact loaded from bytes (with f32
 // weights, the same weights) step to the same bits, its triangles index its drawn vertices,
-// and damaged bytes are refused with a reason.
+// and damaged bytes are refused with a reason. A model with a render mesh also runs the script
+// through the render decode and its viewer's render mesh is checked.
 //   node test.mjs MODULE.wasm NAME WEIGHTS [ARTIFACT.mochi]
 import { readFileSync } from "node:fs";
 
@@ -40,6 +41,28 @@ for (let round = 0; round < 3; round++) {
   best = Math.min(best, performance.now() - start);
 }
 lines.push(`microseconds_per_frame ${((1000 * best) / frames).toFixed(2)}`);
+// A model with a render mesh: the script again through the render decode (the render pass of
+// the protocol), and its time per frame (step + render decode).
+const renderCount = m.mochi_render_count();
+if (renderCount > 0) {
+  if ((status = m.mochi_reference_render_run(frames)) !== 0) {
+    console.log(`status error mochi_reference_render_run returned ${status}`);
+    process.exit(1);
+  }
+  for (let i = 0; i < m.mochi_checkpoint_count(); i++) {
+    lines.push(`render_checksum ${m.mochi_checkpoint_frame(i)} ${hex(m.mochi_render_checkpoint_hi(i), 8)}${hex(m.mochi_render_checkpoint_lo(i), 8)}`);
+  }
+  const floats = (at) => Array.from(new Uint32Array(m.memory.buffer, at, 3 * renderCount), (b) => hex(b, 8)).join(" ");
+  lines.push("render_positions " + floats(m.mochi_render_positions()));
+  lines.push("render_normals " + floats(m.mochi_render_normals()));
+  let bestRender = Infinity;
+  for (let round = 0; round < 3; round++) {
+    const start = performance.now();
+    m.mochi_reference_render_run(frames);
+    bestRender = Math.min(bestRender, performance.now() - start);
+  }
+  lines.push(`render_microseconds_per_frame ${((1000 * bestRender) / frames).toFixed(2)}`);
+}
 // f32 weights agree with the host within a tolerance, not bit for bit: the positions every
 // 10th frame (each run starts from rest, so frame f of a run of f frames is frame f of all).
 if (weights === "f32") {
@@ -57,6 +80,23 @@ const moved = m.mochi_step_pose(0, 0.01, 0, 0.01, 0, 0);
 if (moved < 0) {
   console.log(`status error mochi_step_pose returned ${moved}`);
   process.exit(1);
+}
+if (renderCount > 0) {
+  // The viewer's render mesh after the step: unit normals, triangles within the vertices.
+  const normals = new Float32Array(m.memory.buffer, m.mochi_render_normals(), 3 * renderCount);
+  for (let v = 0; v < renderCount; v++) {
+    const length = Math.hypot(normals[3 * v], normals[3 * v + 1], normals[3 * v + 2]);
+    if (Math.abs(length - 1) > 1e-5) {
+      console.log(`status error render normal ${v} of length ${length}`);
+      process.exit(1);
+    }
+  }
+  const triangles = new Uint32Array(m.memory.buffer, m.mochi_render_triangles(), 3 * m.mochi_render_triangle_count());
+  if (triangles.length === 0 || triangles.some((i) => i >= renderCount)) {
+    console.log("status error render triangles");
+    process.exit(1);
+  }
+  lines.push(`viewer render ${renderCount} vertices, ${triangles.length / 3} triangles`);
 }
 if (m.mochi_step_pose(NaN, 0, 0, 0, 0, 0) >= 0) {
   console.log("status error a NaN pose was accepted");

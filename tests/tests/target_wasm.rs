@@ -6,14 +6,15 @@
 //! each one chosen in its model list steps frames, moves the surface under the (synthetic)
 //! mouse, draws it with WebGL2 (pixels read back) and shows a time per frame; screenshots are
 //! left behind. The collider model `tiny-poke` (int8) then runs the same way, its page's ball
-//! the model's collider input.
+//! the model's collider input, and the render-mesh model `tiny-render` (`f32`): its render
+//! decode in node agrees with the host's and the page draws its render mesh.
 
 use std::path::Path;
 use std::process::Command;
 
 use mochi_runtime::ValidModel;
 use mochi_target_common::host;
-use mochi_tests::{tiny, tiny_poke, tiny_poke_int8};
+use mochi_tests::{tiny, tiny_poke, tiny_poke_int8, tiny_render};
 
 #[test]
 fn wasm_module_matches_the_host_and_its_page_runs_in_chromium() {
@@ -101,4 +102,37 @@ fn wasm_module_matches_the_host_and_its_page_runs_in_chromium() {
         .unwrap_or_else(|| panic!("no page line: {stdout}"));
     assert_eq!(field(page, "model"), "tiny-poke", "{page}");
     assert!(field(page, "pushed").parse::<u64>().unwrap() > 0, "{page}");
+
+    // A model with a render mesh (tiny-render, f32): in node the render pass agrees with the
+    // host's and the viewer's render mesh has unit normals; the page draws the render mesh.
+    let artifact = repo.join("tests/artifacts/tiny-render.mochi");
+    let run = Command::new("bash")
+        .arg(&script)
+        .arg(&artifact)
+        .arg("f32")
+        .env("MOCHI_PAGE_MODELS", &artifact)
+        .output()
+        .unwrap_or_else(|e| panic!("running {}: {e}", script.display()));
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{} tiny-render failed:\n{}\n{stdout}",
+        script.display(),
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let output = std::fs::read_to_string(repo.join("target/targets/wasm-tiny-render-f32.txt")).unwrap();
+    let report = host::parse(&output).unwrap();
+    assert_eq!(report.render_checksums.len(), 4, "the render pass ran");
+    let model = ValidModel::new(tiny_render::MODEL).unwrap();
+    host::check::<{ tiny_render::LATENT }, { tiny_render::SIGNAL }, { tiny_render::HIDDEN }>(&model, &report).unwrap();
+    assert!(
+        output.contains("viewer render 1014 vertices, 1728 triangles"),
+        "{output}"
+    );
+    let page = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("page: "))
+        .unwrap_or_else(|| panic!("no page line: {stdout}"));
+    assert_eq!(field(page, "model"), "tiny-render", "{page}");
+    assert!(field(page, "moved").parse::<f64>().unwrap() > 1e-3, "{page}");
 }

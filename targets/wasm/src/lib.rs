@@ -2,7 +2,9 @@
 //! for JavaScript:
 //!
 //! - the viewer: one interactive object of the *current* model, driven by a handle pose, whose
-//!   drawn vertices ([`mochi_surface`]) and triangles ([`mochi_triangles`]) a page draws. The
+//!   drawn vertices ([`mochi_surface`]) and triangles ([`mochi_triangles`]) a page draws, or,
+//!   for a model with a render mesh, its render positions, normals and triangles
+//!   ([`mochi_render_positions`], [`mochi_render_normals`], [`mochi_render_triangles`]). The
 //!   current model is the one generated into the module ([`mochi_init`]) or an artifact loaded
 //!   from bytes at run time ([`mochi_load`]), so a page can switch between models it fetches;
 //! - the reference run every target makes with the generated model (`mochi-target-common`),
@@ -20,6 +22,7 @@ use mochi_runtime::model::{MAX_HANDLES, MAX_LAYERS};
 use mochi_runtime::{AnyInstance, Handle, HandleMotion, HandlePose, Layer, Storage, ValidModel};
 use mochi_target_common::{run, CHECKPOINTS};
 
+mod render_mesh;
 mod slab;
 use slab::Slab;
 
@@ -219,6 +222,11 @@ pub extern "C" fn mochi_reset() -> i32 {
         }
     };
     s.pose = HandlePose::default();
+    if let Some(body) = s.body.as_ref() {
+        if render_mesh::decode(model, body, None).is_err() {
+            return DECODE_REFUSED;
+        }
+    }
     let m = model.model();
     let d = m.dim();
     for (out, &v) in surface().chunks_exact_mut(d).zip(m.surface_vertices()) {
@@ -357,6 +365,9 @@ pub extern "C" fn mochi_step_pose_dt(dt: f32, tx: f32, ty: f32, tz: f32, rx: f32
             Err(_) => return COLLIDER_REFUSED,
         }
     }
+    if render_mesh::decode(model, body, s.collider).is_err() {
+        return DECODE_REFUSED;
+    }
     status
 }
 
@@ -414,6 +425,68 @@ pub extern "C" fn mochi_reference_run(frames: u32) -> i32 {
         Ok(_) => OK,
         Err(_) => STEP_REFUSED,
     }
+}
+
+/// Runs the reference script through the render decode with the generated model (as
+/// [`mochi_reference_run`]), recording the render checksum at each checkpoint it reaches
+/// ([`mochi_render_checkpoint_hi`]); the final render positions and normals are left in
+/// [`mochi_render_positions`] and [`mochi_render_normals`]. 0 on success; negative for a
+/// model without a render mesh.
+#[no_mangle]
+pub extern "C" fn mochi_reference_render_run(frames: u32) -> i32 {
+    let Some(model) = state().compiled.as_ref() else {
+        return NOT_INITIALISED;
+    };
+    match render_mesh::reference_run::<{ model::LATENT }, { model::SIGNAL }, { model::HIDDEN }>(model, frames) {
+        Ok(()) => OK,
+        Err(()) => DECODE_REFUSED,
+    }
+}
+
+/// High 32 bits of the render checksum at checkpoint `i`.
+#[no_mangle]
+pub extern "C" fn mochi_render_checkpoint_hi(i: u32) -> u32 {
+    (render_mesh::checksum(i) >> 32) as u32
+}
+
+/// Low 32 bits of the render checksum at checkpoint `i`.
+#[no_mangle]
+pub extern "C" fn mochi_render_checkpoint_lo(i: u32) -> u32 {
+    render_mesh::checksum(i) as u32
+}
+
+/// Render vertices of the viewer's model (0 without a render mesh, or with one larger than
+/// the viewer's 32,768 vertices).
+#[no_mangle]
+pub extern "C" fn mochi_render_count() -> u32 {
+    match state().current.as_ref() {
+        Some(model) if render_mesh::fits(model) => model.model().render_vertices() as u32,
+        _ => 0,
+    }
+}
+
+/// The render vertices' positions after the last step (`3 * render_count` floats).
+#[no_mangle]
+pub extern "C" fn mochi_render_positions() -> *const f32 {
+    render_mesh::positions()
+}
+
+/// The render vertices' unit normals after the last step (`3 * render_count` floats).
+#[no_mangle]
+pub extern "C" fn mochi_render_normals() -> *const f32 {
+    render_mesh::normals()
+}
+
+/// Render triangles of the viewer's model.
+#[no_mangle]
+pub extern "C" fn mochi_render_triangle_count() -> u32 {
+    current().map_or(0, |m| m.render_triangles.len / 3)
+}
+
+/// The render triangles (`3 * render_triangle_count` indices into the render vertices, `u32`).
+#[no_mangle]
+pub extern "C" fn mochi_render_triangles() -> *const u32 {
+    current().map_or(core::ptr::null(), |m| m.render_triangles().as_ptr())
 }
 
 /// Checkpoints of the reference run.

@@ -86,12 +86,18 @@ async function choose(name) {
     throw new Error(`${model.name}: ${text || `status ${status}`}`);
   }
   const dim = m.mochi_dim();
-  const count = m.mochi_surface_count();
-  const triangles = Uint32Array.from(new Uint32Array(m.memory.buffer, m.mochi_triangles(), 3 * m.mochi_triangle_count()));
-  const rest = surface(dim, count).slice();
+  // A model with a render mesh draws it (its positions and normals from the module); any other
+  // its simulation mesh's drawn vertices.
+  const render = m.mochi_render_count() > 0;
+  const count = render ? m.mochi_render_count() : m.mochi_surface_count();
+  const triangles = render
+    ? Uint32Array.from(new Uint32Array(m.memory.buffer, m.mochi_render_triangles(), 3 * m.mochi_render_triangle_count()))
+    : Uint32Array.from(new Uint32Array(m.memory.buffer, m.mochi_triangles(), 3 * m.mochi_triangle_count()));
+  const rest = (render ? renderPositions(count) : surface(dim, count)).slice();
   view.setMesh(triangles, rest, COLOURS[index % COLOURS.length]);
   about.textContent =
-    `${model.name}: ${m.mochi_vertex_count().toLocaleString()} vertices, ${count.toLocaleString()} drawn, ` +
+    `${model.name}: ${m.mochi_vertex_count().toLocaleString()} vertices, ` +
+    (render ? `render mesh of ${count.toLocaleString()} vertices, ` : `${count.toLocaleString()} drawn, `) +
     `${(triangles.length / 3).toLocaleString()} triangles, ${m.mochi_handle_count()} handle(s), ` +
     (m.mochi_dt_max() > 0
       ? `steps at the page's frame rate (trained ${(1 / m.mochi_dt_max()).toFixed(0)}-${(1 / m.mochi_dt_min()).toFixed(0)} Hz)`
@@ -99,6 +105,7 @@ async function choose(name) {
   active = {
     name: model.name,
     dim,
+    render,
     count,
     rest,
     diagonal: m.mochi_diagonal(),
@@ -118,6 +125,14 @@ async function choose(name) {
     drawn: 0,
     times: [],
   };
+}
+
+// The render mesh's positions and normals after the last step, 3 floats per render vertex.
+function renderPositions(count) {
+  return new Float32Array(m.memory.buffer, m.mochi_render_positions(), 3 * count);
+}
+function renderNormals(count) {
+  return new Float32Array(m.memory.buffer, m.mochi_render_normals(), 3 * count);
 }
 
 // The drawn vertices' positions, 3 floats each (z = 0 for a 2D model).
@@ -193,15 +208,15 @@ function frame() {
     a.pushed = Math.max(a.pushed, m.mochi_pushed());
     view.setBall(a.ball);
     if (a.times.length > TIMED_FRAMES) a.times.shift();
-    const x = surface(a.dim, a.count);
-    view.draw(x);
+    const x = a.render ? renderPositions(a.count) : surface(a.dim, a.count);
+    view.draw(x, a.render ? renderNormals(a.count) : null);
     a.frames++;
     for (let i = 0; i < x.length; i += 3) {
       const d = Math.hypot(x[i] - a.rest[i], x[i + 1] - a.rest[i + 1], x[i + 2] - a.rest[i + 2]);
       a.moved = Math.max(a.moved, d / a.diagonal);
     }
     const ms = a.times.reduce((s, t) => s + t, 0) / a.times.length;
-    timing.textContent = `time per frame: ${ms.toFixed(3)} ms (latent step + decode of the drawn vertices, mean of the last ${a.times.length} frames)`;
+    timing.textContent = `time per frame: ${ms.toFixed(3)} ms (latent step + decode of the ${a.render ? "render mesh" : "drawn vertices"}, mean of the last ${a.times.length} frames)`;
     if (testMode) {
       if (a.frames % 10 === 0) a.drawn = view.drawnPixels();
       statusLine.textContent = `model=${a.name} frames=${a.frames} moved=${a.moved.toFixed(5)} status=${a.status} drawn=${a.drawn} ms=${ms.toFixed(4)} pushed=${a.pushed}`;

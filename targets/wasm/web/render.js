@@ -1,5 +1,5 @@
 // A triangle mesh drawn as a lit surface with WebGL2: vertex normals recomputed from the
-// positions every frame (area-weighted face normals), a key and a fill light, both sides lit
+// positions every frame (area-weighted face normals; a render mesh's come from the module), a key and a fill light, both sides lit
 // (cloth shows its back), under an orbit camera around the rest shape.
 
 const VERTEX_SHADER = `#version 300 es
@@ -179,11 +179,13 @@ export class SurfaceView {
     }
   }
 
-  /** Draws the mesh at `positions` (3 floats per vertex). */
-  draw(positions) {
+  /** Draws the mesh at `positions` (3 floats per vertex), with `normals` where the module
+   * gives them (a render mesh), else normals computed here. */
+  draw(positions, normals = null) {
     const gl = this.gl;
     const { width, height } = this.canvas;
-    this.updateNormals(positions);
+    if (normals) this.normals.set(normals);
+    else this.updateNormals(positions);
     gl.viewport(0, 0, width, height);
     gl.clearColor(...BACKGROUND.map((v) => v / 255), 1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
