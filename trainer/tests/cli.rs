@@ -201,16 +201,16 @@ fn bench_runtime_reports_the_ratio_and_agreement() {
     for (cells, weights, limit) in [(&rows[0], "f32", 1e-4), (&rows[1], "int8", 5e-2)] {
         assert_eq!(cells[2], weights, "{cells:?}");
         assert_eq!(
-            (cells[4], cells[7]),
-            ("0", "-"),
-            "no collider slots, no push-out: {cells:?}"
+            (cells[4], cells[7], cells[8]),
+            ("0", "-", "-"),
+            "no collider slots, no push-out, no render mesh: {cells:?}"
         );
-        assert!(cells[9].ends_with('x'), "speed-up column: {cells:?}");
-        let disagreement: f64 = cells[13].split_whitespace().next().unwrap().parse().unwrap();
+        assert!(cells[10].ends_with('x'), "speed-up column: {cells:?}");
+        let disagreement: f64 = cells[14].split_whitespace().next().unwrap().parse().unwrap();
         assert!(disagreement < limit, "{cells:?}");
     }
     // Fewer bytes per weight.
-    let kib = |cells: &[&str]| -> f64 { cells[11].split_whitespace().next().unwrap().parse().unwrap() };
+    let kib = |cells: &[&str]| -> f64 { cells[12].split_whitespace().next().unwrap().parse().unwrap() };
     assert!(kib(&rows[1]) < 0.5 * kib(&rows[0]), "{rows:?}");
 }
 

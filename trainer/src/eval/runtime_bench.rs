@@ -53,6 +53,11 @@ pub struct RuntimeTiming {
     /// Seconds per frame of `collider::push_out` of the decoded surface (what is drawn; 0
     /// without colliders).
     pub push_out: f64,
+    /// Render vertices of the model's render mesh (0 without one).
+    pub render_vertices: usize,
+    /// Seconds per frame: runtime step + render decode (full decode, render positions and
+    /// normals; 0 without a render mesh).
+    pub render: f64,
     /// Seconds per frame: candle batch-1 integrator + decoder forward.
     pub candle: f64,
     /// Multiply-adds of one integrator + full decoder forward.
@@ -178,6 +183,8 @@ pub(crate) fn bench_artifact(
             surface: measured.surface,
             colliders: m.colliders(),
             push_out: measured.push_out,
+            render_vertices: m.render_vertices(),
+            render: measured.render,
             candle,
             // A bend-encoded model's decode also walks every strand, a step per vertex.
             multiply_adds: mochi_runtime::network::multiply_adds(m.integrator)
@@ -223,6 +230,7 @@ struct Measured {
     full: f64,
     surface: f64,
     push_out: f64,
+    render: f64,
     state_bytes: usize,
     disagreement: f64,
     compared: usize,
@@ -293,10 +301,22 @@ fn measure<const K: usize, const S: usize, const H: usize>(run: &Run) -> Result<
             })
         }
     };
+    let render = match m.has_render() {
+        false => 0.0,
+        true => {
+            let mut body = fresh()?;
+            let (mut positions, mut normals) = (vec![0.0f32; m.render_len()], vec![0.0f32; m.render_len()]);
+            seconds_per_call(frames, |i| {
+                let _ = run.script[i % frames].step(&mut body, model);
+                let _ = body.decode_render_into(model, &mut x, &mut positions, &mut normals);
+            })
+        }
+    };
     Ok(Measured {
         full,
         surface,
         push_out,
+        render,
         state_bytes: std::mem::size_of::<Instance<K, S, H>>(),
         disagreement,
         compared,
@@ -378,14 +398,18 @@ pub fn table(timings: &[RuntimeTiming]) -> String {
         "Runtime kernels on this CPU: `f32` {:?} (`mochi_runtime::network::fast`), `f16` canonical sum, int8 integer sum.\n\n",
         mochi_runtime::network::fast::width()
     );
-    s += "| artifact | weights | latent | colliders | step + full decode | step + surface decode | push-out | candle batch-1 | runtime speed-up | GFLOP/s | weights | instance state | max disagreement (frames) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    s += "| artifact | weights | latent | colliders | step + full decode | step + surface decode | push-out | step + render decode | candle batch-1 | runtime speed-up | GFLOP/s | weights | instance state | max disagreement (frames) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for t in timings {
         let push = match t.colliders {
             0 => "-".to_string(),
             _ => format!("{:.1} µs", 1e6 * t.push_out),
         };
+        let render = match t.render_vertices {
+            0 => "-".to_string(),
+            n => format!("{:.1} µs ({n} vertices)", 1e6 * t.render),
+        };
         s += &format!(
-            "| {} | {} | {} | {} | {:.1} µs | {:.1} µs | {push} | {:.1} µs | {:.1}x | {:.2} | {:.1} KiB | {} B | {:.1e} ({}) |\n",
+            "| {} | {} | {} | {} | {:.1} µs | {:.1} µs | {push} | {render} | {:.1} µs | {:.1}x | {:.2} | {:.1} KiB | {} B | {:.1e} ({}) |\n",
             t.path
                 .file_name()
                 .map_or(t.scene.clone(), |n| n.to_string_lossy().into_owned()),
