@@ -126,6 +126,39 @@ def oriented(points, tets):
     return tets, int(negative.sum()), float(volumes.min() / volumes.mean())
 
 
+def largest_component(points, tets):
+    """The tets of the largest connected piece by volume (tets sharing a vertex), and how many other
+    pieces were dropped with how many vertices. A surface made of separate meshes that only
+    touch (a character's head beside its body) meshes into islands that nothing holds
+    together; the dropped pieces' render vertices then ride on the nearest kept tet."""
+    n = int(tets.max()) + 1
+    parent = np.arange(n)
+
+    def find(a):
+        root = a
+        while parent[root] != root:
+            root = parent[root]
+        while parent[a] != root:
+            parent[a], a = root, parent[a]
+        return root
+
+    for t in tets:
+        r0 = find(t[0])
+        for v in t[1:]:
+            r = find(v)
+            if r != r0:
+                parent[r] = r0
+    roots = np.array([find(v) for v in range(n)])
+    piece_of = roots[tets[:, 0]]
+    pieces, inverse = np.unique(piece_of, return_inverse=True)
+    if len(pieces) == 1:
+        return tets, 0, 0
+    volumes = np.bincount(inverse, weights=np.abs(tet_volumes(points, tets)))
+    kept = inverse == np.argmax(volumes)
+    dropped = len(np.setdiff1d(np.unique(tets[~kept]), np.unique(tets[kept])))
+    return tets[kept], int(len(pieces) - 1), int(dropped)
+
+
 def write_medit(path, points, tets):
     """MEDIT text, 1-based, into a temporary file beside `path` and then renamed over it."""
     directory = os.path.dirname(os.path.abspath(path))
@@ -158,6 +191,7 @@ def mesh(vertices, faces, mesher, edge_length, epsilon, threads):
     if len(tets) == 0:
         raise RuntimeError(f"{mesher} returned no tets")
     tets, flipped, min_volume = oriented(points, tets)
+    tets, islands, island_vertices = largest_component(points, tets)
     used = np.unique(tets)
     if len(used) != len(points):
         # Keep only vertices that tets use (the scene loader refuses unused ones).
@@ -171,6 +205,8 @@ def mesh(vertices, faces, mesher, edge_length, epsilon, threads):
         seconds=round(seconds, 3),
         min_volume=min_volume,
         flipped=flipped,
+        islands_dropped=islands,
+        island_vertices=island_vertices,
         version=version,
     )
     return points, tets, stats
@@ -233,6 +269,16 @@ def self_check():
     check(runs[0.25][2]["vertices"] > runs[0.5][2]["vertices"], "a shorter edge gives more vertices")
     gap = boundary_distance(runs[0.25][0], runs[0.25][1], vertices).max() / diagonal(vertices)
     check(gap < 0.05, f"input vertices lie near the tet mesh's boundary (largest gap {gap:.2e} of the diagonal)")
+    # Two spheres apart: the smaller piece is dropped and counted.
+    small = 0.5 * vertices + np.array([3.0, 0.0, 0.0])
+    apart = np.vstack([vertices, small]), np.vstack([faces, faces + len(vertices)])
+    points, tets, stats = mesh(*apart, "ftetwild", 0.5, 1e-3, 0)
+    big = runs[0.5][2]["vertices"]
+    check(
+        stats["islands_dropped"] == 1 and points[:, 0].max() < 1.5 and abs(stats["vertices"] - big) < 0.2 * big,
+        f"two separate spheres: the smaller dropped ({stats['islands_dropped']} island of {stats['island_vertices']} vertices), "
+        f"{stats['vertices']} vertices kept",
+    )
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "sphere.mesh")
         write_medit(out, runs[0.5][0], runs[0.5][1])

@@ -33,12 +33,15 @@ pub const DEFAULT_EPSILON: f64 = 1e-3;
 /// The widest envelope a vertex-count target may ask for.
 pub const MAX_EPSILON: f64 = 1.6e-2;
 
+/// Most mesher runs a vertex-count target makes.
+const MAX_RUNS: usize = 6;
+
 /// The resolution of the tet mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Resolution {
     /// Target tet edge length, in the asset's units.
     EdgeLength(f64),
-    /// Target number of tet-mesh vertices: up to four mesher runs stop within 20% of it, the
+    /// Target number of tet-mesh vertices: up to six mesher runs stop within 20% of it, the
     /// surface envelope widened where the surface's detail holds the count up; the run closest
     /// to it is kept (the count is a target, not a promise).
     Vertices(usize),
@@ -203,7 +206,7 @@ fn mesher_script() -> PathBuf {
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/tetwild.sh"))
 }
 
-/// Runs the mesher until the resolution is met (one run for an edge length; up to four for a
+/// Runs the mesher until the resolution is met (one run for an edge length; up to six for a
 /// vertex count, each edge length corrected from the last counts), keeping the run closest to
 /// the target at `mesh_path`; it comes last in the returned runs.
 fn tetrahedralise(
@@ -243,7 +246,7 @@ fn tetrahedralise(
             runs.push(run);
             let Some(n) = target else { return Ok(()) };
             let ratio = made / n as f64;
-            if (ratio - 1.0).abs() <= 0.2 || runs.len() == 4 {
+            if (ratio - 1.0).abs() <= 0.2 || runs.len() == MAX_RUNS {
                 return Ok(());
             }
             // Vertices go as about edge^-3 in the volume, edge^-2 on the surface: the exponent
@@ -256,9 +259,10 @@ fn tetrahedralise(
                         -1.0 / slope
                     } else {
                         // The count hardly follows the edge: the surface's detail inside the
-                        // envelope holds it; a wider envelope lets fTetWild simplify it.
+                        // envelope holds it; a wider envelope lets fTetWild simplify it, by
+                        // about as much as the count is to fall.
                         if ratio > 1.0 {
-                            epsilon = (2.0 * epsilon).min(MAX_EPSILON);
+                            epsilon = (ratio.clamp(2.0, 8.0) * epsilon).min(MAX_EPSILON);
                         }
                         0.4
                     }
@@ -349,6 +353,8 @@ fn run_mesher(surface: &Path, mesh_path: &Path, edge: f64, epsilon: f64, options
         vertices: number("vertices")? as usize,
         tets: number("tets")? as usize,
         seconds: number("seconds")?,
+        islands_dropped: json_number(line, "islands_dropped").unwrap_or(0.0) as usize,
+        island_vertices: json_number(line, "island_vertices").unwrap_or(0.0) as usize,
     })
 }
 

@@ -21,6 +21,11 @@ pub struct MesherRun {
     pub tets: usize,
     /// The mesher's own time (s).
     pub seconds: f64,
+    /// Separate pieces the mesher dropped (all but the largest by volume: nothing would hold
+    /// them to the body; their render vertices ride on the nearest kept tet).
+    pub islands_dropped: usize,
+    /// Vertices of the dropped pieces.
+    pub island_vertices: usize,
 }
 
 /// Which vertices the scene's handle takes, in the asset's frame.
@@ -104,7 +109,7 @@ pub fn scene_toml(
 # units and frame; the render mesh rides on it through {render_file}.
 # Repair: {summary}
 # Tet mesh: {vertices} vertices, {tets} tets (fTetWild, target edge {edge:.4e} in asset units,
-# envelope {epsilon:.1e} of the diagonal).
+# envelope {epsilon:.1e} of the diagonal){islands}.
 name = {quoted_name}
 description = "Surface asset {asset_file} as a soft body: {handle_words}, shaken at varying speeds, under gravity"
 dt = 0.0333333333333333
@@ -157,6 +162,14 @@ beyond = 1.5
         tets = mesh.num_elements(),
         edge = last.map_or(0.0, |r| r.edge_length),
         epsilon = last.map_or(0.0, |r| r.epsilon),
+        islands = match last {
+            Some(r) if r.islands_dropped > 0 => format!(
+                ";\n# {} separate piece(s) of {} vertices dropped (nothing held them to the body; their\n\
+                 # render vertices ride on the nearest kept tet)",
+                r.islands_dropped, r.island_vertices
+            ),
+            _ => String::new(),
+        },
         quoted_name = toml_string(name),
         quoted_mesh = toml_string(&mesh_file),
         quoted_render = toml_string(&render_file),

@@ -43,7 +43,7 @@ pub(crate) enum Command {
         /// Target tet edge length, in the asset's units (default: 1/20 of the diagonal).
         #[arg(long, conflicts_with = "vertices")]
         edge_length: Option<f64>,
-        /// Target number of tet-mesh vertices: up to four mesher runs stop within 20% of it, the
+        /// Target number of tet-mesh vertices: up to six mesher runs stop within 20% of it, the
         /// surface envelope widened up to 1.6% of the diagonal where the surface's detail holds
         /// the count up; the closest run is kept.
         #[arg(long)]

@@ -69,8 +69,19 @@ pub(crate) fn mesh_asset(
     }
     for run in &outcome.runs {
         println!(
-            "fTetWild: edge {:.4e}, envelope {:.1e} -> {} vertices, {} tets in {:.2} s",
-            run.edge_length, run.epsilon, run.vertices, run.tets, run.seconds
+            "fTetWild: edge {:.4e}, envelope {:.1e} -> {} vertices, {} tets in {:.2} s{}",
+            run.edge_length,
+            run.epsilon,
+            run.vertices,
+            run.tets,
+            run.seconds,
+            match run.islands_dropped {
+                0 => String::new(),
+                n => format!(
+                    " ({n} separate piece(s) of {} vertices dropped: nothing holds them to the body)",
+                    run.island_vertices
+                ),
+            }
         );
     }
     println!(
