@@ -13,6 +13,8 @@
 #             Redistribution and reuse allowed for any purpose", HUMAN.source.txt beside it)
 #   epileptic X/BCN_Epileptic.X, 5,126 triangles, a body in three named meshes (lower body,
 #             upper body, head; BSD-3-clause)
+#   dino      X/fromtruespace_bin32.x, 6,656 triangles, a toy dinosaur on four feet
+#             ("FeedTheDinoGPU"; BSD-3-clause), three small holes: meshed with --accept-defects
 #   wuson     OBJ/WusonOBJ.obj, 3,732 triangles, a toy creature (BSD-3-clause), read as OBJ
 #   sphere-hole STL/sphereWithHole.stl, an open sphere (BSD-3-clause): refused unless
 #             --accept-defects
@@ -35,6 +37,7 @@ convert() { # NAME MODEL: a glTF binary of the model
 }
 convert human BLEND/HUMAN.blend
 convert epileptic X/BCN_Epileptic.X
+convert dino X/fromtruespace_bin32.x
 cp -f "$models/OBJ/WusonOBJ.obj" "$src/wuson.obj"
 cp -f "$models/STL/sphereWithHole.stl" "$src/sphere-hole.stl"
 
@@ -43,13 +46,13 @@ case "${1:-fetch}" in
   fetch) ls -l "$src" ;;
   mesh)
     shift
-    for asset in human.glb epileptic.glb wuson.obj sphere-hole.stl; do
+    for asset in human.glb dino.glb epileptic.glb wuson.obj sphere-hole.stl; do
       echo "== mochi mesh $src/$asset $*"
       mochi mesh "$src/$asset" "$@" || echo "(refused: see above)"
     done
     ;;
   tetgen)
-    for name in human epileptic wuson sphere-hole; do
+    for name in human dino epileptic wuson sphere-hole; do
       surface=out/assets/$name/$name.surface.npz
       [ -f "$surface" ] || continue
       echo "== tetgen $surface"

@@ -126,9 +126,10 @@ normalize = true
 render = {quoted_render}
 
 [material]
-# A soft default (a jelly): Young's modulus in Pa, density in kg/m^3.
+# A soft default (a firm jelly, which holds a 1 m body up against gravity): Young's modulus in
+# Pa, density in kg/m^3.
 model = "stable-neo-hookean"
-youngs = 5e4
+youngs = 3e5
 poisson = 0.45
 density = 1000.0
 
