@@ -17,11 +17,14 @@ pub struct NpzOut {
     npz: NpzWriter<BufWriter<File>>,
 }
 
-/// How every array is stored: uncompressed, with Zip64 entries for arrays of 2 GiB and more.
+/// How every array is stored: uncompressed, with Zip64 entries for arrays of 2 GiB and more,
+/// and the zip format's earliest time (1980-01-01) as every entry's modification time, so an
+/// archive's bytes depend only on its arrays (a dataset made twice is the same bytes).
 pub(crate) fn entry_options() -> zip::write::FileOptions {
     zip::write::FileOptions::default()
         .compression_method(CompressionMethod::Stored)
         .large_file(true)
+        .last_modified_time(zip::DateTime::default())
 }
 
 impl NpzOut {

@@ -13,7 +13,7 @@
 //! | `energy_names` | unicode | `(k,)` |
 //! | `energies` | float64 | `(frames, k)` |
 //! | `newton_iterations` | uint32 | `(frames,)` |
-//! | `step_seconds` | float64 | `(frames,)` |
+//! | `step_seconds` | float64 | `(frames,)`, or `(0,)` where timings are not kept (dataset sequences: their bytes depend on nothing but the scene and the plan; the times are in the dataset's manifest) |
 //! | `meta` | unicode | `(m, 2)`: key, value rows |
 //! | `obstacle_faces` | uint32 | `(t, 3)`, only for scenes with obstacle meshes |
 //! | `obstacle_positions` | float64 | `(frames, o, 3)`, with `obstacle_faces` |
@@ -60,7 +60,7 @@ pub struct Trajectory {
     pub energies: Vec<Vec<f64>>,
     /// Newton iterations per frame (0 for frame 0).
     pub newton_iterations: Vec<u32>,
-    /// Wall time of each step in seconds (0 for frame 0).
+    /// Wall time of each step in seconds (0 for frame 0); empty where timings are not kept.
     pub step_seconds: Vec<f64>,
     /// Free-form metadata (seed, speeds, `split` = train/test, ...).
     pub meta: Vec<(String, String)>,
@@ -169,7 +169,9 @@ impl Trajectory {
         check_table("bc_signal", &self.bc_signal, frames, p)?;
         check_table("energies", &self.energies, frames, self.energy_names.len())?;
         check_len("newton_iterations", self.newton_iterations.len(), frames)?;
-        check_len("step_seconds", self.step_seconds.len(), frames)?;
+        if !self.step_seconds.is_empty() {
+            check_len("step_seconds", self.step_seconds.len(), frames)?;
+        }
         if let Some(i) = self.step_seconds.iter().position(|s| !(s.is_finite() && *s >= 0.0)) {
             return Err((
                 "step_seconds",
@@ -249,7 +251,11 @@ impl Trajectory {
         npz.strings("energy_names", &[k], self.energy_names.iter().map(String::as_str))?;
         npz.array("energies", &[frames, k], self.energies.iter().flatten().copied())?;
         npz.array("newton_iterations", &[frames], self.newton_iterations.iter().copied())?;
-        npz.array("step_seconds", &[frames], self.step_seconds.iter().copied())?;
+        npz.array(
+            "step_seconds",
+            &[self.step_seconds.len() as u64],
+            self.step_seconds.iter().copied(),
+        )?;
         npz.strings(
             "meta",
             &[self.meta.len() as u64, 2],
@@ -329,7 +335,9 @@ impl Trajectory {
         let newton_iterations = newton.into_vec::<u32>("uint32")?;
 
         let seconds = npz.array("step_seconds")?;
-        seconds.expect_shape(&[frames as u64])?;
+        if seconds.dims::<1>()? != [0] {
+            seconds.expect_shape(&[frames as u64])?;
+        }
         let step_seconds = seconds.into_vec::<f64>("float64")?;
 
         let meta = npz.array("meta")?;

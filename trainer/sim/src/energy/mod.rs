@@ -119,46 +119,63 @@ pub fn gather(energy: &dyn StencilEnergy, s: usize, x: &[f64], local: &mut [f64;
     verts.len() * dim
 }
 
-/// Total value of `energy` at `x`, summed over stencils in parallel.
+/// Stencils evaluated in parallel at a time; each block's results are summed in stencil order
+/// before the next, so values and gradients are the same bits on any number of threads (a
+/// dataset made on one machine is the bytes made on another).
+const BLOCK: usize = 1024;
+
+/// Total value of `energy` at `x`: stencils evaluated in parallel, summed in stencil order.
 pub fn value(energy: &dyn StencilEnergy, x: &[f64]) -> f64 {
-    (0..energy.len())
-        .into_par_iter()
-        .map_init(
-            || (Local::default(), [0.0; MAX_DOF]),
-            |(out, xl), s| {
-                let n = gather(energy, s, x, xl);
-                energy.eval(s, &xl[..n], Want::Value, out)
-            },
-        )
-        .sum()
+    let mut total = 0.0;
+    let mut values: Vec<f64> = Vec::new();
+    for start in (0..energy.len()).step_by(BLOCK) {
+        let end = (start + BLOCK).min(energy.len());
+        (start..end)
+            .into_par_iter()
+            .map_init(
+                || (Local::default(), [0.0; MAX_DOF]),
+                |(out, xl), s| {
+                    let n = gather(energy, s, x, xl);
+                    energy.eval(s, &xl[..n], Want::Value, out)
+                },
+            )
+            .collect_into_vec(&mut values);
+        for v in &values {
+            total += v;
+        }
+    }
+    total
 }
 
-/// Adds `weight * grad energy(x)` into `grad` and returns `weight * energy(x)`.
+/// Adds `weight * grad energy(x)` into `grad` and returns `weight * energy(x)`: stencils
+/// evaluated in parallel, their values and gradients summed in stencil order.
 pub(crate) fn add_gradient(energy: &dyn StencilEnergy, weight: f64, x: &[f64], grad: &mut [f64]) -> f64 {
     let dim = energy.dim();
-    let (val, g) = (0..energy.len())
-        .into_par_iter()
-        .fold(
-            || (0.0, vec![0.0; grad.len()], Local::default(), [0.0; MAX_DOF]),
-            |(mut val, mut g, mut out, mut xl), s| {
-                let n = gather(energy, s, x, &mut xl);
-                val += energy.eval(s, &xl[..n], Want::Gradient, &mut out);
-                for (a, &v) in energy.stencil(s).iter().enumerate() {
-                    for i in 0..dim {
-                        g[v * dim + i] += out.grad[a * dim + i];
-                    }
+    let mut val = 0.0;
+    let mut g = vec![0.0; grad.len()];
+    let mut local: Vec<(f64, [f64; MAX_DOF])> = Vec::new();
+    for start in (0..energy.len()).step_by(BLOCK) {
+        let end = (start + BLOCK).min(energy.len());
+        (start..end)
+            .into_par_iter()
+            .map_init(
+                || (Local::default(), [0.0; MAX_DOF]),
+                |(out, xl), s| {
+                    let n = gather(energy, s, x, xl);
+                    let v = energy.eval(s, &xl[..n], Want::Gradient, out);
+                    (v, out.grad)
+                },
+            )
+            .collect_into_vec(&mut local);
+        for (k, (v, local_grad)) in local.iter().enumerate() {
+            val += v;
+            for (a, &vertex) in energy.stencil(start + k).iter().enumerate() {
+                for i in 0..dim {
+                    g[vertex * dim + i] += local_grad[a * dim + i];
                 }
-                (val, g, out, xl)
-            },
-        )
-        .map(|(val, g, _, _)| (val, g))
-        .reduce(
-            || (0.0, vec![0.0; grad.len()]),
-            |(va, mut ga), (vb, gb)| {
-                ga.iter_mut().zip(&gb).for_each(|(a, b)| *a += b);
-                (va + vb, ga)
-            },
-        );
+            }
+        }
+    }
     grad.iter_mut().zip(&g).for_each(|(a, b)| *a += weight * b);
     weight * val
 }

@@ -93,6 +93,18 @@ pub(crate) enum Command {
         /// Output directory; default out/SCENE/dataset.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Make only this sequence (a file stem such as `train-03`; repeat for more). With
+        /// several processes on one directory, each its own sequences, the files are the
+        /// bytes one process makes (scripts/ray-dataset.sh fans them out over Ray).
+        #[arg(long = "sequence", conflicts_with = "shard")]
+        sequences: Vec<String>,
+        /// Make only shard `I/N` of the plan's sequences (0-based: sequences I, I + N, ...).
+        #[arg(long, value_parser = parse_shard)]
+        shard: Option<(usize, usize)>,
+        /// Make the selected sequences anew, and the manifest, instead of keeping those that
+        /// are complete.
+        #[arg(long)]
+        overwrite: bool,
     },
     /// Train a latent model: dataset (if missing), autoencoder, integrators, artifact.
     Train {
@@ -383,6 +395,16 @@ pub(crate) enum Bench {
 }
 
 /// `--weights` values.
+fn parse_shard(text: &str) -> std::result::Result<(usize, usize), String> {
+    let parsed = text
+        .split_once('/')
+        .and_then(|(i, n)| Some((i.trim().parse().ok()?, n.trim().parse().ok()?)));
+    match parsed {
+        Some((i, n)) if n > 0 && i < n => Ok((i, n)),
+        _ => Err(format!("`{text}` is not a shard I/N with 0 <= I < N")),
+    }
+}
+
 fn parse_weights(name: &str) -> std::result::Result<mochi_runtime::WeightFormat, String> {
     mochi_codegen::parse_format(name).ok_or_else(|| format!("`{name}` is not one of f32, f16, int8"))
 }

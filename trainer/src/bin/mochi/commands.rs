@@ -185,24 +185,46 @@ fn print_warnings(warnings: &[String]) {
     }
 }
 
-pub(crate) fn make_dataset(name: &str, out: Option<PathBuf>) -> Result<()> {
+pub(crate) fn make_dataset(
+    name: &str,
+    out: Option<PathBuf>,
+    selection: &dataset::Selection,
+    overwrite: bool,
+) -> Result<()> {
     let scene = Recipe::load(name)?.scene;
     let mut problem = scene.build()?;
     print_warnings(&problem.warnings);
     let dir = out.unwrap_or_else(|| default_out(&scene, "dataset"));
-    let report = dataset::generate(&mut problem, &dir, None, true, &FramesBar::new("dataset", true))?;
-    let plans = dataset::plan(&scene.dataset);
-    let count = |s: Split| plans.iter().filter(|p| p.split == s).count();
+    let selected = selection
+        .pick(dataset::plan(&scene.dataset))
+        .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let report = dataset::generate_selected(
+        &mut problem,
+        &dir,
+        selection,
+        overwrite,
+        &FramesBar::new("dataset", true),
+    )?;
+    let count = |s: Split| selected.iter().filter(|p| p.split == s).count();
+    let steps = if report.step_seconds.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; {:.2} ms/step, {:.2} Newton iterations/step",
+            1e3 * mean(&report.step_seconds),
+            mean(&report.newton_iterations)
+        )
+    };
     println!(
-        "{}: {} train sequences of {} frames + {} test sequences of {} frames in {:.1} s; {:.2} ms/step, {:.2} Newton iterations/step -> {}",
+        "{}: {} train sequences of {} frames + {} test sequences of {} frames ({} simulated, {} already complete) in {:.1} s{steps} -> {}",
         scene.name,
         count(Split::Train),
         scene.dataset.frames_of(Split::Train),
         count(Split::Test),
         scene.dataset.frames_of(Split::Test),
+        report.sequences,
+        selected.len() - report.sequences,
         report.seconds,
-        1e3 * mean(&report.step_seconds),
-        mean(&report.newton_iterations),
         dir.display()
     );
     if let Some(closest) = report.collider_min_distance {

@@ -52,7 +52,20 @@ fn run(cli: Cli) -> Result<()> {
             obj_every,
             png_frames,
         } => simulate(&scene, frames, out, level, seed, obj, obj_every, &png_frames),
-        Command::Dataset { scene, out } => make_dataset(&scene, out),
+        Command::Dataset {
+            scene,
+            out,
+            sequences,
+            shard,
+            overwrite,
+        } => {
+            let selection = match (sequences.is_empty(), shard) {
+                (false, _) => mochi_sim::dataset::Selection::Names(sequences),
+                (true, Some((index, count))) => mochi_sim::dataset::Selection::Shard { index, count },
+                (true, None) => mochi_sim::dataset::Selection::All,
+            };
+            make_dataset(&scene, out, &selection, overwrite)
+        }
         Command::Mesh {
             asset,
             edge_length,
