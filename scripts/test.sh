@@ -2,8 +2,8 @@
 # The README's test command: installs what the target tests need when it is missing (Debian's
 # rustc-web, rust-web-src, rust-web-llvm and lld for cross-compiling; QEMU, Chromium, node), then runs every
 # test of the workspace, the Cortex-M4 firmware under QEMU, the wasm module in node and in
-# headless Chromium, and the C program among them, then the XPBD peer's, the tet mesher's and
-# the glTF export's self-checks. Prints one
+# headless Chromium, and the C program among them, then the XPBD peer's, the tet mesher's,
+# the glTF export's and the Ray dataset's self-checks. Prints one
 # closing tally line.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,9 +23,13 @@ scripts/tetwild.sh self-check 2>&1 | tee -a "$log"
 # target/gltf-venv once, then seconds).
 scripts/gltf.sh self-check 2>&1 | tee -a "$log"
 [ "${PIPESTATUS[0]}" -eq 0 ] || status=1
+# Datasets through Ray: a local head and worker node, a worker killed once, the files byte for
+# byte the single-process ones (ray from PyPI into target/ray-venv once, then about a minute).
+scripts/ray-dataset.sh self-check 2>&1 | tee -a "$log"
+[ "${PIPESTATUS[0]}" -eq 0 ] || status=1
 set -e
 # One closing line over every test binary (cargo prints one result line per binary) and the
-# XPBD, tet mesher and glTF self-checks.
-awk '/^(test result|xpbd self-check|tetwild self-check|gltf self-check):/ { for (i = 1; i <= NF; i++) { if ($i ~ /^passed[;,]?$/) p += $(i-1); if ($i ~ /^failed[;,]?$/) f += $(i-1) } }
+# XPBD, tet mesher, glTF and Ray self-checks.
+awk '/^(test result|xpbd self-check|tetwild self-check|gltf self-check|ray self-check):/ { for (i = 1; i <= NF; i++) { if ($i ~ /^passed[;,]?$/) p += $(i-1); if ($i ~ /^failed[;,]?$/) f += $(i-1) } }
      END { printf "tests: %d passed, %d failed\n", p, f }' "$log"
 exit "$status"

@@ -58,6 +58,8 @@ fn dataset_writes_train_and_test_sequences() {
     assert_eq!(
         names,
         [
+            "manifest.lock",
+            "manifest.toml",
             "test-00.npz",
             "test-01.npz",
             "test-02.npz",
@@ -70,6 +72,26 @@ fn dataset_writes_train_and_test_sequences() {
     let test = Trajectory::read_npz(&out.join("test-00.npz")).unwrap();
     assert_eq!(test.meta_value("split"), Some("test"));
     assert_eq!(test.positions.len(), 5);
+    assert!(
+        test.step_seconds.is_empty(),
+        "timings go to the manifest, not the sequence"
+    );
+    // Run again: every sequence is complete, none is simulated.
+    let o = mochi(&["dataset", scene.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(said.contains("(0 simulated, 7 already complete)"), "{said}");
+    // The plan, a shard of it, and a bad shard.
+    let o = mochi(&["dataset", scene.to_str().unwrap(), "--plan", "--shard", "1/3"]);
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(
+        said.lines().collect::<Vec<_>>(),
+        ["train-01 train 4", "test-02 test 4"],
+        "{said}"
+    );
+    let o = mochi(&["dataset", scene.to_str().unwrap(), "--shard", "3/3"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("3/3"));
 }
 
 #[test]

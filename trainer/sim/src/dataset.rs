@@ -528,7 +528,9 @@ pub fn generate_selected(
         traj.meta.push(("seed".into(), plan.seed.to_string()));
         let step_seconds = std::mem::take(&mut traj.step_seconds);
         let path = sequence_path(dir, plan);
-        let partial = path.with_extension("npz.partial");
+        // A partial file of this process's own: a retried task may run beside a worker that
+        // was given up on but still writes the same sequence (the same bytes).
+        let partial = path.with_extension(format!("npz.{}.partial", std::process::id()));
         traj.write_npz(&partial)?;
         std::fs::rename(&partial, &path).map_err(|source| SimError::Io {
             path: path.clone(),

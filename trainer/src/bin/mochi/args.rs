@@ -105,6 +105,9 @@ pub(crate) enum Command {
         /// are complete.
         #[arg(long)]
         overwrite: bool,
+        /// Print the planned sequences (name, split, frames), one a line, and make nothing.
+        #[arg(long)]
+        plan: bool,
     },
     /// Train a latent model: dataset (if missing), autoencoder, integrators, artifact.
     Train {

@@ -185,6 +185,18 @@ fn print_warnings(warnings: &[String]) {
     }
 }
 
+/// `mochi dataset --plan`: the selected sequences, `NAME SPLIT FRAMES` a line.
+pub(crate) fn print_dataset_plan(name: &str, selection: &dataset::Selection) -> Result<()> {
+    let scene = Recipe::load(name)?.scene;
+    let plans = selection
+        .pick(dataset::plan(&scene.dataset))
+        .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    for p in plans {
+        println!("{} {} {}", p.name, p.split.as_str(), p.frames(&scene.dataset, scene.dt));
+    }
+    Ok(())
+}
+
 pub(crate) fn make_dataset(
     name: &str,
     out: Option<PathBuf>,

@@ -14,7 +14,7 @@ use mochi_trainer::{shipped_scene_names, Recipe, Reporter};
 use args::{Bench, Cli, Command};
 use commands::{
     bench_reduced, bench_runtime, bench_sim, compare, demo, eval_models, eval_rates, make_dataset, mesh_asset,
-    simulate, train_scene,
+    print_dataset_plan, simulate, train_scene,
 };
 
 /// Reports on the terminal: stages and messages as lines on stdout, progress as bars.
@@ -58,13 +58,18 @@ fn run(cli: Cli) -> Result<()> {
             sequences,
             shard,
             overwrite,
+            plan,
         } => {
             let selection = match (sequences.is_empty(), shard) {
                 (false, _) => mochi_sim::dataset::Selection::Names(sequences),
                 (true, Some((index, count))) => mochi_sim::dataset::Selection::Shard { index, count },
                 (true, None) => mochi_sim::dataset::Selection::All,
             };
-            make_dataset(&scene, out, &selection, overwrite)
+            if plan {
+                print_dataset_plan(&scene, &selection)
+            } else {
+                make_dataset(&scene, out, &selection, overwrite)
+            }
         }
         Command::Mesh {
             asset,
