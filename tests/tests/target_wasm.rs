@@ -16,6 +16,27 @@ use mochi_runtime::ValidModel;
 use mochi_target_common::host;
 use mochi_tests::{tiny, tiny_poke, tiny_poke_int8, tiny_render};
 
+/// `scripts/run-wasm.sh` on `artifact` in `weights`, the page offering that model alone;
+/// returns the script's output.
+fn run_alone(script: &Path, artifact: &Path, weights: &str) -> String {
+    let run = Command::new("bash")
+        .arg(script)
+        .arg(artifact)
+        .arg(weights)
+        .env("MOCHI_PAGE_MODELS", artifact)
+        .output()
+        .unwrap_or_else(|e| panic!("running {}: {e}", script.display()));
+    let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+    assert!(
+        run.status.success(),
+        "{} {} failed:\n{}\n{stdout}",
+        script.display(),
+        artifact.display(),
+        String::from_utf8_lossy(&run.stderr)
+    );
+    stdout
+}
+
 #[test]
 fn wasm_module_matches_the_host_and_its_page_runs_in_chromium() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -77,21 +98,7 @@ fn wasm_module_matches_the_host_and_its_page_runs_in_chromium() {
     // A model with a collider slot (tiny-poke, int8): in node its checksums equal the host's
     // with the reference script's collider, and on the page the mouse's ball is its input.
     // (After the first run: the two share the page's folder.)
-    let artifact = repo.join("tests/artifacts/tiny-poke.mochi");
-    let run = Command::new("bash")
-        .arg(&script)
-        .arg(&artifact)
-        .arg("int8")
-        .env("MOCHI_PAGE_MODELS", &artifact)
-        .output()
-        .unwrap_or_else(|e| panic!("running {}: {e}", script.display()));
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "{} tiny-poke failed:\n{}\n{stdout}",
-        script.display(),
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let stdout = run_alone(&script, &repo.join("tests/artifacts/tiny-poke.mochi"), "int8");
     let output = std::fs::read_to_string(repo.join("target/targets/wasm-tiny-poke-int8.txt")).unwrap();
     let report = host::parse(&output).unwrap();
     let model = ValidModel::new(tiny_poke_int8::MODEL).unwrap();
@@ -105,21 +112,7 @@ fn wasm_module_matches_the_host_and_its_page_runs_in_chromium() {
 
     // A model with a render mesh (tiny-render, f32): in node the render pass agrees with the
     // host's and the viewer's render mesh has unit normals; the page draws the render mesh.
-    let artifact = repo.join("tests/artifacts/tiny-render.mochi");
-    let run = Command::new("bash")
-        .arg(&script)
-        .arg(&artifact)
-        .arg("f32")
-        .env("MOCHI_PAGE_MODELS", &artifact)
-        .output()
-        .unwrap_or_else(|e| panic!("running {}: {e}", script.display()));
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "{} tiny-render failed:\n{}\n{stdout}",
-        script.display(),
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let stdout = run_alone(&script, &repo.join("tests/artifacts/tiny-render.mochi"), "f32");
     let output = std::fs::read_to_string(repo.join("target/targets/wasm-tiny-render-f32.txt")).unwrap();
     let report = host::parse(&output).unwrap();
     assert_eq!(report.render_checksums.len(), 4, "the render pass ran");

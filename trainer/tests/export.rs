@@ -21,6 +21,17 @@ fn options(frames: usize) -> ExportOptions {
     }
 }
 
+/// The motion `roll_out` exports by default: the artifact's scene at speed level 0.5 with
+/// its dataset seed.
+fn exported_motion(path: &std::path::Path, frames: usize) -> mochi_sim::bc::BcSequence {
+    let artifact = Artifact::read(path).unwrap();
+    let recipe = Recipe::parse(&artifact.scene_toml, std::path::Path::new(&artifact.scene_path)).unwrap();
+    recipe
+        .build()
+        .unwrap()
+        .sequence(&SpeedPlan::constant(0.5), frames, recipe.scene.dataset.seed)
+}
+
 #[test]
 fn the_render_mesh_frames_are_the_runtimes_render_decode() {
     let path = artifacts().join("tiny-render.mochi");
@@ -40,12 +51,7 @@ fn the_render_mesh_frames_are_the_runtimes_render_decode() {
     let stored = mochi_codegen::Quantized::split(&base, options.decoder, options.integrator);
     let model = ValidModel::new(stored.model(&base)).unwrap();
     let m = model.model();
-    let artifact = Artifact::read(&path).unwrap();
-    let recipe = Recipe::parse(&artifact.scene_toml, std::path::Path::new(&artifact.scene_path)).unwrap();
-    let bc = recipe
-        .build()
-        .unwrap()
-        .sequence(&SpeedPlan::constant(0.5), frames, recipe.scene.dataset.seed);
+    let bc = exported_motion(&path, frames);
     let mut body = AnyInstance::new(&model).unwrap();
     let mut sim = vec![0.0; m.state_len()];
     let (mut positions, mut normals) = (vec![0.0; m.render_len()], vec![0.0; m.render_len()]);
@@ -174,12 +180,7 @@ fn a_collider_model_exports_its_surface_pushed_out_of_the_collider() {
     let bytes = std::fs::read(&path).unwrap();
     let mut storage = OwnedModel::default();
     let model = *storage.load(&bytes).unwrap().model();
-    let artifact = Artifact::read(&path).unwrap();
-    let recipe = Recipe::parse(&artifact.scene_toml, std::path::Path::new(&artifact.scene_path)).unwrap();
-    let bc = recipe
-        .build()
-        .unwrap()
-        .sequence(&SpeedPlan::constant(0.5), frames, recipe.scene.dataset.seed);
+    let bc = exported_motion(&path, frames);
     for t in 0..=frames {
         let states = mochi_trainer::methods::learned::collider_states(&bc, t, model.colliders());
         for (slot, state) in states.iter().enumerate() {

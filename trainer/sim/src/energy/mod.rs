@@ -127,23 +127,7 @@ const BLOCK: usize = 1024;
 /// Total value of `energy` at `x`: stencils evaluated in parallel, summed in stencil order.
 pub fn value(energy: &dyn StencilEnergy, x: &[f64]) -> f64 {
     let mut total = 0.0;
-    let mut values: Vec<f64> = Vec::new();
-    for start in (0..energy.len()).step_by(BLOCK) {
-        let end = (start + BLOCK).min(energy.len());
-        (start..end)
-            .into_par_iter()
-            .map_init(
-                || (Local::default(), [0.0; MAX_DOF]),
-                |(out, xl), s| {
-                    let n = gather(energy, s, x, xl);
-                    energy.eval(s, &xl[..n], Want::Value, out)
-                },
-            )
-            .collect_into_vec(&mut values);
-        for v in &values {
-            total += v;
-        }
-    }
+    in_stencil_order(energy, x, Want::Value, |v, _| v, |_, v| total += v);
     total
 }
 
@@ -153,7 +137,34 @@ pub(crate) fn add_gradient(energy: &dyn StencilEnergy, weight: f64, x: &[f64], g
     let dim = energy.dim();
     let mut val = 0.0;
     let mut g = vec![0.0; grad.len()];
-    let mut local: Vec<(f64, [f64; MAX_DOF])> = Vec::new();
+    in_stencil_order(
+        energy,
+        x,
+        Want::Gradient,
+        |v, out| (v, out.grad),
+        |s, (v, local_grad)| {
+            val += v;
+            for (a, &vertex) in energy.stencil(s).iter().enumerate() {
+                for i in 0..dim {
+                    g[vertex * dim + i] += local_grad[a * dim + i];
+                }
+            }
+        },
+    );
+    grad.iter_mut().zip(&g).for_each(|(a, b)| *a += weight * b);
+    weight * val
+}
+
+/// Evaluates every stencil for `want` in parallel, a [`BLOCK`] at a time, keeps
+/// `pick(value, local)` of each and hands them to `sink(stencil, picked)` in stencil order.
+fn in_stencil_order<T: Send>(
+    energy: &dyn StencilEnergy,
+    x: &[f64],
+    want: Want,
+    pick: impl Fn(f64, &Local) -> T + Sync,
+    mut sink: impl FnMut(usize, T),
+) {
+    let mut picked: Vec<T> = Vec::new();
     for start in (0..energy.len()).step_by(BLOCK) {
         let end = (start + BLOCK).min(energy.len());
         (start..end)
@@ -162,22 +173,15 @@ pub(crate) fn add_gradient(energy: &dyn StencilEnergy, weight: f64, x: &[f64], g
                 || (Local::default(), [0.0; MAX_DOF]),
                 |(out, xl), s| {
                     let n = gather(energy, s, x, xl);
-                    let v = energy.eval(s, &xl[..n], Want::Gradient, out);
-                    (v, out.grad)
+                    let v = energy.eval(s, &xl[..n], want, out);
+                    pick(v, out)
                 },
             )
-            .collect_into_vec(&mut local);
-        for (k, (v, local_grad)) in local.iter().enumerate() {
-            val += v;
-            for (a, &vertex) in energy.stencil(start + k).iter().enumerate() {
-                for i in 0..dim {
-                    g[vertex * dim + i] += local_grad[a * dim + i];
-                }
-            }
+            .collect_into_vec(&mut picked);
+        for (k, p) in picked.drain(..).enumerate() {
+            sink(start + k, p);
         }
     }
-    grad.iter_mut().zip(&g).for_each(|(a, b)| *a += weight * b);
-    weight * val
 }
 
 /// As [`add_gradient`], on the calling thread only, accumulating straight into `grad`: for
