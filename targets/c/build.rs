@@ -1,5 +1,6 @@
 //! Generates the model (`tests/artifacts/tiny.mochi`, or `MOCHI_ARTIFACT` with `MOCHI_WEIGHTS`),
-//! the model with a render mesh (`tests/artifacts/tiny-render.mochi`)
+//! the model with a render mesh (`tests/artifacts/tiny-render.mochi`), the model with a collider
+//! slot (`tests/artifacts/tiny-poke.mochi`)
 //! and the C header `mochi.h` (cbindgen over the runtime's C ABI and this crate's exports).
 
 use std::collections::HashMap;
@@ -11,9 +12,11 @@ fn main() {
     if let Err(e) = mochi_codegen::build_rs_from_env(repo.join("tests/artifacts/tiny.mochi"), "model.rs") {
         panic!("codegen failed: {e}");
     }
-    // A model with a render mesh, for the render decode's call.
-    if let Err(e) = mochi_codegen::build_rs(repo.join("tests/artifacts/tiny-render.mochi"), "render_model.rs") {
-        panic!("codegen failed: {e}");
+    // A model with a render mesh, for the render decode's call, and one with a collider slot.
+    for (artifact, module) in [("tiny-render", "render_model.rs"), ("tiny-poke", "poke_model.rs")] {
+        if let Err(e) = mochi_codegen::build_rs(repo.join(format!("tests/artifacts/{artifact}.mochi")), module) {
+            panic!("codegen failed: {e}");
+        }
     }
     let sources = [
         repo.join("runtime/src/capi.rs"),

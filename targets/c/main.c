@@ -3,7 +3,9 @@
  * checksum of the decoded positions and the positions every 10th frame, which must stay
  * within 1e-5 of the rest diagonal of the host runtime's (see tests/c_program.rs); then steps the
  * same model with a render mesh and takes its render positions and normals in one call, checking
- * the normals and the refusals. Output protocol: the same lines as the Cortex-M4 and wasm targets. */
+ * the normals and the refusals, and a model with a collider slot through the script with its
+ * ball (`collider_checksum` lines). Output protocol: the same lines as the Cortex-M4 and wasm
+ * targets. */
 #include <stdio.h>
 #include <string.h>
 
@@ -160,6 +162,34 @@ int main(void) {
       mochi_instance_decode_render(model, &bodies[0], scratch, info.state_len, rpos, rnormals, 0) != MochiStatus_Ok ||
       info.render_len != 0)
     return fail("render refusals", MochiStatus_Ok);
+
+  /* A model with a run-time collider slot: the reference script with its ball, the state
+     given every step; the checksums of its decoded positions must be the host's. */
+  const MochiModel *poke = mochi_model_tiny_poke();
+  MochiModelInfo pinfo;
+  s = mochi_model_info(poke, &pinfo);
+  if (s != MochiStatus_Ok || pinfo.colliders != 1 || pinfo.state_len > (1 << 16)) return fail("poke model info", s);
+  static MochiInstance poked;
+  s = mochi_instance_init(poke, &poked);
+  if (s != MochiStatus_Ok) return fail("mochi_instance_init (poke)", s);
+  MochiColliderState ball_state;
+  uint64_t poke_hash = 0xcbf29ce484222325ull;
+  for (uint32_t frame = 1; frame <= FRAMES; frame++) {
+    s = mochi_reference_poke(frame, &motion, &ball_state);
+    if (s != MochiStatus_Ok) return fail("mochi_reference_poke", s);
+    for (uint32_t h = 0; h < pinfo.handles; h++) bc[h] = motion;
+    s = mochi_instance_step_colliders(poke, &poked, bc, pinfo.handles, &ball_state, 1, pinfo.dt);
+    if (s < 0) return fail("mochi_instance_step_colliders", s);
+    s = mochi_instance_decode(poke, &poked, scratch, pinfo.state_len);
+    if (s != MochiStatus_Ok) return fail("mochi_instance_decode (poke)", s);
+    poke_hash = fnv(poke_hash, scratch, pinfo.state_len);
+    if (frame == 1 || frame == 10 || frame == 100 || frame == FRAMES)
+      printf("collider_checksum %u %016llx\n", frame, (unsigned long long)poke_hash);
+  }
+  /* More states than slots are refused. */
+  MochiColliderState two[2] = {ball_state, ball_state};
+  if (mochi_instance_step_colliders(poke, &poked, bc, pinfo.handles, two, 2, pinfo.dt) != MochiStatus_Collider)
+    return fail("two states for one slot were not refused", MochiStatus_Ok);
 
   printf("positions");
   for (uint32_t i = 0; i < info.state_len; i++) {

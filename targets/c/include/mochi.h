@@ -413,6 +413,24 @@ const struct MochiModel *mochi_model_tiny_render(void);
  */
 MochiStatus mochi_reference_motion(uint32_t frame, struct MochiHandleMotion *out);
 
+/**
+ * The generated model with one run-time collider slot (`tiny-poke`: a ball pressed into a
+ * small block), or null if it failed validation.
+ */
+const struct MochiModel *mochi_model_tiny_poke(void);
+
+/**
+ * Frame `frame` of the reference script for `mochi_model_tiny_poke`: every handle's motion
+ * into `motion` and its collider slot's state (the ball circling the body's top) into
+ * `collider`.
+ *
+ * # Safety
+ * `motion` and `collider` must each be null or writable.
+ */
+MochiStatus mochi_reference_poke(uint32_t frame,
+                                 struct MochiHandleMotion *motion,
+                                 struct MochiColliderState *collider);
+
 #ifdef __cplusplus
 }  // extern "C"
 #endif  // __cplusplus

@@ -63,6 +63,26 @@ fn c_program_matches_the_host_checksum() {
     assert_eq!(report.frames, mochi_target_common::FRAMES);
     let model = ValidModel::new(mochi_c::model::MODEL).unwrap();
     host::check::<LATENT, SIGNAL, HIDDEN>(&model, &report).unwrap();
+
+    // The collider model, stepped by C with the script's ball each frame: the host's checksums
+    // (the same library on the same CPU: the same bits).
+    use mochi_c::poke_model;
+    let poke = ValidModel::new(poke_model::MODEL).unwrap();
+    let mut positions = vec![0.0f32; poke.model().state_len()];
+    let mut expected = Vec::new();
+    mochi_target_common::run::<{ poke_model::LATENT }, { poke_model::SIGNAL }, { poke_model::HIDDEN }>(
+        &poke,
+        mochi_target_common::FRAMES,
+        &mut positions,
+        |frame, sum, _| {
+            if mochi_target_common::CHECKPOINTS.contains(&frame) {
+                expected.push(format!("collider_checksum {frame} {:016x}", sum.0));
+            }
+        },
+    )
+    .unwrap();
+    let printed: Vec<&str> = stdout.lines().filter(|l| l.starts_with("collider_checksum")).collect();
+    assert_eq!(printed, expected, "the C program's collider model against the host");
 }
 
 #[test]
