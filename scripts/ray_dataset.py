@@ -251,6 +251,8 @@ def self_check(mochi):
             out = os.path.join(tmp, "ray-store")
             seconds = run(scene, out, mochi, address=head, shared=False)
             check(same(out), f"without a shared path ({seconds:.1f} s) the dataset is the same bytes")
+        except Exception as e:  # a crash is a failed check, counted in the closing line
+            check(False, f"the run through Ray failed: {type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}")
         finally:
             ray_cli("stop", "--force")
     print(f"ray self-check: {passed} passed, {failed} failed", flush=True)
