@@ -24,10 +24,10 @@ static mut CHECKSUMS: [u64; CHECKPOINTS.len()] = [0; CHECKPOINTS.len()];
 /// The scratch and the two render buffers, each as long as `model` needs; `None` when the
 /// model has no render mesh or one larger than the buffers.
 fn buffers(model: &ValidModel) -> Option<(&'static mut [f32], &'static mut [f32], &'static mut [f32])> {
-    let m = model.model();
-    if !m.has_render() || m.render_len() > 3 * MAX_RENDER || m.state_len() > 3 * MAX_SIM {
+    if !fits(model) {
         return None;
     }
+    let m = model.model();
     // SAFETY: wasm32-unknown-unknown runs one thread and the exports do not call each other,
     // so these are the only references to the three statics while they live.
     unsafe {
@@ -41,7 +41,8 @@ fn buffers(model: &ValidModel) -> Option<(&'static mut [f32], &'static mut [f32]
 
 /// Whether the viewer can show `model`'s render mesh (it has one, and it fits).
 pub fn fits(model: &ValidModel) -> bool {
-    buffers(model).is_some()
+    let m = model.model();
+    m.has_render() && m.render_len() <= 3 * MAX_RENDER && m.state_len() <= 3 * MAX_SIM
 }
 
 /// Decodes `body`'s render mesh for the viewer, pushing it out of `collider`; nothing for a

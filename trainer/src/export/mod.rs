@@ -119,11 +119,8 @@ pub fn roll_out(artifact: &Path, options: &ExportOptions) -> Result<MeshAnimatio
     let loaded = storage
         .load(&bytes)
         .with_context(|| format!("{}: runtime refused the artifact", artifact.display()))?;
-    let stored = Quantized::split(
-        loaded.model(),
-        Options::weights(options.weights).decoder,
-        Options::weights(options.weights).integrator,
-    );
+    let storage_options = Options::weights(options.weights);
+    let stored = Quantized::split(loaded.model(), storage_options.decoder, storage_options.integrator);
     let model = ValidModel::new(stored.model(loaded.model()))
         .with_context(|| format!("{}: with {} weights", artifact.display(), format_name(options.weights)))?;
     let m = model.model();
