@@ -148,7 +148,7 @@ pub fn generate_selected(
         let iterations = &traj.newton_iterations[1..];
         manifest::record(
             dir,
-            problem,
+            &made,
             manifest::SequenceRecord {
                 name: plan.name.clone(),
                 frames: traj.num_frames() - 1,

@@ -153,17 +153,20 @@ pub fn open(dir: &Path, problem: &BuiltScene, overwrite: bool) -> Result<Manifes
     })
 }
 
-/// Records `sequence` as written in `dir`'s manifest (replacing an earlier record of it).
-pub fn record(dir: &Path, problem: &BuiltScene, sequence: SequenceRecord) -> Result<(), SimError> {
-    let expected = Manifest::for_scene(problem);
+/// Records `sequence` as written in `dir`'s manifest (replacing an earlier record of it);
+/// `expected` is the manifest [`open`] returned, whose origin the file must still have.
+pub fn record(dir: &Path, expected: &Manifest, sequence: SequenceRecord) -> Result<(), SimError> {
     let path = dir.join(MANIFEST);
     with_lock(dir, || {
         let mut manifest = match Manifest::read(&path)? {
             Some(found) => {
-                found.check_same_origin(&expected, &path)?;
+                found.check_same_origin(expected, &path)?;
                 found
             }
-            None => expected.clone(),
+            None => Manifest {
+                sequences: Vec::new(),
+                ..expected.clone()
+            },
         };
         manifest.sequences.retain(|s| s.name != sequence.name);
         manifest.sequences.push(sequence.clone());
