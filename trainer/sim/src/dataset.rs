@@ -322,6 +322,7 @@ impl BuiltScene {
     /// static equilibrium) and returns the trajectory's first frame.
     pub fn start(&mut self, seq: &BcSequence) -> Result<Trajectory, StepError> {
         let dim = self.mesh.dim;
+        self.simulator.start_over();
         self.simulator.reset(&self.mesh.rest.clone());
         self.place_colliders(seq)?;
         let targets0 = seq.targets(&self.handles, 0, dim);
@@ -411,10 +412,44 @@ pub(crate) fn same_time(a: f64, b: f64) -> bool {
 /// Reads the sequences of `split` of `problem`'s dataset from `dir`, in plan order, checking
 /// that each belongs to the scene and has the planned length.
 pub fn load(problem: &BuiltScene, dir: &Path, split: Split) -> Result<Vec<(SequencePlan, Trajectory)>, InputError> {
-    let spec = problem.scene.dataset;
     let mut out = Vec::new();
-    for plan in plan(&spec).into_iter().filter(|p| p.split == split) {
-        let path = sequence_path(dir, &plan);
+    load_each(problem, dir, split, |plan, traj| {
+        out.push((plan, traj));
+        Ok::<(), InputError>(())
+    })?;
+    Ok(out)
+}
+
+/// The files of the sequences of `split` in `dir`, in plan order (whether or not they exist).
+pub fn split_paths(problem: &BuiltScene, dir: &Path, split: Split) -> Vec<PathBuf> {
+    plan(&problem.scene.dataset)
+        .iter()
+        .filter(|p| p.split == split)
+        .map(|p| sequence_path(dir, p))
+        .collect()
+}
+
+/// [`load`] one sequence at a time: reads and checks each sequence of `split` in plan order
+/// and hands it to `each`, holding one in memory at a time.
+pub fn load_each<E: From<InputError>>(
+    problem: &BuiltScene,
+    dir: &Path,
+    split: Split,
+    mut each: impl FnMut(SequencePlan, Trajectory) -> Result<(), E>,
+) -> Result<(), E> {
+    for plan in plan(&problem.scene.dataset).into_iter().filter(|p| p.split == split) {
+        let traj = load_checked(problem, dir, &plan)?;
+        each(plan, traj)?;
+    }
+    Ok(())
+}
+
+/// Reads sequence `plan` from `dir`, checking that it belongs to the scene and has the
+/// planned length.
+fn load_checked(problem: &BuiltScene, dir: &Path, plan: &SequencePlan) -> Result<Trajectory, InputError> {
+    let spec = problem.scene.dataset;
+    {
+        let path = sequence_path(dir, plan);
         if !path.exists() {
             return Err(InputError::file(
                 &path,
@@ -460,9 +495,8 @@ pub fn load(problem: &BuiltScene, dir: &Path, split: Split) -> Result<Vec<(Seque
                 ),
             ));
         }
-        out.push((plan, traj));
+        Ok(traj)
     }
-    Ok(out)
 }
 
 #[cfg(test)]

@@ -52,6 +52,8 @@ pub struct Simulator {
     contact: Option<Contact>,
     /// The adaptive model that gives each Newton direction, if attached.
     adaptive: Option<crate::adaptive::solver::AdaptiveSolver>,
+    /// The adaptive model as attached, which [`Simulator::start_over`] goes back to.
+    adaptive_initial: Option<Box<crate::adaptive::solver::AdaptiveSolver>>,
     /// Vertex Block Descent, which steps instead of Newton, if attached.
     vbd: Option<crate::vbd::VertexBlockDescent>,
     x: Vec<f64>,
@@ -124,6 +126,7 @@ impl Simulator {
             extra_couplings: Vec::new(),
             contact,
             adaptive: None,
+            adaptive_initial: None,
             vbd: None,
             v: vec![0.0; n],
             x_prev: x0.clone(),
@@ -196,6 +199,20 @@ impl Simulator {
     /// The current barrier stiffness (0 without contact or before the first solve).
     pub fn contact_stiffness(&self) -> f64 {
         self.contact.as_ref().map_or(0.0, Contact::kappa)
+    }
+
+    /// Forgets what the solver carried over from earlier steps: the contact barrier's
+    /// stiffness and closest distance, and the adaptive model's active blocks, enrichment
+    /// and BFGS matrices (back to how it was attached). A motion started after this is the
+    /// same bits as in a freshly built simulator, whatever ran before it (a dataset's
+    /// sequences are then independent of their order and of the process making them).
+    pub fn start_over(&mut self) {
+        if let Some(c) = &mut self.contact {
+            c.start_over();
+        }
+        if let Some(initial) = &self.adaptive_initial {
+            self.adaptive = Some(initial.as_ref().clone());
+        }
     }
 
     /// Resets the state to positions `x` at rest.

@@ -192,3 +192,43 @@ fn a_directory_of_another_scene_or_version_is_refused() {
         (env!("CARGO_PKG_VERSION"), 6)
     );
 }
+
+/// The solver state one sequence leaves (the adaptive model's blocks, enrichment and BFGS
+/// matrices; the contact barrier's stiffness) does not reach the next: each sequence made
+/// alone, in a fresh process as a distributed run makes it, is the bytes of one run.
+#[test]
+fn no_solver_state_carries_from_one_sequence_to_the_next() {
+    let adaptive = format!("{SCENE}\n[solver]\nkind = \"adaptive\"\nmodal_error = 0.01\n");
+    let contact = format!(
+        "{SCENE}\n[contact]\ndhat = 1e-3\n[[contact.obstacles]]\ntype = \"box\"\n\
+         min = [0.15, -0.2, -0.1]\nmax = [0.5, -0.036, 0.1]\n"
+    );
+    for (kind, text) in [("adaptive", adaptive), ("contact", contact)] {
+        let root = tempfile::tempdir().unwrap();
+        let whole = root.path().join("whole");
+        let mut problem = scene(&text).build().unwrap();
+        generate_selected(
+            &mut problem,
+            &whole,
+            &Selection::Split(mochi_sim::Split::Train),
+            false,
+            &Silent,
+        )
+        .unwrap();
+        for name in ["train-01", "train-02"] {
+            let alone = root.path().join(name);
+            let mut problem = scene(&text).build().unwrap();
+            let names = Selection::Names(vec![name.to_string()]);
+            generate_selected(&mut problem, &alone, &names, false, &Silent).unwrap();
+            let file = format!("{name}.npz");
+            let (a, b) = (
+                std::fs::read(whole.join(&file)).unwrap(),
+                std::fs::read(alone.join(&file)).unwrap(),
+            );
+            assert!(
+                a == b,
+                "{kind}: {name} made alone differs from {name} made after the others"
+            );
+        }
+    }
+}

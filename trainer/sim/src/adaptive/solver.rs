@@ -94,6 +94,7 @@ struct Bases {
 }
 
 /// The adaptive model of one body and its state across steps.
+#[derive(Clone)]
 pub struct AdaptiveSolver {
     settings: AdaptiveSettings,
     dim: usize,

@@ -125,6 +125,7 @@ pub(super) fn hessian_times(h: SparseColMatRef<'_, u32, f64>, u: &DMatrix<f64>) 
 }
 
 /// One Newton-iterate system kept for timing.
+#[derive(Clone)]
 pub(super) struct KeptSystem {
     pub hessian: SparseColMat<u32, f64>,
     pub rhs: Vec<f64>,

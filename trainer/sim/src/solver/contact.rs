@@ -309,6 +309,14 @@ impl Contact {
     }
 
     /// Places the obstacles where their scripts put them at `time`, at once (no solve).
+    /// Back to the state before the first solve: obstacles at their start, the barrier
+    /// stiffness to be chosen anew, no closest distance known.
+    pub(super) fn start_over(&mut self) {
+        self.place_obstacles_at(0.0);
+        self.kappa = 0.0;
+        self.prev_min_d2 = f64::INFINITY;
+    }
+
     pub(super) fn place_obstacles_at(&mut self, time: f64) {
         for script in &self.obstacle_scripts {
             script.place(&self.obstacle_rest, time, &mut self.obstacle_positions);

@@ -20,6 +20,7 @@ impl Simulator {
     /// Makes every Newton iterate's direction come from `solver`'s adaptive model; the
     /// time integration, energies, contact, line search and convergence test stay.
     pub fn with_adaptive(mut self, solver: AdaptiveSolver) -> Self {
+        self.adaptive_initial = Some(Box::new(solver.clone()));
         self.adaptive = Some(solver);
         self
     }
