@@ -56,6 +56,10 @@ pub enum TrainerError {
         /// The operating system's error.
         source: std::io::Error,
     },
+    /// The training frames could not be read back from the file they were written to
+    /// (the message names it).
+    #[error("reading the training frames back: {0}")]
+    FrameRead(#[from] std::io::Error),
     /// A value the library computed or was given does not fit (the message says which).
     #[error("{0}")]
     Invalid(String),

@@ -35,7 +35,7 @@ pub use learn::recipe::{shipped_scene_names, Recipe};
 pub use learn::train::TrainError;
 pub use mochi_sim::{InputError, Location};
 pub use pipeline::assemble::artifact_paths;
-pub use pipeline::{train_scene, TrainOptions, TrainOutcome};
+pub use pipeline::{train_scene, TrainOptions, TrainOutcome, FRAME_MEMORY};
 pub use progress::{FramesBar, Quiet, Reporter};
 
 /// Environment variable candle (and rayon) read for their thread count.

@@ -27,6 +27,7 @@ fn train(dir: &Path, name: &str, text: &str) -> PathBuf {
         out_dir: dir.join(name),
         resume: false,
         latent: None,
+        frame_memory: mochi_trainer::FRAME_MEMORY,
     };
     train_scene(&recipe, &options, &Quiet).unwrap();
     dir.join(name).join("tiny-poke.mochi")
@@ -114,6 +115,7 @@ fn a_model_trained_without_collider_inputs_has_none_and_eval_measures_penetratio
             stability_frames: 200,
             accuracy_frames: 40,
             adaptive: false,
+            full_space_reference: false,
         };
         let (reports, _) = evaluate(std::slice::from_ref(path), &options, &Quiet).unwrap();
         for r in &reports {

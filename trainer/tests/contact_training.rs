@@ -50,6 +50,7 @@ fn a_contact_scene_without_handles_trains_and_evaluates() {
         out_dir: out.clone(),
         resume: false,
         latent: None,
+        frame_memory: mochi_trainer::FRAME_MEMORY,
     };
     let outcome = train_scene(&recipe, &options, &Quiet).unwrap_or_else(|e| panic!("{e:#}"));
     // Every candidate was timed in the runtime, whose boundary signal is empty here.
@@ -70,6 +71,7 @@ fn a_contact_scene_without_handles_trains_and_evaluates() {
             stability_frames: 60,
             accuracy_frames: 30,
             adaptive: true,
+            full_space_reference: false,
         },
         &Quiet,
     )

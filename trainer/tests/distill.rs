@@ -237,6 +237,7 @@ fn training_with_strand_positions_distils_candidates_into_positions() {
         out_dir: dir.path().join("out"),
         resume: false,
         latent: None,
+        frame_memory: mochi_trainer::FRAME_MEMORY,
     };
     let outcome = train_scene(&recipe, &options, &Quiet).unwrap();
     let rows = &outcome.model.summary.candidates;

@@ -182,6 +182,7 @@ fn a_scene_over_frame_rates_trains_a_timed_model_that_steps_at_every_rate() {
         out_dir: dir.path().join("out"),
         resume: false,
         latent: None,
+        frame_memory: mochi_trainer::FRAME_MEMORY,
     };
     let outcome = train_scene(&recipe, &options, &Quiet).unwrap();
     for model in [&outcome.model, &outcome.baseline] {

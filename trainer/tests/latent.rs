@@ -28,6 +28,7 @@ fn eval_options(dir: &Path, out: &str) -> EvalOptions {
         stability_frames: 300,
         accuracy_frames: 60,
         adaptive: false,
+        full_space_reference: false,
     }
 }
 
@@ -36,6 +37,7 @@ fn options(dir: &Path, resume: bool) -> TrainOptions {
         out_dir: dir.join("out"),
         resume,
         latent: None,
+        frame_memory: mochi_trainer::FRAME_MEMORY,
     }
 }
 

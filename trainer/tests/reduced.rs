@@ -34,6 +34,7 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         out_dir: out.clone(),
         resume: false,
         latent: None,
+        frame_memory: mochi_trainer::FRAME_MEMORY,
     };
     let outcome = train_scene(&recipe, &options, &Quiet).unwrap();
 
@@ -105,6 +106,7 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         stability_frames: 100,
         accuracy_frames: 60,
         adaptive: false,
+        full_space_reference: false,
     };
     evaluate(std::slice::from_ref(&model_path), &eval, &Quiet).unwrap();
     let report = std::fs::read_to_string(dir.path().join("eval/report.md")).unwrap();

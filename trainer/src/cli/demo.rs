@@ -123,6 +123,7 @@ pub fn run(options: &DemoOptions, report: &dyn Reporter) -> Result<DemoReport> {
                 out_dir: out.clone(),
                 resume: true,
                 latent: None,
+                frame_memory: crate::FRAME_MEMORY,
             };
             train_scene(&recipe, &train, report)?;
             Artifact::read(&artifact_path)?

@@ -137,6 +137,10 @@ pub struct EvalOptions {
     /// Also step the test sequences with the adaptive subspace solver (always when the
     /// scene's `[solver]` is adaptive).
     pub adaptive: bool,
+    /// Measure against the test split simulated in full space (`dataset-full-space/` beside
+    /// the first artifact, made where missing) when the scene's own solver is another one
+    /// (the adaptive solver made its dataset): the adaptive solver is then measured too.
+    pub full_space_reference: bool,
 }
 
 /// The whole evaluation: every artifact (and its supervised sibling when present) on the
@@ -164,8 +168,20 @@ pub fn evaluate(
         )));
     }
     let (mut problem, encoding) = rebuild_problem(first)?;
-    let tests = rollout::test_split(&mut problem, &paths[0], report)?;
-    let data_dir = rollout::dataset_dir(&paths[0]);
+    let full_space = options.full_space_reference && problem.scene.solver != mochi_sim::SolverSpec::FullSpace;
+    // The reference: the scene's own solver, or full space in a dataset directory of its own.
+    let mut full_space_problem = if full_space {
+        let mut scene = problem.scene.clone();
+        scene.solver = mochi_sim::SolverSpec::FullSpace;
+        Some(scene.build()?)
+    } else {
+        None
+    };
+    let data_dir = match full_space {
+        true => rollout::dataset_dir(&paths[0]).with_file_name("dataset-full-space"),
+        false => rollout::dataset_dir(&paths[0]),
+    };
+    let tests = rollout::test_split_in(full_space_problem.as_mut().unwrap_or(&mut problem), &data_dir, report)?;
     // The rollouts' boundary conditions come from the scene's plan, each sequence's errors
     // from its stored frames: the two must be the same motion.
     let plans: Vec<BcSequence> = tests
@@ -186,7 +202,10 @@ pub fn evaluate(
     let timing_frames = 30.min(problem.scene.dataset.frames_of(Split::Test));
     let seq = problem.sequence(&tests[0].0.speeds, timing_frames, tests[0].0.seed);
     let clock = Instant::now();
-    problem.run(&seq, &mochi_sim::Silent)?;
+    full_space_problem
+        .as_mut()
+        .unwrap_or(&mut problem)
+        .run(&seq, &mochi_sim::Silent)?;
     let reference_seconds = clock.elapsed().as_secs_f64() / timing_frames as f64;
 
     let mut reports = Vec::new();
@@ -240,17 +259,18 @@ pub fn evaluate(
         Vec::new()
     };
     // The adaptive subspace solver, when asked or when the scene uses it.
-    let adaptive_rows = if options.adaptive || matches!(problem.scene.solver, mochi_sim::SolverSpec::Adaptive(_)) {
-        Some(adaptive::evaluate_adaptive(
-            &problem,
-            &tests,
-            &plans,
-            options.accuracy_frames,
-            report,
-        )?)
-    } else {
-        None
-    };
+    let adaptive_rows =
+        if options.adaptive || full_space || matches!(problem.scene.solver, mochi_sim::SolverSpec::Adaptive(_)) {
+            Some(adaptive::evaluate_adaptive(
+                &problem,
+                &tests,
+                &plans,
+                options.accuracy_frames,
+                report,
+            )?)
+        } else {
+            None
+        };
     fs::create_dir_all(&options.out_dir)?;
     let adaptive_points: Vec<LabelledPoint> = adaptive_rows
         .iter()

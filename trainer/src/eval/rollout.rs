@@ -62,9 +62,18 @@ pub fn test_split(
     file: &Path,
     report: &dyn Reporter,
 ) -> TrainerResult<Vec<(SequencePlan, Trajectory)>> {
-    let data_dir = dataset_dir(file);
-    dataset::generate(problem, &data_dir, Some(Split::Test), false, &report.frames("dataset"))?;
-    Ok(dataset::load(problem, &data_dir, Split::Test)?)
+    test_split_in(problem, &dataset_dir(file), report)
+}
+
+/// The scene's test split in dataset directory `data_dir`, simulated first by `problem`'s
+/// solver where it is missing.
+pub fn test_split_in(
+    problem: &mut BuiltScene,
+    data_dir: &Path,
+    report: &dyn Reporter,
+) -> TrainerResult<Vec<(SequencePlan, Trajectory)>> {
+    dataset::generate(problem, data_dir, Some(Split::Test), false, &report.frames("dataset"))?;
+    Ok(dataset::load(problem, data_dir, Split::Test)?)
 }
 
 /// The `dataset` folder beside `file`.

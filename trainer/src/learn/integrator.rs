@@ -96,14 +96,9 @@ impl<'a> PhysicsObjective<'a> {
         let k = data.latent;
         let clean = tensor_to_rows(&batch.inputs)?;
         let samples: Vec<SampleRef> = batch.indices.iter().map(|&i| data.samples[i]).collect();
-        // Previous states for the inertia term: the decoded inputs themselves.
-        let mut prevs: Vec<(Vec<f64>, Vec<f64>)> = samples
-            .iter()
-            .map(|s| {
-                let d = &data.decoded[s.sequence];
-                (d[s.frame - 1].clone(), d[s.prev2()].clone())
-            })
-            .collect();
+        // Previous states for the inertia term: the decoded inputs themselves (decoded per
+        // batch, so no decoded frame is held between batches).
+        let mut prevs = self.decoded_previous(&clean, &samples)?;
         let mut rows = clean.clone();
         let mut all_samples = samples.clone();
         let augmentation = self.augmentation;

@@ -45,6 +45,15 @@ pub enum PcaError {
     /// The SVD did not converge.
     #[error("the SVD did not converge: {0}")]
     Svd(String),
+    /// The frames could not be read back from their file.
+    #[error("reading the training frames: {0}")]
+    Read(String),
+}
+
+impl From<std::io::Error> for PcaError {
+    fn from(e: std::io::Error) -> Self {
+        PcaError::Read(e.to_string())
+    }
 }
 
 fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), PcaError> {

@@ -6,7 +6,8 @@ use candle_core::Tensor;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::learn::encoding::{collider_inputs, decode_world, pack_signals, Encoding, Frame};
+use crate::learn::encoding::{collider_inputs, pack_signals, Encoding, Frame};
+use crate::learn::frame_rows::Rows;
 use crate::learn::network::{rows_to_tensor, tensor_to_rows, Autoencoder, LatentIntegrator, Normalisation};
 use crate::learn::sequences::EncodedSequence;
 use mochi_sim::bc::SIGNAL_PER_HANDLE;
@@ -40,8 +41,6 @@ pub struct IntegratorData<'a> {
     pub bc_len: usize,
     /// Ground-truth latents `E(q)` per sequence and frame.
     pub latents: Vec<Vec<Vec<f32>>>,
-    /// Decoded ground-truth latents in world space, per sequence and frame (f64).
-    pub decoded: Vec<Vec<Vec<f64>>>,
     /// One sample per predicted frame.
     pub samples: Vec<SampleRef>,
     /// Run-time collider slots the integrator reads (0: none, or a model trained without
@@ -78,6 +77,9 @@ pub enum SamplesError {
     /// A decoded frame could not be placed in the world.
     #[error(transparent)]
     Encoding(#[from] crate::learn::encoding::EncodingError),
+    /// The training frames could not be read back from their file.
+    #[error("reading the training frames back: {0}")]
+    Read(#[from] std::io::Error),
     /// A sequence's boundary-condition signal does not fit the scene's handles.
     #[error("training sequence {sequence} has {got} boundary-condition numbers per frame, the scene has {expected}")]
     SignalLength {
@@ -93,12 +95,14 @@ pub enum SamplesError {
 impl<'a> IntegratorData<'a> {
     /// Encodes every frame with `ae` and packs one sample per predicted frame, with the
     /// states of `colliders` collider slots (the scene's colliders, or 0 for a model without
-    /// collider inputs).
+    /// collider inputs). `rows` are the encoded frames of `sequences`, sequence after
+    /// sequence, read a block at a time.
     pub fn new(
         problem: &BuiltScene,
         encoding: &'a Encoding,
         ae: &Autoencoder,
         sequences: &'a [EncodedSequence],
+        rows: &dyn Rows,
         colliders: usize,
     ) -> Result<Self, SamplesError> {
         let k = ae.spec().latent;
@@ -106,37 +110,26 @@ impl<'a> IntegratorData<'a> {
         let timed = problem.scene.dataset.frame_rates.is_some();
         let reference_dt = problem.scene.dt;
         let mut latents = Vec::new();
-        let mut decoded = Vec::new();
+        let mut first = 0;
+        let width = encoding.encoded_len();
         for seq in sequences {
-            let rows: Vec<Vec<f32>> = seq
-                .encoded
-                .iter()
-                .map(|q| q.iter().map(|&v| v as f32).collect())
-                .collect();
+            let indices: Vec<usize> = (first..first + seq.frames.len()).collect();
+            first += seq.frames.len();
             let mut z_seq = Vec::new();
-            let mut x_seq = Vec::new();
-            for chunk in rows.chunks(256) {
-                let refs: Vec<&[f32]> = chunk.iter().map(Vec::as_slice).collect();
-                let x = rows_to_tensor(&refs, encoding.encoded_len())?;
-                let z = ae.encode(&x)?;
-                let back = tensor_to_rows(&ae.decode(&z)?)?;
-                z_seq.extend(tensor_to_rows(&z)?);
-                x_seq.extend(back);
+            for chunk in indices.chunks(256) {
+                let mut flat = Vec::with_capacity(chunk.len() * width);
+                rows.gather_f32(chunk, &mut flat)?;
+                let x = Tensor::from_vec(flat, (chunk.len(), width), &candle_core::Device::Cpu)?;
+                z_seq.extend(tensor_to_rows(&ae.encode(&x)?)?);
             }
-            let world = x_seq
-                .iter()
-                .enumerate()
-                .map(|(t, q)| decode_world(encoding, q, &seq.frames[t], &seq.targets[t]))
-                .collect::<Result<Vec<_>, _>>()?;
             latents.push(z_seq);
-            decoded.push(world);
         }
         let diagonal = problem.mesh.rest_diagonal();
         let dim = encoding.dim();
         let touch: Vec<Vec<Vec<f32>>> = sequences
             .iter()
             .map(|seq| {
-                (0..seq.encoded.len())
+                (0..seq.frames.len())
                     .map(|t| {
                         let states = seq.trajectory.colliders.as_ref().map_or(&[][..], |c| &c.states[t][..]);
                         collider_inputs(colliders, &seq.frames[t], &seq.targets[t], dim, diagonal, states)
@@ -155,7 +148,7 @@ impl<'a> IntegratorData<'a> {
                     expected: bc_len,
                 });
             }
-            for t in 1..seq.encoded.len() {
+            for t in 1..seq.frames.len() {
                 let sample = SampleRef { sequence: s, frame: t };
                 inputs.push(pack(
                     &latents[s][t - 1],
@@ -197,7 +190,6 @@ impl<'a> IntegratorData<'a> {
             input_norm: Normalisation::fit(&inputs)?,
             increment_norm: Normalisation::fit(&increments)?,
             latents,
-            decoded,
             samples,
             inputs,
             colliders,
@@ -396,6 +388,7 @@ pub(crate) fn candle_err(e: impl std::fmt::Display) -> candle_core::Error {
 #[cfg(test)]
 pub(crate) mod fixtures {
     use super::*;
+    use crate::learn::frame_rows::FrameRows;
     use crate::learn::network::AutoencoderSpec;
     use crate::learn::network::IntegratorSpec;
     use crate::learn::pca::Pca;
@@ -446,7 +439,20 @@ pub(crate) mod fixtures {
     impl TinyBeam {
         /// The integrator's training set of the beam.
         pub(crate) fn data(&self) -> IntegratorData<'_> {
-            IntegratorData::new(&self.problem, &self.encoding, &self.ae, &self.sequences, 0).unwrap()
+            IntegratorData::new(
+                &self.problem,
+                &self.encoding,
+                &self.ae,
+                &self.sequences,
+                &self.rows(),
+                0,
+            )
+            .unwrap()
+        }
+
+        /// The encoded frames of the beam's sequences, in memory.
+        pub(crate) fn rows(&self) -> FrameRows {
+            FrameRows::Memory(self.sequences.iter().flat_map(|s| s.encoded.iter().cloned()).collect())
         }
     }
 

@@ -50,26 +50,37 @@ pub fn encode_sequences(
         .collect()
 }
 
-/// RMS vertex error over all frames of `sequences`, as a fraction of `diagonal`, of the
-/// positions decoded from `rebuilt` (one encoded vector per frame, in sequence order) against
-/// the positions decoded from the frames' own encodings.
-pub(crate) fn decoded_rms_error(
-    encoding: &Encoding,
-    sequences: &[EncodedSequence],
-    rebuilt: &[Vec<f64>],
-    diagonal: f64,
-) -> Result<f64, EncodingError> {
-    let frames = sequences
-        .iter()
-        .flat_map(|s| s.encoded.iter().zip(&s.frames).zip(&s.targets));
-    let (mut sum, mut count) = (0.0, 0usize);
-    let mut exact = vec![0.0; encoding.state_len()];
-    let mut approx = vec![0.0; encoding.state_len()];
-    for (((q, frame), targets), r) in frames.zip(rebuilt) {
-        encoding.decode_into(q, frame, targets, &mut exact)?;
-        encoding.decode_into(r, frame, targets, &mut approx)?;
-        sum += exact.iter().zip(&approx).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
-        count += encoding.free_vertices().len();
+/// The RMS vertex error of rebuilt encodings, measured where it counts: on the positions
+/// decoded from them against those decoded from the frames' own encodings, summed a frame at
+/// a time.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct DecodedError {
+    sum: f64,
+    count: usize,
+}
+
+impl DecodedError {
+    /// Adds one frame: its exact encoding, the rebuilt one, its boundary-condition frame and
+    /// handle targets.
+    pub(crate) fn add(
+        &mut self,
+        encoding: &Encoding,
+        exact: &[f64],
+        rebuilt: &[f64],
+        frame: &Frame,
+        targets: &[f64],
+    ) -> Result<(), EncodingError> {
+        let mut a = vec![0.0; encoding.state_len()];
+        let mut b = vec![0.0; encoding.state_len()];
+        encoding.decode_into(exact, frame, targets, &mut a)?;
+        encoding.decode_into(rebuilt, frame, targets, &mut b)?;
+        self.sum += a.iter().zip(&b).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+        self.count += encoding.free_vertices().len();
+        Ok(())
     }
-    Ok((sum / count.max(1) as f64).sqrt() / diagonal)
+
+    /// RMS vertex error over the frames added, as a fraction of `diagonal`.
+    pub(crate) fn rms(&self, diagonal: f64) -> f64 {
+        (self.sum / self.count.max(1) as f64).sqrt() / diagonal
+    }
 }

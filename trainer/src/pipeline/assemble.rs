@@ -131,28 +131,8 @@ pub(crate) struct Trained<'a> {
 /// The training summary of a model (no candidates table): sizes tried, stage times so far,
 /// the integrator's last loss, and the training envelope.
 pub(crate) fn summary(trained: &Trained<'_>, integrator: &TrainedIntegrator, times: &StageTimes) -> TrainingSummary {
-    let (problem, frames, selected) = (trained.problem, trained.frames, trained.autoencoder);
-    let per_vertex = frames.encoding.values_per_vertex();
-    let max_radius = frames
-        .f64s
-        .iter()
-        .flat_map(|q| {
-            q.chunks_exact(per_vertex)
-                .map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt())
-        })
-        .fold(0.0, f64::max);
-    let masses = problem.simulator.masses().to_vec();
-    let dim = problem.mesh.dim;
-    let max_kinetic_energy = frames
-        .sequences
-        .iter()
-        .flat_map(|s| {
-            s.trajectory
-                .positions
-                .windows(2)
-                .map(|w| mochi_sim::measure::kinetic_energy(&masses, &w[1], &w[0], problem.scene.dt, dim))
-        })
-        .fold(0.0, f64::max);
+    let (frames, selected) = (trained.frames, trained.autoencoder);
+    let (max_radius, max_kinetic_energy) = (frames.max_radius, frames.max_kinetic_energy);
     TrainingSummary {
         tolerance: trained.recipe.latent.tolerance,
         trials: selected.trials.clone(),

@@ -4,13 +4,14 @@
 //! and its integrator kept, each measured like every candidate.
 
 use crate::artifact::{Artifact, CandidateRow};
-use crate::error::TrainerResult;
+use crate::error::{TrainerError, TrainerResult};
 use crate::eval::rollout::carried_encoding;
 use crate::learn::distill::DistillShape;
+use crate::learn::frame_rows::Rows;
 use crate::learn::network::forward_exported;
 use crate::pipeline::distill::{distill_artifact, DistillOptions};
 use crate::pipeline::measure::{measure, SelectionInputs};
-use crate::pipeline::stages::{StageTimes, TrainingFrames};
+use crate::pipeline::stages::{StageTimes, TrainingFrames, BLOCK};
 use crate::progress::Reporter;
 use crate::report::candidates::candidate_name;
 use mochi_sim::BuiltScene;
@@ -87,14 +88,21 @@ fn reconstruction(artifact: &Artifact, problem: &BuiltScene, frames: &TrainingFr
     let encoding = carried_encoding(artifact, problem)?;
     let (encoder, decoder) = (artifact.encoder()?, artifact.decoder()?);
     let (mut sum, mut count) = (0.0, 0usize);
-    for sequence in &frames.sequences {
-        for (x, targets) in sequence.trajectory.positions.iter().zip(&sequence.targets) {
-            let q = encoding.encode(x, &encoding.frame(targets)?)?;
+    let steps = frames.steps();
+    let width = frames.rows.width();
+    let mut x = vec![0.0; frames.encoding.state_len()];
+    // The positions are the training frames' own, decoded from the training encoding.
+    frames.rows.for_each_block(BLOCK, |first, block| {
+        for (i, exact) in block.chunks_exact(width).enumerate() {
+            let (frame, targets) = steps[first + i];
+            frames.encoding.decode_into(exact, frame, targets, &mut x)?;
+            let q = encoding.encode(&x, &encoding.frame(targets)?)?;
             let rebuilt = decoder.decode::<f64>(&forward_exported(&encoder, &q)?)?;
             let approx = encoding.decode(&rebuilt, targets)?;
-            sum += approx.iter().zip(x).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+            sum += approx.iter().zip(&x).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
             count += encoding.free_vertices().len();
         }
-    }
+        Ok::<(), TrainerError>(())
+    })?;
     Ok((sum / count.max(1) as f64).sqrt() / artifact.diagonal)
 }

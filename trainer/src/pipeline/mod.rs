@@ -39,7 +39,14 @@ pub struct TrainOptions {
     pub resume: bool,
     /// Only try this latent size (instead of the scene's candidates).
     pub latent: Option<usize>,
+    /// Bytes of training frames held in memory at most; a larger training split is written
+    /// to `frames.f64` in `out_dir` and read back in batches (default [`FRAME_MEMORY`]).
+    pub frame_memory: u64,
 }
+
+/// The default of [`TrainOptions::frame_memory`]: 4 GiB. A fixed budget, not a share of
+/// the machine's memory, so that a scene trains the same way on every machine.
+pub const FRAME_MEMORY: u64 = 4 << 30;
 
 /// The two artifacts of a training run.
 #[derive(Clone, Debug)]
@@ -65,6 +72,8 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
     let spec = &recipe.latent;
     let work = Workspace {
         dataset: options.out_dir.join("dataset"),
+        frames: options.out_dir.join("frames.f64"),
+        frame_memory: options.frame_memory,
         checkpoints: options.out_dir.join("checkpoints"),
         resume: options.resume,
         bars: report.bars(),
@@ -76,7 +85,7 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
     if stages::generate_dataset(problem, &work, report)? > 0 {
         times.record("dataset (train split)", clock);
     }
-    let frames = stages::encode_training_split(problem, spec, &work)?;
+    let frames = stages::encode_training_split(problem, spec, &work, report)?;
 
     report.stage("pca");
     let clock = Instant::now();
@@ -109,6 +118,7 @@ pub fn train_scene(recipe: &Recipe, options: &TrainOptions, report: &dyn Reporte
         &frames.encoding,
         &selected.autoencoder,
         &frames.sequences,
+        &frames.rows,
         colliders,
     )?;
     let name = format!("integrator ({})", Method::Supervised.label());

@@ -5,6 +5,7 @@
 //! `plain_schedule = "paper"` it trains as the paper's configs say (minibatches of 256, a
 //! warm-up of 2,000 iterations, a factor 0.8 every 30,000).
 
+use crate::learn::frame_rows::Rows;
 use std::time::Instant;
 
 use super::stages::Workspace;
@@ -102,16 +103,16 @@ pub(crate) fn plain_config(
 /// Trains the plain autoencoder of `spec` (latent `k`) on the encoded frames `data`.
 pub(crate) fn train_plain_vanilla(
     spec: &ReducedSpec,
-    data: &[Vec<f32>],
+    data: &(impl Rows + ?Sized),
     k: usize,
     batch: usize,
     seed: u64,
     work: &Workspace,
 ) -> TrainerResult<PlainVanilla> {
-    let input = data.first().map_or(0, Vec::len);
+    let input = data.width();
     let autoencoder = Autoencoder::new(plain_spec(spec, input, k), seed)?;
     let clock = Instant::now();
-    let config = plain_config(spec, k, data.len(), batch, seed, work);
+    let config = plain_config(spec, k, data.count(), batch, seed, work);
     let report = train::train_autoencoder(&autoencoder, data, &config, work.resume, None)?;
     Ok(PlainVanilla {
         autoencoder,
@@ -145,6 +146,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let work = Workspace {
             dataset: dir.path().to_path_buf(),
+            frames: dir.path().join("frames.f64"),
+            frame_memory: crate::pipeline::FRAME_MEMORY,
             checkpoints: dir.path().to_path_buf(),
             resume: false,
             bars: false,
@@ -164,6 +167,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let work = Workspace {
             dataset: dir.path().to_path_buf(),
+            frames: dir.path().join("frames.f64"),
+            frame_memory: crate::pipeline::FRAME_MEMORY,
             checkpoints: dir.path().to_path_buf(),
             resume: false,
             bars: false,

@@ -12,11 +12,12 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use super::plain_vanilla::{plain_tag, train_plain_vanilla};
-use super::stages::{SelectedAutoencoder, StageTimes, TrainingFrames, Workspace};
+use super::stages::{SelectedAutoencoder, StageTimes, TrainingFrames, Workspace, BLOCK};
 use crate::artifact::reduced::{reduced_path, CubatureData, LinearSubspaceData, ReducedArtifact, SubspaceData};
 use crate::error::{TrainerError, TrainerResult};
 use crate::learn::datafree::{normal_latents, train_data_free_model, DataFreeObjective, DataFreeSettings};
 use crate::learn::encoding::Encoding;
+use crate::learn::frame_rows::Rows;
 use crate::learn::network::{forward_exported, tensor_to_rows, Autoencoder, ExportedMlp};
 use crate::learn::recipe::Recipe;
 use crate::learn::reduced_spec::{LipschitzEnergy, ReducedSpec, SubspaceSource, VanillaNetwork};
@@ -134,13 +135,14 @@ fn header(recipe: &Recipe) -> TrainerResult<(String, String, String)> {
 /// The latents of every `step`-th training frame under `encoder`, with their handle targets.
 fn encoded_samples(frames: &TrainingFrames, encoder: &ExportedMlp, step: usize) -> TrainerResult<Vec<LatentSample>> {
     let targets: Vec<&Vec<f64>> = frames.sequences.iter().flat_map(|s| s.targets.iter()).collect();
-    frames
-        .f32s
-        .iter()
-        .zip(targets)
+    targets
+        .into_iter()
+        .enumerate()
         .step_by(step.max(1))
-        .map(|(q, t)| {
-            let z = forward_exported(encoder, q)?;
+        .map(|(i, t)| {
+            let mut q = Vec::with_capacity(frames.rows.width());
+            frames.rows.gather_f32(&[i], &mut q)?;
+            let z = forward_exported(encoder, &q)?;
             Ok(LatentSample {
                 z: z.iter().map(|&v| v as f64).collect(),
                 targets: t.clone(),
@@ -160,8 +162,8 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         VanillaNetwork::PlainMlp => {
             report.stage(&format!("reduced: plain vanilla k={k}"));
             let seed = inputs.recipe.latent.seed;
-            let trained = train_plain_vanilla(spec, &frames.f32s, k, net.batch, seed, inputs.work)?;
-            let error = train::mean_reconstruction_error(&trained.autoencoder, &frames.f32s, 256)?;
+            let trained = train_plain_vanilla(spec, &frames.rows, k, net.batch, seed, inputs.work)?;
+            let error = train::mean_reconstruction_error(&trained.autoencoder, &frames.rows, BLOCK)?;
             report.message(&format!(
                 "plain vanilla: RMS vertex error / diagonal {:.2e} after {} epochs ({:.0} s)",
                 (error * encoding.values_per_vertex() as f64).sqrt() / problem.mesh.rest_diagonal(),
@@ -196,7 +198,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
     let vanilla_decoder = vanilla_ae.decoder.as_mlp()?;
 
     report.stage("reduced: cubature");
-    let step = (frames.f32s.len() / CUBATURE_SAMPLES).max(1);
+    let step = (frames.rows.count() / CUBATURE_SAMPLES).max(1);
     let samples = encoded_samples(frames, &vanilla_ae.encoder, step)?;
     let cubatures = fit_cubatures(problem, encoding, vanilla_decoder, &samples, spec.cubature)?;
 
@@ -275,7 +277,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         };
         let run = optimise_supervised(
             &optimised,
-            &frames.f32s,
+            &frames.rows,
             &targets,
             &lipschitz_term(problem, encoding, &potentials),
             &settings,
@@ -306,12 +308,13 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         Ok(lipschitz_estimate(&term.hessians(decoder, samples)?, samples))
     };
     // Every sequence starts from the scene's start state: its latent starts every rollout.
-    let start = frames
-        .f32s
-        .first()
-        .ok_or_else(|| TrainerError::invalid("the training split has no frames"))?;
+    if frames.rows.count() == 0 {
+        return Err(TrainerError::invalid("the training split has no frames"));
+    }
+    let mut start = Vec::with_capacity(frames.rows.width());
+    frames.rows.gather_f32(&[0], &mut start)?;
     let initial = |encoder: &ExportedMlp| -> TrainerResult<Vec<f64>> {
-        Ok(forward_exported(encoder, start)?.iter().map(|&v| v as f64).collect())
+        Ok(forward_exported(encoder, &start)?.iter().map(|&v| v as f64).collect())
     };
     let (scene, scene_toml, scene_path) = header(inputs.recipe)?;
     Ok(ReducedArtifact {
@@ -344,12 +347,10 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
 fn linear_subspace(inputs: &ReducedInputs<'_>, k: usize) -> TrainerResult<LinearSubspaceData> {
     let fitted = &inputs.autoencoder.pca;
     let pca = fitted.clone().truncated(k.min(fitted.num_components()))?;
-    let start = inputs
-        .frames
-        .f64s
-        .first()
-        .ok_or_else(|| TrainerError::invalid("the training split has no frames"))?;
-    Ok(LinearSubspaceData::new(&pca, start)?)
+    if inputs.frames.rows.count() == 0 {
+        return Err(TrainerError::invalid("the training split has no frames"));
+    }
+    Ok(LinearSubspaceData::new(&pca, &inputs.frames.rows.row_f64(0)?)?)
 }
 
 fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult<ReducedArtifact> {

@@ -241,6 +241,7 @@ pub(crate) fn train_candidates(
             &inputs.frames.encoding,
             ae,
             &inputs.frames.sequences,
+            &inputs.frames.rows,
             colliders,
         )?;
         for width in spec.selection.widths(spec.integrator.hidden) {

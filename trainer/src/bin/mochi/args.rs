@@ -134,6 +134,10 @@ pub(crate) enum Command {
         /// no collider barrier in the loss; `latent.collider_inputs = false`), to compare with.
         #[arg(long)]
         without_collider_inputs: bool,
+        /// Training frames held in memory at most (bytes, or with K, M, G: `512M`); a larger
+        /// training split is written to OUT/frames.f64 and read back in batches. Default 4G.
+        #[arg(long)]
+        frame_memory: Option<String>,
     },
     /// Evaluate trained models on the held-out test sequences (with their supervised baselines).
     Eval {
@@ -153,6 +157,11 @@ pub(crate) enum Command {
         /// scenes whose `[solver]` is adaptive).
         #[arg(long)]
         adaptive: bool,
+        /// Measure against the test split simulated in full space (`dataset-full-space/`
+        /// beside the model, made where missing) when the scene's solver is another (the
+        /// adaptive solver made its dataset); the adaptive solver is measured too.
+        #[arg(long)]
+        full_space_reference: bool,
         /// Instead: step the models (of one body, possibly of different scenes) at these frame
         /// rates on the same motions, against full space at each rate (`rates.md`); e.g.
         /// `30,60,72,90,120,144`.

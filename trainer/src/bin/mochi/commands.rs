@@ -261,15 +261,48 @@ fn decoder_candidate(text: &str) -> Result<DecoderCandidate> {
     })
 }
 
-pub(crate) fn train_scene(
-    name: &str,
-    out: Option<PathBuf>,
-    resume: bool,
-    latent_size: Option<usize>,
-    decoder: Option<&str>,
-    integrator_width: Option<usize>,
-    without_collider_inputs: bool,
-) -> Result<()> {
+/// `mochi train`'s choices beyond the scene, its output and `--resume`.
+pub(crate) struct TrainFlags<'a> {
+    pub(crate) latent: Option<usize>,
+    pub(crate) decoder: Option<&'a str>,
+    pub(crate) integrator_width: Option<usize>,
+    pub(crate) without_collider_inputs: bool,
+    pub(crate) frame_memory: Option<&'a str>,
+}
+
+/// `--frame-memory`: bytes, or a number with `K`, `M` or `G` (powers of 1024; `KiB`, `MB`
+/// and the like read alike).
+fn byte_count(text: &str) -> Result<u64> {
+    let trimmed = text.trim().trim_end_matches(['B', 'b']).trim_end_matches('i');
+    let (number, unit) = match trimmed.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => (&trimmed[..i], c.to_ascii_uppercase()),
+        _ => (trimmed, ' '),
+    };
+    let scale: u64 = match unit {
+        ' ' => 1,
+        'K' => 1 << 10,
+        'M' => 1 << 20,
+        'G' => 1 << 30,
+        _ => bail!("--frame-memory {text}: unknown unit `{unit}` (use K, M or G)"),
+    };
+    match number.trim().parse::<f64>() {
+        Ok(n) if n.is_finite() && n >= 0.0 => Ok((n * scale as f64) as u64),
+        _ => bail!("--frame-memory {text}: expected a size such as 512M, 4G or 0"),
+    }
+}
+
+pub(crate) fn train_scene(name: &str, out: Option<PathBuf>, resume: bool, flags: &TrainFlags<'_>) -> Result<()> {
+    let TrainFlags {
+        latent: latent_size,
+        decoder,
+        integrator_width,
+        without_collider_inputs,
+        frame_memory,
+    } = *flags;
+    let frame_memory = frame_memory
+        .map(byte_count)
+        .transpose()?
+        .unwrap_or(mochi_trainer::FRAME_MEMORY);
     let mut recipe = Recipe::load(name)?;
     if without_collider_inputs {
         if recipe.scene.colliders.is_empty() {
@@ -299,6 +332,7 @@ pub(crate) fn train_scene(
         out_dir: out_dir.clone(),
         resume,
         latent: latent_size,
+        frame_memory,
     };
     let start = Instant::now();
     let outcome = mochi_trainer::train_scene(&recipe, &options, &Terminal)?;
@@ -316,6 +350,9 @@ pub(crate) fn train_scene(
     for (stage, seconds) in &summary.stage_seconds {
         println!("  {stage:32} {seconds:8.1} s");
     }
+    if let Some(peak) = mochi_trainer::learn::frame_rows::peak_resident_bytes() {
+        println!("  peak memory {:.0} MiB", peak as f64 / (1024.0 * 1024.0));
+    }
     let (model, baseline) = artifact_paths(&out_dir, &scene.name);
     println!(
         "  total {:.1} s -> {} and {}",
@@ -332,6 +369,7 @@ pub(crate) fn eval_models(
     frames: usize,
     accuracy_frames: usize,
     adaptive: bool,
+    full_space_reference: bool,
 ) -> Result<()> {
     if frames == 0 || accuracy_frames == 0 {
         bail!("--frames and --accuracy-frames must be at least 1");
@@ -342,6 +380,7 @@ pub(crate) fn eval_models(
         stability_frames: frames,
         accuracy_frames,
         adaptive,
+        full_space_reference,
     };
     mochi_trainer::evaluate(artifacts, &options, &Terminal)?;
     let report = std::fs::read_to_string(out_dir.join("report.md"))?;

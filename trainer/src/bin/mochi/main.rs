@@ -14,7 +14,7 @@ use mochi_trainer::{shipped_scene_names, Recipe, Reporter};
 use args::{Bench, Cli, Command};
 use commands::{
     bench_reduced, bench_runtime, bench_sim, compare, demo, eval_models, eval_rates, make_dataset, mesh_asset,
-    print_dataset_plan, simulate, train_scene,
+    print_dataset_plan, simulate, train_scene, TrainFlags,
 };
 
 /// Reports on the terminal: stages and messages as lines on stdout, progress as bars.
@@ -93,14 +93,18 @@ fn run(cli: Cli) -> Result<()> {
             decoder,
             integrator_width,
             without_collider_inputs,
+            frame_memory,
         } => train_scene(
             &scene,
             out,
             resume,
-            latent,
-            decoder.as_deref(),
-            integrator_width,
-            without_collider_inputs,
+            &TrainFlags {
+                latent,
+                decoder: decoder.as_deref(),
+                integrator_width,
+                without_collider_inputs,
+                frame_memory: frame_memory.as_deref(),
+            },
         ),
         Command::Eval {
             artifacts,
@@ -117,8 +121,9 @@ fn run(cli: Cli) -> Result<()> {
             frames,
             accuracy_frames,
             adaptive,
+            full_space_reference,
             ..
-        } => eval_models(&artifacts, out, frames, accuracy_frames, adaptive),
+        } => eval_models(&artifacts, out, frames, accuracy_frames, adaptive, full_space_reference),
         Command::Compare {
             scene,
             model,

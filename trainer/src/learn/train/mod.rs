@@ -33,7 +33,8 @@ use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::learn::network::{rows_to_tensor, Autoencoder};
+use crate::learn::frame_rows::Rows;
+use crate::learn::network::Autoencoder;
 use crate::learn::stretch::EdgeStretch;
 use crate::progress::EpochsBar;
 use mochi_sim::error::InputError;
@@ -72,6 +73,9 @@ pub enum TrainError {
     /// candle failed (including errors raised by the loss closure).
     #[error(transparent)]
     Candle(#[from] candle_core::Error),
+    /// The training frames could not be read back from their file.
+    #[error("reading the training frames: {0}")]
+    Read(#[from] std::io::Error),
 }
 
 /// Result of this module's functions.
@@ -189,18 +193,20 @@ pub struct TrainReport {
     pub earlier_seconds: f64,
 }
 
-/// Trains `params` on `data` (equal-length rows) for `config.epochs` epochs with AdamW,
+/// Trains `params` on `data` (equal-length rows, gathered a minibatch at a time: in memory or
+/// read from a file) for `config.epochs` epochs with AdamW,
 /// minimising `loss(batch, rng)`. With `resume`, continues from the checkpoint if there is
 /// one (checking that it belongs to this run) and ends with the same weights as an
 /// uninterrupted run; without, starts afresh and overwrites old checkpoints.
-pub fn train<F>(
+pub fn train<R, F>(
     params: &[(String, Var)],
-    data: &[Vec<f32>],
+    data: &R,
     config: &TrainConfig,
     resume: bool,
     mut loss: F,
 ) -> TrainResult<TrainReport>
 where
+    R: Rows + ?Sized,
     F: FnMut(&Batch<'_>, &mut ChaCha8Rng) -> candle_core::Result<BatchLoss>,
 {
     let dim = check_dataset(data)?;
@@ -213,7 +219,7 @@ where
         ));
     }
     let mut optimizer = AdamW::new(params, config.optimizer)?;
-    let run = RunIdentity::new(config, data.len(), dim);
+    let run = RunIdentity::new(config, data.count(), dim);
     let clock = std::time::Instant::now();
     let (mut losses, mut earlier_seconds) = (Vec::new(), 0.0);
     if resume {
@@ -226,13 +232,12 @@ where
     let bar = EpochsBar::new(&config.name, config.epochs, start_epoch, config.progress);
     for epoch in start_epoch..config.epochs {
         optimizer.set_lr(config.lr_at(epoch));
-        let mut order: Vec<usize> = (0..data.len()).collect();
+        let mut order: Vec<usize> = (0..data.count()).collect();
         order.shuffle(&mut epoch_rng(config.seed, 2 * epoch as u64));
         let mut rng = epoch_rng(config.seed, 2 * epoch as u64 + 1);
         let mut total = 0.0;
         for (batch, indices) in order.chunks(config.batch_size).enumerate() {
-            let rows: Vec<&[f32]> = indices.iter().map(|&i| data[i].as_slice()).collect();
-            let inputs = rows_to_tensor(&rows, dim).map_err(|e| TrainError::Invalid(e.to_string()))?;
+            let inputs = gathered(data, indices, dim)?;
             let step = loss(&Batch { inputs, indices, epoch }, &mut rng)?;
             if !step.value.is_finite() {
                 return Err(TrainError::NonFinite {
@@ -244,8 +249,8 @@ where
             optimizer.step(&step.objective.backward()?)?;
             total += step.value * indices.len() as f64;
         }
-        losses.push(total / data.len() as f64);
-        bar.epoch(total / data.len() as f64);
+        losses.push(total / data.count() as f64);
+        bar.epoch(total / data.count() as f64);
         if let (Some(path), Some(c)) = (config.checkpoint_path(), &config.checkpoint) {
             let done = epoch + 1;
             if done.is_multiple_of(c.every) || done == config.epochs {
@@ -266,7 +271,7 @@ where
 /// `weight` times the edge-stretch penalty ([`EdgeStretch::penalty`]) when `stretch` is given.
 pub fn train_autoencoder(
     autoencoder: &Autoencoder,
-    data: &[Vec<f32>],
+    data: &(impl Rows + ?Sized),
     config: &TrainConfig,
     resume: bool,
     stretch: Option<(&EdgeStretch, f64)>,
@@ -301,39 +306,50 @@ pub fn autoencoder_loss(
 /// [`autoencoder_loss`] over all of `data`, evaluated in chunks of `chunk` samples.
 pub fn mean_autoencoder_loss(
     autoencoder: &Autoencoder,
-    data: &[Vec<f32>],
+    data: &(impl Rows + ?Sized),
     chunk: usize,
     stretch: Option<(&EdgeStretch, f64)>,
 ) -> TrainResult<f64> {
     let dim = check_dataset(data)?;
     let mut total = 0.0;
-    for rows in data.chunks(chunk.max(1)) {
-        let refs: Vec<&[f32]> = rows.iter().map(Vec::as_slice).collect();
-        let x = rows_to_tensor(&refs, dim).map_err(|e| TrainError::Invalid(e.to_string()))?;
+    let all: Vec<usize> = (0..data.count()).collect();
+    for indices in all.chunks(chunk.max(1)) {
+        let x = gathered(data, indices, dim)?;
         let loss = autoencoder_loss(autoencoder, &x, stretch)?.to_scalar::<f32>()?;
-        total += loss as f64 * rows.len() as f64;
+        total += loss as f64 * indices.len() as f64;
     }
-    Ok(total / data.len() as f64)
+    Ok(total / data.count() as f64)
 }
 
 /// Mean squared reconstruction error of the autoencoder over all of `data` (Eq. 2 divided by
 /// the number of values), evaluated in chunks of `chunk` samples.
-pub fn mean_reconstruction_error(autoencoder: &Autoencoder, data: &[Vec<f32>], chunk: usize) -> TrainResult<f64> {
+pub fn mean_reconstruction_error(
+    autoencoder: &Autoencoder,
+    data: &(impl Rows + ?Sized),
+    chunk: usize,
+) -> TrainResult<f64> {
     mean_autoencoder_loss(autoencoder, data, chunk, None)
 }
 
-fn check_dataset(data: &[Vec<f32>]) -> TrainResult<usize> {
-    let Some(first) = data.first() else {
+/// The rows' width; an error for no rows or rows of different widths.
+fn check_dataset(data: &(impl Rows + ?Sized)) -> TrainResult<usize> {
+    if data.count() == 0 {
         return Err(TrainError::Invalid("the training set is empty".into()));
-    };
-    let dim = first.len();
-    if let Some(i) = data.iter().position(|row| row.len() != dim) {
+    }
+    if let Some(i) = data.ragged_row() {
         return Err(TrainError::Invalid(format!(
-            "sample {i} has {} values, sample 0 has {dim}",
-            data[i].len()
+            "sample {i} has another number of values than sample 0 ({})",
+            data.width()
         )));
     }
-    Ok(dim)
+    Ok(data.width())
+}
+
+/// Rows `indices` of `data` as a `(rows, dim)` tensor.
+fn gathered(data: &(impl Rows + ?Sized), indices: &[usize], dim: usize) -> TrainResult<Tensor> {
+    let mut flat = Vec::with_capacity(indices.len() * dim);
+    data.gather_f32(indices, &mut flat)?;
+    Ok(Tensor::from_vec(flat, (indices.len(), dim), &candle_core::Device::Cpu)?)
 }
 
 fn epoch_rng(seed: u64, stream: u64) -> ChaCha8Rng {

@@ -230,7 +230,7 @@ fn invalid_runs_are_errors() {
     let ae = Autoencoder::new(TINY, 1).unwrap();
     let cfg = config("x", 1, 4, 1e-3);
     assert!(matches!(
-        train_autoencoder(&ae, &[], &cfg, false, None),
+        train_autoencoder(&ae, &Vec::<Vec<f32>>::new(), &cfg, false, None),
         Err(TrainError::Invalid(_))
     ));
     let ragged = vec![vec![0.0; 6], vec![0.0; 5]];
@@ -247,7 +247,7 @@ fn invalid_runs_are_errors() {
         batch_size: 0,
         ..cfg.clone()
     };
-    assert!(train_autoencoder(&ae, &[vec![0.0; 6]], &zero_batch, false, None).is_err());
+    assert!(train_autoencoder(&ae, &vec![vec![0.0; 6]], &zero_batch, false, None).is_err());
     let nan = vec![vec![f32::NAN; 6]; 3];
     assert!(matches!(
         train_autoencoder(&ae, &nan, &cfg, false, None),

@@ -14,6 +14,7 @@
 //! vanilla autoencoder that reconstructs its data almost exactly would otherwise leave the
 //! Lipschitz term no weight at all.
 
+use crate::learn::frame_rows::Rows;
 use candle_core::Tensor;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -82,17 +83,17 @@ pub(crate) struct LipschitzReport {
 /// `targets` (one per frame), with `term` (module documentation).
 pub(crate) fn optimise_supervised(
     autoencoder: &Autoencoder,
-    data: &[Vec<f32>],
+    data: &(impl Rows + ?Sized),
     targets: &[Vec<f64>],
     term: &LipschitzTerm<'_>,
     settings: &LipschitzSettings,
     config: &TrainConfig,
     resume: bool,
 ) -> TrainResult<LipschitzReport> {
-    if data.len() != targets.len() {
+    if data.count() != targets.len() {
         return Err(TrainError::Invalid(format!(
             "{} frames with {} handle placements",
-            data.len(),
+            data.count(),
             targets.len()
         )));
     }
@@ -119,7 +120,9 @@ pub(crate) fn optimise_supervised(
             .iter()
             .take(frames_per_batch)
             .map(|&i| {
-                let z = forward_exported(encoder, &data[i]).map_err(candle_err)?;
+                let mut row = Vec::with_capacity(data.width());
+                data.gather_f32(&[i], &mut row).map_err(candle_err)?;
+                let z = forward_exported(encoder, &row).map_err(candle_err)?;
                 Ok(LatentSample {
                     z: z.iter().map(|&v| v as f64).collect(),
                     targets: targets[i].clone(),
@@ -137,7 +140,7 @@ pub(crate) fn optimise_supervised(
         Ok(samples)
     };
     // The two losses at the start, on the first minibatch's worth of frames.
-    let first: Vec<usize> = (0..data.len().min(config.batch_size)).collect();
+    let first: Vec<usize> = (0..data.count().min(config.batch_size)).collect();
     let exported = autoencoder.export().map_err(|e| TrainError::Invalid(e.to_string()))?;
     let start_samples = samples_of(&exported.encoder, &first)?;
     let invalid = |e: crate::learn::network::NetworkError| TrainError::Invalid(e.to_string());
