@@ -292,7 +292,17 @@ pub fn evaluate(
         &adaptive_points,
         reference_seconds,
     )?;
-    let mut text = report_markdown(&first.scene, &reports, reference_seconds, options);
+    let reference = match &problem.scene.solver {
+        _ if full_space => format!(
+            "Reference: the test split simulated in full space ({}; the scene's own dataset is its {} solver's). \
+             Full-space solver",
+            data_dir.display(),
+            problem.scene.solver.label()
+        ),
+        mochi_sim::SolverSpec::FullSpace => "Full-space solver".to_string(),
+        other => format!("Reference: the scene's {} solver", other.label()),
+    };
+    let mut text = report_markdown(&first.scene, &reports, reference_seconds, options, &reference);
     if !reduced_reports.is_empty() {
         reduced::write_convergence_chart(&options.out_dir, &first.scene, &reduced_reports)?;
         text += &reduced::markdown(&problem, &reduced_reports, reference_seconds, options.accuracy_frames);
@@ -446,10 +456,16 @@ fn stability(m: &RolloutMetrics) -> String {
     }
 }
 
-fn report_markdown(scene: &str, reports: &[ModelReport], reference_seconds: f64, options: &EvalOptions) -> String {
+fn report_markdown(
+    scene: &str,
+    reports: &[ModelReport],
+    reference_seconds: f64,
+    options: &EvalOptions,
+    reference: &str,
+) -> String {
     let mut s = format!(
         "# {scene}: evaluation\n\nErrors are vertex distances as % of the rest bounding-box diagonal over the first {} \
-         frames of each test sequence; stability over {} frames. Full-space solver: {:.2} ms/frame (timed in the \
+         frames of each test sequence; stability over {} frames. {reference}: {:.2} ms/frame (timed in the \
          same process).\n\n| model | sequence | mean err % | max err % | KE ratio | stable frames | ms/frame | speed-up |\n\
          |---|---|---|---|---|---|---|---|\n",
         options.accuracy_frames,

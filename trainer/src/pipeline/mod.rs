@@ -15,6 +15,7 @@ pub(crate) mod plain_vanilla;
 pub(crate) mod reduced;
 pub(crate) mod selection;
 pub(crate) mod stages;
+pub(crate) mod training_frames;
 
 use std::path::PathBuf;
 use std::time::Instant;

@@ -3,7 +3,8 @@
 //! ([`crate::pipeline`]) calls them in order and times them.
 //!
 //! 1. [`generate_dataset`]: the scene's training split, simulated if missing;
-//!    [`encode_training_split`] encodes every frame relative to its boundary conditions.
+//!    [`encode_training_split`] encodes every frame relative to its boundary conditions
+//!    (in memory, or into a file read back in batches: [`super::training_frames`]).
 //! 2. [`fit_pca`]: PCA of the encoded frames and its error for every size.
 //! 3. [`select_autoencoder`]: autoencoders of one decoder family for the candidate latent
 //!    sizes in ascending order, each initialised with the PCA (Fulton et al. 2019); the first
@@ -20,25 +21,21 @@ use std::time::Instant;
 
 use rand_chacha::ChaCha8Rng;
 
+pub(crate) use super::training_frames::{encode_training_split, fit_pca, PcaFit, TrainingFrames, BLOCK};
 use crate::artifact::{Method, SizeTrial};
 use crate::error::{TrainerError, TrainerResult};
-use crate::learn::encoding::{Encoding, Frame};
-use crate::learn::frame_rows::{FrameRows, RowWriter, Rows};
 use crate::learn::integrator::PhysicsObjective;
 use crate::learn::network::{
     tensor_to_rows, Autoencoder, AutoencoderSpec, DecoderShape, IntegratorSpec, LatentIntegrator,
 };
-use crate::learn::pca::{self, Pca};
-use crate::learn::pca_streamed::StreamedSettings;
+use crate::learn::pca::Pca;
 use crate::learn::recipe::{LatentSpec, NetworkSpec};
 use crate::learn::samples::{Augmentation, IntegratorData};
-use crate::learn::sequences::{encode_sequences, DecodedError, EncodedSequence};
 use crate::learn::stretch::EdgeStretch;
 use crate::learn::supervised::SupervisedObjective;
 use crate::learn::train::{self, AdamWConfig, Batch, BatchLoss, CheckpointConfig, TrainConfig};
 use crate::progress::Reporter;
 use mochi_sim::dataset::{self, Split};
-use mochi_sim::trajectory::Trajectory;
 use mochi_sim::BuiltScene;
 
 /// Seconds of every stage that ran, in order (the training summary's `stage_seconds`).
@@ -75,23 +72,6 @@ pub(crate) struct Workspace {
     pub(crate) bars: bool,
 }
 
-/// The training split, encoded.
-pub(crate) struct TrainingFrames {
-    /// The encoding of the scene's body.
-    pub(crate) encoding: Encoding,
-    /// Every training sequence, encoded. When the frames are read from disk, a sequence keeps
-    /// its boundary conditions, frames and targets, the positions of its first frame only and
-    /// no encoded states.
-    pub(crate) sequences: Vec<EncodedSequence>,
-    /// Every encoded frame, sequence after sequence: in memory, or read from
-    /// [`Workspace::frames`] a batch at a time.
-    pub(crate) rows: FrameRows,
-    /// Largest kinetic energy between two consecutive training frames.
-    pub(crate) max_kinetic_energy: f64,
-    /// Largest length of an encoded vertex over the training frames.
-    pub(crate) max_radius: f64,
-}
-
 /// Stage 1: simulates the training split into `work.dataset` unless it is there; returns
 /// how many sequences it simulated.
 pub(crate) fn generate_dataset(
@@ -107,206 +87,6 @@ pub(crate) fn generate_dataset(
         &report.frames("dataset"),
     )?;
     Ok(made.sequences)
-}
-
-/// Loads the training split and encodes every frame relative to its boundary conditions.
-/// A split whose files hold more than `work.frame_memory` bytes is encoded one sequence at a
-/// time into `work.frames` and read back from there in batches by every later stage; `report`
-/// says which.
-pub(crate) fn encode_training_split(
-    problem: &BuiltScene,
-    spec: &LatentSpec,
-    work: &Workspace,
-    report: &dyn Reporter,
-) -> TrainerResult<TrainingFrames> {
-    let encoding = Encoding::new(problem, spec.rods)?;
-    let files = dataset::split_paths(problem, &work.dataset, Split::Train);
-    let bytes: u64 = files
-        .iter()
-        .filter_map(|f| std::fs::metadata(f).ok())
-        .map(|m| m.len())
-        .sum();
-    let mut frames = TrainingFrames {
-        encoding,
-        sequences: Vec::new(),
-        rows: FrameRows::Memory(Vec::new()),
-        max_kinetic_energy: 0.0,
-        max_radius: 0.0,
-    };
-    // The positions and their encodings each take about the files' size in memory.
-    if 2 * bytes <= work.frame_memory {
-        let trajectories: Vec<Trajectory> = dataset::load(problem, &work.dataset, Split::Train)?
-            .into_iter()
-            .map(|(_, t)| t)
-            .collect();
-        for sequence in encode_sequences(&frames.encoding, trajectories)? {
-            frames.add(problem, sequence, |rows, q| {
-                if let FrameRows::Memory(rows) = rows {
-                    rows.push(q.to_vec());
-                }
-                Ok(())
-            })?;
-        }
-        return Ok(frames);
-    }
-    report.message(&format!(
-        "training frames: {:.0} MiB of sequence files, over the {:.0} MiB held in memory (--frame-memory); \
-         encoded into {} and read back in batches",
-        bytes as f64 / MIB,
-        work.frame_memory as f64 / MIB,
-        work.frames.display()
-    ));
-    let mut writer = RowWriter::create(&work.frames, frames.encoding.encoded_len())
-        .map_err(|e| TrainerError::io(&work.frames, e))?;
-    dataset::load_each(problem, &work.dataset, Split::Train, |_, trajectory| {
-        let sequence = encode_sequences(&frames.encoding, vec![trajectory])?.remove(0);
-        frames.add(problem, sequence, |_, q| {
-            writer.push(q).map_err(|e| TrainerError::io(&work.frames, e))
-        })
-    })?;
-    frames.rows = FrameRows::Disk(writer.finish().map_err(|e| TrainerError::io(&work.frames, e))?);
-    for sequence in &mut frames.sequences {
-        sequence.trajectory.positions.truncate(1);
-        sequence.encoded = Vec::new();
-    }
-    Ok(frames)
-}
-
-const MIB: f64 = 1024.0 * 1024.0;
-
-impl TrainingFrames {
-    /// Takes in one encoded sequence: its frames go to `keep` (with the rows), its extremes
-    /// into the frames' own.
-    fn add(
-        &mut self,
-        problem: &BuiltScene,
-        sequence: EncodedSequence,
-        mut keep: impl FnMut(&mut FrameRows, &[f64]) -> TrainerResult<()>,
-    ) -> TrainerResult<()> {
-        let per_vertex = self.encoding.values_per_vertex();
-        let masses = problem.simulator.masses();
-        let positions = &sequence.trajectory.positions;
-        for w in positions.windows(2) {
-            let energy = mochi_sim::measure::kinetic_energy(masses, &w[1], &w[0], problem.scene.dt, problem.mesh.dim);
-            self.max_kinetic_energy = self.max_kinetic_energy.max(energy);
-        }
-        for q in &sequence.encoded {
-            for c in q.chunks_exact(per_vertex) {
-                self.max_radius = self.max_radius.max(c.iter().map(|v| v * v).sum::<f64>().sqrt());
-            }
-            keep(&mut self.rows, q)?;
-        }
-        self.sequences.push(sequence);
-        Ok(())
-    }
-
-    /// The frame and handle targets of every training frame, in row order.
-    pub(crate) fn steps(&self) -> Vec<(&Frame, &[f64])> {
-        self.sequences
-            .iter()
-            .flat_map(|s| s.frames.iter().zip(s.targets.iter().map(Vec::as_slice)))
-            .collect()
-    }
-
-    /// The RMS vertex error, as a fraction of `diagonal`, of the positions decoded from
-    /// `rebuild(block)` (a block of encoded frames, row after row, rebuilt) against those
-    /// decoded from the frames' own encodings, reading the frames a block at a time.
-    pub(crate) fn decoded_rms_error(
-        &self,
-        diagonal: f64,
-        mut rebuild: impl FnMut(&[f64]) -> TrainerResult<Vec<Vec<f64>>>,
-    ) -> TrainerResult<f64> {
-        let steps = self.steps();
-        let mut error = DecodedError::default();
-        let width = self.encoding.encoded_len();
-        self.rows.for_each_block(BLOCK, |first, block| {
-            let rebuilt = rebuild(block)?;
-            for (i, (exact, approx)) in block.chunks_exact(width).zip(&rebuilt).enumerate() {
-                let (frame, targets) = steps[first + i];
-                error.add(&self.encoding, exact, approx, frame, targets)?;
-            }
-            Ok::<(), TrainerError>(())
-        })?;
-        Ok(error.rms(diagonal))
-    }
-}
-
-/// Frames per block when the stages pass over every training frame.
-pub(crate) const BLOCK: usize = 256;
-
-/// The PCA of the encoded training frames and its error at every size.
-pub(crate) struct PcaFit {
-    /// Components up to the largest candidate size (fewer if there are fewer frames).
-    pub(crate) full: Pca,
-    /// RMS vertex error / diagonal with `k` components, `k` from 0 to the largest size.
-    pub(crate) errors: Vec<f64>,
-}
-
-impl PcaFit {
-    /// The error with `k` components (0 past the fitted sizes).
-    pub(crate) fn error(&self, k: usize) -> f64 {
-        self.errors.get(k).copied().unwrap_or(0.0)
-    }
-
-    /// The PCA truncated to `k` components (all of them if there are fewer).
-    pub(crate) fn truncated(&self, k: usize) -> TrainerResult<Pca> {
-        Ok(self.full.clone().truncated(k.min(self.full.num_components()))?)
-    }
-}
-
-/// Stage 2: the PCA of `frames` up to the largest of `sizes` and its error at every size.
-/// Encoded positions: the error follows from the singular values. Strand bends: the error
-/// is measured on the decoded positions, where it counts.
-pub(crate) fn fit_pca(
-    frames: &TrainingFrames,
-    sizes: &[usize],
-    tolerance: f64,
-    diagonal: f64,
-    report: &dyn Reporter,
-) -> TrainerResult<PcaFit> {
-    let largest = *sizes.iter().max().unwrap_or(&1);
-    let encoding = &frames.encoding;
-    let count = frames.rows.count();
-    let (full, errors) = match &frames.rows {
-        FrameRows::Memory(rows) => {
-            let errors = if encoding.strand_bends() {
-                Vec::new()
-            } else {
-                pca::smallest_k_for(tolerance, rows, encoding.values_per_vertex(), diagonal)?.errors
-            };
-            (Pca::fit(rows, largest.min(count))?, errors)
-        }
-        FrameRows::Disk(_) => {
-            let k = largest.min(count).min(frames.rows.width());
-            let streamed = Pca::fit_streamed(&frames.rows, k, &StreamedSettings::default())?;
-            let vertices = (count * frames.rows.width() / encoding.values_per_vertex()) as f64;
-            let errors = (0..=k)
-                .map(|k| (streamed.residual_squares(k) / vertices).sqrt() / diagonal)
-                .collect();
-            (streamed.pca, errors)
-        }
-    };
-    let mut fit = PcaFit { full, errors };
-    if encoding.strand_bends() {
-        fit.errors = (0..=largest)
-            .map(|k| {
-                let pca_k = fit.truncated(k)?;
-                let width = frames.rows.width();
-                frames.decoded_rms_error(diagonal, |block| {
-                    Ok(block
-                        .chunks_exact(width)
-                        .map(|q| pca_k.reconstruct(&pca_k.project(q)?))
-                        .collect::<Result<Vec<_>, _>>()?)
-                })
-            })
-            .collect::<TrainerResult<Vec<f64>>>()?;
-    }
-    let listed: Vec<String> = (1..=largest).map(|k| format!("{k}: {:.2e}", fit.error(k))).collect();
-    report.message(&format!(
-        "PCA RMS vertex error / diagonal by size: {}",
-        listed.join(", ")
-    ));
-    Ok(fit)
 }
 
 /// The autoencoder kept by size selection.

@@ -68,9 +68,9 @@ impl Manifest {
             scene: scene.name.clone(),
             scene_hash: format!("{:016x}", scene_hash(problem)),
             solver: match &scene.solver {
-                SolverSpec::FullSpace => "full-space Newton".into(),
-                SolverSpec::Adaptive(settings) => format!("adaptive subspace {settings:?}"),
-                SolverSpec::Vbd(settings) => format!("VBD {settings:?}"),
+                SolverSpec::FullSpace => scene.solver.label().into(),
+                SolverSpec::Adaptive(settings) => format!("{} {settings:?}", scene.solver.label()),
+                SolverSpec::Vbd(settings) => format!("{} {settings:?}", scene.solver.label()),
             },
             mochi: env!("CARGO_PKG_VERSION").into(),
             sequences: Vec::new(),

@@ -34,6 +34,15 @@ pub enum SolverSpec {
 }
 
 impl SolverSpec {
+    /// The solver's name in reports and manifests.
+    pub fn label(&self) -> &'static str {
+        match self {
+            SolverSpec::FullSpace => "full-space Newton",
+            SolverSpec::Adaptive(_) => "adaptive subspace",
+            SolverSpec::Vbd(_) => "VBD",
+        }
+    }
+
     /// The first setting out of range, as `(field, message)`.
     pub fn invalid(&self) -> Option<(String, String)> {
         match self {
