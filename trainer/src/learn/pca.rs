@@ -104,13 +104,7 @@ impl Pca {
         let basis = (0..k)
             .map(|j| {
                 let mut c: Vec<f64> = u.col(j).iter().copied().collect();
-                let largest = c
-                    .iter()
-                    .copied()
-                    .fold(0.0, |a: f64, b| if b.abs() > a.abs() { b } else { a });
-                if largest < 0.0 {
-                    c.iter_mut().for_each(|x| *x = -*x);
-                }
+                orient(&mut c);
                 c
             })
             .collect();
@@ -240,6 +234,18 @@ pub(crate) fn smallest_k_for(
         pca: full.truncated(k)?,
         errors,
     })
+}
+
+/// Flips component `c` so that its entry of largest magnitude is positive (the sign every
+/// fit gives its components).
+pub(crate) fn orient(c: &mut [f64]) {
+    let largest = c
+        .iter()
+        .copied()
+        .fold(0.0, |a: f64, b| if b.abs() > a.abs() { b } else { a });
+    if largest < 0.0 {
+        c.iter_mut().for_each(|x| *x = -*x);
+    }
 }
 
 /// Checks that there are frames, of one non-zero length, all finite; returns the length.

@@ -17,7 +17,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::learn::frame_rows::{FrameRows, Rows};
-use crate::learn::pca::{Pca, PcaError};
+use crate::learn::pca::{orient, Pca, PcaError};
 
 /// Frames per block of a pass.
 const BLOCK: usize = 64;
@@ -184,17 +184,6 @@ fn project(q: &Mat<f64>, c: &[f64]) -> Vec<f64> {
 /// An orthonormal basis of `y`'s columns (thin QR).
 fn orthonormal(y: &Mat<f64>) -> Mat<f64> {
     y.qr().compute_thin_Q()
-}
-
-/// Flips `c` so that its entry of largest magnitude is positive, as [`Pca::fit`] does.
-fn orient(c: &mut [f64]) {
-    let largest = c
-        .iter()
-        .copied()
-        .fold(0.0, |a: f64, b| if b.abs() > a.abs() { b } else { a });
-    if largest < 0.0 {
-        c.iter_mut().for_each(|x| *x = -*x);
-    }
 }
 
 #[cfg(test)]

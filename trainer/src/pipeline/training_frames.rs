@@ -247,55 +247,33 @@ mod tests {
     use crate::learn::samples::IntegratorData;
     use crate::progress::Quiet;
 
-    const SCENE: &str = r#"
-name = "frames"
-dt = 0.0333333333333333
-gravity = [0.0, -9.81, 0.0]
-[mesh]
-type = "box"
-min = [0.0, -0.03, -0.03]
-max = [0.3, 0.03, 0.03]
-cells = [6, 1, 1]
-[material]
-youngs = 2e5
-poisson = 0.4
-density = 1000.0
-[[handles]]
-name = "clamp"
-select = { side = { axis = 0, end = "min" } }
-[handles.motion]
-segment_frames = [5, 10]
-directions = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
-speed = [0.1, 0.4]
-[dataset]
-train = 3
-test = 1
-validation = 1
-frames = 20
-"#;
+    /// A 8x2x2-cell cantilever whose clamp translates and rotates (3 training sequences of
+    /// 41 frames).
+    const SCENE: &str = include_str!("../../sim/tests/fixtures/tiny-train.toml");
 
-    /// The scene, its training split simulated into `dir/dataset`, and a workspace there
-    /// holding at most `frame_memory` bytes of frames.
-    fn setup(dir: &std::path::Path, frame_memory: u64) -> (Recipe, BuiltScene, Workspace) {
+    /// The scene and its training split simulated into `dir/dataset`, encoded with every
+    /// frame in memory and with the frames in a file (a budget of 0 bytes), with the
+    /// workspaces of the two.
+    fn both_ways(dir: &std::path::Path) -> (BuiltScene, [(TrainingFrames, Workspace); 2]) {
         let recipe = Recipe::parse(SCENE, std::path::Path::new("frames.toml")).unwrap();
         let mut problem = recipe.build().unwrap();
-        let work = Workspace {
-            dataset: dir.join("dataset"),
-            frames: dir.join(format!("frames-{frame_memory}.f64")),
-            frame_memory,
-            checkpoints: dir.join("checkpoints"),
-            resume: false,
-            bars: false,
-        };
-        dataset::generate(
-            &mut problem,
-            &work.dataset,
-            Some(Split::Train),
-            false,
-            &mochi_sim::Silent,
-        )
-        .unwrap();
-        (recipe, problem, work)
+        let silent = &mochi_sim::Silent;
+        dataset::generate(&mut problem, &dir.join("dataset"), Some(Split::Train), false, silent).unwrap();
+        let encoded = [u64::MAX, 0].map(|frame_memory| {
+            let work = Workspace {
+                dataset: dir.join("dataset"),
+                frames: dir.join(format!("frames-{frame_memory}.f64")),
+                frame_memory,
+                checkpoints: dir.join("checkpoints"),
+                resume: false,
+                bars: false,
+            };
+            (
+                encode_training_split(&problem, &recipe.latent, &work, &Quiet).unwrap(),
+                work,
+            )
+        });
+        (problem, encoded)
     }
 
     fn all_rows(rows: &FrameRows) -> Vec<f64> {
@@ -310,17 +288,10 @@ frames = 20
     #[test]
     fn frames_read_from_disk_are_the_frames_held_in_memory() {
         let dir = tempfile::tempdir().unwrap();
-        let (recipe, problem, memory_work) = setup(dir.path(), u64::MAX);
-        let disk_work = Workspace {
-            frames: dir.path().join("frames-0.f64"),
-            frame_memory: 0,
-            ..memory_work.clone()
-        };
-        let memory = encode_training_split(&problem, &recipe.latent, &memory_work, &Quiet).unwrap();
-        let disk = encode_training_split(&problem, &recipe.latent, &disk_work, &Quiet).unwrap();
+        let (_, [(memory, memory_work), (disk, disk_work)]) = both_ways(dir.path());
         assert!(!memory.rows.on_disk() && disk.rows.on_disk());
         assert!(!memory_work.frames.exists() && disk_work.frames.exists());
-        assert_eq!(memory.rows.count(), 63);
+        assert_eq!(memory.rows.count(), 3 * 41);
         assert_eq!(all_rows(&memory.rows), all_rows(&disk.rows));
         assert_eq!(memory.max_radius, disk.max_radius);
         assert_eq!(memory.max_kinetic_energy, disk.max_kinetic_energy);
@@ -340,14 +311,7 @@ frames = 20
     #[test]
     fn pca_and_samples_from_disk_match_those_from_memory() {
         let dir = tempfile::tempdir().unwrap();
-        let (recipe, problem, memory_work) = setup(dir.path(), u64::MAX);
-        let disk_work = Workspace {
-            frames: dir.path().join("frames-0.f64"),
-            frame_memory: 0,
-            ..memory_work.clone()
-        };
-        let memory = encode_training_split(&problem, &recipe.latent, &memory_work, &Quiet).unwrap();
-        let disk = encode_training_split(&problem, &recipe.latent, &disk_work, &Quiet).unwrap();
+        let (problem, [(memory, _), (disk, _)]) = both_ways(dir.path());
         let diagonal = problem.mesh.rest_diagonal();
         let sizes = [2, 4];
         let a = fit_pca(&memory, &sizes, 2e-3, diagonal, &Quiet).unwrap();
