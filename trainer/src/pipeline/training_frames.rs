@@ -14,7 +14,6 @@ use crate::learn::recipe::LatentSpec;
 use crate::learn::sequences::{encode_sequences, DecodedError, EncodedSequence};
 use crate::progress::Reporter;
 use mochi_sim::dataset::{self, Split};
-use mochi_sim::trajectory::Trajectory;
 use mochi_sim::BuiltScene;
 
 use super::stages::Workspace;
@@ -61,37 +60,35 @@ pub(crate) fn encode_training_split(
         max_radius: 0.0,
     };
     // The positions and their encodings each take about the files' size in memory.
-    if 2 * bytes <= work.frame_memory {
-        let trajectories: Vec<Trajectory> = dataset::load(problem, &work.dataset, Split::Train)?
-            .into_iter()
-            .map(|(_, t)| t)
-            .collect();
-        for sequence in encode_sequences(&frames.encoding, trajectories)? {
-            frames.add(problem, sequence, true, |rows, q| {
-                if let FrameRows::Memory(rows) = rows {
-                    rows.push(q.to_vec());
-                }
-                Ok(())
-            })?;
-        }
-        return Ok(frames);
-    }
-    report.message(&format!(
-        "training frames: {:.0} MiB of sequence files, over the {:.0} MiB held in memory (--frame-memory); \
-         encoded into {} and read back in batches",
-        bytes as f64 / MIB,
-        work.frame_memory as f64 / MIB,
-        work.frames.display()
-    ));
-    let mut writer = RowWriter::create(&work.frames, frames.encoding.encoded_len())
-        .map_err(|e| TrainerError::io(&work.frames, e))?;
+    let mut writer = if 2 * bytes <= work.frame_memory {
+        None
+    } else {
+        report.message(&format!(
+            "training frames: {:.0} MiB of sequence files, over the {:.0} MiB held in memory (--frame-memory); \
+             encoded into {} and read back in batches",
+            bytes as f64 / MIB,
+            work.frame_memory as f64 / MIB,
+            work.frames.display()
+        ));
+        Some(
+            RowWriter::create(&work.frames, frames.encoding.encoded_len())
+                .map_err(|e| TrainerError::io(&work.frames, e))?,
+        )
+    };
     dataset::load_each(problem, &work.dataset, Split::Train, |_, trajectory| {
         let sequence = encode_sequences(&frames.encoding, vec![trajectory])?.remove(0);
-        frames.add(problem, sequence, false, |_, q| {
-            writer.push(q).map_err(|e| TrainerError::io(&work.frames, e))
+        frames.add(problem, sequence, writer.is_none(), |rows, q| {
+            match (&mut writer, rows) {
+                (Some(writer), _) => writer.push(q).map_err(|e| TrainerError::io(&work.frames, e))?,
+                (None, FrameRows::Memory(rows)) => rows.push(q.to_vec()),
+                (None, FrameRows::Disk(_)) => {}
+            }
+            Ok(())
         })
     })?;
-    frames.rows = FrameRows::Disk(writer.finish().map_err(|e| TrainerError::io(&work.frames, e))?);
+    if let Some(writer) = writer {
+        frames.rows = FrameRows::Disk(writer.finish().map_err(|e| TrainerError::io(&work.frames, e))?);
+    }
     Ok(frames)
 }
 
