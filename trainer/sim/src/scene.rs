@@ -177,7 +177,7 @@ impl Scene {
         })
     }
 
-    /// The analytic colliders at their parked poses (see [`ColliderSpec`]); a body that is not
+    /// The analytic colliders at their idle poses ([`ColliderSpec::idle_pose`]); a body that is not
     /// 3D cannot have any.
     pub fn build_colliders(&self, mesh: &Mesh) -> Result<Vec<crate::contact::Collider>, InputError> {
         if !self.colliders.is_empty() && mesh.dim != 3 {
@@ -191,10 +191,7 @@ impl Scene {
                 let shape = spec
                     .shape()
                     .map_err(|(f, msg)| self.field_error(format!("colliders[{k}].{f}"), msg))?;
-                let pose = crate::contact::ColliderPose {
-                    rotation: spec.orientation().rotation,
-                    ..parked_pose(lo, hi)
-                };
+                let pose = spec.idle_pose(lo, hi);
                 Ok(crate::contact::Collider { shape, pose })
             })
             .collect()

@@ -137,7 +137,7 @@ pub fn evaluate_rates(paths: &[PathBuf], options: &RatesOptions, report: &dyn Re
                     label(&model.artifact),
                     plan.name,
                     100.0 * metrics.mean_error,
-                    metrics.stable_frames
+                    stable_text(&metrics)
                 ));
                 cell.push(metrics);
             }
@@ -243,7 +243,7 @@ fn write_page(result: &RatesReport, options: &RatesOptions, paths: &[PathBuf]) -
     md += &format!(
         "Sequences: {} (each the scene's test motion seen at every rate). Each cell: mean vertex \
          error over the first {} s against full space stepped at that rate (% of the diagonal), \
-         then frames stable of each sequence's {}-frame rollout.\n\n![error against frame rate](rates.png)\n\n",
+         then frames stable of each sequence's {}-frame rollout (and why a rollout diverged where it did).\n\n![error against frame rate](rates.png)\n\n",
         result
             .sequences
             .iter()
@@ -270,7 +270,7 @@ fn cell_text(cell: &RateCell) -> String {
     match cell {
         RateCell::Cannot(why) => why.clone(),
         RateCell::Measured(m) => {
-            let stable: Vec<String> = m.iter().map(|x| x.stable_frames.to_string()).collect();
+            let stable: Vec<String> = m.iter().map(stable_text).collect();
             let error = cell.mean_of(|x| x.mean_error);
             // A rollout that blew up inside the measured seconds has no finite mean error.
             let error = match error.is_finite() {
@@ -279,5 +279,13 @@ fn cell_text(cell: &RateCell) -> String {
             };
             format!("{error}, stable {}", stable.join(" / "))
         }
+    }
+}
+
+/// A rollout's stable frames, and why it diverged where it did.
+fn stable_text(m: &RolloutMetrics) -> String {
+    match m.divergence {
+        Some(why) => format!("{} ({})", m.stable_frames, why.describe()),
+        None => m.stable_frames.to_string(),
     }
 }

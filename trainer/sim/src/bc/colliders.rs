@@ -1,6 +1,7 @@
 //! Collider paths: each analytic collider's pose and velocity at every frame of a sequence,
-//! and the random paths datasets draw through and around the body (scene field
-//! `colliders.motion`).
+//! the random paths datasets draw through and around the body (scene field
+//! `colliders.motion`), and the places datasets put a collider that rests through a
+//! sequence (scene field `colliders.placement`: a floor, a wall, a table).
 //!
 //! A path starts outside the body's rest bounding box (grown by the collider's bounding
 //! radius and its `clearance`), heads for an aim point drawn uniformly in the motion's
@@ -273,6 +274,65 @@ impl ColliderMotionSpec {
             if n > 1e-3 && n <= 1.0 {
                 return d / n;
             }
+        }
+    }
+}
+
+/// Where datasets put a collider that rests through a whole sequence (scene field
+/// `colliders.placement`): a floor at a height and slope the sequence draws.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColliderPlacementSpec {
+    /// Box the collider's centre is drawn in, uniformly (m).
+    pub center: crate::mesh::BoxSpec,
+    /// Training range of tilts (rad), scaled by the sequence's speed level and factor as
+    /// handles' speeds are (a test sequence beyond the range tilts `beyond` times the top):
+    /// the scene's `rotation` turned by the tilt about a horizontal axis (in the x-z plane)
+    /// drawn uniformly (default `[0, 0]`: the scene's `rotation`).
+    #[serde(default)]
+    pub tilt: [f64; 2],
+}
+
+impl ColliderPlacementSpec {
+    /// Checks the centre box and the tilt range; returns the offending field and a message.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let (lo, hi) = (self.center.min, self.center.max);
+        if let Some(i) = (0..3).find(|&i| lo[i].partial_cmp(&hi[i]).is_none_or(|o| o.is_gt())) {
+            return Err(("center.max", format!("must be at least `min` along axis {i}")));
+        }
+        let [t0, t1] = self.tilt;
+        if !(t0.is_finite() && t1.is_finite() && 0.0 <= t0 && t0 <= t1 && t1 < std::f64::consts::FRAC_PI_2) {
+            return Err((
+                "tilt",
+                format!("needs 0 <= min <= max < pi / 2 (radians), got [{t0}, {t1}]"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The pose of a collider oriented `rotation` placed for a sequence whose speed level
+    /// and factor are `(level, factor)`, drawn from `rng`.
+    pub fn sample(
+        &self,
+        rotation: UnitQuaternion<f64>,
+        (level, factor): (f64, f64),
+        rng: &mut ChaCha8Rng,
+    ) -> ColliderPose {
+        let (lo, hi) = (self.center.min, self.center.max);
+        let center = V3::from_fn(|i, _| {
+            if hi[i] > lo[i] {
+                rng.random_range(lo[i]..=hi[i])
+            } else {
+                lo[i]
+            }
+        });
+        let [t0, t1] = self.tilt;
+        let tilt = (t0 + level * (t1 - t0)) * factor;
+        let heading = rng.random_range(0.0..std::f64::consts::TAU);
+        let axis = V3::new(heading.cos(), 0.0, heading.sin());
+        ColliderPose {
+            center,
+            rotation: UnitQuaternion::from_scaled_axis(axis * tilt) * rotation,
         }
     }
 }

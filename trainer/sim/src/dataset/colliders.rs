@@ -5,8 +5,8 @@
 use super::SpeedPlan;
 use crate::bc::colliders::PathSetting;
 use crate::bc::{self, BcSequence, ColliderTrack};
-use crate::contact::{ColliderBarrier, ColliderPose};
-use crate::scene::{parked_pose, BuiltScene};
+use crate::contact::ColliderBarrier;
+use crate::scene::BuiltScene;
 use crate::solver::StepError;
 use crate::trajectory::{ColliderFrames, Trajectory, COLLIDER_LAYOUT};
 use rand::Rng;
@@ -23,7 +23,8 @@ const COLLIDER_SEED_STRIDE: u64 = 104_729;
 impl BuiltScene {
     /// The colliders' tracks of a sequence of `frames` frames with speeds `speeds` and seed
     /// `seed`: a collider with a `motion` that the seed's draw lets take part follows a path
-    /// drawn from the seed; the others rest at their parked pose. `handles` holds the
+    /// drawn from the seed, one with a `placement` rests where the seed puts it (tilted by
+    /// the speed level and factor of frame 0); the others rest at their parked pose. `handles` holds the
     /// handles' vertices at frame 0, which paths keep clear of.
     pub fn collider_tracks(
         &self,
@@ -45,14 +46,14 @@ impl BuiltScene {
             .enumerate()
             .map(|(k, spec)| {
                 let rotation = spec.orientation().rotation;
-                let parked = ColliderPose {
-                    rotation,
-                    ..parked_pose(lo, hi)
-                };
+                let parked = spec.idle_pose(lo, hi);
                 let rng = &mut bc::rng(
                     seed.wrapping_add(COLLIDER_SEED_OFFSET)
                         .wrapping_add(COLLIDER_SEED_STRIDE.wrapping_mul(k as u64)),
                 );
+                if let Some(placement) = &spec.placement {
+                    return ColliderTrack::resting(placement.sample(rotation, speeds.at(0), rng), frames);
+                }
                 let (Some(motion), Ok(shape)) = (&spec.motion, spec.shape()) else {
                     return ColliderTrack::resting(parked, frames);
                 };
@@ -70,21 +71,15 @@ impl BuiltScene {
             .collect()
     }
 
-    /// Places the colliders at frame 0 of `seq` (parked when `seq` has no collider tracks).
+    /// Places the colliders at frame 0 of `seq` (at their idle poses when `seq` has no
+    /// collider tracks).
     pub(super) fn place_colliders(&mut self, seq: &BcSequence) -> Result<(), StepError> {
         if self.scene.colliders.is_empty() {
             return Ok(());
         }
         let poses = if seq.colliders.is_empty() {
             let (lo, hi) = self.mesh.bounding_box(&self.mesh.rest);
-            self.scene
-                .colliders
-                .iter()
-                .map(|spec| ColliderPose {
-                    rotation: spec.orientation().rotation,
-                    ..parked_pose(lo, hi)
-                })
-                .collect()
+            self.scene.colliders.iter().map(|spec| spec.idle_pose(lo, hi)).collect()
         } else {
             seq.collider_poses(0)
         };

@@ -309,7 +309,7 @@ fn check_rotation(field: String, r: &[f64; 3]) -> Result<(), Bad> {
     Ok(())
 }
 
-/// A collider's numbers (at `colliders[k]`): its sizes, rotation and motion.
+/// A collider's numbers (at `colliders[k]`): its sizes, rotation, motion and placement.
 fn check_collider(field: &str, c: &ColliderSpec) -> Result<(), Bad> {
     let f = |name: &str| format!("{field}.{name}");
     c.shape().map_err(|(name, msg)| (f(name), msg))?;
@@ -336,6 +336,19 @@ fn check_collider(field: &str, c: &ColliderSpec) -> Result<(), Bad> {
             check_each(&format!("{}[{k}]", g("directions")), d, COMPONENT)?;
         }
         check(g("clearance"), m.clearance, DISTANCE)?;
+    }
+    if let Some(p) = &c.placement {
+        if c.motion.is_some() {
+            return Err((
+                f("placement"),
+                "a collider either moves (`motion`) or rests where each sequence puts it \
+                 (`placement`), not both"
+                    .into(),
+            ));
+        }
+        let g = |name: &str| format!("{field}.placement.{name}");
+        p.validate().map_err(|(name, msg)| (g(name), msg))?;
+        check_box(&g("center"), &p.center, false)?;
     }
     Ok(())
 }

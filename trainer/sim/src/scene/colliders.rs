@@ -22,18 +22,27 @@
 //! clearance = 0.01           # distance (m) kept from the handles (default 0)
 //! share = 1.0                # share of the sequences it takes part in (default 1)
 //! align = true               # capsule axis along the first approach (default true)
+//!
+//! [colliders.placement]      # instead of `motion`: datasets put it somewhere for a whole
+//!                            # sequence and it rests there (a floor, a wall, a table)
+//! center = { min = [0.0, -0.3, 0.0], max = [0.0, -0.1, 0.0] }
+//!                            # box its centre is drawn in (m; required)
+//! tilt = [0.0, 0.2]          # training range of tilts (rad) about a horizontal axis drawn
+//!                            # uniformly, after `rotation`; levels as handles' speeds, so a
+//!                            # test beyond the range tilts `beyond` times the top (default [0, 0])
 //! ```
 //!
 //! **K**, the number of `[[colliders]]` tables (at most [`MAX_COLLIDERS`]), is the scene's
 //! number of collider slots: every sequence of its dataset has K collider tracks, the
 //! simulator takes K poses per step, and a model learned on the scene takes K colliders as
-//! inputs. A collider that does not take part in a sequence (no `motion`, or not drawn by
-//! `share`) rests at its **parked pose**, [`PARKED_DIAGONALS`] rest diagonals above the
+//! inputs. A collider with a `placement` rests where each sequence puts it; one that does
+//! not take part in a sequence (neither, or not drawn by `share`) rests at its **parked pose**, [`PARKED_DIAGONALS`] rest diagonals above the
 //! centre of the body's rest bounding box: far from anything it could touch.
 //!
 //! Colliders need a `[contact]` table (its `dhat`, barrier stiffness and `friction` serve
 //! them) and a 3D body; they act on the body's surface vertices.
 
+use crate::bc::colliders::ColliderPlacementSpec;
 use crate::bc::ColliderMotionSpec;
 use crate::contact::{ColliderPose, ColliderShape};
 use serde::{Deserialize, Serialize};
@@ -78,9 +87,12 @@ pub struct ColliderSpec {
     /// Orientation as a rotation vector (rad).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotation: Option<[f64; 3]>,
-    /// Dataset motion (absent: parked).
+    /// Dataset motion (absent: placed, or parked).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motion: Option<ColliderMotionSpec>,
+    /// Where datasets put it for a whole sequence, instead of a motion (absent: parked).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub placement: Option<ColliderPlacementSpec>,
 }
 
 impl ColliderSpec {
@@ -120,6 +132,23 @@ impl ColliderSpec {
     /// The orientation the scene gives (identity when none).
     pub fn orientation(&self) -> ColliderPose {
         ColliderPose::new([0.0; 3], self.rotation.unwrap_or([0.0; 3]))
+    }
+
+    /// Where the collider is when no sequence places or moves it, for a body whose rest
+    /// bounding box is `[lo, hi]`: the middle of its placement's centre box, untilted, when
+    /// it has a placement; its parked pose otherwise; in the scene's orientation.
+    pub fn idle_pose(&self, lo: [f64; 3], hi: [f64; 3]) -> ColliderPose {
+        let rotation = self.orientation().rotation;
+        match &self.placement {
+            Some(p) => ColliderPose {
+                center: [0, 1, 2].map(|i| 0.5 * (p.center.min[i] + p.center.max[i])).into(),
+                rotation,
+            },
+            None => ColliderPose {
+                rotation,
+                ..parked_pose(lo, hi)
+            },
+        }
     }
 }
 

@@ -91,6 +91,35 @@ fn every_bad_collider_field_is_refused_by_name() {
         &motion("region = { min = [0.0, 0.0, 0.0], max = [0.1, -0.1, 0.1] }\n"),
         "colliders[0].motion.region.max",
     );
+    // Placement fields.
+    let floor = "[[colliders]]\nshape = \"box\"\nhalf_extents = [0.5, 0.05, 0.5]\n";
+    let placed = |table: &str| format!("{floor}[colliders.placement]\n{table}");
+    parse(
+        true,
+        &placed("center = { min = [0.0, -0.3, 0.0], max = [0.0, -0.1, 0.0] }\ntilt = [0.0, 0.2]\n"),
+    )
+    .unwrap();
+    let e = parse(true, &placed("tilt = [0.0, 0.2]\n")).unwrap_err();
+    assert!(e.to_string().contains("center"), "{e}");
+    refused(
+        &placed("center = { min = [0.0, -0.1, 0.0], max = [0.0, -0.3, 0.0] }\n"),
+        "colliders[0].placement.center.max",
+    );
+    refused(
+        &placed("center = { min = [0.0, -0.3, 0.0], max = [0.0, -0.1, 0.0] }\ntilt = [0.3, 0.2]\n"),
+        "colliders[0].placement.tilt",
+    );
+    refused(
+        &placed("center = { min = [0.0, -0.3, 0.0], max = [0.0, -0.1, 0.0] }\ntilt = [0.0, 2.0]\n"),
+        "colliders[0].placement.tilt",
+    );
+    refused(
+        &format!(
+            "{}[colliders.placement]\ncenter = {{ min = [0.0, 0.2, 0.0], max = [0.0, 0.3, 0.0] }}\n",
+            motion("")
+        ),
+        "colliders[0].placement",
+    );
     // Too many.
     let many = capsule.repeat(crate::scene::MAX_COLLIDERS + 1);
     refused(&many, "colliders");

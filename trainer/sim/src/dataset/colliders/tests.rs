@@ -117,3 +117,103 @@ fn a_dataset_with_colliders_is_the_same_bytes_from_the_same_seed_and_never_penet
     assert!(closest > 0.0 && closest < 1e-3, "closest approach {closest}");
     assert_eq!(Some(closest), reports[1].collider_min_distance);
 }
+
+/// A 0.1 m soft cube dropped from rest on a floor each sequence places (`placement`).
+fn dropped_cube() -> BuiltScene {
+    let text = r#"
+name = "dropped-cube"
+dt = 0.02
+gravity = [0.0, -9.81, 0.0]
+[newton]
+max_iterations = 200
+[mesh]
+type = "box"
+min = [-0.05, 0.0, -0.05]
+max = [0.05, 0.1, 0.05]
+cells = [2, 2, 2]
+[material]
+youngs = 1e5
+poisson = 0.4
+density = 1000.0
+[contact]
+dhat = 1e-3
+friction = 0.5
+[[colliders]]
+name = "floor"
+shape = "box"
+half_extents = [0.3, 0.02, 0.3]
+[colliders.placement]
+center = { min = [-0.01, -0.08, 0.0], max = [0.01, -0.04, 0.0] }
+tilt = [0.1, 0.2]
+[dataset]
+train = 2
+test = 0
+validation = 0
+frames = 20
+"#;
+    Scene::parse(text, Path::new("dropped-cube.toml"))
+        .and_then(|s| s.build())
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn a_placed_collider_rests_where_the_seed_puts_it_tilted_by_the_speed_level() {
+    let problem = dropped_cube();
+    let angle = |p: &crate::contact::ColliderPose| p.rotation.angle();
+    for (level, factor) in [(0.0, 1.0), (0.5, 1.0), (1.0, 1.0), (1.0, 1.5)] {
+        let speeds = SpeedPlan {
+            pieces: vec![(0, level, factor)],
+            steady: None,
+        };
+        let seq = problem.sequence(&speeds, 10, 3);
+        assert_eq!(seq, problem.sequence(&speeds, 10, 3));
+        let floor = &seq.colliders[0];
+        // It rests the whole sequence, its centre in the box, tilted about a horizontal axis.
+        assert!(floor.poses.iter().all(|p| *p == floor.poses[0]));
+        assert!(floor.velocities.iter().all(|v| *v == [0.0; 6]));
+        let p = floor.poses[0];
+        assert!((-0.01..=0.01).contains(&p.center.x) && (-0.08..=-0.04).contains(&p.center.y));
+        assert_eq!(p.center.z, 0.0);
+        let expected = (0.1 + level * 0.1) * factor;
+        assert!(
+            (angle(&p) - expected).abs() < 1e-12,
+            "tilt {} for {expected}",
+            angle(&p)
+        );
+        let axis = p.rotation.axis().unwrap();
+        assert!(axis.y.abs() < 1e-12, "{axis:?}");
+    }
+    // Another seed, another place.
+    let speeds = SpeedPlan::constant(0.5);
+    assert_ne!(
+        problem.sequence(&speeds, 10, 3).colliders[0].poses[0],
+        problem.sequence(&speeds, 10, 4).colliders[0].poses[0]
+    );
+    // Without a sequence (a simulation of the scene's own), it rests in the middle, untilted.
+    let barrier = problem.simulator.collider_barrier().unwrap();
+    let idle = barrier.colliders()[0].pose;
+    assert!((idle.center.y + 0.06).abs() < 1e-12 && angle(&idle) == 0.0, "{idle:?}");
+}
+
+#[test]
+fn a_cube_dropped_on_a_placed_floor_lands_and_never_enters_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut problem = dropped_cube();
+    let report = dataset::generate(&mut problem, dir.path(), None, true, &Silent).unwrap();
+    let seq = &plan(&problem.scene.dataset)[1];
+    let traj = Trajectory::read_npz(&sequence_path(dir.path(), seq)).unwrap();
+    let c = traj.colliders.as_ref().unwrap();
+    // The floor's top lies 2-6 cm under the cube: after 20 frames (0.4 s) the cube has fallen
+    // onto it and is held there, within the barrier's reach and never inside.
+    let lowest = |x: &[f64]| x.chunks(3).map(|p| p[1]).fold(f64::INFINITY, f64::min);
+    assert_eq!(lowest(&traj.positions[0]), 0.0);
+    let end = traj.positions.last().unwrap();
+    let floor_top = c.states[0][1] + 0.02;
+    assert!(
+        lowest(end) < floor_top + 0.03,
+        "lowest {} over a floor at {floor_top}",
+        lowest(end)
+    );
+    let closest = report.collider_min_distance.unwrap();
+    assert!(closest > 0.0 && closest < 1e-3, "closest approach {closest}");
+}
