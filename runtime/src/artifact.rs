@@ -36,10 +36,12 @@ pub const MAGIC: &[u8; 8] = b"MOCHIMDL";
 /// end in a linear basis (`decoder_basis`); version 6 added the trained range of frame times
 /// (`dt_range`, for an integrator that takes the frame time as an input) and the run-time
 /// collider slots (`collider_shapes`); version 7 added the render mesh embedded in the
-/// simulation mesh (`render`). The runtime also reads versions [`OLDEST_READ_VERSION`] (as a
-/// model of one frame time) and 6 (as a model without a render mesh); other versions are
+/// simulation mesh (`render`); version 8 let a timed integrator read the previous latent's
+/// change per frame of `dt` in place of the latent before it (`rate_input`). The runtime also
+/// reads versions [`OLDEST_READ_VERSION`] (as a model of one frame time), 6 (as a model
+/// without a render mesh) and 7 (a timed integrator reading `z_{t-2}`); other versions are
 /// refused with [`EnvelopeError::Version`].
-pub const FORMAT_VERSION: u32 = 7;
+pub const FORMAT_VERSION: u32 = 8;
 
 /// Oldest artifact format version the runtime reads: 5, whose payload is this one without its
 /// last two fields (`dt_range`, `collider_shapes`).
@@ -288,6 +290,9 @@ where
             self.header.render_weights = r.seq("render.weights", &mut self.floats)?;
             self.header.render_triangles = r.seq("render.triangles", &mut self.indices)?;
             self.header.render_uvs = r.seq("render.uvs", &mut self.floats)?;
+        }
+        if version >= 8 {
+            self.header.rate_input = r.value("rate_input")?;
         }
         match r.de.finalize() {
             Ok([]) => {}

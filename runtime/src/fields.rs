@@ -45,6 +45,7 @@ impl Model<'static> {
         dt: 0.0,
         dt_min: 0.0,
         dt_max: 0.0,
+        rate_input: false,
         diagonal: 0.0,
         rotates: false,
         params: &[],
@@ -80,7 +81,7 @@ impl Model<'static> {
 
 impl<'a> Model<'a> {
     /// Number of fields of a [`Model`].
-    pub const FIELDS: usize = 37;
+    pub const FIELDS: usize = 38;
 
     /// Every field with its name, in declaration order.
     pub fn fields(&self) -> [(&'static str, FieldValue<'a>); Model::FIELDS] {
@@ -93,6 +94,7 @@ impl<'a> Model<'a> {
             dt,
             dt_min,
             dt_max,
+            rate_input,
             diagonal,
             rotates,
             params,
@@ -132,6 +134,7 @@ impl<'a> Model<'a> {
             ("dt", V::F32(dt)),
             ("dt_min", V::F32(dt_min)),
             ("dt_max", V::F32(dt_max)),
+            ("rate_input", V::Bool(rate_input)),
             ("diagonal", V::F32(diagonal)),
             ("rotates", V::Bool(rotates)),
             ("params", V::F32s(params)),

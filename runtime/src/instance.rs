@@ -321,6 +321,14 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
             chunk.copy_from_slice(&motion.signal());
         }
         let time = [dt];
+        // A rate-input model reads the last latent's change per frame of its `dt`.
+        let mut rate = [0.0f32; K];
+        if m.rate_input {
+            let scale = m.dt / dt;
+            for ((r, z), p) in rate.iter_mut().zip(&self.z[..k]).zip(&self.z_prev[..k]) {
+                *r = (z - p) * scale;
+            }
+        }
         let mut touch = [0.0f32; MAX_COLLIDERS * FEATURES_PER_COLLIDER];
         if slots > 0 {
             let place = Placement::new(m, &signal[..s]);
@@ -331,7 +339,7 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
         }
         let parts: [&[f32]; 7] = [
             &self.z[..k],
-            &self.z_prev[..k],
+            if m.rate_input { &rate[..k] } else { &self.z_prev[..k] },
             &signal[..s],
             &self.signal[..s],
             &self.signal_prev[..s],

@@ -105,6 +105,7 @@ impl Strand {
             decoder_basis: false,
             dt_min: 0.0,
             dt_max: 0.0,
+            rate_input: false,
             collider_shapes: Span { start: 0, len: 0 },
             render_anchors: Span { start: 0, len: 0 },
             render_weights: Span { start: 0, len: 0 },

@@ -238,6 +238,11 @@ pub struct Model<'a> {
     /// `dt_min..=dt_max` the motion is an extrapolation); when 0 the model steps by [`Model::dt`]
     /// only.
     pub dt_max: f32,
+    /// Whether a timed integrator (see [`Model::dt_max`]) reads, in place of the latent before
+    /// the last, the last latent's change per frame of [`Model::dt`]:
+    /// `(z_{t-1} - z_{t-2}) * Model::dt / dt`, a latent velocity of one scale at every frame
+    /// rate. `false` for a model of one frame time and for timed models of format 7.
+    pub rate_input: bool,
     /// Rest bounding-box diagonal.
     pub diagonal: f32,
     /// Whether states are encoded relative to the handles' rotation.

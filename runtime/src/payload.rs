@@ -76,6 +76,10 @@ pub struct Payload {
     /// The render mesh riding on the simulation mesh (all lists empty when there is none). A
     /// format-6 payload is this one without it.
     pub render: RenderData,
+    /// Whether a timed integrator reads the previous latent's change per frame of `dt` in
+    /// place of `z_{t-2}` (see [`crate::Model::rate_input`]). A format-7 payload is this one
+    /// without it (`false`).
+    pub rate_input: bool,
 }
 
 /// A render mesh embedded in the simulation mesh's tets (see [`crate::render`]): four
@@ -194,6 +198,7 @@ mod tests {
             dt_range: [0.0; 2],
             collider_shapes: vec![],
             render: RenderData::default(),
+            rate_input: false,
         }
     }
 

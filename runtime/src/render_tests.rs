@@ -47,6 +47,7 @@ fn payload(render: RenderData) -> Payload {
         dt_range: [0.0; 2],
         collider_shapes: vec![],
         render,
+        rate_input: false,
     }
 }
 

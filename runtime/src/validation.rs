@@ -119,9 +119,12 @@ impl Model<'_> {
     }
 
     /// The trained range of frame times: both 0 (one frame time), or finite with
-    /// `0 < dt_min <= dt_max`.
+    /// `0 < dt_min <= dt_max`; a rate input only with a range.
     fn validate_frame_times(&self) -> Result<(), ModelError> {
         let (lo, hi) = (self.dt_min, self.dt_max);
+        if self.rate_input && hi == 0.0 {
+            return fail("rate_input", Problem::Domain);
+        }
         for (field, v) in [("dt_min", lo), ("dt_max", hi)] {
             if !v.is_finite() {
                 return fail(field, Problem::NotFinite);

@@ -2,8 +2,10 @@
 //! (`dt_range` in the artifact) reads it after everything else and steps by any positive one, a
 //! model of one frame time refuses others, bad frame times change nothing, and an artifact of
 //! the previous format (5, without `dt_range` and collider slots) loads and steps exactly as the
-//! same model written in this one, and one of format 6 (without the render mesh) as the same
-//! model without one. Run-time colliders: a model with collider slots reads each
+//! same model written in this one, one of format 6 (without the render mesh) as the same
+//! model without one, and one of format 7 (without `rate_input`) as a timed model reading
+//! `z_{t-2}`. A rate-input model reads the last latent's change per frame of its `dt` in place
+//! of `z_{t-2}`. Run-time colliders: a model with collider slots reads each
 //! slot's features in the body's encoding frame (absent and far colliders alike), and refuses
 //! too many or non-finite colliders and malformed slots.
 
@@ -77,6 +79,7 @@ fn payload_with(timed: bool, slots: &[f32], read: Option<u64>) -> Payload {
         dt_range: if timed { [1.0 / 120.0, 1.0 / 30.0] } else { [0.0; 2] },
         collider_shapes: slots.to_vec(),
         render: RenderData::default(),
+        rate_input: false,
     }
 }
 
@@ -169,19 +172,19 @@ fn a_format_5_artifact_loads_and_steps_as_the_same_model_in_this_format() {
     let p = payload(false);
     let current = p.to_section().unwrap();
     // Format 5's payload is this one without its last fields (`dt_range`, two f64, the empty
-    // `collider_shapes`, one byte, and the empty render mesh, four bytes).
+    // `collider_shapes`, one byte, the empty render mesh, four bytes, and `rate_input`, one).
     let encoded = p.encode().unwrap();
-    let old = envelope::wrap(MAGIC, OLDEST_READ_VERSION, &encoded[..encoded.len() - 21]);
+    let old = envelope::wrap(MAGIC, OLDEST_READ_VERSION, &encoded[..encoded.len() - 22]);
     assert_eq!(OLDEST_READ_VERSION, 5);
-    assert_eq!(FORMAT_VERSION, 7);
+    assert_eq!(FORMAT_VERSION, 8);
     let (a, b) = (load(&current), load(&old));
     assert!(!b.model().unwrap().model().timed());
     same_rollouts(&a, &b);
-    // A format-7 payload cut short is refused, not read as format 5.
-    let cut = envelope::wrap(MAGIC, FORMAT_VERSION, &encoded[..encoded.len() - 21]);
+    // A format-8 payload cut short is refused, not read as format 5.
+    let cut = envelope::wrap(MAGIC, FORMAT_VERSION, &encoded[..encoded.len() - 22]);
     assert!(OwnedModel::default().load(&cut).is_err());
     // Older and newer formats are refused naming the version.
-    for version in [4, 8] {
+    for version in [4, 9] {
         let bytes = envelope::wrap(MAGIC, version, &encoded);
         assert_eq!(
             OwnedModel::default().load(&bytes).err(),
@@ -197,19 +200,88 @@ fn a_format_5_artifact_loads_and_steps_as_the_same_model_in_this_format() {
 fn a_format_6_artifact_loads_and_steps_as_the_same_model_without_a_render_mesh() {
     let p = payload(true);
     let current = p.to_section().unwrap();
-    // Format 6's payload is this one without the render mesh (four empty lists, four bytes).
+    // Format 6's payload is this one without the render mesh (four empty lists, four bytes)
+    // and `rate_input` (one byte).
     let encoded = p.encode().unwrap();
-    let old = envelope::wrap(MAGIC, 6, &encoded[..encoded.len() - 4]);
+    let old = envelope::wrap(MAGIC, 6, &encoded[..encoded.len() - 5]);
     let (a, b) = (load(&current), load(&old));
     let m = b.model().unwrap();
     assert!(m.model().timed());
     assert!(!m.model().has_render());
     same_rollouts(&a, &b);
     // A format-7 payload labelled 6 is refused for its trailing render mesh.
-    let labelled = envelope::wrap(MAGIC, 6, &encoded);
+    let labelled = envelope::wrap(MAGIC, 6, &encoded[..encoded.len() - 1]);
     assert_eq!(
         OwnedModel::default().load(&labelled).err(),
         Some(LoadError::TrailingBytes)
+    );
+}
+
+/// The timed test model whose input layer also reads the latent slot after the last latent
+/// (`z_{t-2}`, or the rate with `rate_input`) with weight `w`: one step adds
+/// `HIDDEN * swish(dt + w * slot) * dt / DT`.
+fn reading_the_second_slot(w: f32, rate_input: bool) -> Payload {
+    let mut p = payload(true);
+    let cols = p.integrator[0].cols as usize;
+    for row in p.integrator[0].weights.chunks_mut(cols) {
+        row[1] = w;
+    }
+    p.rate_input = rate_input;
+    p
+}
+
+#[test]
+fn a_format_7_timed_artifact_reads_the_latent_before_the_last() {
+    let p = reading_the_second_slot(0.5, false);
+    let encoded = p.encode().unwrap();
+    // Format 7's payload is this one without `rate_input` (one byte, `false`).
+    let old = envelope::wrap(MAGIC, 7, &encoded[..encoded.len() - 1]);
+    let (a, b) = (load(&p.to_section().unwrap()), load(&old));
+    assert!(!b.model().unwrap().model().rate_input);
+    same_rollouts(&a, &b);
+    // A format-8 payload labelled 7 is refused for its trailing flag.
+    let labelled = envelope::wrap(MAGIC, 7, &encoded);
+    assert_eq!(
+        OwnedModel::default().load(&labelled).err(),
+        Some(LoadError::TrailingBytes)
+    );
+}
+
+#[test]
+fn a_rate_input_model_reads_the_last_latents_change_per_frame_of_its_dt() {
+    let w = 0.5f32;
+    let step = |z: f32, slot: f32, dt: f32| z + HIDDEN as f32 * swish(dt + w * slot) * dt / DT as f32;
+    for rate_input in [true, false] {
+        let storage = load(&reading_the_second_slot(w, rate_input).to_section().unwrap());
+        let model = storage.model().unwrap();
+        assert_eq!(model.model().rate_input, rate_input);
+        for dt in [1.0 / 120.0f32, 1.0 / 60.0, 1.0 / 30.0, 1.0 / 24.0] {
+            let mut body = AnyInstance::new(&model).unwrap();
+            let (mut z, mut z_prev) = (0.0f32, 0.0f32);
+            for frame in 0..4 {
+                assert_eq!(body.step_dt(&model, &motion(0.0), dt), Ok(Stepped::Ok));
+                let slot = match rate_input {
+                    true => (z - z_prev) * (DT as f32 / dt),
+                    false => z_prev,
+                };
+                (z, z_prev) = (step(z, slot, dt), z);
+                let got = body.latent()[0];
+                assert!(
+                    (got - z).abs() <= 1e-5 * z.abs().max(1e-3),
+                    "rate input {rate_input}, dt {dt}, frame {frame}: {got} against {z}"
+                );
+            }
+        }
+    }
+    // Only a timed model has a rate to read.
+    let mut p = payload(false);
+    p.rate_input = true;
+    assert_eq!(
+        OwnedModel::default().load(&p.to_section().unwrap()).err(),
+        Some(LoadError::Invalid(ModelError {
+            field: "rate_input",
+            problem: Problem::Domain
+        }))
     );
 }
 

@@ -68,6 +68,7 @@ fn one_large_handle() -> Payload {
         dt_range: [0.0; 2],
         collider_shapes: vec![],
         render: Default::default(),
+        rate_input: false,
     }
 }
 
@@ -110,6 +111,7 @@ fn one_large_strand() -> Payload {
         dt_range: [0.0; 2],
         collider_shapes: vec![],
         render: Default::default(),
+        rate_input: false,
     }
 }
 

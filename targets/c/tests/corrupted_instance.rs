@@ -50,6 +50,7 @@ fn model(latent: usize) -> MochiModel {
         dt_range: [0.0; 2],
         collider_shapes: vec![],
         render: Default::default(),
+        rate_input: false,
     };
     let storage: &'static mut OwnedModel = Box::leak(Box::default());
     let valid = storage.load(&payload.to_section().unwrap()).unwrap();

@@ -32,6 +32,8 @@ const MLP_DECODER_VERSION: u32 = 4;
 const ONE_FRAME_TIME_VERSION: u32 = 5;
 /// The last format without the render mesh (`render`).
 const NO_RENDER_VERSION: u32 = 6;
+/// The last format whose timed integrators read `z_{t-2}` (no `rate_input`).
+const NO_RATE_INPUT_VERSION: u32 = 7;
 
 /// Weights and biases smaller than this fraction (`2^-40`) of their layer's largest weight are
 /// written as zero.
@@ -121,6 +123,7 @@ impl Artifact {
             dt_range: self.dt_range,
             collider_shapes: self.collider_shapes.clone(),
             render: self.render.clone(),
+            rate_input: self.rate_input,
         };
         let training = TrainingSection {
             scene: self.scene.clone(),
@@ -213,6 +216,7 @@ impl Artifact {
             dt_range: p.dt_range,
             collider_shapes: p.collider_shapes,
             render: p.render,
+            rate_input: p.rate_input,
             summary: t.summary,
         })
     }
@@ -232,7 +236,7 @@ impl Artifact {
         Ok(bytes)
     }
 
-    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 6, 5, 4, 3 or 2), and checks that
+    /// Parses and validates an artifact (format [`FORMAT_VERSION`], 7, 6, 5, 4, 3 or 2), and checks that
     /// the runtime accepts what it reads of it.
     pub fn parse(bytes: &[u8]) -> Result<Artifact, ArtifactError> {
         let decode = |section| move |source| ArtifactError::Decode { section, source };
@@ -250,6 +254,8 @@ impl Artifact {
                 ONE_FRAME_TIME_VERSION
             } else if old(NO_RENDER_VERSION) {
                 NO_RENDER_VERSION
+            } else if old(NO_RATE_INPUT_VERSION) {
+                NO_RATE_INPUT_VERSION
             } else {
                 FORMAT_VERSION
             };
@@ -270,6 +276,10 @@ impl Artifact {
             if version <= NO_RENDER_VERSION {
                 // Format 7 appended the render mesh (none: four empty lists, a byte each).
                 model.extend([0; 4]);
+            }
+            if version <= NO_RATE_INPUT_VERSION {
+                // Format 8 appended `rate_input` (false: a timed integrator reads `z_{t-2}`).
+                model.push(0);
             }
             Artifact::from_sections(
                 Payload::decode(&model).map_err(decode("model section"))?,

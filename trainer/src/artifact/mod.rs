@@ -244,6 +244,10 @@ pub struct Artifact {
     /// The render mesh riding on the simulation mesh, from the scene's `mesh.render` (all
     /// lists empty without one); see `mochi_runtime::render`.
     pub render: RenderData,
+    /// Whether the timed integrator reads the previous latent's change per frame of `dt` in
+    /// place of `z_{t-2}` (`mochi_runtime::Model::rate_input`; what `mochi train` makes of
+    /// every timed model since format 8).
+    pub rate_input: bool,
     /// How it was made.
     pub summary: TrainingSummary,
 }
@@ -283,9 +287,10 @@ impl Artifact {
     pub fn integrator(&self) -> Result<ExportedIntegrator, NetworkError> {
         let mlp = ExportedMlp::from_layers(self.integrator.clone())?;
         let exported = ExportedIntegrator::new(self.latent as usize, mlp)?;
-        Ok(match self.timed() {
-            true => exported.timed_at(self.dt),
-            false => exported,
+        Ok(match (self.timed(), self.rate_input) {
+            (true, true) => exported.timed_at(self.dt).with_rate_input(),
+            (true, false) => exported.timed_at(self.dt),
+            (false, _) => exported,
         })
     }
 
@@ -308,6 +313,12 @@ impl Artifact {
             return err(
                 "dt_range",
                 format!("must be [0, 0] or 0 < shortest <= longest frame time, got [{lo}, {hi}]"),
+            );
+        }
+        if self.rate_input && !self.timed() {
+            return err(
+                "rate_input",
+                "only an integrator that takes the frame time reads the latent's rate".into(),
             );
         }
         if self.rest.len() != n * dim {

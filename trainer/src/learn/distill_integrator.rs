@@ -6,7 +6,7 @@
 
 use candle_core::{Device, Tensor};
 
-use super::network::{ExportedIntegrator, IntegratorSpec, LatentIntegrator, Normalisation};
+use super::network::{network_inputs, ExportedIntegrator, IntegratorSpec, LatentIntegrator, Normalisation};
 use super::train::{self, BatchLoss, TrainConfig, TrainError, TrainResult};
 
 /// The shape and schedule of a distilled integrator.
@@ -61,6 +61,7 @@ pub fn distill_integrator(
         colliders,
         timed,
         reference_dt: teacher.reference_dt().unwrap_or(0.0),
+        rate_input: teacher.rate_input(),
     };
     if width != layout.input() || width != teacher.mlp().spec().input {
         return Err(TrainError::Invalid(format!(
@@ -81,7 +82,8 @@ pub fn distill_integrator(
             })
             .collect()
     };
-    let input_norm = Normalisation::fit(&inputs).map_err(|e| TrainError::Invalid(e.to_string()))?;
+    let read = network_inputs(&inputs, k, reference.filter(|_| teacher.rate_input()));
+    let input_norm = Normalisation::fit(&read).map_err(|e| TrainError::Invalid(e.to_string()))?;
     let increment_norm = Normalisation::fit(&increments(&inputs)?).map_err(|e| TrainError::Invalid(e.to_string()))?;
     let spec = layout;
     let inverse: Vec<f32> = increment_norm.std.iter().map(|s| 1.0 / s).collect();

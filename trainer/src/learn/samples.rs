@@ -8,7 +8,9 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::learn::encoding::{collider_inputs, pack_signals, Encoding, Frame};
 use crate::learn::frame_rows::Rows;
-use crate::learn::network::{rows_to_tensor, tensor_to_rows, Autoencoder, LatentIntegrator, Normalisation};
+use crate::learn::network::{
+    network_inputs, rows_to_tensor, tensor_to_rows, Autoencoder, LatentIntegrator, Normalisation,
+};
 use crate::learn::sequences::EncodedSequence;
 use mochi_sim::bc::SIGNAL_PER_HANDLE;
 use mochi_sim::contact::ColliderPose;
@@ -187,7 +189,8 @@ impl<'a> IntegratorData<'a> {
             sequences,
             latent: k,
             bc_len,
-            input_norm: Normalisation::fit(&inputs)?,
+            // A timed integrator reads the latent's change per reference frame (`rate_input`).
+            input_norm: Normalisation::fit(&network_inputs(&inputs, k, timed.then_some(reference_dt)))?,
             increment_norm: Normalisation::fit(&increments)?,
             latents,
             samples,
@@ -466,6 +469,7 @@ pub(crate) mod fixtures {
             colliders: data.colliders,
             timed: data.timed,
             reference_dt: data.reference_dt,
+            rate_input: data.timed,
         };
         LatentIntegrator::new(int_spec, data.input_norm.clone(), data.increment_norm.clone(), 2).unwrap()
     }

@@ -52,6 +52,7 @@ pub fn build_artifact(
             pivot: h.pivot.map(|v| v as f32),
         })
         .collect();
+    let exported_integrator = integrator.export()?;
     let artifact = Artifact {
         scene: problem.scene.name.clone(),
         scene_path: problem.scene.source.display().to_string(),
@@ -82,7 +83,8 @@ pub fn build_artifact(
         encoder: exported.encoder.layers().into_iter().cloned().collect(),
         decoder: exported.decoder.layers().into_iter().cloned().collect(),
         decoder_basis: exported.decoder.is_basis(),
-        integrator: integrator.export()?.mlp().layers().into_iter().cloned().collect(),
+        integrator: exported_integrator.mlp().layers().into_iter().cloned().collect(),
+        rate_input: exported_integrator.rate_input(),
         dt_range: problem
             .scene
             .dataset

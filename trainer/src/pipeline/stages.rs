@@ -359,6 +359,7 @@ pub(crate) fn train_integrator(
         colliders: data.colliders,
         timed: data.timed,
         reference_dt: data.reference_dt,
+        rate_input: data.timed,
     };
     let augmentation = Augmentation {
         noise: spec.noise,

@@ -34,6 +34,13 @@ pub(crate) struct IntegratorSpec {
     /// a latent velocity of one scale at every rate.
     #[serde(default)]
     pub reference_dt: f64,
+    /// Whether a timed integrator's network reads the previous latent's change per frame of
+    /// `reference_dt`, `(z_{t-1} - z_{t-2}) reference_dt / dt`, in place of `z_{t-2}`
+    /// ([`rate_row`]): the same quantity at every frame rate, where `z_{t-2}` alone leaves the
+    /// network to divide by the frame time. Absent in checkpoints written before it existed:
+    /// `false`.
+    #[serde(default)]
+    pub rate_input: bool,
 }
 
 impl IntegratorSpec {
@@ -155,6 +162,32 @@ pub(crate) struct LatentIntegrator {
     increment_std: Tensor,
 }
 
+/// Turns a timed integrator's packed input `row` (its last number the frame time `dt`) into
+/// what a network with a rate input reads ([`IntegratorSpec::rate_input`]): the previous
+/// latent's change per frame of `reference_dt`, `(z_{t-1} - z_{t-2}) reference_dt / dt`, in
+/// place of `z_{t-2}`. The runtime's `Instance` reads the same.
+pub fn rate_row(row: &mut [f32], latent: usize, reference_dt: f64) {
+    let Some(&dt) = row.last() else { return };
+    let scale = (reference_dt / dt as f64) as f32;
+    for i in 0..latent {
+        row[latent + i] = (row[i] - row[latent + i]) * scale;
+    }
+}
+
+/// `rows` (packed inputs) as the network reads them: with a rate input at `reference_dt`
+/// ([`rate_row`]), or as they are (`None`). The input normalisation is fitted to these.
+pub fn network_inputs(rows: &[Vec<f32>], latent: usize, reference_dt: Option<f64>) -> Vec<Vec<f32>> {
+    rows.iter()
+        .map(|r| {
+            let mut r = r.clone();
+            if let Some(reference) = reference_dt {
+                rate_row(&mut r, latent, reference);
+            }
+            r
+        })
+        .collect()
+}
+
 /// A frozen integrator: `z_t = q[..latent] + mlp(q)` with the normalisations folded into
 /// `mlp`'s first and last layers (for a timed one, `+ (dt / reference_dt) mlp(q)`, `dt` the
 /// input's last number).
@@ -163,6 +196,7 @@ pub struct ExportedIntegrator {
     latent: usize,
     mlp: ExportedMlp,
     reference_dt: Option<f64>,
+    rate_input: bool,
 }
 
 impl ExportedIntegrator {
@@ -177,6 +211,7 @@ impl ExportedIntegrator {
             latent,
             mlp,
             reference_dt: None,
+            rate_input: false,
         })
     }
 
@@ -184,6 +219,19 @@ impl ExportedIntegrator {
     pub fn timed_at(mut self, reference_dt: f64) -> Self {
         self.reference_dt = Some(reference_dt);
         self
+    }
+
+    /// The same timed network reading the previous latent's change per reference frame in
+    /// place of `z_{t-2}` ([`IntegratorSpec::rate_input`]); an untimed one is returned as is.
+    pub fn with_rate_input(mut self) -> Self {
+        self.rate_input = self.reference_dt.is_some();
+        self
+    }
+
+    /// Whether the network reads the previous latent's change per reference frame
+    /// ([`ExportedIntegrator::with_rate_input`]).
+    pub fn rate_input(&self) -> bool {
+        self.rate_input
     }
 
     /// The frame time a timed integrator's increments are scaled to (`None`: untimed).
@@ -203,7 +251,11 @@ impl ExportedIntegrator {
 
     /// One step from a packed input `q`.
     pub fn step(&self, q: &[f32]) -> ModelResult<Vec<f32>> {
-        let mut z = forward_exported(&self.mlp, q)?;
+        let mut rated = q.to_vec();
+        if let (Some(reference), true) = (self.reference_dt, self.rate_input) {
+            rate_row(&mut rated, self.latent, reference);
+        }
+        let mut z = forward_exported(&self.mlp, &rated)?;
         if let (Some(reference), Some(&dt)) = (self.reference_dt, q.last()) {
             let scale = (dt as f64 / reference) as f32;
             z.iter_mut().for_each(|v| *v *= scale);
@@ -263,7 +315,18 @@ impl LatentIntegrator {
 
     /// `z_t` for a batch of packed inputs `q: (batch, input)`.
     pub fn forward(&self, q: &Tensor) -> candle_core::Result<Tensor> {
-        let normalised = q.broadcast_sub(&self.input_mean)?.broadcast_div(&self.input_std)?;
+        let rated = match self.spec.rate_input {
+            true => {
+                let k = self.spec.latent;
+                let n = self.spec.input();
+                let dt = q.narrow(1, n - 1, 1)?;
+                let change = (q.narrow(1, 0, k)? - q.narrow(1, k, k)?)?
+                    .broadcast_mul(&dt.recip()?.affine(self.spec.reference_dt, 0.0)?)?;
+                Tensor::cat(&[q.narrow(1, 0, k)?, change, q.narrow(1, 2 * k, n - 2 * k)?], 1)?
+            }
+            false => q.clone(),
+        };
+        let normalised = rated.broadcast_sub(&self.input_mean)?.broadcast_div(&self.input_std)?;
         let increment = self
             .mlp
             .forward(&normalised)?
@@ -311,9 +374,10 @@ impl LatentIntegrator {
             last.bias[r] = (last.bias[r] as f64 * s + mean[r] as f64) as f32;
         }
         let exported = ExportedIntegrator::new(self.spec.latent, ExportedMlp::from_layers(layers)?)?;
-        Ok(match self.spec.timed {
-            true => exported.timed_at(self.spec.reference_dt),
-            false => exported,
+        Ok(match (self.spec.timed, self.spec.rate_input) {
+            (true, true) => exported.timed_at(self.spec.reference_dt).with_rate_input(),
+            (true, false) => exported.timed_at(self.spec.reference_dt),
+            (false, _) => exported,
         })
     }
 }
@@ -334,6 +398,7 @@ mod tests {
             colliders: 0,
             timed: false,
             reference_dt: 0.0,
+            rate_input: false,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         // Features of very different scales, as latents and boundary velocities are.
@@ -388,6 +453,15 @@ mod tests {
 
     #[test]
     fn a_timed_integrator_scales_its_increment_with_the_frame_time_in_candle_and_export() {
+        for rate_input in [false, true] {
+            timed_integrator_agrees_in_candle_and_export(rate_input);
+        }
+    }
+
+    /// A timed integrator (reading the latent before the last, or its change per reference
+    /// frame): candle's forward and the exported step agree, and the exported step is the
+    /// previous latent plus `dt / reference_dt` times the network's output on what it reads.
+    fn timed_integrator_agrees_in_candle_and_export(rate_input: bool) {
         let spec = IntegratorSpec {
             latent: 3,
             bc: 2,
@@ -396,6 +470,7 @@ mod tests {
             colliders: 0,
             timed: true,
             reference_dt: 1.0 / 30.0,
+            rate_input,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         let mut inputs = random_rows(8, spec.input(), 1.0, &mut rng);
@@ -405,16 +480,25 @@ mod tests {
         {
             *row.last_mut().unwrap() = *dt as f32;
         }
-        let norm = Normalisation::fit(&inputs).unwrap();
+        let read = network_inputs(&inputs, 3, rate_input.then_some(1.0 / 30.0));
+        let norm = Normalisation::fit(&read).unwrap();
         let integrator = LatentIntegrator::new(spec, norm, Normalisation::identity(3), 4).unwrap();
         randomise(&integrator.parameters(), 0.3, &mut rng);
         let candle = tensor_to_rows(&integrator.forward(&as_tensor(&inputs)).unwrap()).unwrap();
         let exported = integrator.export().unwrap();
         assert_eq!(exported.reference_dt(), Some(1.0 / 30.0));
-        for (q, z) in inputs.iter().zip(&candle) {
+        assert_eq!(exported.rate_input(), rate_input);
+        for ((q, r), z) in inputs.iter().zip(&read).zip(&candle) {
             let step = exported.step(q).unwrap();
             let scale = *q.last().unwrap() * 30.0;
-            let unscaled = forward_exported(exported.mlp(), q).unwrap();
+            if rate_input {
+                // What the network reads: the change of the latent per frame of 1/30 s.
+                for i in 0..3 {
+                    let change = (q[i] - q[3 + i]) / scale;
+                    assert!((r[3 + i] - change).abs() <= 1e-5 * change.abs().max(1.0));
+                }
+            }
+            let unscaled = forward_exported(exported.mlp(), r).unwrap();
             for i in 0..3 {
                 assert!(
                     (step[i] - z[i]).abs() <= 1e-5 * z[i].abs().max(1.0),
@@ -474,6 +558,7 @@ mod tests {
             colliders: 0,
             timed: false,
             reference_dt: 0.0,
+            rate_input: false,
         };
         let wrong = LatentIntegrator::new(spec, Normalisation::identity(6), Normalisation::identity(2), 0);
         assert!(wrong.is_err());

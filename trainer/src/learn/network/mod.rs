@@ -56,7 +56,7 @@ pub(crate) use decoder::Decoder;
 pub use decoder::{DecoderShape, FrozenDecoder};
 pub use error::{ModelResult, NetworkError};
 pub use exported::{forward_exported, DenseLayer, ExportedBlock, ExportedMlp};
-pub use integrator::ExportedIntegrator;
+pub use integrator::{network_inputs, rate_row, ExportedIntegrator};
 pub(crate) use integrator::{IntegratorSpec, LatentIntegrator, Normalisation};
 pub use layout::{MlpSpec, Real};
 pub(crate) use mlp::ResMlp;
