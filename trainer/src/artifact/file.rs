@@ -377,9 +377,9 @@ mod tests {
         let (bytes, artifact) = tiny();
         let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
         let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
-        // Format 5 is format 7 without the model section's last fields (`dt_range`, 16 bytes,
-        // an empty `collider_shapes`, 1 byte, and no render mesh, 4 bytes).
-        let mut old = envelope::wrap(MAGIC, ONE_FRAME_TIME_VERSION, &model[..model.len() - 21]);
+        // Format 5 is format 8 without the model section's last fields (`dt_range`, 16 bytes,
+        // an empty `collider_shapes`, 1 byte, no render mesh, 4 bytes, and `rate_input`, 1).
+        let mut old = envelope::wrap(MAGIC, ONE_FRAME_TIME_VERSION, &model[..model.len() - 22]);
         old.extend(envelope::wrap(TRAINING_MAGIC, ONE_FRAME_TIME_VERSION, training));
         assert_eq!(Artifact::parse(&old).unwrap(), artifact);
         let mut runtime = mochi_runtime::OwnedModel::default();
@@ -391,12 +391,26 @@ mod tests {
         let (bytes, artifact) = tiny();
         let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
         let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
-        // Format 6 is format 7 without the render mesh (four empty lists, 4 bytes).
-        let mut old = envelope::wrap(MAGIC, NO_RENDER_VERSION, &model[..model.len() - 4]);
+        // Format 6 is format 8 without the render mesh (four empty lists, 4 bytes) and
+        // `rate_input` (1 byte).
+        let mut old = envelope::wrap(MAGIC, NO_RENDER_VERSION, &model[..model.len() - 5]);
         old.extend(envelope::wrap(TRAINING_MAGIC, NO_RENDER_VERSION, training));
         assert_eq!(Artifact::parse(&old).unwrap(), artifact);
         let mut runtime = mochi_runtime::OwnedModel::default();
         assert!(!runtime.load(&old).unwrap().model().has_render());
+    }
+
+    #[test]
+    fn artifact_of_format_7_is_still_read_by_the_trainer_and_the_runtime() {
+        let (bytes, artifact) = tiny();
+        let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
+        let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
+        // Format 7 is format 8 without `rate_input` (1 byte, `false`).
+        let mut old = envelope::wrap(MAGIC, NO_RATE_INPUT_VERSION, &model[..model.len() - 1]);
+        old.extend(envelope::wrap(TRAINING_MAGIC, NO_RATE_INPUT_VERSION, training));
+        assert_eq!(Artifact::parse(&old).unwrap(), artifact);
+        let mut runtime = mochi_runtime::OwnedModel::default();
+        assert!(!runtime.load(&old).unwrap().model().rate_input);
     }
 
     #[test]

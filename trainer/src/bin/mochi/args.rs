@@ -273,10 +273,10 @@ pub(crate) enum Command {
         #[arg(long, default_value = "f32", value_parser = parse_weights)]
         weights: mochi_runtime::WeightFormat,
     },
-    /// Rewrite artifacts of an older format (2-5) in place in the current one; fields
-    /// unchanged, weights too except that values below 2^-40 of their layer's largest weight
-    /// are written as zero (the runtime and codegen read only the current format and the one
-    /// before it).
+    /// Rewrite artifacts of an older format (2-7) in place in the current one; fields
+    /// unchanged (a timed integrator of format 7 keeps reading the latent before the last),
+    /// weights too except that values below 2^-40 of their layer's largest weight are written
+    /// as zero (the runtime and codegen read formats 5 to the current one).
     Upgrade {
         /// Artifacts (`SCENE.mochi`).
         #[arg(required = true)]
