@@ -36,6 +36,22 @@ fn timed(a: &Artifact, weight: f32) -> Artifact {
     t
 }
 
+/// A timed model `a` rewritten to read the last latent's change per frame of its `dt`,
+/// `r = (z_{t-1} - z_{t-2}) dt_a / dt`, in place of `z_{t-2}`: `W1 z_{t-1} + W2 z_{t-2}` is
+/// `(W1 + W2) z_{t-1} - W2 r` at its own frame time, the same network there.
+fn reading_the_rate(mut a: Artifact) -> Artifact {
+    let k = a.latent as usize;
+    let first = &mut a.integrator[0];
+    for row in first.weights.chunks_mut(first.cols) {
+        for i in 0..k {
+            row[i] += row[k + i];
+            row[k + i] = -row[k + i];
+        }
+    }
+    a.rate_input = true;
+    a
+}
+
 /// The tiny scene built with a time step of `dt`.
 fn scene_at(a: &Artifact, dt: f64) -> BuiltScene {
     let mut scene = Recipe::parse(&a.scene_toml, Path::new(&a.scene_path)).unwrap().scene;
@@ -45,14 +61,25 @@ fn scene_at(a: &Artifact, dt: f64) -> BuiltScene {
 
 #[test]
 fn a_timed_model_agrees_between_the_trainer_and_the_runtime_at_every_rate() {
+    // Reading the latent before the last (format 7) and its change per frame (`rate_input`).
+    for rate_input in [false, true] {
+        timed_model_agrees_at_every_rate(rate_input);
+    }
+}
+
+fn timed_model_agrees_at_every_rate(rate_input: bool) {
     let tiny = Artifact::read(&tiny_path()).unwrap();
-    let model = timed(&tiny, 2.0);
+    let mut model = timed(&tiny, 2.0);
+    if rate_input {
+        model = reading_the_rate(model);
+    }
     let bytes = model.to_bytes().unwrap();
     // It is a valid artifact, read back as written.
     assert_eq!(Artifact::parse(&bytes).unwrap(), model);
     let mut storage = OwnedModel::default();
     let valid = storage.load(&bytes).unwrap();
     assert!(valid.model().timed());
+    assert_eq!(valid.model().rate_input, rate_input);
     let loaded = LoadedModel::new(model.clone()).unwrap();
     let frames = 300;
     let mut finals = Vec::new();
