@@ -216,27 +216,27 @@ fn too_small_storage_names_the_field_that_did_not_fit() {
 #[test]
 fn wrong_magic_and_version_are_named() {
     let mut bytes = artifact_bytes();
-    assert_eq!(mochi_runtime::ARTIFACT_VERSION, 7);
+    assert_eq!(mochi_runtime::ARTIFACT_VERSION, 8);
     // Format 1 (before `encoding.chains`), 2 (one section), 3 (no triangles in the model
-    // section), 4 (no `decoder_basis`) and a future format 8; the runtime reads 7, 6 and 5.
-    for version in [1, 2, 3, 4, 8] {
+    // section), 4 (no `decoder_basis`) and a future format 9; the runtime reads 8, 7, 6 and 5.
+    for version in [1, 2, 3, 4, 9] {
         bytes[8] = version;
         let expected = EnvelopeError::Version {
             found: version as u32,
-            expected: 7,
+            expected: 8,
         };
         assert_eq!(load(&bytes), Err(LoadError::Envelope(expected)));
-        if (2..=6).contains(&version) {
-            continue; // the trainer reads formats 2 to 6, and these bytes are none of them
+        if (2..=7).contains(&version) {
+            continue; // the trainer reads formats 2 to 7, and these bytes are none of them
         }
         let trainer = mochi_trainer::artifact::Artifact::from_bytes(&bytes, std::path::Path::new("old.mochi"))
             .unwrap_err()
             .to_string();
         assert!(trainer.contains(&format!("version {version}")), "{trainer}");
     }
-    // Format-7 bytes labelled 6 or 5 are read as those formats, which end one or three fields
-    // earlier.
-    for version in [6, 5] {
+    // Format-8 bytes labelled 7, 6 or 5 are read as those formats, which end one, two or four
+    // fields earlier.
+    for version in [7, 6, 5] {
         bytes[8] = version;
         assert_eq!(load(&bytes), Err(LoadError::TrailingBytes));
     }
