@@ -372,45 +372,31 @@ mod tests {
         );
     }
 
-    #[test]
-    fn artifact_of_format_5_is_still_read_by_the_trainer_and_the_runtime() {
+    /// The committed tiny artifact written in the older format `version`, whose model section
+    /// ends `shorter` bytes before this format's, read by the trainer (the same artifact) and
+    /// loaded by the runtime.
+    fn older(version: u32, shorter: usize) -> mochi_runtime::OwnedModel {
         let (bytes, artifact) = tiny();
         let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
         let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
+        let mut old = envelope::wrap(MAGIC, version, &model[..model.len() - shorter]);
+        old.extend(envelope::wrap(TRAINING_MAGIC, version, training));
+        assert_eq!(Artifact::parse(&old).unwrap(), artifact, "format {version}");
+        let mut runtime = mochi_runtime::OwnedModel::default();
+        runtime.load(&old).unwrap();
+        runtime
+    }
+
+    #[test]
+    fn artifacts_of_formats_5_6_and_7_are_still_read_by_the_trainer_and_the_runtime() {
         // Format 5 is format 8 without the model section's last fields (`dt_range`, 16 bytes,
         // an empty `collider_shapes`, 1 byte, no render mesh, 4 bytes, and `rate_input`, 1).
-        let mut old = envelope::wrap(MAGIC, ONE_FRAME_TIME_VERSION, &model[..model.len() - 22]);
-        old.extend(envelope::wrap(TRAINING_MAGIC, ONE_FRAME_TIME_VERSION, training));
-        assert_eq!(Artifact::parse(&old).unwrap(), artifact);
-        let mut runtime = mochi_runtime::OwnedModel::default();
-        assert_eq!(runtime.load(&old).unwrap().model().dt_max, 0.0);
-    }
-
-    #[test]
-    fn artifact_of_format_6_is_still_read_by_the_trainer_and_the_runtime() {
-        let (bytes, artifact) = tiny();
-        let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
-        let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
+        assert_eq!(older(ONE_FRAME_TIME_VERSION, 22).model().unwrap().model().dt_max, 0.0);
         // Format 6 is format 8 without the render mesh (four empty lists, 4 bytes) and
         // `rate_input` (1 byte).
-        let mut old = envelope::wrap(MAGIC, NO_RENDER_VERSION, &model[..model.len() - 5]);
-        old.extend(envelope::wrap(TRAINING_MAGIC, NO_RENDER_VERSION, training));
-        assert_eq!(Artifact::parse(&old).unwrap(), artifact);
-        let mut runtime = mochi_runtime::OwnedModel::default();
-        assert!(!runtime.load(&old).unwrap().model().has_render());
-    }
-
-    #[test]
-    fn artifact_of_format_7_is_still_read_by_the_trainer_and_the_runtime() {
-        let (bytes, artifact) = tiny();
-        let (model, rest) = envelope::split(&bytes, MAGIC, FORMAT_VERSION).unwrap();
-        let training = envelope::open(rest, TRAINING_MAGIC, FORMAT_VERSION).unwrap();
+        assert!(!older(NO_RENDER_VERSION, 5).model().unwrap().model().has_render());
         // Format 7 is format 8 without `rate_input` (1 byte, `false`).
-        let mut old = envelope::wrap(MAGIC, NO_RATE_INPUT_VERSION, &model[..model.len() - 1]);
-        old.extend(envelope::wrap(TRAINING_MAGIC, NO_RATE_INPUT_VERSION, training));
-        assert_eq!(Artifact::parse(&old).unwrap(), artifact);
-        let mut runtime = mochi_runtime::OwnedModel::default();
-        assert!(!runtime.load(&old).unwrap().model().rate_input);
+        assert!(!older(NO_RATE_INPUT_VERSION, 1).model().unwrap().model().rate_input);
     }
 
     #[test]
