@@ -173,14 +173,21 @@ fn steps_at(artifact: &Artifact, dt: f64) -> bool {
     artifact.timed() || (artifact.dt - dt).abs() <= SAME_FRAME_TIME * dt
 }
 
-/// A model's label: its scene and training method, and the frame rates it was trained at.
+/// A model's label: its scene and training method, the frame rates it was trained at, and
+/// whether its timed integrator reads the latent's rate (format 8) or the latent before the
+/// last (format 7).
 fn label(a: &Artifact) -> String {
     let rates = match a.dt_range {
         [lo, hi] if hi > 0.0 && (hi - lo).abs() <= SAME_FRAME_TIME * hi => format!("{:.0} Hz", 1.0 / lo),
         [lo, hi] if hi > 0.0 => format!("{:.0}-{:.0} Hz", 1.0 / hi, 1.0 / lo),
         _ => format!("{:.0} Hz", 1.0 / a.dt),
     };
-    format!("{} {} ({rates})", a.scene, a.method.label())
+    let reads = match (a.timed(), a.rate_input) {
+        (true, true) => ", reads the rate",
+        (true, false) => ", reads z_{t-2}",
+        (false, _) => "",
+    };
+    format!("{} {} ({rates}{reads})", a.scene, a.method.label())
 }
 
 /// The first `count` test sequences of `problem`'s dataset, the held-out speeds inside the
