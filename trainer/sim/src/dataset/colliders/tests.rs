@@ -8,6 +8,13 @@ use crate::trajectory::Trajectory;
 use crate::Silent;
 use std::path::Path;
 
+/// The scene `text` (read as the file `file`), built.
+fn built(text: &str, file: &str) -> BuiltScene {
+    Scene::parse(text, Path::new(file))
+        .and_then(|s| s.build())
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// A 0.1 m soft cube (2 x 2 x 2 cells) held at its base, and a sphere that pokes it.
 fn poked_cube() -> BuiltScene {
     let text = r#"
@@ -47,9 +54,7 @@ test = 0
 validation = 0
 frames = 12
 "#;
-    Scene::parse(text, Path::new("poked-cube.toml"))
-        .and_then(|s| s.build())
-        .unwrap_or_else(|e| panic!("{e}"))
+    built(text, "poked-cube.toml")
 }
 
 #[test]
@@ -151,9 +156,7 @@ test = 0
 validation = 0
 frames = 20
 "#;
-    Scene::parse(text, Path::new("dropped-cube.toml"))
-        .and_then(|s| s.build())
-        .unwrap_or_else(|e| panic!("{e}"))
+    built(text, "dropped-cube.toml")
 }
 
 #[test]
