@@ -11,7 +11,11 @@ use mochi_runtime::WeightFormat;
 
 /// Artifact, weight storage, length and FNV-1a 64 of the generated module.
 ///
-/// Last change: artifact format 7 (the render mesh riding on the simulation mesh, empty in
+/// Last change: artifact format 8 (a timed integrator's rate input; none of these is timed):
+/// the `MODEL` literal gained the line `rate_input: false,` and the header comment says
+/// `// Artifact format 8`; every module is longer by exactly that line's 23 bytes (checked:
+/// removing the line and restoring the comment gives the previous lengths and hashes).
+/// Before: artifact format 7 (the render mesh riding on the simulation mesh, empty in
 /// every one of these): the `MODEL` literal gained the four lines `render_anchors`,
 /// `render_weights`, `render_triangles` and `render_uvs` (empty spans), the constants
 /// `RENDER_LEN` (0) and its doc line, and the header comment says `// Artifact format 7`;
@@ -41,12 +45,12 @@ use mochi_runtime::WeightFormat;
 /// vertices, the `surface_source` span's start and the new `surface_triangles` span). Before
 /// that: the loader's derived `chain_order` (the inverse of the strands' slots).
 const EXPECTED: [(&str, WeightFormat, usize, u64); 6] = [
-    ("tiny", WeightFormat::F32, 198862, 0x8e2012136b1eb041),
-    ("beam", WeightFormat::F32, 11411667, 0xb0f388a989c93776),
-    ("strands", WeightFormat::F32, 94162, 0x151b2450e10949a1),
-    ("tiny", WeightFormat::F16, 121502, 0x2a1b6a9008dd5eb3),
-    ("tiny", WeightFormat::Int8, 87968, 0x2b71fad7a3df705c),
-    ("beam", WeightFormat::Int8, 3418320, 0x0ef5c3098431e38f),
+    ("tiny", WeightFormat::F32, 198885, 0x1b856d29b20134d4),
+    ("beam", WeightFormat::F32, 11411690, 0x5ca9252f98136b07),
+    ("strands", WeightFormat::F32, 94185, 0x099e6fa9a6bb8b10),
+    ("tiny", WeightFormat::F16, 121525, 0xf8a4cde4aa98000a),
+    ("tiny", WeightFormat::Int8, 87991, 0xe3ae191b2c05a4b3),
+    ("beam", WeightFormat::Int8, 3418343, 0x578f147d2522755e),
 ];
 
 fn fnv1a(bytes: &[u8]) -> u64 {
