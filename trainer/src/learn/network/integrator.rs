@@ -251,11 +251,14 @@ impl ExportedIntegrator {
 
     /// One step from a packed input `q`.
     pub fn step(&self, q: &[f32]) -> ModelResult<Vec<f32>> {
-        let mut rated = q.to_vec();
-        if let (Some(reference), true) = (self.reference_dt, self.rate_input) {
-            rate_row(&mut rated, self.latent, reference);
-        }
-        let mut z = forward_exported(&self.mlp, &rated)?;
+        let mut z = match (self.reference_dt, self.rate_input) {
+            (Some(reference), true) => {
+                let mut rated = q.to_vec();
+                rate_row(&mut rated, self.latent, reference);
+                forward_exported(&self.mlp, &rated)?
+            }
+            _ => forward_exported(&self.mlp, q)?,
+        };
         if let (Some(reference), Some(&dt)) = (self.reference_dt, q.last()) {
             let scale = (dt as f64 / reference) as f32;
             z.iter_mut().for_each(|v| *v *= scale);
