@@ -152,11 +152,14 @@ impl<'a> PhysicsObjective<'a> {
                     let (previous, current) = data.collider_poses(s);
                     loss.set_collider_poses(&previous, &current);
                     let value = loss.value_and_gradient(&x, prev, prev2, targets, &mut grad);
-                    // A sample at another frame time is weighted by (dt / scene dt)^2: the loss
+                    // A sample at another frame time is weighted by dt / scene dt. The loss
                     // times dt^2 is the solver's own objective, whose curvature (M + dt^2 K) is
-                    // about the mass matrix at every rate, so a position error costs about the
-                    // same at 120 Hz as at 30 Hz instead of 16 times more.
-                    let balance = loss.balance(prev, prev2, min_speed) / (dt / scene_dt).powi(2);
+                    // about the mass matrix at every rate; one factor of dt / scene dt more
+                    // would make a position error cost the same at every rate, but a 120 Hz
+                    // step's error recurs four times as often per second of motion as a 30 Hz
+                    // one's. This weight lets it cost four times as much (docs/design.md,
+                    // decision 10: it halved the error at the top of a 30-120 Hz range).
+                    let balance = loss.balance(prev, prev2, min_speed) / (dt / scene_dt);
                     total += value / balance;
                     data.encoding
                         .encode_gradient(&q, &grad, frame, balance, &mut local)
