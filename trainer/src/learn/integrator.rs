@@ -158,7 +158,7 @@ impl<'a> PhysicsObjective<'a> {
                     // would make a position error cost the same at every rate, but a 120 Hz
                     // step's error recurs four times as often per second of motion as a 30 Hz
                     // one's. This weight lets it cost four times as much (docs/design.md,
-                    // decision 10: it halved the error at the top of a 30-120 Hz range).
+                    // decision 10).
                     let balance = loss.balance(prev, prev2, min_speed) / (dt / scene_dt);
                     total += value / balance;
                     data.encoding
