@@ -50,8 +50,10 @@ qemu() { qemu-aarch64 -L /usr/aarch64-linux-gnu "$@"; }
 # The C program (the tiny model in f32, as the host's C test).
 qemu "$build/mochi-c-program" > "$out/aarch64-c.txt"
 echo "C program: $(grep -c '^checksum' "$out/aarch64-c.txt") checksums, $(tail -n 1 "$out/aarch64-c.txt")"
-for run in "${runs[@]}"; do
-  IFS=: read -r artifact weights kernels <<<"$run"
+# One run: its report, the instruction count appended, one summary line; its exit status.
+run_one() {
+  local artifact weights kernels name report log status args cpu
+  IFS=: read -r artifact weights kernels <<<"$1"
   kernels="${kernels:-neon}"
   name="$(basename "$artifact" .mochi)"
   report="$out/aarch64-$name-$weights-$kernels.txt"
@@ -75,6 +77,14 @@ for run in "${runs[@]}"; do
   echo "$name $weights $kernels: $(awk '$1 == "instructions_per_frame" { print $2 " instructions per frame" }' "$report"), $(grep '^status' "$report")"
   if [ "$status" -ne 0 ]; then
     echo "$name ($weights, $kernels) exited with status $status (output in $report)" >&2
-    exit "$status"
+    return "$status"
   fi
+}
+# The runs are independent (one QEMU process each): as many at once as there are cores.
+failed=0
+for run in "${runs[@]}"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$(nproc)" ]; do wait -n || failed=1; done
+  run_one "$run" &
 done
+for pid in $(jobs -p); do wait "$pid" || failed=1; done
+exit "$failed"
