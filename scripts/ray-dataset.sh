@@ -29,9 +29,13 @@ case "$cmd" in
   setup) ;;
   run) "$venv/bin/python" scripts/ray_dataset.py "$@" ;;
   self-check)
-    # The mochi binary `cargo test` built (the test command runs this after it).
-    cargo build -q -p mochi-trainer --bin mochi
-    "$venv/bin/python" scripts/ray_dataset.py --self-check --mochi target/debug/mochi "$@"
+    # The mochi binary the test command's `cargo test` built (MOCHI_BIN), or a build of it.
+    mochi=${MOCHI_BIN:-}
+    if [ -z "$mochi" ]; then
+      cargo build -q -p mochi-trainer --bin mochi
+      mochi=target/debug/mochi
+    fi
+    "$venv/bin/python" scripts/ray_dataset.py --self-check --mochi "$mochi" "$@"
     ;;
   *) usage ;;
 esac

@@ -13,6 +13,12 @@ trap 'rm -f "$log"' EXIT
 set +e
 cargo test --workspace "$@" 2>&1 | tee "$log"
 status=${PIPESTATUS[0]}
+# The self-checks below that run `mochi` take the binary `cargo test` built for the trainer's
+# integration tests (target/debug, the test profile; it did when those ran) instead of
+# building the dev profile as well.
+if grep -q "Running tests/cli.rs" "$log"; then
+  export MOCHI_BIN="$PWD/target/debug/mochi"
+fi
 # The XPBD peer's self-check (pypbd from PyPI into target/pbd-venv once, then about a second).
 scripts/xpbd.sh self-check 2>&1 | tee -a "$log"
 [ "${PIPESTATUS[0]}" -eq 0 ] || status=1
