@@ -356,6 +356,8 @@ fn bad_latent_settings_name_the_field() {
         ("tolerance = -1.0", "latent.tolerance"),
         ("noise = -0.5", "latent.noise"),
         ("stretch = -1.0", "latent.stretch"),
+        ("data_weight = -1.0", "latent.data_weight"),
+        ("data_weight = inf", "latent.data_weight"),
         ("stretch = 1.0\nrods = \"bends\"", "latent.stretch"),
         ("sizes = [40]", "latent.autoencoder.hidden"),
     ] {

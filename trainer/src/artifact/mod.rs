@@ -32,7 +32,8 @@ pub use section::{ArtifactError, TrainingSection, TRAINING_MAGIC};
 /// How an artifact's integrator was trained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Method {
-    /// On the full-space incremental potential of the decoded state (Eq. 4-6).
+    /// On the full-space incremental potential of the decoded state (Eq. 4-6), with the
+    /// supervised objective added where the scene's `latent.data_weight` is positive.
     SelfSupervised,
     /// L2 on ground-truth latents (the baseline).
     Supervised,

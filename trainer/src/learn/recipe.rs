@@ -160,6 +160,13 @@ pub struct LatentSpec {
     /// integrator learns little else: on `beam`, a floor of 1e-3 m/s left the sudden-drop
     /// test diverging at frame 621, 0.05 m/s kept all four test sequences stable.
     pub min_speed: f64,
+    /// Weight of a data term added to the self-supervised integrator's physics loss: the
+    /// supervised baseline's objective (squared latent error against the ground truth, per
+    /// coordinate in units of the increment's standard deviation) times this weight. 0 (the
+    /// default) trains on the physics loss alone (Eq. 4-6). A body with no handle has
+    /// neutral directions (sliding, turning on a floor) along which the physics loss near
+    /// rest is nearly flat; the data term pins the increment there to the data's zero.
+    pub data_weight: f64,
     /// Weight of the edge-stretch term in the autoencoder's loss ([`crate::learn::stretch`]): the
     /// mean squared change of edge lengths between decoded and true states, added to the
     /// mean squared reconstruction error (both in squared length units). 0 (the default)
@@ -309,6 +316,7 @@ impl Default for LatentSpec {
             rollout: 0,
             bc_weight: PAPER_BC_WEIGHT,
             min_speed: 0.05,
+            data_weight: 0.0,
             stretch: 0.0,
             seed: 0,
             rods: RodEncoding::Positions,
@@ -364,6 +372,9 @@ impl LatentSpec {
         }
         if !(self.stretch.is_finite() && self.stretch >= 0.0) {
             return Err(("stretch".into(), "must be a non-negative number".into()));
+        }
+        if !(self.data_weight.is_finite() && self.data_weight >= 0.0) {
+            return Err(("data_weight".into(), "must be a non-negative number".into()));
         }
         let selection = &self.selection;
         if selection.decoders.is_empty() || selection.decoders.contains(&DecoderCandidate::Basis(0)) {

@@ -372,14 +372,20 @@ pub(crate) fn train_integrator(
         data.increment_norm.clone(),
         spec.seed + 1,
     )?;
-    // Runs with rollout augmentation get their own checkpoints.
+    // Runs with rollout augmentation or a data term get their own checkpoints.
     let rolled = if spec.rollout > 0 {
         format!("-rollout{}", spec.rollout)
     } else {
         String::new()
     };
+    let anchored = method == Method::SelfSupervised && spec.data_weight > 0.0;
+    let data_term = if anchored {
+        format!("-data{}", spec.data_weight)
+    } else {
+        String::new()
+    };
     let config = train_config(
-        &format!("integrator-{}{}-k{k}{rolled}", method.label(), shape.tag),
+        &format!("integrator-{}{}-k{k}{rolled}{data_term}", method.label(), shape.tag),
         &spec.integrator,
         spec.seed + 1,
         work,
@@ -388,6 +394,14 @@ pub(crate) fn train_integrator(
     let supervised;
     type Loss<'l> = Box<dyn FnMut(&Batch<'_>, &mut ChaCha8Rng) -> candle_core::Result<BatchLoss> + 'l>;
     let loss: Loss<'_> = match method {
+        Method::SelfSupervised if anchored => {
+            physics = PhysicsObjective::new(problem, data, ae, augmentation, spec.bc_weight, spec.min_speed)?;
+            supervised = SupervisedObjective::new(data, augmentation)?;
+            Box::new(|batch, rng| {
+                let physics_loss = physics.batch_loss(&integrator, batch, rng)?;
+                physics_loss.plus(supervised.batch_loss(&integrator, batch, rng)?, spec.data_weight)
+            })
+        }
         Method::SelfSupervised => {
             physics = PhysicsObjective::new(problem, data, ae, augmentation, spec.bc_weight, spec.min_speed)?;
             Box::new(|batch, rng| physics.batch_loss(&integrator, batch, rng))

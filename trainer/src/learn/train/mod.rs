@@ -178,6 +178,14 @@ impl BatchLoss {
         let value = objective.to_dtype(candle_core::DType::F64)?.to_scalar::<f64>()?;
         Ok(BatchLoss { objective, value })
     }
+
+    /// This loss plus `weight` times `other` (objectives and reported values alike).
+    pub fn plus(self, other: BatchLoss, weight: f64) -> candle_core::Result<Self> {
+        Ok(BatchLoss {
+            objective: (self.objective + (other.objective * weight)?)?,
+            value: self.value + weight * other.value,
+        })
+    }
 }
 
 /// Outcome of [`train`].

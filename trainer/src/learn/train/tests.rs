@@ -257,3 +257,26 @@ fn invalid_runs_are_errors() {
     params.push(params[0].clone());
     assert!(AdamW::new(&params, AdamWConfig::default()).is_err());
 }
+
+/// A sum of losses (the physics loss with a data term) has the summed value and, through its
+/// objective, the weighted sum of both gradients.
+#[test]
+fn a_weighted_sum_of_losses_adds_values_and_gradients() {
+    let x = Var::from_vec(vec![1.0f32, -2.0, 0.5], 3, &Device::Cpu).unwrap();
+    let first = BatchLoss::new(x.as_tensor().sqr().unwrap().sum_all().unwrap()).unwrap();
+    let second = BatchLoss::new((x.as_tensor() * 3.0).unwrap().sum_all().unwrap()).unwrap();
+    let (a, b) = (first.value, second.value);
+    let sum = first.plus(second, 0.25).unwrap();
+    assert!(
+        (sum.value - (a + 0.25 * b)).abs() < 1e-9,
+        "{} against {}",
+        sum.value,
+        a + 0.25 * b
+    );
+    let grads = sum.objective.backward().unwrap();
+    let g = grads.get(x.as_tensor()).unwrap().to_vec1::<f32>().unwrap();
+    // d/dx (x^2 + 0.25 * 3x) = 2x + 0.75.
+    for (g, x) in g.iter().zip([1.0f32, -2.0, 0.5]) {
+        assert!((g - (2.0 * x + 0.75)).abs() < 1e-6, "{g} at {x}");
+    }
+}
