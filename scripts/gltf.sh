@@ -52,12 +52,7 @@ case "$cmd" in
   self-check)
     dir=$(mktemp -d)
     trap 'rm -rf "$dir"' EXIT
-    # The mochi binary the test command's `cargo test` built (MOCHI_BIN), or a build of it.
-    mochi=${MOCHI_BIN:-}
-    if [ -z "$mochi" ]; then
-      cargo build -q -p mochi-trainer --bin mochi
-      mochi=target/debug/mochi
-    fi
+    mochi=$(scripts/mochi-bin.sh)
     "$mochi" export tests/artifacts/tiny-render.mochi --out "$dir/tiny-render.glb" --frames 40
     "$mochi" export tests/artifacts/tiny-poke.mochi --out "$dir/tiny-poke.glb" --frames 40 --weights int8
     if check "$dir/tiny-render.glb" "$dir/tiny-poke.glb"; then

@@ -29,12 +29,7 @@ case "$cmd" in
   setup) ;;
   run) "$venv/bin/python" scripts/ray_dataset.py "$@" ;;
   self-check)
-    # The mochi binary the test command's `cargo test` built (MOCHI_BIN), or a build of it.
-    mochi=${MOCHI_BIN:-}
-    if [ -z "$mochi" ]; then
-      cargo build -q -p mochi-trainer --bin mochi
-      mochi=target/debug/mochi
-    fi
+    mochi=$(scripts/mochi-bin.sh)
     "$venv/bin/python" scripts/ray_dataset.py --self-check --mochi "$mochi" "$@"
     ;;
   *) usage ;;

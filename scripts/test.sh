@@ -9,10 +9,28 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-cross.sh
 log=$(mktemp)
-trap 'rm -f "$log"' EXIT
+targets_log=$(mktemp)
+trap 'rm -f "$log" "$targets_log"' EXIT
+# Libraries, binaries and integration tests (examples are compiled by clippy, not here). The
+# three target runs (`tests/tests/target_*.rs`, left out of a plain `cargo test`) spend most of
+# their time on one core (each firmware's and module's LTO link, QEMU, node, Chromium), so they
+# run beside the rest instead of after it. Both selections span the workspace, so that they
+# resolve the same features and share every build; everything is built first. Arguments go
+# to every `cargo test` below.
+selection=(--workspace --lib --bins --tests)
+targets=(--workspace --test 'target_*')
 set +e
-cargo test --workspace "$@" 2>&1 | tee "$log"
+{ cargo test "${selection[@]}" --no-run "$@" && cargo test "${targets[@]}" --no-run "$@"; } 2>&1 | tee "$log"
 status=${PIPESTATUS[0]}
+if [ "$status" -eq 0 ]; then
+  cargo test "${targets[@]}" "$@" >"$targets_log" 2>&1 &
+  runs=$!
+  cargo test "${selection[@]}" "$@" 2>&1 | tee -a "$log"
+  [ "${PIPESTATUS[0]}" -eq 0 ] || status=1
+  wait "$runs" || status=1
+  echo "== the target runs (Cortex-M4, AArch64, wasm)"
+  tee -a "$log" <"$targets_log"
+fi
 # The self-checks below that run `mochi` take the binary `cargo test` built for the trainer's
 # integration tests (target/debug, the test profile; it did when those ran) instead of
 # building the dev profile as well.

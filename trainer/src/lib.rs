@@ -47,20 +47,13 @@ pub const THREADS_VAR: &str = "RAYON_NUM_THREADS";
 /// Assembly runs in parallel (rayon); the sparse factorisation runs sequentially: at these
 /// sizes on small machines faer's parallel factorisation spends more time synchronising than
 /// it saves (`mochi bench sim`). candle asks for its thread count on every matrix product
-/// and, unless `RAYON_NUM_THREADS` is set, answers by parsing /proc/cpuinfo each time
-/// (candle-core 0.11, `utils::get_num_threads`); setting it once to rayon's own default (the
-/// logical cores) keeps every rayon pool's size and skips the reads. candle's element-wise
-/// kernels run on a separate pool of spinning threads (`CANDLE_NUM_THREADS`) that competes
-/// with the physics loss's rayon workers for the same cores: on one thread they run inline.
-/// A value the user set wins.
+/// (`utils::get_num_threads`: `RAYON_NUM_THREADS`, else a count of the CPUs each time);
+/// setting it once to rayon's own default (the logical cores) keeps every rayon pool's size
+/// and skips the counting. A value the user set wins.
 pub fn configure_threads() {
     faer::set_global_parallelism(faer::Par::Seq);
-    for (name, threads) in [
-        (THREADS_VAR, std::thread::available_parallelism().map_or(1, |n| n.get())),
-        ("CANDLE_NUM_THREADS", 1),
-    ] {
-        if std::env::var_os(name).is_none() {
-            std::env::set_var(name, threads.to_string());
-        }
+    if std::env::var_os(THREADS_VAR).is_none() {
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        std::env::set_var(THREADS_VAR, threads.to_string());
     }
 }
