@@ -379,32 +379,36 @@ pub(crate) fn train_integrator(
         String::new()
     };
     let anchored = method == Method::SelfSupervised && spec.data_weight > 0.0;
-    let data_term = if anchored {
+    let weighted = if anchored {
         format!("-data{}", spec.data_weight)
     } else {
         String::new()
     };
     let config = train_config(
-        &format!("integrator-{}{}-k{k}{rolled}{data_term}", method.label(), shape.tag),
+        &format!("integrator-{}{}-k{k}{rolled}{weighted}", method.label(), shape.tag),
         &spec.integrator,
         spec.seed + 1,
         work,
     );
     let mut physics;
     let supervised;
+    // The data term of an anchored self-supervised run: the supervised objective.
+    let data_term = if anchored {
+        Some(SupervisedObjective::new(data, augmentation)?)
+    } else {
+        None
+    };
     type Loss<'l> = Box<dyn FnMut(&Batch<'_>, &mut ChaCha8Rng) -> candle_core::Result<BatchLoss> + 'l>;
     let loss: Loss<'_> = match method {
-        Method::SelfSupervised if anchored => {
-            physics = PhysicsObjective::new(problem, data, ae, augmentation, spec.bc_weight, spec.min_speed)?;
-            supervised = SupervisedObjective::new(data, augmentation)?;
-            Box::new(|batch, rng| {
-                let physics_loss = physics.batch_loss(&integrator, batch, rng)?;
-                physics_loss.plus(supervised.batch_loss(&integrator, batch, rng)?, spec.data_weight)
-            })
-        }
         Method::SelfSupervised => {
             physics = PhysicsObjective::new(problem, data, ae, augmentation, spec.bc_weight, spec.min_speed)?;
-            Box::new(|batch, rng| physics.batch_loss(&integrator, batch, rng))
+            Box::new(|batch, rng| {
+                let loss = physics.batch_loss(&integrator, batch, rng)?;
+                match &data_term {
+                    Some(term) => loss.plus(term.batch_loss(&integrator, batch, rng)?, spec.data_weight),
+                    None => Ok(loss),
+                }
+            })
         }
         Method::Supervised => {
             supervised = SupervisedObjective::new(data, augmentation)?;
