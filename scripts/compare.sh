@@ -17,13 +17,18 @@
 # on each page. A contact scene's cases carry its obstacle boxes, which the XPBD peer collides
 # through the library's own collision detection (scripts/xpbd_run.py); pass "-" for "S,I" to
 # skip step 2 (twist-bar: quasi-static, XPBD steps dynamics).
+#
+# The cases and recordings go to target/compare/SCENE (WORK=DIR for another); the cases are
+# written afresh by every call. `--sequences 0 --conditions 10000-frames` measures the long
+# condition alone (docs/results/methods/long/).
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 [ $# -ge 2 ] || { sed -n '2,/^set -e/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//' >&2; exit 2; }
 scene=$1 setting=$2
 shift 2
-work=target/compare/$scene
+work=${WORK:-target/compare/$scene}
+rm -rf "$work/cases"
 cargo build --release -q -p mochi-trainer --bin mochi
 mochi=target/release/mochi
 

@@ -10,7 +10,7 @@ use mochi_sim::dataset::{self, Split};
 use mochi_sim::measure::mean_and_max_error;
 use mochi_sim::npz::{NpzFile, NpzOut};
 use mochi_sim::SpeedPlan;
-use mochi_trainer::eval::compare::conditions::MatrixSpan;
+use mochi_trainer::eval::compare::conditions::{self, MatrixSpan};
 use mochi_trainer::eval::compare::{compare, page, CompareOptions};
 use mochi_trainer::eval::storage;
 use mochi_trainer::methods::learned::{motions, LearnedRuntime};
@@ -156,6 +156,7 @@ fn compare_runs_every_family_and_replays_a_peer() {
         sequences: 1,
         frames: 12,
         matrix: None,
+        conditions: Vec::new(),
         max_substeps: 4,
     };
     let first = compare("tiny", &base, &Quiet).unwrap();
@@ -356,4 +357,79 @@ fn a_contact_case_carries_the_obstacles_where_the_simulator_puts_them() {
         .into_vec::<f64>("float64")
         .unwrap();
     assert_eq!(friction, [0.5]);
+}
+
+/// `--sequences 0 --conditions 16-frames`: the long condition alone, each running method
+/// measured over its first frames and again over its last; the last window is the mean error
+/// of the runtime stepped directly against full space over those frames.
+#[test]
+fn the_long_condition_alone_is_measured_at_both_ends() {
+    let span = MatrixSpan {
+        frames: 6,
+        long_frames: 16,
+    };
+    let options = CompareOptions {
+        model: Some(artifacts().join("tiny.mochi")),
+        reduced: None,
+        peers: None,
+        cases: None,
+        cases_only: false,
+        sequences: 0,
+        frames: 6,
+        matrix: Some(span),
+        conditions: vec!["16-frames".into()],
+        max_substeps: 2,
+    };
+    let c = compare("tiny", &options, &Quiet).unwrap();
+    assert!(c.points.is_empty() && c.sequences.is_empty(), "no chart");
+    assert_eq!(c.matrix.len(), 1);
+    let row = &c.matrix[0];
+    assert_eq!((row.condition.as_str(), row.frames), ("16 frames", (16, 6)));
+    let cell = row
+        .cells
+        .iter()
+        .find(|cell| cell.method == "learned (runtime) k=4, f32")
+        .unwrap_or_else(|| panic!("{:?}", row.cells));
+    let (head, last) = cell.text.split_once(" (frames 1-6), ").expect(&cell.text);
+    assert!(
+        head.starts_with("16 / 16, ") && last.ends_with(" (frames 11-16)"),
+        "{}",
+        cell.text
+    );
+    let last: f64 = last.trim_end_matches("% (frames 11-16)").parse().unwrap();
+
+    let problem = tiny().build().unwrap();
+    let long = conditions::conditions(&problem, span)
+        .into_iter()
+        .find(|c| c.name == "16 frames")
+        .unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let mut reference = Vec::new();
+    let mut full = Simulated::new(&problem.scene, 1, "").unwrap();
+    pool.install(|| run_sequence(&mut full, &long.bc, 16, &[], dim, diagonal, Some((&mut reference, 17))))
+        .unwrap();
+    let bytes = std::fs::read(artifacts().join("tiny.mochi")).unwrap();
+    let mut owned = OwnedModel::default();
+    let model: ValidModel = owned.load(&bytes).unwrap();
+    let mut method = LearnedRuntime::new(&model, "learned (runtime)", "f32".into()).unwrap();
+    let run = run_sequence(&mut method, &long.bc, 16, &[&reference], dim, diagonal, None).unwrap();
+    let want = 100.0 * run.error_curves[0][10..].iter().sum::<f64>() / 6.0;
+    assert!((last - want).abs() <= 5e-4 + 1e-3 * want, "{last} vs {want:.5}");
+    assert!(want > 0.0);
+
+    // The page of a matrix alone, and a condition the scene does not have refused by name.
+    let dir = tempfile::tempdir().unwrap();
+    page::write(dir.path(), &c, "mochi compare tiny --sequences 0").unwrap();
+    let text = std::fs::read_to_string(dir.path().join("tiny.md")).unwrap();
+    assert!(text.starts_with("# tiny: stability matrix") && text.contains("| 16 frames |"));
+    let wrong = CompareOptions {
+        conditions: vec!["contact".into()],
+        ..options
+    };
+    let e = compare("tiny", &wrong, &Quiet).unwrap_err().to_string();
+    assert!(
+        e.contains("`contact`") && e.contains("16-frames") && e.contains("dt-halved"),
+        "{e}"
+    );
 }

@@ -151,6 +151,7 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
             sequences: 1,
             frames: 8,
             matrix: None,
+            conditions: Vec::new(),
             max_substeps: 2,
         },
         &Quiet,

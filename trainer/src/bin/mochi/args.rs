@@ -200,7 +200,7 @@ pub(crate) enum Command {
         /// Output directory of the page and charts.
         #[arg(long, default_value = "docs/results/methods")]
         out: PathBuf,
-        /// Test sequences on the chart.
+        /// Test sequences on the chart (0: no chart, the stability matrix alone).
         #[arg(long, default_value_t = 2)]
         sequences: usize,
         /// Frames of each chart sequence.
@@ -209,9 +209,15 @@ pub(crate) enum Command {
         /// Frames of each stability condition (0: no matrix).
         #[arg(long, default_value_t = 300)]
         matrix_frames: usize,
-        /// Frames of the long stability condition.
+        /// Frames of the long stability condition (measured over its first and its last
+        /// `--matrix-frames`).
         #[arg(long, default_value_t = 10_000)]
         long_frames: usize,
+        /// Only these stability conditions, comma-separated, by the file stems of their names
+        /// (`in-range`, `1-5x-top-speed`, `2x-top-speed`, `sudden-stop`, `10000-frames`,
+        /// `dt-halved`, `dt-doubled`, `10x-stiffer`, `contact`); default all.
+        #[arg(long, value_delimiter = ',')]
+        conditions: Vec<String>,
         /// Most substeps per frame of the time-converged reference.
         #[arg(long, default_value_t = 32)]
         max_substeps: usize,

@@ -414,8 +414,14 @@ pub(crate) fn eval_rates(
 }
 
 pub(crate) fn compare(scene: &str, out: PathBuf, options: mochi_trainer::eval::compare::CompareOptions) -> Result<()> {
-    if options.frames == 0 || options.sequences == 0 {
-        bail!("--frames and --sequences must be at least 1");
+    if options.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    if options.sequences == 0 && options.matrix.is_none() {
+        bail!("--sequences 0 (no chart) needs the stability matrix (--matrix-frames at least 1)");
+    }
+    if !options.conditions.is_empty() && options.matrix.is_none() {
+        bail!("--conditions needs the stability matrix (--matrix-frames at least 1)");
     }
     let comparison = mochi_trainer::eval::compare::compare(scene, &options, &Terminal)?;
     if options.cases_only {

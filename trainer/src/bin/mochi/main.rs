@@ -136,6 +136,7 @@ fn run(cli: Cli) -> Result<()> {
             frames,
             matrix_frames,
             long_frames,
+            conditions,
             max_substeps,
         } => compare(
             &scene,
@@ -152,6 +153,7 @@ fn run(cli: Cli) -> Result<()> {
                     frames: matrix_frames,
                     long_frames,
                 }),
+                conditions,
                 max_substeps,
             },
         ),

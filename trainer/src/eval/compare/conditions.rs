@@ -6,6 +6,8 @@ use mochi_sim::bc::BcSequence;
 use mochi_sim::dataset::{SequencePlan, SpeedPlan};
 use mochi_sim::{BuiltScene, Scene};
 
+use crate::error::{TrainerError, TrainerResult};
+
 /// What a condition changes at run time, which the learned integrator cannot take without
 /// retraining.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,8 +29,12 @@ pub struct Condition {
     pub scene: Scene,
     /// The motion, in `scene`'s time step.
     pub bc: BcSequence,
-    /// Frames measured against the reference (the rest are stepped for stability only).
+    /// Frames measured against the reference from the start.
     pub measured: usize,
+    /// Frames measured again at the end (the long condition: how far the method has drifted
+    /// after all its frames); 0 for none. Frames between the two windows are stepped for
+    /// stability only.
+    pub last_window: usize,
     /// What changes at run time.
     pub change: RunTimeChange,
 }
@@ -45,7 +51,8 @@ pub struct MatrixSpan {
 /// The matrix's conditions for `problem`'s scene: in range (the scene's middle training
 /// speed), 1.5x and 2x the top training speed and a sudden stop from the top speed (only
 /// where a handle's motion is sampled from speeds: a scripted motion has one speed), the
-/// in-range motion over `long_frames`, the time step halved and doubled at run time, the
+/// in-range motion over `long_frames` (measured over its first and its last `frames`), the
+/// time step halved and doubled at run time, the
 /// material ten times stiffer, and contact when the scene has it (its in-range motion with
 /// contact on).
 pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
@@ -78,6 +85,7 @@ pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
         scene: scene.clone(),
         bc: problem.sequence(&at(0.5, 1.0), span.long_frames, seed),
         measured: frames,
+        last_window: if span.long_frames > frames { frames } else { 0 },
         change: RunTimeChange::None,
     });
     let mut halved = scene.clone();
@@ -87,6 +95,7 @@ pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
         scene: halved,
         bc: in_range.refined(2, scene.dt),
         measured: 2 * frames,
+        last_window: 0,
         change: RunTimeChange::TimeStep(0.5),
     });
     let mut doubled = scene.clone();
@@ -96,6 +105,7 @@ pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
         scene: doubled,
         bc: in_range.every(2),
         measured: frames / 2,
+        last_window: 0,
         change: RunTimeChange::TimeStep(2.0),
     });
     let mut stiff = scene.clone();
@@ -108,6 +118,7 @@ pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
         scene: stiff,
         bc: in_range.clone(),
         measured: frames,
+        last_window: 0,
         change: RunTimeChange::Stiffness(10.0),
     });
     if scene.contact.is_some() {
@@ -116,12 +127,35 @@ pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
     out
 }
 
+/// The conditions named in `only` (each as its file stem, [`super::slug`]: `in-range`,
+/// `10000-frames`, `dt-halved`, ...), in the matrix's order; all of them when `only` is empty.
+/// A name that is no condition of the scene is refused, naming the ones it has.
+pub fn select(all: Vec<Condition>, only: &[String]) -> TrainerResult<Vec<Condition>> {
+    if only.is_empty() {
+        return Ok(all);
+    }
+    let names: Vec<String> = all.iter().map(|c| super::slug(&c.name)).collect();
+    if let Some(unknown) = only.iter().find(|n| !names.contains(n)) {
+        return Err(TrainerError::invalid(format!(
+            "--conditions: `{unknown}` is no condition of this scene's matrix (it has {})",
+            names.join(", ")
+        )));
+    }
+    Ok(all
+        .into_iter()
+        .zip(names)
+        .filter(|(_, n)| only.contains(n))
+        .map(|(c, _)| c)
+        .collect())
+}
+
 fn plain(name: &str, scene: &Scene, bc: BcSequence, frames: usize) -> Condition {
     Condition {
         name: name.into(),
         scene: scene.clone(),
         bc,
         measured: frames,
+        last_window: 0,
         change: RunTimeChange::None,
     }
 }

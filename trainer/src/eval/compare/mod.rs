@@ -67,12 +67,14 @@ pub struct CompareOptions {
     pub cases: Option<PathBuf>,
     /// Only write the cases (the implicit-Euler references they carry), measure nothing.
     pub cases_only: bool,
-    /// Test sequences of the chart.
+    /// Test sequences of the chart (0: no chart, the matrix only).
     pub sequences: usize,
     /// Frames of each chart sequence.
     pub frames: usize,
     /// The stability matrix's frames (`None`: no matrix).
     pub matrix: Option<MatrixSpan>,
+    /// Only these conditions of the matrix, by file stem ([`slug`]; empty: all of them).
+    pub conditions: Vec<String>,
     /// Most substeps per frame the time-converged reference may take.
     pub max_substeps: usize,
 }
@@ -282,7 +284,7 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
     };
     let mut comparison = chart(&problem, &trained, options, report)?;
     if let Some(span) = options.matrix {
-        for condition in conditions::conditions(&problem, span) {
+        for condition in conditions::select(conditions::conditions(&problem, span), &options.conditions)? {
             let row = matrix_row(&condition, &trained, options, report)?;
             comparison.matrix.push(row);
         }
@@ -481,10 +483,11 @@ fn matrix_row(
         &[],
         dim,
         diagonal,
-        // A peer's case carries the reference over every frame.
+        // A peer's case carries the reference over every frame, as does a condition measured
+        // again at its end.
         Some((
             &mut reference,
-            if options.cases.is_some() {
+            if options.cases.is_some() || condition.last_window > 0 {
                 frames + 1
             } else {
                 condition.measured + 1
@@ -497,6 +500,13 @@ fn matrix_row(
     // Where full space itself fails under the condition (a fast rod folding back in one
     // step), the others are measured over the frames it reached and stepped on for stability.
     let measured = condition.measured.min(reference.len() - 1);
+    // The window at the end, where the reference reaches it (frames `last_start + 1..=frames`).
+    let last_window = if reference.len() == frames + 1 {
+        condition.last_window.min(frames.saturating_sub(measured))
+    } else {
+        0
+    };
+    let reference_end = if last_window > 0 { frames } else { measured };
     cells.push(Cell {
         method: "full space".into(),
         text: match &run.failure {
@@ -536,20 +546,11 @@ fn matrix_row(
                 text: reason,
             },
             Entry::Runs(mut method) => {
-                let refs: [&[Vec<f64>]; 1] = [&reference[..=measured]];
+                let refs: [&[Vec<f64>]; 1] = [&reference[..=reference_end]];
                 let run = run_sequence(method.as_mut(), &condition.bc, frames, &refs, dim, diagonal, None)?;
-                let error = run.mean_error(0);
                 Cell {
                     method: format!("{} {}", method.family(), method.setting()),
-                    text: format!(
-                        "{} / {frames}, {}",
-                        run.stable_frames,
-                        if error.is_finite() {
-                            format!("{:.3}%", 100.0 * error)
-                        } else {
-                            "blew up".into()
-                        }
-                    ),
+                    text: cell_text(&run, measured, last_window),
                 }
             }
         };
@@ -564,6 +565,34 @@ fn matrix_row(
         frames: (frames, measured),
         cells,
     })
+}
+
+/// A cell's text: stable frames of all, and the mean error over the first `measured` frames
+/// (`blew up` when it did inside them), then over the last `last_window` frames if any.
+fn cell_text(run: &SequenceRun, measured: usize, last_window: usize) -> String {
+    let frames = run.frames;
+    let curve = &run.error_curves[0];
+    let mean = |range: std::ops::Range<usize>| {
+        if run.stable_frames < range.end {
+            "blew up".to_string()
+        } else {
+            let errors = &curve[range];
+            format!(
+                "{:.3}%",
+                100.0 * errors.iter().sum::<f64>() / errors.len().max(1) as f64
+            )
+        }
+    };
+    let first = mean(0..measured);
+    if last_window == 0 {
+        return format!("{} / {frames}, {first}", run.stable_frames);
+    }
+    format!(
+        "{} / {frames}, {first} (frames 1-{measured}), {} (frames {}-{frames})",
+        run.stable_frames,
+        mean(frames - last_window..frames),
+        frames - last_window + 1
+    )
 }
 
 /// A condition's name as a file stem.

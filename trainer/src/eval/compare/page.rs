@@ -14,9 +14,14 @@ const REFERENCES: [&str; 2] = ["implicit Euler at the frame time", "time-converg
 /// Families a user would pick instead of the learned model.
 const ALTERNATIVES: [&str; 3] = ["VBD", "XPBD (pypbd)", "coarse mesh"];
 
-/// Writes `DIR/SCENE.md` and its charts `DIR/SCENE/speed-accuracy-{implicit,converged}.png`;
-/// `command` is the line that reproduces it.
+/// Writes `DIR/SCENE.md` and its charts `DIR/SCENE/speed-accuracy-{implicit,converged}.png`
+/// (a comparison without a chart: the page of its matrix alone); `command` is the line that
+/// reproduces it.
 pub fn write(dir: &Path, c: &Comparison, command: &str) -> TrainerResult<()> {
+    if c.sequences.is_empty() {
+        fs::create_dir_all(dir)?;
+        return fs::write(&dir.join(format!("{}.md", c.scene)), markdown(c, command));
+    }
     let charts = dir.join(&c.scene);
     fs::create_dir_all(&charts)?;
     for (r, file) in ["speed-accuracy-implicit.png", "speed-accuracy-converged.png"]
@@ -69,6 +74,15 @@ fn pareto(points: &[ChartPoint], r: usize) -> Vec<usize> {
 
 /// The page's text.
 pub fn markdown(c: &Comparison, command: &str) -> String {
+    if c.sequences.is_empty() {
+        return format!(
+            "# {}: stability matrix\n\n```sh\n{command}\n```\n\n{} vertices; every method through the one \
+             interface and the one measuring loop, one thread, one process.\n{}",
+            c.scene,
+            c.vertices,
+            matrix(c)
+        );
+    }
     let mut s = format!(
         "# {}: every method on one chart\n\n```sh\n{command}\n```\n\n{} vertices. The chart's sequences: {}, {} \
          frames each; every method through the one interface and the one measuring loop, one thread, one process. \
@@ -222,7 +236,8 @@ fn matrix(c: &Comparison) -> String {
         "\n## Stability matrix\n\nOne setting per method under each condition; a cell gives the frames stepped \
          before a blow-up (a vertex moving more than a rest diagonal in one frame, a non-finite position or a \
          refused step) and the mean error against full space under the same condition over the measured frames \
-         (the long condition measures its first {} frames).\n\n| condition | {} |\n|---|{}\n",
+         (the long condition's first {} frames, and its last as many where it is longer).\n\n| condition | {} \
+         |\n|---|{}\n",
         c.matrix.first().map_or(0, |r| r.frames.1),
         columns.join(" | "),
         "---|".repeat(columns.len())
