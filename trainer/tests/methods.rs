@@ -423,6 +423,15 @@ fn the_long_condition_alone_is_measured_at_both_ends() {
     page::write(dir.path(), &c, "mochi compare tiny --sequences 0").unwrap();
     let text = std::fs::read_to_string(dir.path().join("tiny.md")).unwrap();
     assert!(text.starts_with("# tiny: stability matrix") && text.contains("| 16 frames |"));
+    // Its peer case alone, into a folder not there yet.
+    let cases = dir.path().join("new/cases");
+    let only_cases = CompareOptions {
+        cases: Some(cases.clone()),
+        cases_only: true,
+        ..options.clone()
+    };
+    compare("tiny", &only_cases, &Quiet).unwrap();
+    assert!(cases.join("16-frames.npz").is_file());
     let wrong = CompareOptions {
         conditions: vec!["contact".into()],
         ..options

@@ -516,6 +516,7 @@ fn matrix_row(
     });
     if let Some(dir) = &options.cases {
         let name = slug(&condition.name);
+        fs::create_dir_all(dir)?;
         case::write_case(&dir.join(format!("{name}.npz")), problem, &condition.bc, &reference)?;
         if options.cases_only {
             return Ok(MatrixRow {
