@@ -569,31 +569,34 @@ fn matrix_row(
 }
 
 /// A cell's text: stable frames of all, and the mean error over the first `measured` frames
-/// (`blew up` when it did inside them), then over the last `last_window` frames if any.
+/// (`blew up` when it did inside them), then over the last `last_window` frames if any (or
+/// where it blew up after the first window).
 fn cell_text(run: &SequenceRun, measured: usize, last_window: usize) -> String {
-    let frames = run.frames;
-    let curve = &run.error_curves[0];
-    let mean = |range: std::ops::Range<usize>| {
-        if run.stable_frames < range.end {
-            "blew up".to_string()
-        } else {
-            let errors = &curve[range];
-            format!(
-                "{:.3}%",
-                100.0 * errors.iter().sum::<f64>() / errors.len().max(1) as f64
-            )
-        }
+    let (frames, stable) = (run.frames, run.stable_frames);
+    let mean = |errors: &[f64]| {
+        format!(
+            "{:.3}%",
+            100.0 * errors.iter().sum::<f64>() / errors.len().max(1) as f64
+        )
     };
-    let first = mean(0..measured);
-    if last_window == 0 {
-        return format!("{} / {frames}, {first}", run.stable_frames);
+    let curve = &run.error_curves[0];
+    if stable < measured {
+        return format!("{stable} / {frames}, blew up");
     }
-    format!(
-        "{} / {frames}, {first} (frames 1-{measured}), {} (frames {}-{frames})",
-        run.stable_frames,
-        mean(frames - last_window..frames),
-        frames - last_window + 1
-    )
+    let first = mean(&curve[..measured]);
+    if last_window == 0 {
+        return format!("{stable} / {frames}, {first}");
+    }
+    let last = if stable < frames {
+        format!("blew up at frame {}", stable + 1)
+    } else {
+        format!(
+            "{} (frames {}-{frames})",
+            mean(&curve[frames - last_window..]),
+            frames - last_window + 1
+        )
+    };
+    format!("{stable} / {frames}, {first} (frames 1-{measured}), {last}")
 }
 
 /// A condition's name as a file stem.
