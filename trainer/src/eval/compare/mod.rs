@@ -551,7 +551,7 @@ fn matrix_row(
                 let run = run_sequence(method.as_mut(), &condition.bc, frames, &refs, dim, diagonal, None)?;
                 Cell {
                     method: format!("{} {}", method.family(), method.setting()),
-                    text: cell_text(&run, measured, last_window),
+                    text: page::matrix_cell(&run, measured, last_window),
                 }
             }
         };
@@ -566,37 +566,6 @@ fn matrix_row(
         frames: (frames, measured),
         cells,
     })
-}
-
-/// A cell's text: stable frames of all, and the mean error over the first `measured` frames
-/// (`blew up` when it did inside them), then over the last `last_window` frames if any (or
-/// where it blew up after the first window).
-fn cell_text(run: &SequenceRun, measured: usize, last_window: usize) -> String {
-    let (frames, stable) = (run.frames, run.stable_frames);
-    let mean = |errors: &[f64]| {
-        format!(
-            "{:.3}%",
-            100.0 * errors.iter().sum::<f64>() / errors.len().max(1) as f64
-        )
-    };
-    let curve = &run.error_curves[0];
-    if stable < measured {
-        return format!("{stable} / {frames}, blew up");
-    }
-    let first = mean(&curve[..measured]);
-    if last_window == 0 {
-        return format!("{stable} / {frames}, {first}");
-    }
-    let last = if stable < frames {
-        format!("blew up at frame {}", stable + 1)
-    } else {
-        format!(
-            "{} (frames {}-{frames})",
-            mean(&curve[frames - last_window..]),
-            frames - last_window + 1
-        )
-    };
-    format!("{stable} / {frames}, {first} (frames 1-{measured}), {last}")
 }
 
 /// A condition's name as a file stem.

@@ -6,6 +6,7 @@ use std::path::Path;
 
 use super::{ChartPoint, Comparison};
 use crate::error::{fs, TrainerResult};
+use crate::methods::method::SequenceRun;
 use crate::report::chart::{self, LabelledPoint};
 
 /// The references, as the page names them.
@@ -221,6 +222,37 @@ fn summary(c: &Comparison) -> String {
         percent(e),
         parts.join("; ")
     )
+}
+
+/// A cell's text: stable frames of all, and the mean error over the first `measured` frames
+/// (`blew up` when it did inside them), then over the last `last_window` frames if any (or
+/// where it blew up after the first window).
+pub(super) fn matrix_cell(run: &SequenceRun, measured: usize, last_window: usize) -> String {
+    let (frames, stable) = (run.frames, run.stable_frames);
+    let mean = |errors: &[f64]| {
+        format!(
+            "{:.3}%",
+            100.0 * errors.iter().sum::<f64>() / errors.len().max(1) as f64
+        )
+    };
+    let curve = &run.error_curves[0];
+    if stable < measured {
+        return format!("{stable} / {frames}, blew up");
+    }
+    let first = mean(&curve[..measured]);
+    if last_window == 0 {
+        return format!("{stable} / {frames}, {first}");
+    }
+    let last = if stable < frames {
+        format!("blew up at frame {}", stable + 1)
+    } else {
+        format!(
+            "{} (frames {}-{frames})",
+            mean(&curve[frames - last_window..]),
+            frames - last_window + 1
+        )
+    };
+    format!("{stable} / {frames}, {first} (frames 1-{measured}), {last}")
 }
 
 fn matrix(c: &Comparison) -> String {
