@@ -500,7 +500,7 @@ fn matrix_row(
     // Where full space itself fails under the condition (a fast rod folding back in one
     // step), the others are measured over the frames it reached and stepped on for stability.
     let measured = condition.measured.min(reference.len() - 1);
-    // The window at the end, where the reference reaches it (frames `last_start + 1..=frames`).
+    // The window at the end (its last `last_window` frames), where the reference reaches it.
     let last_window = if reference.len() == frames + 1 {
         condition.last_window.min(frames.saturating_sub(measured))
     } else {
