@@ -141,6 +141,7 @@ impl Scene {
         let error = |message: String| InputError::field(&self.source, "solver", message);
         let Energies { masses, potentials } = self.build_elastic_energies(mesh)?;
         let elastic: Vec<&dyn StencilEnergy> = potentials.iter().map(|p| p.as_ref()).collect();
+        solid_elements_only(&elastic, mesh.dim).map_err(error)?;
         let body = Body {
             dim: mesh.dim,
             rest: &mesh.rest,
@@ -200,4 +201,21 @@ impl Scene {
             }
         })
     }
+}
+
+/// Why the adaptive solver cannot take the body of `elastic` (`dim`-simplices only, the
+/// elements its oracle scales node errors by and its linear modes are built on: a solid, not
+/// cloth's membrane and bending stencils or a rod's).
+fn solid_elements_only(elastic: &[&dyn StencilEnergy], dim: usize) -> Result<(), String> {
+    for term in elastic {
+        if let Some(s) = (0..term.len()).find(|&s| term.stencil(s).len() != dim + 1) {
+            return Err(format!(
+                "the adaptive solver takes solids only ({} elements); `{}` has stencils of {} vertices (stencil {s})",
+                if dim == 3 { "tetrahedral" } else { "triangle" },
+                term.name(),
+                term.stencil(s).len()
+            ));
+        }
+    }
+    Ok(())
 }

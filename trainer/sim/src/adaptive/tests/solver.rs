@@ -388,3 +388,42 @@ fn data_modes_come_from_a_directory_of_trajectories() {
         "{err}"
     );
 }
+
+#[test]
+fn cloth_is_refused_as_not_a_solid() {
+    let text = r#"
+name = "sheet"
+dt = 0.01
+gravity = [0.0, -9.81, 0.0]
+
+[mesh]
+type = "cloth-grid"
+size = [0.2, 0.2]
+verts = [4, 4]
+
+[material]
+model = "stvk"
+youngs = 1e5
+poisson = 0.3
+density = 1000.0
+thickness = 0.001
+
+[[handles]]
+name = "edge"
+select = { nearest = [[0.0, 0.0, 0.0]] }
+
+[solver]
+kind = "adaptive"
+"#;
+    let scene = Scene::parse(text, Path::new("sheet.toml")).unwrap();
+    let err = scene
+        .build()
+        .err()
+        .expect("a cloth body has no tetrahedra to adapt on")
+        .to_string();
+    assert!(err.contains("sheet.toml") && err.contains("solver"), "{err}");
+    assert!(
+        err.contains("solids only") && err.contains("has stencils of 3 vertices"),
+        "{err}"
+    );
+}
