@@ -316,15 +316,21 @@ fn check_stack(scene: &Scene, frames: usize) {
 
 #[test]
 fn a_descending_box_squashes_a_small_beam_without_intersecting() {
-    check_stomp(&shipped("stomp", Some([8, 2, 2])), 100);
+    check_stomp(&keyframed_stomp(Some([8, 2, 2])), 100);
 }
 
-/// The full shipped scene for `mochi simulate`'s 300 frames (an optimised build:
-/// `cargo test -p mochi-sim --release -- --ignored shipped_stomp`).
+/// The full keyframed stomp for 300 frames (an optimised build:
+/// `cargo test -p mochi-sim --release -- --ignored keyframed_stomp`).
 #[test]
 #[ignore]
-fn the_shipped_stomp_runs_300_frames_intersection_free_and_the_beam_recovers() {
-    check_stomp(&shipped("stomp", None), 300);
+fn the_keyframed_stomp_runs_300_frames_intersection_free_and_the_beam_recovers() {
+    check_stomp(&keyframed_stomp(None), 300);
+}
+
+/// The stomp whose box is a keyframed obstacle (descends 5.5 cm from 0.5 s to 3 s, holds,
+/// lifts off by 7.5 s).
+fn keyframed_stomp(cells: Option<[usize; 3]>) -> Scene {
+    shipped("stomp-keyframed", cells)
 }
 
 /// Steps the stomp for `frames` frames: every step converges, no frame intersects (the

@@ -9,13 +9,16 @@
 //! `material_model`, `reference` (frames + 1, n, 3) and `diagonal`. Coordinates of 2-D
 //! meshes get z = 0.
 //!
-//! A scene with IPC contact obstacles (`[[contact.obstacles]]`) adds, for its o obstacles:
-//! `obstacle_kinds` (o,) ("box", or "mesh" for an OBJ file, which no peer reads yet),
-//! `obstacle_extents` (o, 3) a box's edge lengths (max - min; NaN for a mesh),
+//! A scene with IPC contact obstacles (`[[contact.obstacles]]`) or run-time colliders
+//! (`[[colliders]]`, after the obstacles, on the sequence's paths) adds, for its o obstacles:
+//! `obstacle_kinds` (o,) ("box"; "mesh" for an OBJ file, "sphere", "capsule": no peer reads
+//! those yet),
+//! `obstacle_extents` (o, 3) a box's edge lengths (max - min; NaN for other kinds),
 //! `obstacle_rotations` (o, 3) a box's rotation vector about its centre (zeros without one),
 //! `obstacle_centres` (frames + 1, o, 3) where each box's centre is at every frame (for a
 //! mesh: its scripted translation), placed by the simulator's own keyframe motion
-//! ([`ContactObstacle::offset_at`] at the frame's time), and `contact_dhat`,
+//! ([`mochi_sim::solver::ContactObstacle::offset_at`] at the frame's time) or, for a
+//! collider, its pose on the sequence's path at the frame, and `contact_dhat`,
 //! `contact_friction`, `contact_epsv`. A scene without them writes none of these keys.
 
 use std::path::Path;
@@ -23,8 +26,7 @@ use std::path::Path;
 use mochi_sim::bc::BcSequence;
 use mochi_sim::contact::ContactSurface;
 use mochi_sim::npz::NpzOut;
-use mochi_sim::scene::ObstacleMesh;
-use mochi_sim::solver::ContactObstacle;
+use mochi_sim::scene::{ContactSpec, ObstacleMesh, ShapeKind};
 use mochi_sim::{BuiltScene, Elements};
 
 use crate::error::{TrainerError, TrainerResult};
@@ -89,58 +91,122 @@ fn write(path: &Path, problem: &BuiltScene, bc: &BcSequence, reference: &[Vec<f6
         reference[..frames as usize].iter().flat_map(|x| pad(x)),
     )?;
     npz.array("diagonal", &[], [mesh.rest_diagonal()])?;
-    write_obstacles(&mut npz, problem, frames)?;
+    write_obstacles(&mut npz, problem, bc, frames)?;
     npz.finish()
 }
 
-/// The contact obstacles' keys (none when the scene has no obstacle meshes).
-fn write_obstacles(npz: &mut NpzOut, problem: &BuiltScene, frames: u64) -> std::io::Result<()> {
-    let Some(spec) = problem.scene.contact.as_ref().filter(|c| !c.obstacles.is_empty()) else {
+/// One obstacle as a case gives it to a peer.
+struct CaseObstacle {
+    /// "box", "mesh", "sphere" or "capsule".
+    kind: &'static str,
+    /// A box's edge lengths (NaN for other kinds).
+    extents: [f64; 3],
+    /// Rotation vector about its centre.
+    rotation: [f64; 3],
+    /// Its centre at every frame.
+    centres: Vec<[f64; 3]>,
+}
+
+/// The contact obstacles' keys (none when the scene has neither obstacle meshes nor
+/// run-time colliders): the scripted obstacles first, then the run-time colliders on `bc`'s
+/// paths.
+fn write_obstacles(npz: &mut NpzOut, problem: &BuiltScene, bc: &BcSequence, frames: u64) -> std::io::Result<()> {
+    let Some(spec) = problem.scene.contact.as_ref() else {
         return Ok(());
     };
-    // The simulator's own obstacles, for their scripted motion.
-    let built = spec
-        .build(ContactSurface::of_mesh(&problem.mesh), &problem.scene.source)
-        .map_err(|e| std::io::Error::other(e.to_string()))?;
-    let obstacles: Vec<(&ObstacleMesh, &ContactObstacle)> = spec.obstacles.iter().zip(&built.obstacles).collect();
+    let mut obstacles = scripted_obstacles(problem, spec, frames)?;
+    obstacles.extend(run_time_colliders(problem, bc, frames)?);
+    if obstacles.is_empty() {
+        return Ok(());
+    }
     let o = obstacles.len() as u64;
-    let box_of = |mesh: &ObstacleMesh| match mesh {
-        ObstacleMesh::Box { min, max, rotation, .. } => Some((*min, *max, rotation.unwrap_or([0.0; 3]))),
-        ObstacleMesh::File { .. } => None,
-    };
-    let kinds: Vec<&str> = obstacles
-        .iter()
-        .map(|(m, _)| if box_of(m).is_some() { "box" } else { "mesh" })
-        .collect();
-    npz.strings("obstacle_kinds", &[o], kinds.iter().copied())?;
-    npz.array(
-        "obstacle_extents",
-        &[o, 3],
-        obstacles.iter().flat_map(|(m, _)| match box_of(m) {
-            Some((min, max, _)) => [0, 1, 2].map(|i| max[i] - min[i]),
-            None => [f64::NAN; 3],
-        }),
-    )?;
-    npz.array(
-        "obstacle_rotations",
-        &[o, 3],
-        obstacles.iter().flat_map(|(m, _)| box_of(m).map_or([0.0; 3], |b| b.2)),
-    )?;
-    // Frame t is at time t dt, as the simulator places its obstacles at the end of step t.
-    let dt = problem.simulator.dt();
+    npz.strings("obstacle_kinds", &[o], obstacles.iter().map(|b| b.kind))?;
+    npz.array("obstacle_extents", &[o, 3], obstacles.iter().flat_map(|b| b.extents))?;
+    npz.array("obstacle_rotations", &[o, 3], obstacles.iter().flat_map(|b| b.rotation))?;
     npz.array(
         "obstacle_centres",
         &[frames, o, 3],
-        (0..frames).flat_map(|t| {
-            obstacles.iter().flat_map(move |(m, c)| {
-                let offset = c.offset_at(t as f64 * dt);
-                let centre = box_of(m).map_or([0.0; 3], |(min, max, _)| [0, 1, 2].map(|i| 0.5 * (min[i] + max[i])));
-                [0, 1, 2].map(|i| centre[i] + offset[i])
-            })
-        }),
+        (0..frames as usize).flat_map(|t| obstacles.iter().flat_map(move |b| b.centres[t])),
     )?;
     npz.array("contact_dhat", &[], [spec.dhat])?;
     npz.array("contact_friction", &[], [spec.friction])?;
     npz.array("contact_epsv", &[], [spec.epsv])?;
     Ok(())
+}
+
+/// The scene's `[[contact.obstacles]]`, placed by the simulator's own keyframe motion.
+fn scripted_obstacles(problem: &BuiltScene, spec: &ContactSpec, frames: u64) -> std::io::Result<Vec<CaseObstacle>> {
+    if spec.obstacles.is_empty() {
+        return Ok(Vec::new());
+    }
+    // The simulator's own obstacles, for their scripted motion.
+    let built = spec
+        .build(ContactSurface::of_mesh(&problem.mesh), &problem.scene.source)
+        .map_err(|e| std::io::Error::other(e.to_string()))?;
+    // Frame t is at time t dt, as the simulator places its obstacles at the end of step t.
+    let dt = problem.simulator.dt();
+    Ok(spec
+        .obstacles
+        .iter()
+        .zip(&built.obstacles)
+        .map(|(mesh, scripted)| {
+            let (kind, min, max, rotation) = match mesh {
+                ObstacleMesh::Box { min, max, rotation, .. } => ("box", *min, *max, rotation.unwrap_or([0.0; 3])),
+                ObstacleMesh::File { .. } => ("mesh", [0.0; 3], [0.0; 3], [0.0; 3]),
+            };
+            let extents = match kind {
+                "box" => [0, 1, 2].map(|i| max[i] - min[i]),
+                _ => [f64::NAN; 3],
+            };
+            let centre = [0, 1, 2].map(|i| 0.5 * (min[i] + max[i]));
+            let centres = (0..frames)
+                .map(|t| {
+                    let offset = scripted.offset_at(t as f64 * dt);
+                    [0, 1, 2].map(|i| centre[i] + offset[i])
+                })
+                .collect();
+            CaseObstacle {
+                kind,
+                extents,
+                rotation,
+                centres,
+            }
+        })
+        .collect())
+}
+
+/// The scene's `[[colliders]]` on `bc`'s paths (a box keeps its frame-0 rotation: a path
+/// turns only capsules, which no peer takes).
+fn run_time_colliders(problem: &BuiltScene, bc: &BcSequence, frames: u64) -> std::io::Result<Vec<CaseObstacle>> {
+    let specs = &problem.scene.colliders;
+    if bc.colliders.len() != specs.len() {
+        return Err(std::io::Error::other(format!(
+            "the sequence has {} collider tracks, the scene {} colliders",
+            bc.colliders.len(),
+            specs.len()
+        )));
+    }
+    specs
+        .iter()
+        .zip(&bc.colliders)
+        .map(|(spec, track)| {
+            if track.poses.len() < frames as usize {
+                return Err(std::io::Error::other(format!(
+                    "a collider track has {} poses, the case {frames} frames",
+                    track.poses.len()
+                )));
+            }
+            let (kind, extents) = match spec.half_extents {
+                Some(h) if spec.shape == ShapeKind::Box => ("box", h.map(|x| 2.0 * x)),
+                _ if spec.shape == ShapeKind::Sphere => ("sphere", [f64::NAN; 3]),
+                _ => ("capsule", [f64::NAN; 3]),
+            };
+            Ok(CaseObstacle {
+                kind,
+                extents,
+                rotation: track.poses[0].rotation_vector(),
+                centres: track.poses[..frames as usize].iter().map(|p| p.center.into()).collect(),
+            })
+        })
+        .collect()
 }
