@@ -373,6 +373,35 @@ fn a_contact_case_carries_the_obstacles_where_the_simulator_puts_them() {
     assert_eq!(friction, [0.5]);
 }
 
+/// A run-time capsule (poke's finger) goes into the case by its kind, which the XPBD peer
+/// refuses by name (it drives boxes only), with no edge lengths.
+#[test]
+fn a_capsule_collider_is_written_by_its_kind() {
+    let mut problem = Recipe::load("poke").unwrap().build().unwrap();
+    let bc = conditions::chart_sequences(&problem, 1, 2).remove(0).1;
+    let mut traj = problem.start(&bc).unwrap();
+    for t in 1..=2 {
+        problem.advance(&bc, t, &mut traj).unwrap();
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("case.npz");
+    mochi_trainer::eval::compare::case::write_case(&path, &problem, &bc, &traj.positions).unwrap();
+    let mut npz = NpzFile::open(&path).unwrap();
+    npz.array("obstacle_kinds").unwrap().expect_shape(&[1]).unwrap();
+    let extents = npz
+        .array("obstacle_extents")
+        .unwrap()
+        .into_vec::<f64>("float64")
+        .unwrap();
+    assert!(extents.iter().all(|e| e.is_nan()), "{extents:?}");
+    let centres = npz
+        .array("obstacle_centres")
+        .unwrap()
+        .into_vec::<f64>("float64")
+        .unwrap();
+    assert_eq!(centres[6..9], *bc.colliders[0].poses[2].center.as_slice());
+}
+
 /// `--sequences 0 --conditions 16-frames`: the long condition alone, each running method
 /// measured over its first frames and again over its last; the last window is the mean error
 /// of the runtime stepped directly against full space over those frames.

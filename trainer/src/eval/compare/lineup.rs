@@ -148,8 +148,8 @@ pub fn absent_peers(recipe: &Recipe) -> String {
 /// Why the learned runtime cannot be compared on `recipe`'s scene when no model is given.
 pub fn absent_learned(recipe: &Recipe) -> String {
     if moving_obstacles(recipe) {
-        "takes no obstacle inputs: a trained model follows the handles, the scene's obstacle moves on its own \
-         keyframes"
+        "takes no scripted obstacle: the scene's obstacle moves on its own keyframes, the same in every \
+         sequence (a run-time collider, `[[colliders]]`, is an input of a learned model)"
             .into()
     } else {
         "no model given (`--model`; `mochi train SCENE` makes one)".into()
