@@ -309,68 +309,96 @@ fn eval_of_the_adaptive_solver_gives_the_direct_numbers() {
     });
 }
 
-/// A contact scene's peer case carries its obstacle boxes where the simulator puts them: the
-/// scripted ground's centre at frame t is the centroid of the simulator's box corners after t
-/// steps, the run-time stomp box's the centre of the pose the simulator recorded for it (it
-/// comes down onto the beam along the sequence's path), with its edge lengths and the scene's
-/// contact parameters.
+/// A contact scene's peer case carries its obstacle boxes where the simulator puts them: each
+/// scripted box's centre at frame t is the centroid of the simulator's box corners after t
+/// steps (stomp-keyframed's box starts down at 0.5 s, frame 15), with the scene's contact
+/// parameters.
 #[test]
 fn a_contact_case_carries_the_obstacles_where_the_simulator_puts_them() {
-    let mut problem = Recipe::load("stomp").unwrap().build().unwrap();
+    let mut problem = Recipe::load("stomp-keyframed").unwrap().build().unwrap();
     let frames = 20;
-    let bc = mochi_trainer::eval::compare::conditions::chart_sequences(&problem, 1, frames)
-        .remove(0)
-        .1;
-    let mut traj = problem.start(&bc).unwrap();
+    let bc = conditions::chart_sequences(&problem, 1, frames).remove(0).1;
+    let dim = problem.mesh.dim;
+    let mut reference = vec![problem.simulator.positions().to_vec()];
     let mut corners = vec![problem.simulator.obstacle_positions().unwrap().to_vec()];
     for t in 1..=frames {
-        problem.advance(&bc, t, &mut traj).unwrap();
+        let targets = bc.targets(&problem.handles, t, dim);
+        problem.simulator.step(&targets).unwrap();
+        reference.push(problem.simulator.positions().to_vec());
         corners.push(problem.simulator.obstacle_positions().unwrap().to_vec());
     }
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("case.npz");
-    mochi_trainer::eval::compare::case::write_case(&path, &problem, &bc, &traj.positions).unwrap();
+    mochi_trainer::eval::compare::case::write_case(&path, &problem, &bc, &reference).unwrap();
     let mut npz = NpzFile::open(&path).unwrap();
-    let kinds = npz.array("obstacle_kinds").unwrap();
-    kinds.expect_shape(&[2]).unwrap();
-    let extents = npz
-        .array("obstacle_extents")
-        .unwrap()
-        .into_vec::<f64>("float64")
-        .unwrap();
-    assert_eq!(extents[3..], [0.12, 0.11, 0.2]);
+    assert!(npz.has("obstacle_kinds"));
     let centres = npz.array("obstacle_centres").unwrap();
     centres.expect_shape(&[frames as u64 + 1, 2, 3]).unwrap();
     let centres = centres.into_vec::<f64>("float64").unwrap();
-    let recorded = &traj
-        .colliders
-        .as_ref()
-        .expect("stomp's box is a run-time collider")
-        .states;
-    for t in 0..=frames {
-        for i in 0..3 {
-            let ground = corners[t].chunks_exact(3).map(|p| p[i]).sum::<f64>() / 8.0;
-            let written = centres[t * 6 + i];
-            assert!(
-                (written - ground).abs() < 1e-12,
-                "frame {t} ground axis {i}: {written} vs {ground}"
-            );
-            let written = centres[t * 6 + 3 + i];
-            let stomp = recorded[t][i];
-            assert!(
-                (written - stomp).abs() < 1e-12,
-                "frame {t} stomp axis {i}: {written} vs {stomp}"
-            );
+    for (t, corners) in corners.iter().enumerate() {
+        // The ground's 8 corners, then the box's.
+        for (k, box_corners) in corners.chunks_exact(24).enumerate() {
+            for i in 0..3 {
+                let centroid = box_corners.chunks_exact(3).map(|p| p[i]).sum::<f64>() / 8.0;
+                let written = centres[(t * 2 + k) * 3 + i];
+                assert!(
+                    (written - centroid).abs() < 1e-12,
+                    "frame {t} box {k} axis {i}: {written} vs {centroid}"
+                );
+            }
         }
     }
     let box_y = |t: usize| centres[(t * 2 + 1) * 3 + 1];
-    assert!(box_y(0) - box_y(frames) > 5e-3, "the box comes down");
+    assert!(box_y(15) - box_y(frames) > 3e-3, "the box moves down after 0.5 s");
     let friction = npz
         .array("contact_friction")
         .unwrap()
         .into_vec::<f64>("float64")
         .unwrap();
     assert_eq!(friction, [0.5]);
+}
+
+/// Run-time colliders go into the case as obstacle boxes where the simulator had them: stomp's
+/// ground (placed) and its box (on the sequence's path, coming down onto the beam), each
+/// centre that of the pose the simulator recorded at the frame, with their edge lengths.
+#[test]
+fn a_case_carries_the_run_time_colliders_where_the_simulator_had_them() {
+    let mut problem = Recipe::load("stomp").unwrap().build().unwrap();
+    let frames = 20;
+    let bc = conditions::chart_sequences(&problem, 1, frames).remove(0).1;
+    let mut traj = problem.start(&bc).unwrap();
+    for t in 1..=frames {
+        problem.advance(&bc, t, &mut traj).unwrap();
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("case.npz");
+    mochi_trainer::eval::compare::case::write_case(&path, &problem, &bc, &traj.positions).unwrap();
+    let mut npz = NpzFile::open(&path).unwrap();
+    npz.array("obstacle_kinds").unwrap().expect_shape(&[2]).unwrap();
+    let extents = npz
+        .array("obstacle_extents")
+        .unwrap()
+        .into_vec::<f64>("float64")
+        .unwrap();
+    assert_eq!(extents, [2.0, 0.1, 2.0, 0.12, 0.11, 0.2]);
+    let centres = npz.array("obstacle_centres").unwrap();
+    centres.expect_shape(&[frames as u64 + 1, 2, 3]).unwrap();
+    let centres = centres.into_vec::<f64>("float64").unwrap();
+    let recorded = &traj.colliders.as_ref().expect("run-time colliders").states;
+    for t in 0..=frames {
+        for k in 0..2 {
+            for i in 0..3 {
+                let (written, pose) = (centres[(t * 2 + k) * 3 + i], recorded[t][k * 12 + i]);
+                assert!(
+                    (written - pose).abs() < 1e-12,
+                    "frame {t} collider {k} axis {i}: {written} vs {pose}"
+                );
+            }
+        }
+    }
+    assert_eq!(centres[1], -0.05, "the ground's top face at y = 0");
+    let box_y = |t: usize| centres[(t * 2 + 1) * 3 + 1];
+    assert!(box_y(0) - box_y(frames) > 5e-3, "the box comes down");
 }
 
 /// A run-time capsule (poke's finger) goes into the case by its kind, which the XPBD peer
