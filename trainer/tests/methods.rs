@@ -401,6 +401,24 @@ fn a_case_carries_the_run_time_colliders_where_the_simulator_had_them() {
     assert!(box_y(0) - box_y(frames) > 5e-3, "the box comes down");
 }
 
+/// A scene whose only sampled motion is a run-time collider's (stomp's box) gets the speed
+/// conditions too: its box 1.5x and 2x the top training speed, and stopped.
+#[test]
+fn a_collider_motion_gets_the_speed_conditions() {
+    let problem = Recipe::load("stomp").unwrap().build().unwrap();
+    let span = MatrixSpan {
+        frames: 4,
+        long_frames: 4,
+    };
+    let names: Vec<String> = conditions::conditions(&problem, span)
+        .into_iter()
+        .map(|c| c.name)
+        .collect();
+    for name in ["1.5x top speed", "2x top speed", "sudden stop"] {
+        assert!(names.iter().any(|n| n == name), "{name} missing from {names:?}");
+    }
+}
+
 /// A run-time capsule (poke's finger) goes into the case by its kind, which the XPBD peer
 /// refuses by name (it drives boxes only), with no edge lengths.
 #[test]

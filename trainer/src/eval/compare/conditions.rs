@@ -50,7 +50,8 @@ pub struct MatrixSpan {
 
 /// The matrix's conditions for `problem`'s scene: in range (the scene's middle training
 /// speed), 1.5x and 2x the top training speed and a sudden stop from the top speed (only
-/// where a handle's motion is sampled from speeds: a scripted motion has one speed), the
+/// where a handle's or a run-time collider's motion is sampled from speeds: a scripted
+/// motion has one speed), the
 /// in-range motion over `long_frames` (measured over its first and its last `frames`), the
 /// time step halved and doubled at run time, the
 /// material ten times stiffer, and contact when the scene has it (its in-range motion with
@@ -65,7 +66,9 @@ pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
     };
     let in_range = problem.sequence(&at(0.5, 1.0), frames, seed);
     let mut out = vec![plain("in range", scene, in_range.clone(), frames)];
-    if scene.handles.iter().any(|h| h.motion.is_some() && h.script.is_empty()) {
+    let sampled_speeds = scene.handles.iter().any(|h| h.motion.is_some() && h.script.is_empty())
+        || scene.colliders.iter().any(|c| c.motion.is_some());
+    if sampled_speeds {
         let fast = |factor| problem.sequence(&at(1.0, factor), frames, seed);
         out.push(plain("1.5x top speed", scene, fast(1.5), frames));
         out.push(plain("2x top speed", scene, fast(2.0), frames));
