@@ -363,16 +363,8 @@ fn a_contact_case_carries_the_obstacles_where_the_simulator_puts_them() {
 /// centre that of the pose the simulator recorded at the frame, with their edge lengths.
 #[test]
 fn a_case_carries_the_run_time_colliders_where_the_simulator_had_them() {
-    let mut problem = Recipe::load("stomp").unwrap().build().unwrap();
     let frames = 20;
-    let bc = conditions::chart_sequences(&problem, 1, frames).remove(0).1;
-    let mut traj = problem.start(&bc).unwrap();
-    for t in 1..=frames {
-        problem.advance(&bc, t, &mut traj).unwrap();
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("case.npz");
-    mochi_trainer::eval::compare::case::write_case(&path, &problem, &bc, &traj.positions).unwrap();
+    let (_dir, path, _bc, traj) = stepped_case("stomp", frames);
     let mut npz = NpzFile::open(&path).unwrap();
     npz.array("obstacle_kinds").unwrap().expect_shape(&[2]).unwrap();
     let extents = npz
@@ -401,6 +393,29 @@ fn a_case_carries_the_run_time_colliders_where_the_simulator_had_them() {
     assert!(box_y(0) - box_y(frames) > 5e-3, "the box comes down");
 }
 
+/// The case of `scene`'s first chart sequence stepped `frames` frames in full space, written
+/// into a temporary folder (kept alive by the first item), with the sequence and trajectory.
+fn stepped_case(
+    scene: &str,
+    frames: usize,
+) -> (
+    tempfile::TempDir,
+    PathBuf,
+    mochi_sim::bc::BcSequence,
+    mochi_sim::Trajectory,
+) {
+    let mut problem = Recipe::load(scene).unwrap().build().unwrap();
+    let bc = conditions::chart_sequences(&problem, 1, frames).remove(0).1;
+    let mut traj = problem.start(&bc).unwrap();
+    for t in 1..=frames {
+        problem.advance(&bc, t, &mut traj).unwrap();
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("case.npz");
+    mochi_trainer::eval::compare::case::write_case(&path, &problem, &bc, &traj.positions).unwrap();
+    (dir, path, bc, traj)
+}
+
 /// A scene whose only sampled motion is a run-time collider's (stomp's box) gets the speed
 /// conditions too: its box 1.5x and 2x the top training speed, and stopped.
 #[test]
@@ -423,15 +438,7 @@ fn a_collider_motion_gets_the_speed_conditions() {
 /// refuses by name (it drives boxes only), with no edge lengths.
 #[test]
 fn a_capsule_collider_is_written_by_its_kind() {
-    let mut problem = Recipe::load("poke").unwrap().build().unwrap();
-    let bc = conditions::chart_sequences(&problem, 1, 2).remove(0).1;
-    let mut traj = problem.start(&bc).unwrap();
-    for t in 1..=2 {
-        problem.advance(&bc, t, &mut traj).unwrap();
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("case.npz");
-    mochi_trainer::eval::compare::case::write_case(&path, &problem, &bc, &traj.positions).unwrap();
+    let (_dir, path, bc, _traj) = stepped_case("poke", 2);
     let mut npz = NpzFile::open(&path).unwrap();
     npz.array("obstacle_kinds").unwrap().expect_shape(&[1]).unwrap();
     let extents = npz
