@@ -14,7 +14,8 @@
 #
 # The options after "S,I" go to both `mochi compare` calls (--model, --reduced, --frames,
 # --sequences, --matrix-frames, --long-frames, --max-substeps); the shipped pages' options are
-# on each page. A contact scene's cases carry its obstacle boxes, which the XPBD peer collides
+# on each page. A contact scene's cases carry its obstacle boxes and run-time box colliders
+# (each collider's centre on the sequence's path), which the XPBD peer collides
 # through the library's own collision detection (scripts/xpbd_run.py); pass "-" for "S,I" to
 # skip step 2 (twist-bar: quasi-static, XPBD steps dynamics).
 #
