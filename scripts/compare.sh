@@ -19,7 +19,9 @@
 # through the library's own collision detection (scripts/xpbd_run.py); pass "-" for "S,I" to
 # skip step 2 (twist-bar: quasi-static, XPBD steps dynamics).
 #
-# The cases and recordings go to target/compare/SCENE (WORK=DIR for another); the cases are
+# XPBD_SWEEP="--substeps-list 1,2,4 --iterations-list 1" narrows step 2's sweep (default: every
+# setting of scripts/xpbd_run.py's sweep). The cases and recordings go to target/compare/SCENE
+# (WORK=DIR for another); the cases are
 # written afresh by every call. `--sequences 0 --conditions 10000-frames` measures the long
 # condition alone (docs/results/methods/long/).
 set -euo pipefail
@@ -41,7 +43,8 @@ if [ "$setting" != "-" ]; then
     name=$(basename "$case_file" .npz)
     mkdir -p "$work/peers/$name"
     case $name in
-      test-*) scripts/xpbd.sh sweep "$case_file" "$work/peers/$name" ;;
+      # shellcheck disable=SC2086 # the options are words
+      test-*) scripts/xpbd.sh sweep "$case_file" "$work/peers/$name" ${XPBD_SWEEP:-} ;;
       *) scripts/xpbd.sh run "$case_file" "$work/peers/$name/s$substeps-i$iterations.npz" \
         --substeps "$substeps" --iterations "$iterations" ;;
     esac
