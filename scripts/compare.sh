@@ -21,9 +21,8 @@
 #
 # XPBD_SWEEP="--substeps-list 1,2,4 --iterations-list 1" narrows step 2's sweep (default: every
 # setting of scripts/xpbd_run.py's sweep). The cases and recordings go to target/compare/SCENE
-# (WORK=DIR for another); the cases are
-# written afresh by every call. `--sequences 0 --conditions 10000-frames` measures the long
-# condition alone (docs/results/methods/long/).
+# (WORK=DIR for another); the cases are written afresh by every call. `--sequences 0
+# --conditions 10000-frames` measures the long condition alone (docs/results/methods/long/).
 set -euo pipefail
 
 cd "$(dirname "$0")/.."

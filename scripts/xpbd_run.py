@@ -1,8 +1,9 @@
 """XPBD peer: Bender's PositionBasedDynamics (PyPI `pypbd`) driven on a case `.npz` written by
 `mochi compare SCENE --cases DIR` (rest shape, cells, lumped masses, handles and their targets,
 material, the scene's implicit-Euler reference, and a contact scene's obstacle boxes (scripted
-obstacles and run-time box colliders) with their centres at every frame, dhat and friction; layout in trainer/src/eval/compare/case.rs). Run by
-scripts/xpbd.sh, which makes its virtual environment and pins it to one core:
+obstacles and run-time box colliders) with their centres at every frame, dhat and friction;
+layout in trainer/src/eval/compare/case.rs). Run by scripts/xpbd.sh, which makes its virtual
+environment and pins it to one core:
 
     python xpbd_run.py CASE.npz --substeps S --iterations I --out RESULT.npz
     python xpbd_run.py CASE.npz --sweep OUTDIR [--substeps-list 1,2,4 --iterations-list 1,5]

@@ -150,15 +150,16 @@ fn scripted_obstacles(problem: &BuiltScene, spec: &ContactSpec, frames: u64) -> 
         .iter()
         .zip(&built.obstacles)
         .map(|(mesh, scripted)| {
-            let (kind, min, max, rotation) = match mesh {
-                ObstacleMesh::Box { min, max, rotation, .. } => ("box", *min, *max, rotation.unwrap_or([0.0; 3])),
-                ObstacleMesh::File { .. } => ("mesh", [0.0; 3], [0.0; 3], [0.0; 3]),
+            // A mesh's centre is its scripted translation alone.
+            let (kind, extents, centre, rotation) = match mesh {
+                ObstacleMesh::Box { min, max, rotation, .. } => (
+                    "box",
+                    [0, 1, 2].map(|i| max[i] - min[i]),
+                    [0, 1, 2].map(|i| 0.5 * (min[i] + max[i])),
+                    rotation.unwrap_or([0.0; 3]),
+                ),
+                ObstacleMesh::File { .. } => ("mesh", [f64::NAN; 3], [0.0; 3], [0.0; 3]),
             };
-            let extents = match kind {
-                "box" => [0, 1, 2].map(|i| max[i] - min[i]),
-                _ => [f64::NAN; 3],
-            };
-            let centre = [0, 1, 2].map(|i| 0.5 * (min[i] + max[i]));
             let centres = (0..frames)
                 .map(|t| {
                     let offset = scripted.offset_at(t as f64 * dt);
@@ -196,10 +197,10 @@ fn run_time_colliders(problem: &BuiltScene, bc: &BcSequence, frames: u64) -> std
                     track.poses.len()
                 )));
             }
-            let (kind, extents) = match spec.half_extents {
-                Some(h) if spec.shape == ShapeKind::Box => ("box", h.map(|x| 2.0 * x)),
-                _ if spec.shape == ShapeKind::Sphere => ("sphere", [f64::NAN; 3]),
-                _ => ("capsule", [f64::NAN; 3]),
+            let (kind, extents) = match spec.shape {
+                ShapeKind::Box => ("box", spec.half_extents.map_or([f64::NAN; 3], |h| h.map(|x| 2.0 * x))),
+                ShapeKind::Sphere => ("sphere", [f64::NAN; 3]),
+                ShapeKind::Capsule => ("capsule", [f64::NAN; 3]),
             };
             Ok(CaseObstacle {
                 kind,

@@ -51,10 +51,9 @@ pub struct MatrixSpan {
 /// The matrix's conditions for `problem`'s scene: in range (the scene's middle training
 /// speed), 1.5x and 2x the top training speed and a sudden stop from the top speed (only
 /// where a handle's or a run-time collider's motion is sampled from speeds: a scripted
-/// motion has one speed), the
-/// in-range motion over `long_frames` (measured over its first and its last `frames`), the
-/// time step halved and doubled at run time, the
-/// material ten times stiffer, and contact when the scene has it (its in-range motion with
+/// motion has one speed), the in-range motion over `long_frames` (measured over its first
+/// and its last `frames`), the time step halved and doubled at run time, the material ten
+/// times stiffer, and contact when the scene has it (its in-range motion with
 /// contact on).
 pub fn conditions(problem: &BuiltScene, span: MatrixSpan) -> Vec<Condition> {
     let scene = &problem.scene;
