@@ -4,7 +4,7 @@
 //! sequence (scene field `colliders.placement`: a floor, a wall, a table).
 //!
 //! A path starts outside the body's rest bounding box (grown by the collider's bounding
-//! radius and its `clearance`), heads for an aim point drawn uniformly in the motion's
+//! radius and its `clearance`, then by `approach`), heads for an aim point drawn uniformly in the motion's
 //! `region`, rests there for `hold_frames`, and goes on to the next aim point, and so on,
 //! at the sequence's speed: the collider pokes into the body, presses, and drags through it.
 //! Each leg keeps the collider's bounding sphere `clearance` away from the handles' vertices
@@ -119,6 +119,12 @@ pub struct ColliderMotionSpec {
     /// which the start lies outside the body's bounding box (default 0).
     #[serde(default)]
     pub clearance: f64,
+    /// How far (m) beyond the point where the collider's bounding sphere, grown by
+    /// `clearance`, leaves the body's bounding box the path starts, along its first approach
+    /// (default: the bounding radius plus `clearance` again). A flat box's bounding sphere
+    /// reaches far past its faces, so a small `approach` starts it nearer the body.
+    #[serde(default)]
+    pub approach: Option<f64>,
     /// Share of the sequences the collider takes part in (default 1); in the others it rests
     /// at its parked pose.
     #[serde(default = "one")]
@@ -178,6 +184,9 @@ impl ColliderMotionSpec {
                 format!("must be finite and non-negative, got {}", self.clearance),
             ));
         }
+        if let Some(a) = self.approach.filter(|a| !(a.is_finite() && *a >= 0.0)) {
+            return Err(("approach", format!("must be finite and non-negative, got {a}")));
+        }
         if !(0.0..=1.0).contains(&self.share) {
             return Err(("share", format!("must be in [0, 1], got {}", self.share)));
         }
@@ -217,7 +226,7 @@ impl ColliderMotionSpec {
         for _ in 0..AIM_TRIES {
             let dir = self.draw_direction(rng);
             let aim = draw_aim(rng);
-            let back = exit_distance(&aim, &(-dir), lo, hi, reach) + reach;
+            let back = exit_distance(&aim, &(-dir), lo, hi, reach) + self.approach.unwrap_or(reach);
             let from = aim - back * dir;
             if clear(&from, &aim) {
                 start = Some((dir, from, aim));

@@ -86,6 +86,7 @@ fn every_bad_collider_field_is_refused_by_name() {
     );
     refused(&motion("hold_frames = [5, 2]\n"), "colliders[0].motion.hold_frames");
     refused(&motion("clearance = -0.1\n"), "colliders[0].motion.clearance");
+    refused(&motion("approach = -0.01\n"), "colliders[0].motion.approach");
     refused(&motion("share = 1.5\n"), "colliders[0].motion.share");
     refused(
         &motion("region = { min = [0.0, 0.0, 0.0], max = [0.1, -0.1, 0.1] }\n"),

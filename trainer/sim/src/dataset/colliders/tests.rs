@@ -17,7 +17,11 @@ fn built(text: &str, file: &str) -> BuiltScene {
 
 /// A 0.1 m soft cube (2 x 2 x 2 cells) held at its base, and a sphere that pokes it.
 fn poked_cube() -> BuiltScene {
-    let text = r#"
+    built(POKED_CUBE, "poked-cube.toml")
+}
+
+/// The scene text of [`poked_cube`].
+const POKED_CUBE: &str = r#"
 name = "poked-cube"
 dt = 0.02
 gravity = [0.0, -9.81, 0.0]
@@ -54,8 +58,6 @@ test = 0
 validation = 0
 frames = 12
 "#;
-    built(text, "poked-cube.toml")
-}
 
 #[test]
 fn collider_paths_start_outside_the_body_at_the_sequence_speed_and_are_seeded() {
@@ -79,6 +81,25 @@ fn collider_paths_start_outside_the_body_at_the_sequence_speed_and_are_seeded() 
         assert!((v[1] * 0.02 - (w[1].center.y - w[0].center.y)).abs() < 1e-12);
     }
     assert!(ball.poses.iter().any(|p| p.center.y <= 0.12 + 1e-12));
+    // With `approach = 0` the path starts where the grown sphere leaves the body's box:
+    // the same aim points and speeds, its first pose at 0.1 + 0.03 + 0.005 exactly.
+    let near = built(
+        &POKED_CUBE.replace("clearance = 0.005\n", "clearance = 0.005\napproach = 0.0\n"),
+        "poked-cube.toml",
+    );
+    let b = near.sequence(&speeds, 30, 7);
+    assert!(
+        (b.colliders[0].poses[0].center.y - 0.135).abs() < 1e-12,
+        "{:?}",
+        b.colliders[0].poses[0]
+    );
+    assert!((ball.poses[0].center.y - 0.17).abs() < 1e-12, "{:?}", ball.poses[0]);
+    // It reaches the aim height sooner, by the 0.035 m it no longer travels.
+    let arrival = |s: &crate::bc::BcSequence| {
+        let at = s.colliders[0].poses.iter().position(|p| p.center.y <= 0.12 + 1e-12);
+        at.expect("the ball reaches its aim height")
+    };
+    assert!(arrival(&b) < arrival(&a), "{} {}", arrival(&b), arrival(&a));
     // The collider without a motion rests at its parked pose.
     let parked = &a.colliders[1];
     assert!(parked.poses.iter().all(|p| *p == parked.poses[0]));
