@@ -60,6 +60,53 @@ fn the_simulator_through_the_interface_is_the_simulator() {
     });
 }
 
+/// With a run-time collider, the interface moves it as the simulator's own run does: the
+/// full-space method's positions are the dataset's, and the ball presses the block.
+#[test]
+fn the_simulator_through_the_interface_moves_the_run_time_colliders() {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    pool.install(|| {
+        let scene = artifacts().join("tiny-poke.toml");
+        let mut problem = Recipe::load(scene.to_str().unwrap()).unwrap().build().unwrap();
+        let frames = 40;
+        let bc = problem.sequence(&SpeedPlan::constant(1.0), frames, 2);
+        let direct = problem.run(&bc, &mochi_sim::Silent).unwrap();
+        let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+        let mut kept = Vec::new();
+        for substeps in [1, 2] {
+            let mut method = Simulated::new(&problem.scene, substeps, "").unwrap();
+            kept.clear();
+            run_sequence(
+                &mut method,
+                &bc,
+                frames,
+                &[],
+                dim,
+                diagonal,
+                Some((&mut kept, frames + 1)),
+            )
+            .unwrap();
+            if substeps == 1 {
+                assert!(
+                    kept == direct.positions,
+                    "the interface's positions differ from the simulator's"
+                );
+            }
+            // The ball comes down onto the block's top face (rest height 6 cm) and presses it.
+            let lowest_top = kept
+                .iter()
+                .flat_map(|x| x.chunks(dim).zip(problem.mesh.rest.chunks(dim)))
+                .filter(|(_, rest)| rest[1] > 0.06 - 1e-9)
+                .map(|(p, _)| p[1])
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                lowest_top < 0.06 - 3e-3,
+                "{substeps} substep(s): the top sank to {lowest_top} only"
+            );
+        }
+    });
+}
+
 #[test]
 fn substeps_converge_and_the_coarse_mesh_follows_the_handles() {
     let problem = tiny().build().unwrap();

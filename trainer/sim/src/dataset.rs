@@ -378,12 +378,18 @@ impl BuiltScene {
         Ok(traj)
     }
 
+    /// Steps to `frame` of `seq`: the run-time colliders sent to their poses there, the
+    /// handles to their targets. Every stepping of a sequence goes through here, so no caller
+    /// leaves the colliders where [`Self::start`] placed them.
+    pub fn step_to(&mut self, seq: &BcSequence, frame: usize) -> Result<StepReport, StepError> {
+        self.move_colliders(seq, frame)?;
+        self.simulator.step(&seq.targets(&self.handles, frame, self.mesh.dim))
+    }
+
     /// Steps to `frame` of `seq` and appends it to `traj`.
     pub fn advance(&mut self, seq: &BcSequence, frame: usize, traj: &mut Trajectory) -> Result<StepReport, StepError> {
-        let dim = self.mesh.dim;
         let start = Instant::now();
-        self.move_colliders(seq, frame)?;
-        let report: StepReport = self.simulator.step(&seq.targets(&self.handles, frame, dim))?;
+        let report = self.step_to(seq, frame)?;
         let seconds = start.elapsed().as_secs_f64();
         traj.positions.push(self.simulator.positions().to_vec());
         traj.bc_signal.push(seq.signal(frame));

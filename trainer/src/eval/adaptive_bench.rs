@@ -191,7 +191,7 @@ pub fn compare(
         reports.push(adaptive.advance(&seq, frame, &mut trajectory)?);
         if let Some(s) = shadow.as_mut() {
             s.simulator.set_state(&before);
-            s.simulator.step(&seq.targets(&s.handles, frame, dim))?;
+            s.step_to(&seq, frame)?;
             let after = adaptive.simulator.positions();
             let gap = after
                 .iter()

@@ -129,13 +129,9 @@ impl Method for Simulated {
     }
 
     fn step(&mut self, _bc: &BcSequence, frame: usize) -> TrainerResult<StepCost> {
-        let dim = self.problem.mesh.dim;
         let mut iterations = 0;
         for sub in 1..=self.substeps {
-            let targets = self
-                .fine
-                .targets(&self.problem.handles, (frame - 1) * self.substeps + sub, dim);
-            let report = self.problem.simulator.step(&targets)?;
+            let report = self.problem.step_to(&self.fine, (frame - 1) * self.substeps + sub)?;
             iterations += report.iterations;
             if let Some(a) = &report.adaptive {
                 self.enriched.0 += a.enriched_vertices as f64 / a.free_vertices.max(1) as f64;
