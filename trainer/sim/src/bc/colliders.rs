@@ -4,12 +4,13 @@
 //! sequence (scene field `colliders.placement`: a floor, a wall, a table).
 //!
 //! A path starts outside the body's rest bounding box (grown by the collider's bounding
-//! radius and its `clearance`, then by `approach`), heads for an aim point drawn uniformly in the motion's
-//! `region`, rests there for `hold_frames`, and goes on to the next aim point, and so on,
-//! at the sequence's speed: the collider pokes into the body, presses, and drags through it.
-//! Each leg keeps the collider's bounding sphere `clearance` away from the handles' vertices
-//! (at their frame-0 places) where a draw allows (64 tries a leg, then it rests). Everything
-//! comes from the sequence's seed, so a sequence is the same on every run.
+//! radius and its `clearance`, then by `approach`), heads for an aim point drawn uniformly
+//! in the motion's `region`, rests there for `hold_frames`, and goes on to the next aim
+//! point, and so on, at the sequence's speed: the collider pokes into the body, presses,
+//! and drags through it. Each leg keeps the collider's bounding sphere `clearance` away from
+//! the handles' vertices (at their frame-0 places) where a draw allows (64 tries a leg, then
+//! it rests). Everything comes from the sequence's seed, so a sequence is the same on every
+//! run.
 
 use crate::contact::{ColliderPose, ColliderShape};
 use nalgebra::{UnitQuaternion, Vector3};
