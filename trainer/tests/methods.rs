@@ -11,6 +11,7 @@ use mochi_sim::measure::mean_and_max_error;
 use mochi_sim::npz::{NpzFile, NpzOut};
 use mochi_sim::SpeedPlan;
 use mochi_trainer::eval::compare::conditions::{self, MatrixSpan};
+use mochi_trainer::eval::compare::matrix::reference_spread;
 use mochi_trainer::eval::compare::{compare, page, CompareOptions};
 use mochi_trainer::eval::storage;
 use mochi_trainer::methods::learned::{motions, LearnedRuntime};
@@ -295,6 +296,15 @@ fn compare_runs_every_family_and_replays_a_peer() {
     assert_eq!(c.matrix.len(), 8);
     let halved = c.matrix.iter().find(|r| r.condition == "dt halved").unwrap();
     assert_eq!(halved.frames.0, 16);
+    for row in &c.matrix {
+        let full = &row.cells[0];
+        assert!(
+            full.method == "full space" && full.text.contains("(the reference; tolerance / 1000: 0.000%)"),
+            "{}: {}",
+            row.condition,
+            full.text
+        );
+    }
     assert!(halved
         .cells
         .iter()
@@ -303,6 +313,41 @@ fn compare_runs_every_family_and_replays_a_peer() {
     let text = std::fs::read_to_string(dir.path().join("tiny.md")).unwrap();
     assert!(text.contains("## Stability matrix") && text.contains("XPBD (pypbd)"));
     assert!(dir.path().join("tiny/speed-accuracy-converged.png").is_file());
+}
+
+/// The matrix's check of its reference: full space at a tighter Newton tolerance stays within
+/// round-off of the tiny cantilever's reference, and the spread is the
+/// mean distance over the reference's frames: a reference moved by 1% of the diagonal on
+/// every frame after the first reads 1% from the check run.
+#[test]
+fn the_matrix_measures_how_far_a_tighter_tolerance_moves_its_reference() {
+    let problem = tiny().build().unwrap();
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let bc = problem.sequence(&SpeedPlan::constant(0.8), 12, 5);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let mut reference = Vec::new();
+    let mut full = Simulated::new(&problem.scene, 1, "").unwrap();
+    pool.install(|| run_sequence(&mut full, &bc, 12, &[], dim, diagonal, Some((&mut reference, 13))))
+        .unwrap();
+    let spread = pool
+        .install(|| reference_spread(&problem.scene, &bc, &reference, dim, diagonal))
+        .unwrap();
+    assert!(spread < 1e-6, "{spread}");
+    let moved: Vec<Vec<f64>> = reference
+        .iter()
+        .enumerate()
+        .map(|(f, x)| {
+            let mut x = x.clone();
+            if f > 0 {
+                x.iter_mut().step_by(dim).for_each(|v| *v += 0.01 * diagonal);
+            }
+            x
+        })
+        .collect();
+    let spread = pool
+        .install(|| reference_spread(&problem.scene, &bc, &moved, dim, diagonal))
+        .unwrap();
+    assert!((spread - 0.01).abs() < 1e-4, "{spread}");
 }
 
 /// `mochi eval --adaptive` steps through the interface: its errors, iterations and enriched

@@ -43,9 +43,10 @@ use crate::progress::Reporter;
 pub mod case;
 pub mod conditions;
 pub mod lineup;
+pub mod matrix;
 pub mod page;
 
-use conditions::{Condition, MatrixSpan, RunTimeChange};
+use conditions::{MatrixSpan, RunTimeChange};
 use lineup::{model_files, Budgets, Entry, LearnedModel, ReducedSubspace, SubspaceMap, Trained, CANDIDATES_FAMILY};
 
 /// The time-converged reference stops halving the step once the positions move by less than
@@ -285,7 +286,7 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
     let mut comparison = chart(&problem, &trained, options, report)?;
     if let Some(span) = options.matrix {
         for condition in conditions::select(conditions::conditions(&problem, span), &options.conditions)? {
-            let row = matrix_row(&condition, &trained, options, report)?;
+            let row = matrix::matrix_row(&condition, &trained, options, report)?;
             comparison.matrix.push(row);
         }
     }
@@ -459,113 +460,6 @@ fn converged_reference(
         }
     }
     Ok((last, (substeps, change), failure))
-}
-
-/// One condition of the matrix: the full-space reference under it, then one setting per
-/// family.
-fn matrix_row(
-    condition: &Condition,
-    trained: &Trained,
-    options: &CompareOptions,
-    report: &dyn Reporter,
-) -> TrainerResult<MatrixRow> {
-    let mut reference_scene = condition.scene.clone();
-    reference_scene.solver = SolverSpec::FullSpace;
-    let mut full = Simulated::new(&reference_scene, 1, "1 step(s) per frame")?;
-    let (dim, diagonal) = (full.problem().mesh.dim, full.problem().mesh.rest_diagonal());
-    let frames = condition.bc.frames();
-    let mut cells = Vec::new();
-    let mut reference = Vec::new();
-    let run = run_sequence(
-        &mut full,
-        &condition.bc,
-        frames,
-        &[],
-        dim,
-        diagonal,
-        // A peer's case carries the reference over every frame, as does a condition measured
-        // again at its end.
-        Some((
-            &mut reference,
-            if options.cases.is_some() || condition.last_window > 0 {
-                frames + 1
-            } else {
-                condition.measured + 1
-            },
-        )),
-    )?;
-    // The scene as built for the reference serves every other method too (the solver aside,
-    // it is the condition's scene).
-    let problem = full.problem();
-    // Where full space itself fails under the condition (a fast rod folding back in one
-    // step), the others are measured over the frames it reached and stepped on for stability.
-    let measured = condition.measured.min(reference.len() - 1);
-    // The window at the end (its last `last_window` frames), where the reference reaches it.
-    let last_window = if reference.len() == frames + 1 {
-        condition.last_window.min(frames.saturating_sub(measured))
-    } else {
-        0
-    };
-    let reference_end = if last_window > 0 { frames } else { measured };
-    cells.push(Cell {
-        method: "full space".into(),
-        text: match &run.failure {
-            None => format!("{} / {frames} (the reference)", run.stable_frames),
-            Some(f) => format!("{} / {frames} (the reference; fails at {f})", run.stable_frames),
-        },
-    });
-    if let Some(dir) = &options.cases {
-        let name = slug(&condition.name);
-        fs::create_dir_all(dir)?;
-        case::write_case(&dir.join(format!("{name}.npz")), problem, &condition.bc, &reference)?;
-        if options.cases_only {
-            return Ok(MatrixRow {
-                condition: condition.name.clone(),
-                frames: (frames, condition.measured),
-                cells,
-            });
-        }
-    }
-    // The other methods on the condition's scene with the scene's own solver.
-    let scene = &condition.scene;
-    let mut entries: Vec<Entry> = lineup::simulated(scene, problem, Budgets::One)
-        .into_iter()
-        .skip(1)
-        .collect();
-    entries.extend(lineup::reduced(trained, problem, condition.change));
-    entries.extend(lineup::learned(trained, condition.change, Budgets::One));
-    entries.extend(lineup::peers(
-        trained,
-        &slug(&condition.name),
-        problem.mesh.num_vertices(),
-        dim,
-    ));
-    for entry in entries {
-        let cell = match entry {
-            Entry::Cannot { family, reason } => Cell {
-                method: family,
-                text: reason,
-            },
-            Entry::Runs(mut method) => {
-                let refs: [&[Vec<f64>]; 1] = [&reference[..=reference_end]];
-                let run = run_sequence(method.as_mut(), &condition.bc, frames, &refs, dim, diagonal, None)?;
-                Cell {
-                    method: format!("{} {}", method.family(), method.setting()),
-                    text: page::matrix_cell(&run, measured, last_window),
-                }
-            }
-        };
-        report.message(&format!(
-            "{} {}: {}: {}",
-            problem.scene.name, condition.name, cell.method, cell.text
-        ));
-        cells.push(cell);
-    }
-    Ok(MatrixRow {
-        condition: condition.name.clone(),
-        frames: (frames, measured),
-        cells,
-    })
 }
 
 /// A condition's name as a file stem.

@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use super::matrix::CHECK_TOLERANCE;
 use super::{ChartPoint, Comparison};
 use crate::error::{fs, TrainerResult};
 use crate::methods::method::SequenceRun;
@@ -268,9 +269,14 @@ fn matrix(c: &Comparison) -> String {
         "\n## Stability matrix\n\nOne setting per method under each condition; a cell gives the frames stepped \
          before a blow-up (a vertex moving more than a rest diagonal in one frame, a non-finite position or a \
          refused step) and the mean error against full space under the same condition over the measured frames \
-         (the long condition's first {} frames, and its last as many where it is longer).\n\n| condition | {} \
+         (the long condition's first {} frames, and its last as many where it is longer). The full-space cell \
+         gives how far full space at a Newton tolerance {} times tighter parts from the reference over the \
+         measured frames: near zero, the reference is fixed by the scene's discretisation; where it is not, the \
+         condition puts the body at a bifurcation (round-off picks the branch) and the row's errors say which \
+         branch each method took as much as how accurate it is.\n\n| condition | {} \
          |\n|---|{}\n",
         c.matrix.first().map_or(0, |r| r.frames.1),
+        (1.0 / CHECK_TOLERANCE).round(),
         columns.join(" | "),
         "---|".repeat(columns.len())
     );
