@@ -9,14 +9,11 @@ use mochi_sim::{Scene, SolverSpec};
 
 use super::conditions::Condition;
 use super::lineup::{self, Budgets, Entry, Trained};
-use super::{case, page, slug, Cell, CompareOptions, MatrixRow};
+use super::{case, page, slug, Cell, CompareOptions, MatrixRow, CHECK_TOLERANCE};
 use crate::error::{fs, TrainerResult};
 use crate::methods::method::run_sequence;
 use crate::methods::simulated::Simulated;
 use crate::progress::Reporter;
-
-/// The Newton tolerance of the reference's check run, as a fraction of the scene's.
-pub const CHECK_TOLERANCE: f64 = 1e-3;
 
 /// One condition of the matrix: the full-space reference under it and how far its check run
 /// parts from it ([`reference_spread`]), then one setting per family.

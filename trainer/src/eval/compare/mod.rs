@@ -53,6 +53,10 @@ use lineup::{model_files, Budgets, Entry, LearnedModel, ReducedSubspace, Subspac
 /// this fraction of the rest diagonal (mean over vertices, largest over frames).
 pub const CONVERGED_CHANGE: f64 = 1e-3;
 
+/// The Newton tolerance of each stability condition's check run, as a fraction of the scene's
+/// ([`matrix::reference_spread`]).
+pub const CHECK_TOLERANCE: f64 = 1e-3;
+
 /// Options of `mochi compare`.
 #[derive(Clone, Debug)]
 pub struct CompareOptions {

@@ -4,8 +4,7 @@
 
 use std::path::Path;
 
-use super::matrix::CHECK_TOLERANCE;
-use super::{ChartPoint, Comparison};
+use super::{ChartPoint, Comparison, CHECK_TOLERANCE};
 use crate::error::{fs, TrainerResult};
 use crate::methods::method::SequenceRun;
 use crate::report::chart::{self, LabelledPoint};
