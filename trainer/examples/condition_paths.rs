@@ -15,7 +15,7 @@
 use mochi_sim::measure::mean_and_max_error;
 use mochi_sim::{AdaptiveSettings, SolverSpec};
 use mochi_trainer::eval::compare::conditions::{conditions, MatrixSpan};
-use mochi_trainer::eval::compare::slug;
+use mochi_trainer::eval::compare::{slug, CHECK_TOLERANCE};
 use mochi_trainer::learn::recipe::Recipe;
 use mochi_trainer::methods::method::Method;
 use mochi_trainer::methods::simulated::Simulated;
@@ -39,7 +39,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut full = cscene.clone();
     full.solver = SolverSpec::FullSpace;
     let mut tight = full.clone();
-    tight.newton.tolerance *= 1e-3;
+    tight.newton.tolerance *= CHECK_TOLERANCE;
     let mut adaptive = cscene.clone();
     adaptive.solver = SolverSpec::Adaptive(AdaptiveSettings {
         modal_error: 1e-4,
@@ -48,7 +48,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     });
     let mut runs: Vec<(&str, Box<dyn Method>)> = vec![
         ("full space", Box::new(Simulated::new(&full, 1, "1")?)),
-        ("tolerance/1000", Box::new(Simulated::new(&tight, 1, "1")?)),
+        ("tighter tolerance", Box::new(Simulated::new(&tight, 1, "1")?)),
         ("2 substeps", Box::new(Simulated::new(&full, 2, "2")?)),
         ("adaptive 1e-4", Box::new(Simulated::new(&adaptive, 1, "1e-4")?)),
         ("coarse", Box::new(Simulated::coarse(&full, &problem)?)),

@@ -11,7 +11,7 @@ use super::conditions::Condition;
 use super::lineup::{self, Budgets, Entry, Trained};
 use super::{case, page, slug, Cell, CompareOptions, MatrixRow, CHECK_TOLERANCE};
 use crate::error::{fs, TrainerResult};
-use crate::methods::method::run_sequence;
+use crate::methods::method::{run_sequence, SequenceRun};
 use crate::methods::simulated::Simulated;
 use crate::progress::Reporter;
 
@@ -63,10 +63,7 @@ pub fn matrix_row(
     let reference_end = if last_window > 0 { frames } else { measured };
     cells.push(Cell {
         method: "full space".into(),
-        text: match &run.failure {
-            None => format!("{} / {frames} (the reference)", run.stable_frames),
-            Some(f) => format!("{} / {frames} (the reference; fails at {f})", run.stable_frames),
-        },
+        text: reference_cell(&run, frames, None),
     });
     if let Some(dir) = &options.cases {
         let name = slug(&condition.name);
@@ -81,15 +78,7 @@ pub fn matrix_row(
         }
     }
     let spread = reference_spread(&reference_scene, &condition.bc, &reference[..=measured], dim, diagonal)?;
-    cells[0].text = format!(
-        "{} / {frames} (the reference{}; tolerance / {}: {:.3}%)",
-        run.stable_frames,
-        run.failure
-            .as_ref()
-            .map_or(String::new(), |f| format!("; fails at {f}")),
-        (1.0 / CHECK_TOLERANCE).round(),
-        100.0 * spread
-    );
+    cells[0].text = reference_cell(&run, frames, Some(spread));
     report.message(&format!(
         "{} {}: full space at a Newton tolerance {CHECK_TOLERANCE} times the scene's parts from the reference by {:.3}%",
         problem.scene.name,
@@ -136,6 +125,19 @@ pub fn matrix_row(
         frames: (frames, measured),
         cells,
     })
+}
+
+/// The full-space cell: its stable frames, where it fails, and the spread of its check run
+/// when measured.
+fn reference_cell(run: &SequenceRun, frames: usize, spread: Option<f64>) -> String {
+    let failure = run
+        .failure
+        .as_ref()
+        .map_or(String::new(), |f| format!("; fails at {f}"));
+    let check = spread.map_or(String::new(), |s| {
+        format!("; tolerance / {}: {:.3}%", (1.0 / CHECK_TOLERANCE).round(), 100.0 * s)
+    });
+    format!("{} / {frames} (the reference{failure}{check})", run.stable_frames)
 }
 
 /// Mean distance (fraction of the rest diagonal, over the frames of `reference` after the
