@@ -11,7 +11,7 @@ use mochi_sim::measure::mean_and_max_error;
 use mochi_sim::npz::NpzOut;
 use mochi_sim::SpeedPlan;
 use mochi_trainer::eval::compare::conditions::{self, MatrixSpan};
-use mochi_trainer::eval::compare::matrix::reference_spread;
+use mochi_trainer::eval::compare::matrix::reference_check;
 use mochi_trainer::eval::compare::{compare, page, CompareOptions};
 use mochi_trainer::eval::storage;
 use mochi_trainer::methods::learned::{motions, LearnedRuntime};
@@ -298,8 +298,14 @@ fn compare_runs_every_family_and_replays_a_peer() {
     assert_eq!(halved.frames.0, 16);
     for row in &c.matrix {
         let full = &row.cells[0];
+        // The long row's check reads over its last window as over its first.
+        let check = if row.frames.0 > row.frames.1 {
+            "(the reference; tolerance / 1000: 0.000% (frames 1-8), 0.000% (frames 9-16))"
+        } else {
+            "(the reference; tolerance / 1000: 0.000%)"
+        };
         assert!(
-            full.method == "full space" && full.text.contains("(the reference; tolerance / 1000: 0.000%)"),
+            full.method == "full space" && full.text.contains(check),
             "{}: {}",
             row.condition,
             full.text
@@ -316,9 +322,9 @@ fn compare_runs_every_family_and_replays_a_peer() {
 }
 
 /// The matrix's check of its reference: full space at a tighter Newton tolerance stays within
-/// round-off of the tiny cantilever's reference, and the spread is the
-/// mean distance over the reference's frames: a reference moved by 1% of the diagonal on
-/// every frame after the first reads 1% from the check run.
+/// round-off of the tiny cantilever's reference, and the check is read per frame over the
+/// reference's frames: a reference moved by 1% of the diagonal on its last four frames reads
+/// 0% over the first window and 1% over the last.
 #[test]
 fn the_matrix_measures_how_far_a_tighter_tolerance_moves_its_reference() {
     let problem = tiny().build().unwrap();
@@ -329,25 +335,45 @@ fn the_matrix_measures_how_far_a_tighter_tolerance_moves_its_reference() {
     let mut full = Simulated::new(&problem.scene, 1, "").unwrap();
     pool.install(|| run_sequence(&mut full, &bc, 12, &[], dim, diagonal, Some((&mut reference, 13))))
         .unwrap();
-    let spread = pool
-        .install(|| reference_spread(&problem.scene, &bc, &reference, dim, diagonal))
+    let check = pool
+        .install(|| reference_check(&problem.scene, &bc, &reference, dim, diagonal))
         .unwrap();
-    assert!(spread < 1e-6, "{spread}");
+    assert_eq!(check.error_curves[0].len(), 12);
+    assert!(check.mean_error(0) < 1e-6, "{}", check.mean_error(0));
+    assert_eq!(
+        page::window_errors(&check, 4, 4),
+        "0.000% (frames 1-4), 0.000% (frames 9-12)"
+    );
+    assert_eq!(page::window_errors(&check, 4, 0), "0.000%");
     let moved: Vec<Vec<f64>> = reference
         .iter()
         .enumerate()
         .map(|(f, x)| {
             let mut x = x.clone();
-            if f > 0 {
+            if f > 8 {
                 x.iter_mut().step_by(dim).for_each(|v| *v += 0.01 * diagonal);
             }
             x
         })
         .collect();
-    let spread = pool
-        .install(|| reference_spread(&problem.scene, &bc, &moved, dim, diagonal))
+    let check = pool
+        .install(|| reference_check(&problem.scene, &bc, &moved, dim, diagonal))
         .unwrap();
-    assert!((spread - 0.01).abs() < 1e-4, "{spread}");
+    assert!(
+        (check.error_curves[0][11] - 0.01).abs() < 1e-4,
+        "{:?}",
+        check.error_curves[0]
+    );
+    assert_eq!(
+        page::window_errors(&check, 4, 4),
+        "0.000% (frames 1-4), 1.000% (frames 9-12)"
+    );
+    // Over the first frames only, as a short condition's check reads.
+    let check = pool
+        .install(|| reference_check(&problem.scene, &bc, &moved[..=4], dim, diagonal))
+        .unwrap();
+    assert_eq!(check.error_curves[0].len(), 4);
+    assert_eq!(page::window_errors(&check, 4, 0), "0.000%");
 }
 
 /// `mochi eval --adaptive` steps through the interface: its errors, iterations and enriched
@@ -439,6 +465,10 @@ fn the_long_condition_alone_is_measured_at_both_ends() {
         cell.text
     );
     let last: f64 = last.trim_end_matches("% (frames 11-16)").parse().unwrap();
+    assert_eq!(
+        row.cells[0].text,
+        "16 / 16 (the reference; tolerance / 1000: 0.000% (frames 1-6), 0.000% (frames 11-16))"
+    );
 
     let problem = tiny().build().unwrap();
     let long = conditions::conditions(&problem, span)

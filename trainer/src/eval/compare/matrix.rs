@@ -16,7 +16,7 @@ use crate::methods::simulated::Simulated;
 use crate::progress::Reporter;
 
 /// One condition of the matrix: the full-space reference under it and how far its check run
-/// parts from it ([`reference_spread`]), then one setting per family.
+/// parts from it ([`reference_check`]), then one setting per family.
 pub fn matrix_row(
     condition: &Condition,
     trained: &Trained,
@@ -77,13 +77,18 @@ pub fn matrix_row(
             });
         }
     }
-    let spread = reference_spread(&reference_scene, &condition.bc, &reference[..=measured], dim, diagonal)?;
-    cells[0].text = reference_cell(&run, frames, Some(spread));
+    let check = reference_check(
+        &reference_scene,
+        &condition.bc,
+        &reference[..=reference_end],
+        dim,
+        diagonal,
+    )?;
+    let spread = page::window_errors(&check, measured, last_window);
+    cells[0].text = reference_cell(&run, frames, Some(&spread));
     report.message(&format!(
-        "{} {}: full space at a Newton tolerance {CHECK_TOLERANCE} times the scene's parts from the reference by {:.3}%",
-        problem.scene.name,
-        condition.name,
-        100.0 * spread
+        "{} {}: full space at a Newton tolerance {CHECK_TOLERANCE} times the scene's parts from the reference by {spread}",
+        problem.scene.name, condition.name,
     ));
     // The other methods on the condition's scene with the scene's own solver.
     let scene = &condition.scene;
@@ -127,38 +132,38 @@ pub fn matrix_row(
     })
 }
 
-/// The full-space cell: its stable frames, where it fails, and the spread of its check run
-/// when measured.
-fn reference_cell(run: &SequenceRun, frames: usize, spread: Option<f64>) -> String {
+/// The full-space cell: its stable frames, where it fails, and how far its check run parts
+/// from it ([`page::window_errors`] of [`reference_check`]) when measured.
+fn reference_cell(run: &SequenceRun, frames: usize, spread: Option<&str>) -> String {
     let failure = run
         .failure
         .as_ref()
         .map_or(String::new(), |f| format!("; fails at {f}"));
     let check = spread.map_or(String::new(), |s| {
-        format!("; tolerance / {}: {:.3}%", (1.0 / CHECK_TOLERANCE).round(), 100.0 * s)
+        format!("; tolerance / {}: {s}", (1.0 / CHECK_TOLERANCE).round())
     });
     format!("{} / {frames} (the reference{failure}{check})", run.stable_frames)
 }
 
-/// Mean distance (fraction of the rest diagonal, over the frames of `reference` after the
-/// first) between the full-space `reference` of `scene` under `bc` and full space with the
-/// Newton tolerance [`CHECK_TOLERANCE`] times the scene's: how much the reference is fixed
-/// by the discretisation alone. Where it is small, a method's error against the reference
-/// is its own; where it is not, the condition sits at a bifurcation (round-off picks the
-/// branch) and a method's error there also measures which branch it took. Infinite when
-/// the check run blows up before the reference ends.
-pub fn reference_spread(
+/// Full space with the Newton tolerance [`CHECK_TOLERANCE`] times the scene's, stepped under
+/// `bc` over the frames of `reference` (the full-space reference of `scene`, positions of
+/// frames `0..`) and measured against it (mean distance per frame, a fraction of the rest
+/// diagonal): how much the reference is fixed by the discretisation alone. Where it is
+/// small, a method's error against the reference is its own; where it is not, the condition
+/// sits at a bifurcation (round-off picks the branch) and a method's error there also
+/// measures which branch it took. A long condition's reference runs to its end, so the
+/// check is read over the last window as over the first ([`page::window_errors`]).
+pub fn reference_check(
     scene: &Scene,
     bc: &BcSequence,
     reference: &[Vec<f64>],
     dim: usize,
     diagonal: f64,
-) -> TrainerResult<f64> {
+) -> TrainerResult<SequenceRun> {
     let mut tight = scene.clone();
     tight.solver = SolverSpec::FullSpace;
     tight.newton.tolerance *= CHECK_TOLERANCE;
     let mut check = Simulated::new(&tight, 1, "")?;
     let frames = reference.len().saturating_sub(1);
-    let run = run_sequence(&mut check, bc, frames, &[reference], dim, diagonal, None)?;
-    Ok(run.mean_error(0))
+    run_sequence(&mut check, bc, frames, &[reference], dim, diagonal, None)
 }

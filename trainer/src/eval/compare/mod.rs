@@ -54,7 +54,7 @@ use lineup::{model_files, Budgets, Entry, LearnedModel, ReducedSubspace, Subspac
 pub const CONVERGED_CHANGE: f64 = 1e-3;
 
 /// The Newton tolerance of each stability condition's check run, as a fraction of the scene's
-/// ([`matrix::reference_spread`]).
+/// ([`matrix::reference_check`]).
 pub const CHECK_TOLERANCE: f64 = 1e-3;
 
 /// Options of `mochi compare`.

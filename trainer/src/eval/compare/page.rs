@@ -224,10 +224,19 @@ fn summary(c: &Comparison) -> String {
     )
 }
 
-/// A cell's text: stable frames of all, and the mean error over the first `measured` frames
-/// (`blew up` when it did inside them), then over the last `last_window` frames if any (or
-/// where it blew up after the first window).
+/// A cell's text: stable frames of all, then [`window_errors`].
 pub(super) fn matrix_cell(run: &SequenceRun, measured: usize, last_window: usize) -> String {
+    let (frames, stable) = (run.frames, run.stable_frames);
+    if stable < measured {
+        return format!("{stable} / {frames}, blew up");
+    }
+    format!("{stable} / {frames}, {}", window_errors(run, measured, last_window))
+}
+
+/// The mean error of `run` over its first `measured` frames (`blew up at frame N` when it did
+/// inside them), then over its last `last_window` frames if any (or where it blew up after
+/// the first window).
+pub fn window_errors(run: &SequenceRun, measured: usize, last_window: usize) -> String {
     let (frames, stable) = (run.frames, run.stable_frames);
     let mean = |errors: &[f64]| {
         format!(
@@ -237,11 +246,11 @@ pub(super) fn matrix_cell(run: &SequenceRun, measured: usize, last_window: usize
     };
     let curve = &run.error_curves[0];
     if stable < measured {
-        return format!("{stable} / {frames}, blew up");
+        return format!("blew up at frame {}", stable + 1);
     }
     let first = mean(&curve[..measured]);
     if last_window == 0 {
-        return format!("{stable} / {frames}, {first}");
+        return first;
     }
     let last = if stable < frames {
         format!("blew up at frame {}", stable + 1)
@@ -252,7 +261,7 @@ pub(super) fn matrix_cell(run: &SequenceRun, measured: usize, last_window: usize
             frames - last_window + 1
         )
     };
-    format!("{stable} / {frames}, {first} (frames 1-{measured}), {last}")
+    format!("{first} (frames 1-{measured}), {last}")
 }
 
 fn matrix(c: &Comparison) -> String {
@@ -270,7 +279,7 @@ fn matrix(c: &Comparison) -> String {
          refused step) and the mean error against full space under the same condition over the measured frames \
          (the long condition's first {} frames, and its last as many where it is longer). The full-space cell \
          gives how far full space at a Newton tolerance {} times tighter parts from the reference over the \
-         measured frames: near zero, the reference is fixed by the scene's discretisation; where it is not, the \
+         same frames (the long condition's first and last): near zero, the reference is fixed by the scene's discretisation; where it is not, the \
          condition puts the body at a bifurcation (round-off picks the branch) and the row's errors say which \
          branch each method took as much as how accurate it is.\n\n| condition | {} \
          |\n|---|{}\n",
