@@ -1,0 +1,129 @@
+//! Diagnostic: a learned model stepped by the runtime over the long condition of
+//! `mochi compare` (the in-range motion continued as a random walk) to its end, past any frame
+//! the matrix counts as a blow-up, with what the runtime reported on each frame.
+//!
+//! ```sh
+//! cargo run --release -p mochi-trainer --example runtime_walk -- ARTIFACT.mochi [FRAMES] [EVERY]
+//! ```
+//!
+//! FRAMES (default 10,000) is the walk's length; every EVERY frames (default 500) it prints,
+//! over the frames since the last line: how many steps the runtime clamped the latent to the
+//! trained range ([`mochi_runtime::RANGE_MARGIN`]) or held it (a non-finite latent), the
+//! largest latent coordinate as a multiple of its trained range's half-width from the range's
+//! centre, the largest distance a vertex moved in one frame and the largest distance of a
+//! vertex from its rest position (both in rest diagonals; beside it, how far the handles' targets
+//! themselves went from their first positions), and the frames where a vertex moved
+//! more than a rest diagonal in one frame (what the matrix calls a blow-up). Bounded output
+//! and a blow-up in the matrix's sense can both hold: the clamp bounds the latent, so the
+//! decoded positions stay in a bounded set, while a latent crossing that set in one frame
+//! moves vertices by more than a diagonal.
+
+use std::path::Path;
+
+use mochi_runtime::{AnyInstance, OwnedModel, Stepped, ValidModel};
+use mochi_trainer::artifact::Artifact;
+use mochi_trainer::eval::compare::conditions::{conditions, MatrixSpan};
+use mochi_trainer::learn::recipe::Recipe;
+use mochi_trainer::methods::learned::{collider_states, motions};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some(path) = args.first() else {
+        return Err("usage: runtime_walk ARTIFACT.mochi [FRAMES] [EVERY]".into());
+    };
+    let frames: usize = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(10_000);
+    let every: usize = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(500).max(1);
+    let artifact = Artifact::read(Path::new(path))?;
+    let problem = Recipe::parse(&artifact.scene_toml, Path::new(&artifact.scene_path))?.build()?;
+    let long_name = format!("{frames} frames");
+    let walk = conditions(
+        &problem,
+        MatrixSpan {
+            frames: 60,
+            long_frames: frames,
+        },
+    )
+    .into_iter()
+    .find(|c| c.name == long_name)
+    .ok_or_else(|| format!("{}'s matrix has no `{long_name}` condition", problem.scene.name))?;
+
+    let bytes = std::fs::read(path)?;
+    let mut owned = OwnedModel::default();
+    let model: ValidModel = owned.load(&bytes).map_err(|e| format!("{path}: {e:?}"))?;
+    let m = model.model();
+    let mut body = AnyInstance::new(&model).map_err(|e| format!("{e:?}"))?;
+    let (dim, diagonal) = (problem.mesh.dim, problem.mesh.rest_diagonal());
+    let mut x = vec![0.0f32; m.state_len()];
+    body.decode_into(&model, &mut x).map_err(|e| format!("{e:?}"))?;
+    let rest = x.clone();
+    let mut last = x.clone();
+    let handles0 = walk.bc.targets(&problem.handles, 0, dim);
+    let (centre, half): (Vec<f32>, Vec<f32>) = m
+        .latent_min()
+        .iter()
+        .zip(m.latent_max())
+        .map(|(lo, hi)| (0.5 * (lo + hi), 0.5 * (hi - lo).max(f32::MIN_POSITIVE)))
+        .unzip();
+    println!(
+        "{}: {} frames of `{long_name}`; per line, over the frames since the last one",
+        problem.scene.name,
+        walk.bc.frames().min(frames)
+    );
+    println!("frames | clamped | held | largest |z - centre| / half range | largest jump (diag) | farthest from rest (diag) | handles' farthest (diag) | jumps > 1 diagonal at");
+    let (mut clamped, mut held, mut reach, mut jump, mut far, mut driven) = (0, 0, 0.0f32, 0.0f64, 0.0f64, 0.0f64);
+    let mut pops: Vec<usize> = Vec::new();
+    let mut from = 1;
+    for frame in 1..=walk.bc.frames().min(frames) {
+        let motion = motions(&walk.bc, frame);
+        let colliders = collider_states(&walk.bc, frame, m.colliders());
+        match body
+            .step_with(&model, &motion, &colliders, m.dt)
+            .map_err(|e| format!("frame {frame}: {e:?}"))?
+        {
+            Stepped::Ok => {}
+            Stepped::Clamped => clamped += 1,
+            Stepped::Held => held += 1,
+        }
+        body.decode_into(&model, &mut x).map_err(|e| format!("{e:?}"))?;
+        for ((z, c), h) in body.latent().iter().zip(&centre).zip(&half) {
+            reach = reach.max((z - c).abs() / h);
+        }
+        let step = largest_distance(&x, &last, dim) / diagonal;
+        jump = jump.max(step);
+        far = far.max(largest_distance(&x, &rest, dim) / diagonal);
+        let targets: Vec<f32> = walk
+            .bc
+            .targets(&problem.handles, frame, dim)
+            .iter()
+            .map(|&t| t as f32)
+            .collect();
+        let first: Vec<f32> = handles0.iter().map(|&t| t as f32).collect();
+        driven = driven.max(largest_distance(&targets, &first, dim) / diagonal);
+        if step > 1.0 {
+            pops.push(frame);
+        }
+        last.copy_from_slice(&x);
+        if frame % every == 0 || frame == walk.bc.frames().min(frames) {
+            let shown: Vec<String> = pops.iter().take(8).map(|f| f.to_string()).collect();
+            let more = pops.len().saturating_sub(8);
+            println!(
+                "{from:>5}-{frame:<5} | {clamped:7} | {held:4} | {reach:8.2} | {jump:8.3} | {far:8.3} | {driven:8.3} | {}{}",
+                if shown.is_empty() { "-".into() } else { shown.join(", ") },
+                if more > 0 { format!(" and {more} more") } else { String::new() }
+            );
+            (clamped, held, reach, jump, far, driven) = (0, 0, 0.0, 0.0, 0.0, 0.0);
+            pops.clear();
+            from = frame + 1;
+        }
+    }
+    Ok(())
+}
+
+/// The largest distance between matching vertices of `a` and `b` (`dim` coordinates each).
+fn largest_distance(a: &[f32], b: &[f32], dim: usize) -> f64 {
+    a.chunks_exact(dim)
+        .zip(b.chunks_exact(dim))
+        .map(|(p, q)| p.iter().zip(q).map(|(p, q)| ((p - q) as f64).powi(2)).sum::<f64>())
+        .fold(0.0f64, |m, d| if d.is_nan() { f64::INFINITY } else { m.max(d) })
+        .sqrt()
+}
