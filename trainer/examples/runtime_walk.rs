@@ -3,8 +3,13 @@
 //! the matrix counts as a blow-up, with what the runtime reported on each frame.
 //!
 //! ```sh
-//! cargo run --release -p mochi-trainer --example runtime_walk -- ARTIFACT.mochi [FRAMES] [EVERY]
+//! cargo run --release -p mochi-trainer --example runtime_walk -- ARTIFACT.mochi [FRAMES] [EVERY] [CASE.npz]
 //! ```
+//!
+//! CASE.npz is the condition's peer case as `mochi compare SCENE --cases DIR` writes it
+//! (`DIR/FRAMES-frames.npz`, `scripts/compare.sh` puts it in `target/compare/SCENE/cases`);
+//! with it each line also gives the mean vertex error against its full-space reference
+//! (% of the rest diagonal, frames of the window).
 //!
 //! FRAMES (default 10,000) is the walk's length; every EVERY frames (default 500) it prints,
 //! over the frames since the last line: how many steps the runtime clamped the latent to the
@@ -21,6 +26,8 @@
 use std::path::Path;
 
 use mochi_runtime::{AnyInstance, OwnedModel, Stepped, ValidModel};
+use mochi_sim::measure::mean_and_max_error;
+use mochi_sim::npz::NpzFile;
 use mochi_trainer::artifact::Artifact;
 use mochi_trainer::eval::compare::conditions::{conditions, MatrixSpan};
 use mochi_trainer::learn::recipe::Recipe;
@@ -29,7 +36,7 @@ use mochi_trainer::methods::learned::{collider_states, motions};
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(path) = args.first() else {
-        return Err("usage: runtime_walk ARTIFACT.mochi [FRAMES] [EVERY]".into());
+        return Err("usage: runtime_walk ARTIFACT.mochi [FRAMES] [EVERY] [CASE.npz]".into());
     };
     let frames: usize = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(10_000);
     let every: usize = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(500).max(1);
@@ -47,6 +54,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     .find(|c| c.name == long_name)
     .ok_or_else(|| format!("{}'s matrix has no `{long_name}` condition", problem.scene.name))?;
 
+    let reference = match args.get(3) {
+        Some(case) => {
+            let mut npz = NpzFile::open(Path::new(case))?;
+            // The case must be of this walk: its handles' targets are the condition's.
+            let targets = npz.array("targets")?.into_vec::<f64>("handle targets")?;
+            let dim = problem.mesh.dim;
+            let ours: Vec<f64> = (0..=walk.bc.frames())
+                .flat_map(|f| walk.bc.targets(&problem.handles, f, dim))
+                .collect();
+            let apart = targets
+                .iter()
+                .zip(&ours)
+                .fold((targets.len() != ours.len()) as u8 as f64, |m, (a, b)| {
+                    m.max((a - b).abs())
+                });
+            if apart > 1e-9 {
+                return Err(format!("{case}: its handle targets are not this model's `{long_name}` walk").into());
+            }
+            Some(npz.array("reference")?.into_vec::<f64>("reference positions")?)
+        }
+        None => None,
+    };
     let bytes = std::fs::read(path)?;
     let mut owned = OwnedModel::default();
     let model: ValidModel = owned.load(&bytes).map_err(|e| format!("{path}: {e:?}"))?;
@@ -69,8 +98,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         problem.scene.name,
         walk.bc.frames().min(frames)
     );
-    println!("frames | clamped | held | largest |z - centre| / half range | largest jump (diag) | farthest from rest (diag) | handles' farthest (diag) | jumps > 1 diagonal at");
+    println!("frames | clamped | held | largest |z - centre| / half range | largest jump (diag) | farthest from rest (diag) | handles' farthest (diag) | error % | jumps > 1 diagonal at");
     let (mut clamped, mut held, mut reach, mut jump, mut far, mut driven) = (0, 0, 0.0f32, 0.0f64, 0.0f64, 0.0f64);
+    let (mut error, mut measured) = (0.0f64, 0usize);
     let mut pops: Vec<usize> = Vec::new();
     let mut from = 1;
     for frame in 1..=walk.bc.frames().min(frames) {
@@ -99,6 +129,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect();
         let first: Vec<f32> = handles0.iter().map(|&t| t as f32).collect();
         driven = driven.max(largest_distance(&targets, &first, dim) / diagonal);
+        if let Some(r) = reference
+            .as_ref()
+            .and_then(|r| r.get(frame * x.len()..(frame + 1) * x.len()))
+        {
+            let x64: Vec<f64> = x.iter().map(|&v| v as f64).collect();
+            error += mean_and_max_error(&x64, r, dim, diagonal).0;
+            measured += 1;
+        }
         if step > 1.0 {
             pops.push(frame);
         }
@@ -107,11 +145,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let shown: Vec<String> = pops.iter().take(8).map(|f| f.to_string()).collect();
             let more = pops.len().saturating_sub(8);
             println!(
-                "{from:>5}-{frame:<5} | {clamped:7} | {held:4} | {reach:8.2} | {jump:8.3} | {far:8.3} | {driven:8.3} | {}{}",
+                "{from:>5}-{frame:<5} | {clamped:7} | {held:4} | {reach:8.2} | {jump:8.3} | {far:8.3} | {driven:8.3} | {} | {}{}",
+                if measured > 0 { format!("{:8.3}", 100.0 * error / measured as f64) } else { "-".into() },
                 if shown.is_empty() { "-".into() } else { shown.join(", ") },
                 if more > 0 { format!(" and {more} more") } else { String::new() }
             );
             (clamped, held, reach, jump, far, driven) = (0, 0, 0.0, 0.0, 0.0, 0.0);
+            (error, measured) = (0.0, 0);
             pops.clear();
             from = frame + 1;
         }
