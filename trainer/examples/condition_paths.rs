@@ -3,8 +3,11 @@
 //! tightened, two substeps a frame), the adaptive solver and the coarse mesh.
 //!
 //! ```sh
-//! cargo run --release -p mochi-trainer --example condition_paths -- SCENE CONDITION [FRAMES]
+//! cargo run --release -p mochi-trainer --example condition_paths -- SCENE CONDITION [FRAMES] [RUNS]
 //! ```
+//!
+//! RUNS (default all five) keeps the first RUNS of them: `2` steps full space and full space
+//! at the tighter tolerance only (the matrix's reference check), for long conditions.
 //!
 //! CONDITION is a file stem of the matrix's conditions (`10x-stiffer`, `in-range`, ...). Every
 //! tenth frame (and every frame where a path jumps) it prints each run's centre of mass and
@@ -23,9 +26,10 @@ use mochi_trainer::methods::simulated::Simulated;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (Some(scene_name), Some(condition)) = (args.first(), args.get(1)) else {
-        return Err("usage: condition_paths SCENE CONDITION [FRAMES]".into());
+        return Err("usage: condition_paths SCENE CONDITION [FRAMES] [RUNS]".into());
     };
     let frames: usize = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(150);
+    let kept: usize = args.get(3).map(|s| s.parse()).transpose()?.unwrap_or(usize::MAX).max(1);
     let problem = Recipe::load(scene_name)?.build()?;
     let span = MatrixSpan {
         frames,
@@ -53,6 +57,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("adaptive 1e-4", Box::new(Simulated::new(&adaptive, 1, "1e-4")?)),
         ("coarse", Box::new(Simulated::coarse(&full, &problem)?)),
     ];
+    runs.truncate(kept);
     let bc = &condition.bc;
     for (_, m) in runs.iter_mut() {
         m.reset(bc)?;
