@@ -63,13 +63,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let ours: Vec<f64> = (0..=walk.bc.frames())
                 .flat_map(|f| walk.bc.targets(&problem.handles, f, dim))
                 .collect();
-            let apart = targets
-                .iter()
-                .zip(&ours)
-                .fold((targets.len() != ours.len()) as u8 as f64, |m, (a, b)| {
-                    m.max((a - b).abs())
-                });
-            if apart > 1e-9 {
+            if targets.len() != ours.len() || targets.iter().zip(&ours).any(|(a, b)| (a - b).abs() > 1e-9) {
                 return Err(format!("{case}: its handle targets are not this model's `{long_name}` walk").into());
             }
             Some(npz.array("reference")?.into_vec::<f64>("reference positions")?)
@@ -121,20 +115,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let step = largest_distance(&x, &last, dim) / diagonal;
         jump = jump.max(step);
         far = far.max(largest_distance(&x, &rest, dim) / diagonal);
-        let targets: Vec<f32> = walk
-            .bc
-            .targets(&problem.handles, frame, dim)
-            .iter()
-            .map(|&t| t as f32)
-            .collect();
-        let first: Vec<f32> = handles0.iter().map(|&t| t as f32).collect();
-        driven = driven.max(largest_distance(&targets, &first, dim) / diagonal);
+        let targets = walk.bc.targets(&problem.handles, frame, dim);
+        driven = driven.max(largest_distance(&targets, &handles0, dim) / diagonal);
         if let Some(r) = reference
             .as_ref()
             .and_then(|r| r.get(frame * x.len()..(frame + 1) * x.len()))
         {
-            let x64: Vec<f64> = x.iter().map(|&v| v as f64).collect();
-            error += mean_and_max_error(&x64, r, dim, diagonal).0;
+            error += mean_and_max_error(&x, r, dim, diagonal).0;
             measured += 1;
         }
         if step > 1.0 {
@@ -160,10 +147,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 /// The largest distance between matching vertices of `a` and `b` (`dim` coordinates each).
-fn largest_distance(a: &[f32], b: &[f32], dim: usize) -> f64 {
+/// (`mean_and_max_error` would do but passes over a NaN; this counts it as infinitely far.)
+fn largest_distance<T: Copy + Into<f64>>(a: &[T], b: &[T], dim: usize) -> f64 {
     a.chunks_exact(dim)
         .zip(b.chunks_exact(dim))
-        .map(|(p, q)| p.iter().zip(q).map(|(p, q)| ((p - q) as f64).powi(2)).sum::<f64>())
+        .map(|(p, q)| {
+            p.iter()
+                .zip(q)
+                .map(|(&p, &q)| (p.into() - q.into()).powi(2))
+                .sum::<f64>()
+        })
         .fold(0.0f64, |m, d| if d.is_nan() { f64::INFINITY } else { m.max(d) })
         .sqrt()
 }
