@@ -115,6 +115,10 @@ pub struct ReducedSpec {
     pub latent: usize,
     /// Data-free training iterations of the vanilla subspace (default 4000).
     pub data_free_iterations: usize,
+    /// Seed of a data-free subspace: its decoder's initialisation, its latent samples and
+    /// those of its cubature and Lipschitz optimisation (default 0). A supervised subspace
+    /// starts from the autoencoder, whose seed is `[latent] seed`.
+    pub seed: u64,
     /// Weight of the Lipschitz term relative to the construction loss at the vanilla start
     /// (default 1; see `methods::lipschitz::train`).
     pub lipschitz: f64,
@@ -173,6 +177,7 @@ impl Default for ReducedSpec {
             plain_final_learning_rate: 1e-5,
             latent: 8,
             data_free_iterations: 4000,
+            seed: 0,
             lipschitz: 1.0,
             lipschitz_epochs: 200,
             lipschitz_learning_rate: None,
@@ -428,5 +433,13 @@ mod tests {
             (spec.solver, spec.precision),
             (SolverChoice::LbfgsPaper, SolverPrecision::Single)
         );
+    }
+
+    #[test]
+    fn the_data_free_seed_is_read_from_the_table() {
+        assert_eq!(ReducedSpec::default().seed, 0);
+        let spec: ReducedSpec = toml::from_str("subspace = \"data-free\"\nseed = 3").unwrap();
+        assert_eq!((spec.subspace, spec.seed), (SubspaceSource::DataFree, 3));
+        assert!(toml::from_str::<ReducedSpec>("seed = -1").is_err());
     }
 }
