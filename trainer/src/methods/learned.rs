@@ -118,3 +118,45 @@ pub fn collider_states(bc: &BcSequence, t: usize, slots: usize) -> Vec<ColliderS
         .map(collider_state)
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use mochi_runtime::frame::{continuous_rotation, SIGNAL_ROTATION};
+    use mochi_sim::bc::{Segment, Track};
+
+    use super::*;
+
+    /// The trainer's signals and the runtime agree on a handle's rotation vector past its half
+    /// turns: the runtime leaves the trainer's continued rotation vectors as they are (to the
+    /// bit), and continues the flipped ones an engine would give it (`scaled_axis`) to the same
+    /// vectors, within `f32` rounding. The handle turns about an axis that changes direction.
+    #[test]
+    fn the_runtime_reads_the_trainers_rotation_vectors_as_they_are() {
+        let segment = |w: [f64; 3]| Segment {
+            frames: 90,
+            velocity: [0.0; 3],
+            angular_velocity: w,
+        };
+        let dt = 1.0 / 30.0;
+        let track = Track::from_segments(&[segment([5.0, 1.0, 0.0]), segment([0.0, 3.0, -4.0])], 180, dt);
+        let bc = BcSequence {
+            tracks: vec![track],
+            frames: 180,
+            colliders: Vec::new(),
+        };
+        let (mut last, mut last_flipped, mut largest) = ([0.0f32; 3], [0.0f32; 3], 0.0f32);
+        for t in 0..=180 {
+            let given = motions(&bc, t)[0].rotation;
+            assert_eq!(continuous_rotation(&last, &given), given, "frame {t}");
+            let flipped = bc.tracks[0].poses[t].rotation.scaled_axis().map(|v| v as f32);
+            let read = continuous_rotation(&last_flipped, &[flipped.x, flipped.y, flipped.z]);
+            let gap = (0..3).map(|i| (read[i] - given[i]).abs()).fold(0.0, f32::max);
+            assert!(gap <= 1e-5 * largest.max(1.0), "frame {t}: {read:?} vs {given:?}");
+            largest = largest.max(given.iter().map(|v| v * v).sum::<f32>().sqrt());
+            (last, last_flipped) = (given, read);
+        }
+        // It did turn past several half turns.
+        assert!(largest > 10.0, "{largest}");
+        assert_eq!(motions(&bc, 0)[0].signal()[SIGNAL_ROTATION..], [0.0; 3]);
+    }
+}

@@ -268,3 +268,69 @@ fn invalid_motion_names_the_field() {
     spec.speed = [f64::NAN, 1.0];
     assert_eq!(spec.validate().unwrap_err().0, "speed");
 }
+
+/// A handle twisting on about x, two and a half turns and back: the signal's rotation vector
+/// is the angle turned to (its x), where `scaled_axis` flips at each half turn; the same in
+/// the sequence refined, strided and seen at another frame time; and signals stored with
+/// flipped rotation vectors read as continued ones, the continued ones unchanged.
+#[test]
+fn the_signal_rotation_vector_continues_past_each_half_turn() {
+    let dt = 1.0 / 30.0;
+    let twist = |w: f64| Segment {
+        frames: 60,
+        velocity: [0.0; 3],
+        angular_velocity: [w, 0.0, 0.0],
+    };
+    // 8 rad / s for 2 s out, 16 rad in all, then back at 4 rad / s.
+    let track = Track::from_segments(&[twist(8.0), twist(-4.0), twist(-4.0)], 180, dt);
+    let seq = BcSequence {
+        tracks: vec![track],
+        frames: 180,
+        colliders: Vec::new(),
+    };
+    let turned = |f: usize| {
+        if f <= 60 {
+            8.0 * f as f64 * dt
+        } else {
+            16.0 - 4.0 * (f - 60) as f64 * dt
+        }
+    };
+    let rotation = |s: &[f64]| V3::new(s[SIGNAL_ROTATION], s[SIGNAL_ROTATION + 1], s[SIGNAL_ROTATION + 2]);
+    let mut flipped = Vec::new();
+    for f in 0..=180 {
+        let s = seq.signal(f);
+        let r = rotation(&s);
+        assert!((r - V3::new(turned(f), 0.0, 0.0)).norm() < 1e-9, "frame {f}: {r:?}");
+        let mut stored = s.clone();
+        let wrapped = seq.tracks[0].poses[f].rotation.scaled_axis();
+        assert!(wrapped.norm() <= std::f64::consts::PI + 1e-12);
+        stored[SIGNAL_ROTATION..SIGNAL_ROTATION + 3].copy_from_slice(wrapped.as_slice());
+        flipped.push(stored);
+    }
+    assert!(flipped
+        .iter()
+        .zip(0..)
+        .any(|(s, f)| (rotation(s).x - turned(f)).abs() > 6.0));
+    continue_rotations(&mut flipped);
+    for (f, row) in flipped.iter().enumerate() {
+        assert_eq!(row, &seq.signal(f), "frame {f}");
+    }
+    let mut again = flipped.clone();
+    continue_rotations(&mut again);
+    assert_eq!(again, flipped);
+    // Frame f of each is frame f * num / den of the sequence (where that is whole).
+    for (other, num, den) in [
+        (seq.refined(3, dt), 1, 3),
+        (seq.every(2), 2, 1),
+        (seq.resampled(dt, dt / 2.0, 360), 1, 2),
+    ] {
+        for f in (0..=other.frames()).filter(|f| f * num % den == 0) {
+            let r = rotation(&other.signal(f));
+            let want = turned(f * num / den);
+            assert!(
+                (r - V3::new(want, 0.0, 0.0)).norm() < 1e-9,
+                "frame {f} ({num}/{den}): {r:?}, {want}"
+            );
+        }
+    }
+}
