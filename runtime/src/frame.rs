@@ -7,10 +7,7 @@ use nalgebra::{Matrix2, Matrix3, Rotation3, Vector3};
 use crate::model::{Chain, Handle, Model, MAX_HANDLES, SIGNAL_PER_HANDLE};
 
 /// A handle's rigid pose relative to its reference placement: translation of the pivot and a
-/// rotation vector (axis times angle in radians) about it. Any representative of the rotation
-/// will do (an angle in `[0, pi]`, as a quaternion gives it, or one continued past a half
-/// turn): [`crate::Instance`] reads it continued from the last frame's
-/// ([`continuous_rotation`]).
+/// rotation vector (axis times angle in radians) about it.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct HandlePose {
@@ -19,10 +16,6 @@ pub struct HandlePose {
     /// Rotation vector about the pivot.
     pub rotation: [f32; 3],
 }
-
-/// Where a handle's rotation vector starts among its [`SIGNAL_PER_HANDLE`] numbers (the order
-/// of [`HandleMotion::signal`]: velocity, angular velocity, translation, rotation).
-pub const SIGNAL_ROTATION: usize = 9;
 
 /// What the model needs of one handle each frame: its velocities over the step that ends at
 /// this frame and its pose (the order of the trainer's boundary-condition signal).
@@ -35,9 +28,7 @@ pub struct HandleMotion {
     pub angular_velocity: [f32; 3],
     /// Translation of the pivot.
     pub translation: [f32; 3],
-    /// Rotation vector about the pivot: any representative of the rotation; the integrator
-    /// reads it continued from the last frame's ([`continuous_rotation`]), so a handle turned
-    /// past a half turn reads as turned on, not as flipped to the opposite axis.
+    /// Rotation vector about the pivot.
     pub rotation: [f32; 3],
 }
 
@@ -123,39 +114,6 @@ pub(crate) fn rotation(rotation_vector: &[f32; 3]) -> Rotation3<f32> {
     ))
 }
 
-/// The representative of the rotation vector `current` nearest `previous`: the same rotation
-/// with `2 pi k` added to its angle about its axis, `k` the whole number that brings it closest.
-///
-/// A handle that keeps turning about one axis has a rotation vector whose angle stays in
-/// `[0, pi]` only by jumping from `pi a` to `-pi a` at each half turn: to the integrator, which
-/// reads the rotation vector among its inputs, a jump of `2 pi` in one frame, and a bar
-/// twisted one and a half turns looks like one twisted half a turn the other way. Continued
-/// from the last frame's, the angle grows past `pi` as the handle turns on. Where no `k` other
-/// than 0 is closer, `current` comes back unchanged, to the bit. The trainer makes its signals
-/// continuous by the same rule in `f64` (`mochi_sim::bc::continuous_rotation`), so inputs it
-/// trained on read the same here.
-pub fn continuous_rotation(previous: &[f32; 3], current: &[f32; 3]) -> [f32; 3] {
-    let norm = |v: &[f32; 3]| libm::sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    let angle = norm(current);
-    // A zero rotation has every axis: take the last frame's.
-    let (axis_of, scale) = if angle > 0.0 {
-        (current, angle)
-    } else {
-        (previous, norm(previous))
-    };
-    if !(scale > 0.0 && scale.is_finite()) {
-        return *current;
-    }
-    let axis = axis_of.map(|c| c / scale);
-    let along = axis[0] * previous[0] + axis[1] * previous[1] + axis[2] * previous[2];
-    let turns = libm::roundf((along - angle) / core::f32::consts::TAU);
-    if turns == 0.0 || !turns.is_finite() {
-        return *current;
-    }
-    let turned = angle + core::f32::consts::TAU * turns;
-    axis.map(|c| c * turned)
-}
-
 /// The rotation vector (axis times angle, the angle in `[0, pi]`) of the rotation matrix `m`,
 /// the inverse of [`rotation`]; in `libm` arithmetic like it, so every target computes the
 /// same bits (nalgebra's `scaled_axis` takes the platform's trigonometry where `std` is on).
@@ -206,8 +164,7 @@ impl<'m, 'a> Placement<'m, 'a> {
         let mut translations = [Vector3::zeros(); MAX_HANDLES];
         for (h, s) in signal.chunks_exact(SIGNAL_PER_HANDLE).take(MAX_HANDLES).enumerate() {
             translations[h] = Vector3::new(s[6], s[7], s[8]);
-            let r = SIGNAL_ROTATION;
-            rotations[h] = *rotation(&[s[r], s[r + 1], s[r + 2]]).matrix();
+            rotations[h] = *rotation(&[s[9], s[10], s[11]]).matrix();
         }
         let mut placement = Placement {
             model,
@@ -503,36 +460,5 @@ mod tests {
             }
         }
         assert_eq!(checked, 320);
-    }
-
-    /// A handle turning on about one axis, its rotation vector given with the angle in
-    /// `[0, pi]` (flipping at each half turn), reads as the angle it turned to; a rotation
-    /// that does not need a turn added comes back to the bit; a zero rotation after a full turn
-    /// is a full turn about the last axis; a first rotation from rest is itself.
-    #[test]
-    fn continuous_rotation_continues_a_turn_past_each_half_turn() {
-        let axis = Vector3::new(0.3f32, -0.5, 0.8).normalize();
-        let mut last = [0.0f32; 3];
-        for frame in 1..400 {
-            // 0.15 rad a frame: 30 rad, almost five turns, then back the other way.
-            let angle = 0.15 * frame.min(400 - frame) as f32;
-            let wrapped = rotation_vector(rotation(&(axis * angle).into()).matrix());
-            assert!(Vector3::from(wrapped).norm() <= core::f32::consts::PI + 1e-5);
-            let read = continuous_rotation(&last, &wrapped);
-            let gap = (Vector3::from(read) - axis * angle).norm();
-            assert!(gap <= 1e-4 * angle.max(1.0), "frame {frame}: {read:?}, turned {angle}");
-            last = read;
-        }
-        let small = [0.1f32, -0.2, 0.05];
-        assert_eq!(continuous_rotation(&[0.12, -0.25, 0.0], &small), small);
-        assert_eq!(continuous_rotation(&[0.0; 3], &small), small);
-        let full = continuous_rotation(&[0.0, 0.0, 6.2], &[0.0; 3]);
-        assert!((Vector3::from(full) - Vector3::new(0.0, 0.0, core::f32::consts::TAU)).norm() <= 1e-6);
-        // Back across a half turn the other way: -pi + 0.1 about z after pi - 0.1 about z.
-        let pi = core::f32::consts::PI;
-        let over = continuous_rotation(&[0.0, 0.0, pi - 0.1], &[0.0, 0.0, -(pi - 0.1)]);
-        assert!((over[2] - (pi + 0.1)).abs() <= 1e-5, "{over:?}");
-        // Non-finite numbers pass through for the caller's checks.
-        assert!(continuous_rotation(&[f32::NAN; 3], &small) == small);
     }
 }

@@ -11,7 +11,7 @@ use crate::decode::{
     Origins, OutputRows,
 };
 use crate::finite::all_finite;
-use crate::frame::{continuous_rotation, HandleMotion, Placement, SIGNAL_ROTATION as ROTATION};
+use crate::frame::{HandleMotion, Placement};
 use crate::model::{Layer, Model, ModelError, Weights, HANDLE_SOURCE, SIGNAL_PER_HANDLE};
 use crate::network::hidden;
 
@@ -317,16 +317,8 @@ impl<const K: usize, const S: usize, const H: usize> Instance<K, S, H> {
             return Err(StepError::ColliderNotFinite { collider });
         }
         let mut signal = [0.0; S];
-        for ((chunk, last), motion) in signal
-            .chunks_exact_mut(SIGNAL_PER_HANDLE)
-            .zip(self.signal.chunks_exact(SIGNAL_PER_HANDLE))
-            .zip(bc)
-        {
+        for (chunk, motion) in signal.chunks_exact_mut(SIGNAL_PER_HANDLE).zip(bc) {
             chunk.copy_from_slice(&motion.signal());
-            // The rotation vector continued from the last frame's (as the trainer's signals).
-            let at = |s: &[f32]| [s[ROTATION], s[ROTATION + 1], s[ROTATION + 2]];
-            let rotation = continuous_rotation(&at(last), &at(chunk));
-            chunk[ROTATION..ROTATION + 3].copy_from_slice(&rotation);
         }
         let time = [dt];
         // A rate-input model reads the last latent's change per frame of its `dt`.

@@ -5,7 +5,7 @@
 //! same model written in this one, one of format 6 (without the render mesh) as the same
 //! model without one, and one of format 7 (without `rate_input`) as a timed model reading
 //! `z_{t-2}`. A rate-input model reads the last latent's change per frame of its `dt` in place
-//! of `z_{t-2}`. A handle's rotation vector is read continued past each half turn. Run-time colliders: a model with collider slots reads each
+//! of `z_{t-2}`. Run-time colliders: a model with collider slots reads each
 //! slot's features in the body's encoding frame (absent and far colliders alike), and refuses
 //! too many or non-finite colliders and malformed slots.
 
@@ -151,41 +151,6 @@ fn a_model_of_one_frame_time_refuses_another_and_bad_frame_times_change_nothing(
     }
     assert_eq!(body, before);
     assert_eq!(timed_body, AnyInstance::new(&timed).unwrap());
-}
-
-/// A handle turning on past several half turns, its rotation vector given as a quaternion gives
-/// it (the angle in `[-pi, pi]` about z here, flipping at each half turn): the integrator reads
-/// the angle the handle turned to, exactly as from an engine that continues the angle itself.
-#[test]
-fn a_handle_turned_past_a_half_turn_reads_as_turned_on() {
-    // The input layer reads only the current signal's rotation about z (input 2 + 11).
-    let mut payload = payload_with(false, &[], Some(2 + 11));
-    (payload.latent_min, payload.latent_max) = (vec![-1e6], vec![1e6]);
-    let storage = load(&payload.to_section().unwrap());
-    let model = storage.model().unwrap();
-    let (mut wrapped, mut continued) = (AnyInstance::new(&model).unwrap(), AnyInstance::new(&model).unwrap());
-    let (pi, mut want) = (std::f32::consts::PI, 0.0f32);
-    for frame in 1..=30 {
-        // 0.35 rad a frame, 10.5 rad in all: three flips of the wrapped angle.
-        let angle = 0.35 * frame as f32;
-        let flipped = angle - std::f32::consts::TAU * ((angle + pi) / std::f32::consts::TAU).floor();
-        let turn = |rotation: f32| {
-            [HandleMotion {
-                angular_velocity: [0.0, 0.0, 0.35 / DT as f32],
-                rotation: [0.0, 0.0, rotation],
-                ..HandleMotion::default()
-            }]
-        };
-        assert_eq!(wrapped.step(&model, &turn(flipped)), Ok(Stepped::Ok));
-        assert_eq!(continued.step(&model, &turn(angle)), Ok(Stepped::Ok));
-        want += HIDDEN as f32 * swish(angle);
-        let z = wrapped.latent()[0];
-        assert!(
-            (z - want).abs() <= 1e-4 * want,
-            "frame {frame}: latent {z}, expected {want}"
-        );
-        assert_eq!(z, continued.latent()[0], "frame {frame}");
-    }
 }
 
 /// Steps and decodes two loaded models side by side: the same latents and positions.

@@ -9,7 +9,7 @@ use mochi_trainer::artifact::reduced::{reduced_path, ReducedArtifact};
 use mochi_trainer::eval::reduced::{step_sequence, stepper_settings};
 use mochi_trainer::eval::reduced_bench::{self, ReducedBenchOptions};
 use mochi_trainer::learn::encoding::Encoding;
-use mochi_trainer::learn::recipe::{FrameRotation, RodEncoding};
+use mochi_trainer::learn::recipe::RodEncoding;
 use mochi_trainer::methods::reduced::optimize::Exit;
 use mochi_trainer::methods::reduced::rounding::Rounding;
 use mochi_trainer::methods::reduced::stepper::ReducedStepper;
@@ -60,7 +60,7 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     let mut problem = recipe.build().unwrap();
     let bc = problem.sequence(&SpeedPlan::constant(1.0), 30, 5);
     let reference = problem.run(&bc, &mochi_sim::Silent).unwrap();
-    let encoding = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+    let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
     let settings = stepper_settings(&recipe.reduced.clone().unwrap(), problem.scene.integrator);
     let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
     let mut visited = Vec::new();

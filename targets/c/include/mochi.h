@@ -15,12 +15,6 @@
 #define MOCHI_INSTANCE_WORDS 257
 
 /**
- * Where a handle's rotation vector starts among its [`SIGNAL_PER_HANDLE`] numbers (the order
- * of [`HandleMotion::signal`]: velocity, angular velocity, translation, rotation).
- */
-#define SIGNAL_ROTATION 9
-
-/**
  * [`Collider::shape`] of a sphere (`size = [radius, 0, 0]`).
  */
 #define SPHERE 0
@@ -206,9 +200,7 @@ typedef struct MochiHandleMotion {
    */
   float translation[3];
   /**
-   * Rotation vector about the pivot: any representative of the rotation; the integrator
-   * reads it continued from the last frame's ([`continuous_rotation`]), so a handle turned
-   * past a half turn reads as turned on, not as flipped to the opposite axis.
+   * Rotation vector about the pivot.
    */
   float rotation[3];
 } MochiHandleMotion;

@@ -63,7 +63,7 @@ impl DiagnosticArgs {
             .get(5)
             .map_or(Vec::new(), |s| s.split(',').map(String::from).collect());
         dataset::generate(&mut problem, &dir, None, false, &FramesBar::new("dataset", true))?;
-        let encoding = Encoding::new(&problem, recipe.latent.rods, recipe.latent.frame)?;
+        let encoding = Encoding::new(&problem, recipe.latent.rods)?;
         let train = dataset::load(&problem, &dir, Split::Train)?
             .into_iter()
             .map(|(_, t)| t)

@@ -14,11 +14,8 @@ pub mod colliders;
 pub use colliders::{ColliderMotionSpec, ColliderTrack};
 
 /// Numbers per handle in the boundary-condition signal: linear velocity (3), angular
-/// velocity (3), translation (3) and rotation vector (3) of the handle's pose, the rotation
-/// vector continued along the sequence ([`continuous_rotation`]).
+/// velocity (3), translation (3) and rotation vector (3) of the handle's pose.
 pub const SIGNAL_PER_HANDLE: usize = 12;
-/// Where a handle's rotation vector starts among its [`SIGNAL_PER_HANDLE`] numbers.
-pub const SIGNAL_ROTATION: usize = 9;
 
 /// A piece of motion: constant linear and angular velocity (about the moving pivot).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -41,9 +38,6 @@ pub struct Pose {
     pub translation: V3,
     /// Rotation about the pivot.
     pub rotation: UnitQuaternion<f64>,
-    /// The rotation as a rotation vector continued along the motion that led here
-    /// ([`continuous_rotation`]): its angle grows past pi as the handle turns on.
-    pub rotation_vector: V3,
 }
 
 impl Pose {
@@ -52,7 +46,6 @@ impl Pose {
         Pose {
             translation: V3::zeros(),
             rotation: UnitQuaternion::identity(),
-            rotation_vector: V3::zeros(),
         }
     }
     /// Moves the reference point `p` of a handle pivoting about `pivot`.
@@ -61,57 +54,9 @@ impl Pose {
     }
     /// The pose after moving for `dt` seconds with the velocities of `segment`.
     pub fn advanced(&self, segment: &Segment, dt: f64) -> Pose {
-        let rotation = UnitQuaternion::from_scaled_axis(V3::from(segment.angular_velocity) * dt) * self.rotation;
         Pose {
             translation: self.translation + V3::from(segment.velocity) * dt,
-            rotation,
-            rotation_vector: continuous_rotation(&self.rotation_vector, &rotation.scaled_axis()),
-        }
-    }
-}
-
-/// The representative of the rotation vector `current` nearest `previous`: the same rotation
-/// with `2 pi k` added to its angle about its axis, `k` the whole number that brings it closest.
-///
-/// A handle turning on about one axis has a rotation vector whose angle stays in `[0, pi]`
-/// (`scaled_axis`) only by jumping from `pi a` to `-pi a` at each half turn; a learned
-/// integrator reading it would see a jump of `2 pi` in one frame, and a bar twisted one and a
-/// half turns as one twisted half a turn the other way. The signal's rotation vector is
-/// continued from the last frame's instead. Where no `k` other than 0 is closer, `current` comes
-/// back unchanged. The runtime continues the rotation vectors it is given by the same rule in
-/// `f32` (`mochi_runtime::frame::continuous_rotation`; agreement tested in the trainer).
-pub fn continuous_rotation(previous: &V3, current: &V3) -> V3 {
-    let angle = current.norm();
-    // A zero rotation has every axis: take the last frame's.
-    let (axis_of, scale) = if angle > 0.0 {
-        (current, angle)
-    } else {
-        (previous, previous.norm())
-    };
-    if !(scale > 0.0 && scale.is_finite()) {
-        return *current;
-    }
-    let axis = axis_of / scale;
-    let turns = ((axis.dot(previous) - angle) / std::f64::consts::TAU).round();
-    if turns == 0.0 || !turns.is_finite() {
-        return *current;
-    }
-    axis * (angle + std::f64::consts::TAU * turns)
-}
-
-/// Continues the rotation vectors of a sequence of boundary-condition signals (one row a
-/// frame, [`SIGNAL_PER_HANDLE`] numbers a handle) along the rows, as [`BcSequence::signal`]
-/// gives them ([`continuous_rotation`]): signals stored with every angle in `[0, pi]` read as
-/// the ones written now. Rows of another length are left as they are.
-pub fn continue_rotations(rows: &mut [Vec<f64>]) {
-    let mut last: Vec<V3> = Vec::new();
-    for row in rows.iter_mut().filter(|r| r.len() % SIGNAL_PER_HANDLE == 0) {
-        last.resize(row.len() / SIGNAL_PER_HANDLE, V3::zeros());
-        for (handle, previous) in row.chunks_exact_mut(SIGNAL_PER_HANDLE).zip(last.iter_mut()) {
-            let r = &mut handle[SIGNAL_ROTATION..SIGNAL_ROTATION + 3];
-            let continued = continuous_rotation(previous, &V3::new(r[0], r[1], r[2]));
-            r.copy_from_slice(continued.as_slice());
-            *previous = continued;
+            rotation: UnitQuaternion::from_scaled_axis(V3::from(segment.angular_velocity) * dt) * self.rotation,
         }
     }
 }
@@ -400,7 +345,7 @@ impl BcSequence {
             out.extend_from_slice(&t.velocities[frame]);
             let pose = &t.poses[frame];
             out.extend_from_slice(pose.translation.as_slice());
-            out.extend_from_slice(pose.rotation_vector.as_slice());
+            out.extend_from_slice(pose.rotation.scaled_axis().as_slice());
         }
         out
     }

@@ -369,7 +369,7 @@ impl BuiltScene {
                 ),
                 (
                     "bc_signal_layout".into(),
-                    "per handle: velocity(3), angular_velocity(3), translation(3), rotation_vector(3, continued past each half turn)".into(),
+                    "per handle: velocity(3), angular_velocity(3), translation(3), rotation_vector(3)".into(),
                 ),
             ],
             colliders: self.collider_frames(seq),

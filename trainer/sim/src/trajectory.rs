@@ -9,7 +9,7 @@
 //! | `scene` | unicode | `()` |
 //! | `dt` | float64 | `()` |
 //! | `positions` | float64 | `(frames, n, dim)` |
-//! | `bc_signal` | float64 | `(frames, p)`: per handle velocity, angular velocity, translation, rotation vector (continued past each half turn: `bc::continuous_rotation`; read so from files written before) |
+//! | `bc_signal` | float64 | `(frames, p)` |
 //! | `energy_names` | unicode | `(k,)` |
 //! | `energies` | float64 | `(frames, k)` |
 //! | `newton_iterations` | uint32 | `(frames,)` |
@@ -320,10 +320,7 @@ impl Trajectory {
         let bc_signal = npz.array("bc_signal")?;
         let [bc_frames, p] = bc_signal.dims::<2>()?;
         bc_signal.expect_len("frames", bc_frames, frames)?;
-        let mut bc_signal = rows(bc_signal.into_vec::<f64>("float64")?, frames, p);
-        // Files written with every rotation angle in [0, pi] read as the continued ones
-        // written now (unchanged where they already are).
-        crate::bc::continue_rotations(&mut bc_signal);
+        let bc_signal = rows(bc_signal.into_vec::<f64>("float64")?, frames, p);
 
         let energy_names = npz.array("energy_names")?;
         let [k] = energy_names.dims::<1>()?;

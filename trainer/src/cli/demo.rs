@@ -220,7 +220,7 @@ pub fn run(options: &DemoOptions, report: &dyn Reporter) -> Result<DemoReport> {
     let mean_error = mean_curve.iter().sum::<f64>() / frames as f64;
     let max_error = errors.iter().flatten().copied().fold(0.0, f64::max);
     // The artifact was trained on this scene (checked above), so its encoding is this one.
-    let encoding = Encoding::new(&problem, recipe.latent.rods, recipe.latent.frame)?;
+    let encoding = Encoding::new(&problem, recipe.latent.rods)?;
     let trainer = LoadedModel::new(artifact)?;
     let mut disagreement = 0.0f64;
     eval::roll(&trainer, &problem, &encoding, &bc, frames, |t, _, _, x| {

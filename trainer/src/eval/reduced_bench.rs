@@ -130,7 +130,7 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
         spec.tolerance = tolerance;
     }
     let mut problem = recipe.build()?;
-    let encoding = Encoding::new(&problem, recipe.latent.rods, recipe.latent.frame)?;
+    let encoding = Encoding::new(&problem, recipe.latent.rods)?;
     let mut settings = stepper_settings(&spec, problem.scene.integrator);
     if options.rounding == Rounding::Single {
         settings.solve.rounding = Rounding::Single;

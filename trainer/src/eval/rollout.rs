@@ -15,7 +15,7 @@ use crate::error::{TrainerError, TrainerResult};
 use crate::eval::penetration::{Penetration, PenetrationMeter};
 use crate::learn::encoding::{collider_inputs, decode_world, pack_signals, Encoding};
 use crate::learn::network::{ExportedIntegrator, FrozenDecoder};
-use crate::learn::recipe::{FrameRotation, Recipe, RodEncoding};
+use crate::learn::recipe::{Recipe, RodEncoding};
 use crate::progress::Reporter;
 
 /// Frames over which accuracy is measured (from the start of each test sequence).
@@ -90,13 +90,7 @@ pub fn carried_encoding(artifact: &Artifact, problem: &BuiltScene) -> TrainerRes
     } else {
         RodEncoding::Bends
     };
-    // A scene whose handles rotate and a model that removes no rotation: the world frame.
-    let frame = if artifact.encoding.rotates {
-        FrameRotation::Handles
-    } else {
-        FrameRotation::World
-    };
-    let encoding = Encoding::new(problem, rods, frame)?;
+    let encoding = Encoding::new(problem, rods)?;
     if crate::artifact::EncodingData::new(&encoding) != artifact.encoding {
         return Err(TrainerError::invalid(format!(
             "the artifact's boundary-condition encoding does not match scene `{}` as rebuilt from it",

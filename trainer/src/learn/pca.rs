@@ -430,7 +430,7 @@ mod tests {
         for name in ["beam", "cloth", "rods"] {
             let recipe = Recipe::load(name).unwrap();
             let mut problem = recipe.build().unwrap();
-            let encoding = Encoding::new(&problem, recipe.latent.rods, recipe.latent.frame).unwrap();
+            let encoding = Encoding::new(&problem, recipe.latent.rods).unwrap();
             let mut run = |seed: u64, level: f64| {
                 let seq = problem.sequence(&SpeedPlan::constant(level), 30, seed);
                 encoding

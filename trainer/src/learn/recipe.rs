@@ -176,8 +176,6 @@ pub struct LatentSpec {
     pub seed: u64,
     /// What the latent space of a rods scene encodes (`positions` or `bends`).
     pub rods: RodEncoding,
-    /// Which rotation the encoding frame removes (default `"handles"`).
-    pub frame: FrameRotation,
     /// Whether the integrator takes the scene's run-time colliders (`[[colliders]]`) as
     /// inputs, and the physics loss their barrier (default true; false trains a model that
     /// cannot see them, for comparison).
@@ -293,22 +291,6 @@ pub enum RodEncoding {
     Bends,
 }
 
-/// Which rotation the encoding frame removes from the states (scene field `latent.frame`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum FrameRotation {
-    /// The handles' best-fit rotation (Kabsch over every handle vertex), when some handle
-    /// can rotate: a body carried and turned by its handles is encoded the same in every
-    /// orientation.
-    #[default]
-    Handles,
-    /// None: states are encoded in world axes (origins as with `"handles"`). For handles
-    /// that twist a body against each other, the best-fit rotation of both ends jumps by
-    /// pi when their relative turn passes a half turn (docs/design.md, decision 3); the
-    /// world frame is continuous in every handle pose.
-    World,
-}
-
 impl Default for LatentSpec {
     fn default() -> Self {
         LatentSpec {
@@ -338,7 +320,6 @@ impl Default for LatentSpec {
             stretch: 0.0,
             seed: 0,
             rods: RodEncoding::Positions,
-            frame: FrameRotation::Handles,
             collider_inputs: true,
             selection: SelectionSpec::default(),
         }

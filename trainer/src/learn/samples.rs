@@ -395,7 +395,7 @@ pub(crate) mod fixtures {
     use crate::learn::network::AutoencoderSpec;
     use crate::learn::network::IntegratorSpec;
     use crate::learn::pca::Pca;
-    use crate::learn::recipe::{FrameRotation, Recipe, RodEncoding};
+    use crate::learn::recipe::{Recipe, RodEncoding};
     use crate::learn::sequences::encode_sequences;
     use mochi_sim::dataset::SpeedPlan;
     use mochi_sim::scene::MeshSpec;
@@ -419,7 +419,7 @@ pub(crate) mod fixtures {
         let mut problem = scene.build().unwrap();
         let seq = problem.sequence(&SpeedPlan::constant(1.0), 12, 4);
         let traj = problem.run(&seq, &mochi_sim::Silent).unwrap();
-        let encoding = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+        let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
         let sequences = encode_sequences(&encoding, vec![traj]).unwrap();
         let frames: Vec<Vec<f64>> = sequences[0].encoded.clone();
         let pca = Pca::fit(&frames, 3).unwrap();

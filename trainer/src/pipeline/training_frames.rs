@@ -45,7 +45,7 @@ pub(crate) fn encode_training_split(
     work: &Workspace,
     report: &dyn Reporter,
 ) -> TrainerResult<TrainingFrames> {
-    let encoding = Encoding::new(problem, spec.rods, spec.frame)?;
+    let encoding = Encoding::new(problem, spec.rods)?;
     let files = dataset::split_paths(problem, &work.dataset, Split::Train);
     let bytes: u64 = files
         .iter()

@@ -66,36 +66,6 @@ fn trajectory_npz_round_trip_is_bit_exact() {
     assert_eq!(back.meta_value("split"), Some("train"));
 }
 
-/// A file whose handle signal flips its rotation vector at a half turn (as written before the
-/// signal continued it) reads with the rotation continued; the continued one reads back as
-/// written.
-#[test]
-fn a_flipped_rotation_vector_in_a_file_reads_continued() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("t.npz");
-    let pi = std::f64::consts::PI;
-    let handle = |angle: f64| {
-        let mut s = vec![0.0; crate::bc::SIGNAL_PER_HANDLE];
-        s[3] = 3.0;
-        s[crate::bc::SIGNAL_ROTATION] = angle;
-        s
-    };
-    let mut t = sample();
-    t.bc_signal = [0.0, 3.0, -(2.0 * pi - 3.1), -(2.0 * pi - 3.2)].map(handle).to_vec();
-    t.write_npz(&path).unwrap();
-    let back = Trajectory::read_npz(&path).unwrap();
-    let continued = [0.0, 3.0, 3.1, 3.2].map(handle).to_vec();
-    for (row, want) in back.bc_signal.iter().zip(&continued) {
-        assert!(
-            row.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-12),
-            "{row:?} vs {want:?}"
-        );
-    }
-    t.bc_signal = back.bc_signal.clone();
-    t.write_npz(&path).unwrap();
-    assert_eq!(Trajectory::read_npz(&path).unwrap(), t);
-}
-
 #[test]
 fn trajectory_round_trip_without_bc_energies_or_meta_in_2d() {
     let dir = tempfile::tempdir().unwrap();

@@ -276,7 +276,7 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
     let trained = Trained {
         learned,
         encoding: match &reduced_file {
-            Some(_) => Some(Encoding::new(&problem, RodEncoding::Positions, recipe.latent.frame)?),
+            Some(_) => Some(Encoding::new(&problem, RodEncoding::Positions)?),
             None => None,
         },
         reduced,

@@ -4,7 +4,7 @@ use rand::SeedableRng;
 
 use super::*;
 use crate::learn::network::{forward_exported, DenseLayer};
-use crate::learn::recipe::{FrameRotation, Recipe, RodEncoding};
+use crate::learn::recipe::{Recipe, RodEncoding};
 use crate::progress::Quiet;
 use mochi_sim::Scene;
 
@@ -79,7 +79,7 @@ pub(crate) fn small_settings() -> DataFreeSettings {
 fn the_loss_falls_and_the_export_reproduces_the_candle_decoder() {
     let dir = tempfile::tempdir().unwrap();
     let problem = tiny_bar(dir.path());
-    let encoding = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+    let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
     let settings = small_settings();
     let objective = DataFreeObjective::new(&problem, &encoding, settings.sigma).unwrap();
     let model = objective.initial_model(&settings).unwrap();
@@ -132,7 +132,7 @@ fn perturbed(mlp: &ExportedMlp, layer: usize, index: usize, delta: f64) -> Expor
 fn the_surrogate_gradient_is_the_energy_terms_derivative() {
     let dir = tempfile::tempdir().unwrap();
     let problem = tiny_bar(dir.path());
-    let encoding = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+    let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
     let settings = small_settings();
     let objective = DataFreeObjective::new(&problem, &encoding, settings.sigma).unwrap();
     let model = objective.initial_model(&settings).unwrap();
@@ -191,7 +191,7 @@ fn the_surrogate_gradient_is_the_energy_terms_derivative() {
 fn invalid_settings_are_errors_that_name_the_setting() {
     let dir = tempfile::tempdir().unwrap();
     let problem = tiny_bar(dir.path());
-    let encoding = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+    let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
     let base = small_settings();
     let cases = [
         ("latent", DataFreeSettings { latent: 0, ..base }),
@@ -225,7 +225,7 @@ fn invalid_settings_are_errors_that_name_the_setting() {
 fn bistable_learns_both_buckling_branches() {
     let recipe = Recipe::load("bistable").unwrap();
     let problem = recipe.build().unwrap();
-    let encoding = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+    let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
     let settings = DataFreeSettings::default();
     let outcome = train_data_free(&problem, &encoding, &settings, &Quiet).unwrap();
     let n = outcome.losses.len();

@@ -3,7 +3,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::learn::recipe::{FrameRotation, RodEncoding};
+use crate::learn::recipe::RodEncoding;
 use mochi_sim::bc::Handle;
 use mochi_sim::error::InputError;
 use mochi_sim::mesh::{Elements, Mesh};
@@ -35,11 +35,10 @@ pub struct Encoding {
 }
 
 impl Encoding {
-    /// The encoding of a built scene, rod strands encoded as `rods` says: with `frame =
-    /// Handles` rotation is removed when some handle can rotate (see [`handles_rotate`]),
-    /// with `World` never.
-    pub fn new(problem: &BuiltScene, rods: RodEncoding, frame: FrameRotation) -> Result<Encoding, InputError> {
-        let rotates = frame == FrameRotation::Handles && handles_rotate(&problem.scene.handles);
+    /// The encoding of a built scene, rod strands encoded as `rods` says: rotation is removed when some handle can rotate
+    /// (see [`handles_rotate`]).
+    pub fn new(problem: &BuiltScene, rods: RodEncoding) -> Result<Encoding, InputError> {
+        let rotates = handles_rotate(&problem.scene.handles);
         let encoding = Encoding::from_parts(&problem.mesh, &problem.handles, rotates)
             .map_err(|e| InputError::field(&problem.scene.source, "handles", e.to_string()))?;
         match rods {

@@ -4,7 +4,7 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 use super::frame::{best_fit_rotation, centroid, pad};
 use super::*;
-use crate::learn::recipe::{FrameRotation, Recipe, RodEncoding};
+use crate::learn::recipe::{Recipe, RodEncoding};
 use mochi_sim::dataset::SpeedPlan;
 use mochi_sim::mesh::{Elements, Mesh};
 use mochi_sim::scene::BuiltScene;
@@ -60,7 +60,7 @@ fn round_trip_is_exact(enc: &Encoding, states: &[Vec<f64>]) {
 #[test]
 fn encoding_round_trip_is_exact_on_simulated_beam_and_rods() {
     let (beam, traj) = simulate("beam", 10);
-    let enc = Encoding::new(&beam, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+    let enc = Encoding::new(&beam, RodEncoding::Positions).unwrap();
     assert!(enc.rotates());
     assert_eq!(enc.origins(), &Origins::HandleCentroid);
     let clamp = beam.handles[0].vertices.len();
@@ -104,10 +104,7 @@ fn encoding_round_trip_is_exact_on_simulated_beam_and_rods() {
 #[test]
 fn encoding_ignores_rigid_motion_of_state_and_handles_together() {
     let (beam, traj) = simulate("beam", 8);
-    encoding_ignores_rigid_motion(
-        &Encoding::new(&beam, RodEncoding::Positions, FrameRotation::Handles).unwrap(),
-        &traj.positions,
-    );
+    encoding_ignores_rigid_motion(&Encoding::new(&beam, RodEncoding::Positions).unwrap(), &traj.positions);
     // Rods with their roots' rotation removed as well.
     let (rods, traj) = simulate("rods", 4);
     let enc = Encoding::from_parts(&rods.mesh, &rods.handles, true).unwrap();
@@ -152,7 +149,7 @@ fn strand_bends_decode_at_rest_length_and_track_simulated_rods() {
     let (rods, traj) = simulate("rods", 20);
     let bends = Recipe::load("rods").unwrap().latent.rods;
     assert_eq!(bends, RodEncoding::Bends);
-    let enc = Encoding::new(&rods, bends, FrameRotation::Handles).unwrap();
+    let enc = Encoding::new(&rods, bends).unwrap();
     assert!(enc.strand_bends());
     assert_eq!(enc.values_per_vertex(), 2);
     assert_eq!(enc.encoded_len(), 16 * 28 * 2);
@@ -293,7 +290,7 @@ fn encoding_ignores_translation_in_every_scene() {
         // Scenes without handles (the contact scenes) are encoded in world coordinates, the
         // frame their static ground is fixed in: there is no handle to be relative to.
         if problem.handles.is_empty() {
-            let enc = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+            let enc = Encoding::new(&problem, RodEncoding::Positions).unwrap();
             round_trip_is_exact(&enc, &simulate(&name, 2).1.positions);
             continue;
         }
@@ -305,7 +302,7 @@ fn encoding_ignores_translation_in_every_scene() {
         } else {
             displaced_states(&problem, 5)
         };
-        let enc = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+        let enc = Encoding::new(&problem, RodEncoding::Positions).unwrap();
         let dim = enc.dim();
         let shift = Vector3::new(0.7, -0.3, if dim == 3 { 1.9 } else { 0.0 });
         for x in &states {
@@ -358,7 +355,7 @@ fn is_length<T>(result: Result<T, EncodingError>) -> bool {
 #[test]
 fn encoding_bad_input_is_an_error() {
     let problem = Recipe::load("beam").unwrap().build().unwrap();
-    let enc = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+    let enc = Encoding::new(&problem, RodEncoding::Positions).unwrap();
     let x = problem.mesh.rest.clone();
     let targets = enc.handle_targets(&x).unwrap();
     let frame = enc.frame(&targets).unwrap();
@@ -396,9 +393,7 @@ fn encoding_bad_input_is_an_error() {
 
     // The cloth's two corners cannot fix a rotation.
     let cloth = Recipe::load("cloth").unwrap().build().unwrap();
-    assert!(!Encoding::new(&cloth, RodEncoding::Positions, FrameRotation::Handles)
-        .unwrap()
-        .rotates());
+    assert!(!Encoding::new(&cloth, RodEncoding::Positions).unwrap().rotates());
     assert_eq!(
         Encoding::from_parts(&cloth.mesh, &cloth.handles, true),
         Err(EncodingError::DegenerateHandles { count: 2, span: 1 })
@@ -432,51 +427,4 @@ fn encoding_without_handles_is_the_identity() {
     let q = enc.encode_state(&problem.mesh.rest).unwrap();
     assert_eq!(q, problem.mesh.rest);
     assert_eq!(enc.decode(&q, &[]).unwrap(), problem.mesh.rest);
-}
-
-/// The twist bar's right end turned by `angle` about the bar's axis through its centre, the
-/// left end at its reference: the handle targets in handle order.
-fn twisted_targets(enc: &Encoding, left_slots: usize, angle: f64) -> Vec<f64> {
-    let reference = enc.reference();
-    let right = &reference[3 * left_slots..];
-    let centre = centroid(right, 3);
-    let turn = Rotation3::from_axis_angle(&Vector3::x_axis(), angle);
-    let turned = right.chunks_exact(3).flat_map(|p| {
-        let y = turn * (pad(p) - centre) + centre;
-        [y.x, y.y, y.z]
-    });
-    reference[..3 * left_slots].iter().copied().chain(turned).collect()
-}
-
-#[test]
-fn the_world_frame_does_not_flip_where_the_handles_best_fit_does() {
-    let problem = Recipe::load("twist-bar").unwrap().build().unwrap();
-    let left_slots = problem.handles[0].vertices.len();
-    let turn_between = |enc: &Encoding, a: f64, b: f64| {
-        let frame = |angle| enc.frame(&twisted_targets(enc, left_slots, angle)).unwrap().rotation;
-        Rotation3::from_matrix(&(frame(a).transpose() * frame(b))).angle()
-    };
-    // Kabsch over both ends turns the frame by about half the twist, the shorter way round:
-    // across the half turn it jumps by pi.
-    let handles = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
-    assert!(handles.rotates());
-    assert!((turn_between(&handles, 0.0, 1.0) - 0.5).abs() < 1e-6);
-    let eps = 1e-3;
-    let jump = turn_between(&handles, std::f64::consts::PI - eps, std::f64::consts::PI + eps);
-    assert!((jump - std::f64::consts::PI).abs() < 1e-2, "best-fit jump {jump}");
-    // The world frame removes no rotation: the same frame at every twist, and the encoded
-    // state moves with the bar.
-    let world = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::World).unwrap();
-    assert!(!world.rotates());
-    assert_eq!(
-        turn_between(&world, std::f64::consts::PI - eps, std::f64::consts::PI + eps),
-        0.0
-    );
-    let x = problem.mesh.rest.clone();
-    round_trip_is_exact(&world, &[x]);
-    // The scene field.
-    let latent = |text: &str| toml::from_str::<crate::learn::recipe::LatentSpec>(text);
-    assert_eq!(latent("").unwrap().frame, FrameRotation::Handles);
-    assert_eq!(latent("frame = \"world\"").unwrap().frame, FrameRotation::World);
-    assert!(latent("frame = \"none\"").is_err());
 }

@@ -257,12 +257,12 @@ fn a_tiny_data_free_lipschitz_optimisation_lowers_the_lipschitz_loss() {
     use crate::learn::datafree::{normal_latents, train_data_free_model, DataFreeObjective};
     use crate::learn::encoding::Encoding;
     use crate::learn::network::tensor_to_rows;
-    use crate::learn::recipe::{FrameRotation, RodEncoding};
+    use crate::learn::recipe::RodEncoding;
     use crate::progress::Quiet;
 
     let dir = tempfile::tempdir().unwrap();
     let problem = tiny_bar(dir.path());
-    let encoding = Encoding::new(&problem, RodEncoding::Positions, FrameRotation::Handles).unwrap();
+    let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
     let settings = small_settings();
     let objective = DataFreeObjective::new(&problem, &encoding, settings.sigma).unwrap();
     let (model, vanilla) = train_data_free_model(&objective, &settings, &Quiet).unwrap();
