@@ -125,8 +125,9 @@ pub struct ReducedSpec {
     /// Epochs (supervised) or iterations (data-free) of the Lipschitz optimisation (default
     /// 200).
     pub lipschitz_epochs: usize,
-    /// Learning rate of a supervised Lipschitz optimisation (default: the vanilla network's
-    /// final learning rate, at least 1e-5).
+    /// Learning rate of the Lipschitz optimisation (default: supervised, the vanilla
+    /// network's final learning rate, at least 1e-5; data-free, the data-free training's
+    /// constant 1e-3).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lipschitz_learning_rate: Option<f64>,
     /// Times a supervised Lipschitz optimisation refits its cubature on the current

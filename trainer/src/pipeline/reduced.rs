@@ -394,10 +394,14 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
         local: 0.0,
         resample: 0,
     };
+    let lipschitz_stage = DataFreeSettings {
+        learning_rate: spec.lipschitz_learning_rate.unwrap_or(settings.learning_rate),
+        ..settings
+    };
     let (losses, lambda) = optimise_data_free(
         &objective,
         &model,
-        &settings,
+        &lipschitz_stage,
         &term,
         &lip_settings,
         spec.lipschitz_epochs,
