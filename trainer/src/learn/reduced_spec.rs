@@ -117,8 +117,9 @@ pub struct ReducedSpec {
     pub data_free_iterations: usize,
     /// Seed of a data-free subspace: its decoder's initialisation, its latent samples and
     /// those of its cubature and Lipschitz optimisation (default 0). A supervised subspace
-    /// starts from the autoencoder, whose seed is `[latent] seed`.
-    pub seed: u64,
+    /// starts from the autoencoder, whose seed is `[latent] seed`, and setting this on one is
+    /// an error.
+    pub seed: Option<u64>,
     /// Weight of the Lipschitz term relative to the construction loss at the vanilla start
     /// (default 1; see `methods::lipschitz::train`).
     pub lipschitz: f64,
@@ -178,7 +179,7 @@ impl Default for ReducedSpec {
             plain_final_learning_rate: 1e-5,
             latent: 8,
             data_free_iterations: 4000,
-            seed: 0,
+            seed: None,
             lipschitz: 1.0,
             lipschitz_epochs: 200,
             lipschitz_learning_rate: None,
@@ -267,6 +268,13 @@ impl ReducedSpec {
                     self.cubature_refits + 1,
                     self.lipschitz_epochs
                 ),
+            ));
+        }
+        if self.seed.is_some() && self.subspace == SubspaceSource::Supervised {
+            return Err((
+                "seed",
+                "seeds a data-free subspace: a supervised one starts from the autoencoder, whose seed is [latent] seed"
+                    .into(),
             ));
         }
         if self.vanilla == VanillaNetwork::PlainMlp && self.subspace != SubspaceSource::Supervised {
@@ -438,9 +446,12 @@ mod tests {
 
     #[test]
     fn the_data_free_seed_is_read_from_the_table() {
-        assert_eq!(ReducedSpec::default().seed, 0);
+        assert_eq!(ReducedSpec::default().seed, None);
         let spec: ReducedSpec = toml::from_str("subspace = \"data-free\"\nseed = 3").unwrap();
-        assert_eq!((spec.subspace, spec.seed), (SubspaceSource::DataFree, 3));
+        assert_eq!((spec.subspace, spec.seed), (SubspaceSource::DataFree, Some(3)));
+        assert!(spec.validate().is_ok());
+        let supervised: ReducedSpec = toml::from_str("subspace = \"supervised\"\nseed = 3").unwrap();
+        assert_eq!(supervised.validate().unwrap_err().0, "seed");
         assert!(toml::from_str::<ReducedSpec>("seed = -1").is_err());
     }
 }

@@ -359,7 +359,7 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
     let settings = DataFreeSettings {
         latent: spec.latent,
         iterations: spec.data_free_iterations,
-        seed: spec.seed,
+        seed: spec.seed.unwrap_or(0),
         ..DataFreeSettings::default()
     };
     let objective = DataFreeObjective::new(problem, encoding, settings.sigma)?;
