@@ -239,3 +239,16 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
     let none = ReducedBenchOptions { stride: 0, ..options };
     assert!(reduced_bench::bench(&file, &none, &Quiet).is_err());
 }
+
+#[test]
+fn a_scene_file_that_seeds_a_supervised_subspace_is_refused_but_a_stored_recipe_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("seeded.toml");
+    let text = format!("{TINY}{REDUCED}seed = 3\n");
+    std::fs::write(&path, &text).unwrap();
+    let err = Recipe::load(path.to_str().unwrap()).unwrap_err().to_string();
+    assert!(err.contains("reduced.seed") && err.contains("seeded.toml"), "{err}");
+    // The recipes in artifacts of earlier builds carry `seed = 0` on supervised scenes.
+    let stored = Recipe::parse(&text, &path).unwrap();
+    assert_eq!(stored.reduced.unwrap().seed, Some(3));
+}

@@ -69,7 +69,12 @@ impl Recipe {
     pub fn load(name_or_path: &str) -> Result<Recipe, InputError> {
         let path = Recipe::resolve(name_or_path)?;
         let text = read_text(&path)?;
-        Recipe::parse(&text, &path)
+        let recipe = Recipe::parse(&text, &path)?;
+        if let Some(spec) = &recipe.reduced {
+            spec.validate_authored()
+                .map_err(|(f, msg)| InputError::field(&path, format!("reduced.{f}"), msg))?;
+        }
+        Ok(recipe)
     }
 
     /// Parses and validates a scene file's text; `path` is used in errors and to resolve

@@ -117,8 +117,9 @@ pub struct ReducedSpec {
     pub data_free_iterations: usize,
     /// Seed of a data-free subspace: its decoder's initialisation, its latent samples and
     /// those of its cubature and Lipschitz optimisation (default 0). A supervised subspace
-    /// starts from the autoencoder, whose seed is `[latent] seed`, and setting this on one is
-    /// an error.
+    /// starts from the autoencoder, whose seed is `[latent] seed`; a scene file that sets
+    /// this on one is refused ([`ReducedSpec::validate_authored`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
     /// Weight of the Lipschitz term relative to the construction loss at the vanilla start
     /// (default 1; see `methods::lipschitz::train`).
@@ -270,17 +271,24 @@ impl ReducedSpec {
                 ),
             ));
         }
+        if self.vanilla == VanillaNetwork::PlainMlp && self.subspace != SubspaceSource::Supervised {
+            return Err((
+                "vanilla",
+                "\"plain-mlp\" is an autoencoder trained on the dataset: it needs subspace = \"supervised\"".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The checks of a table as a person wrote it, beyond [`ReducedSpec::validate`]'s: a
+    /// setting that would be ignored. Not applied to the recipes stored in artifacts, which
+    /// the trainer wrote (those of some earlier builds carry `seed = 0` on every scene).
+    pub fn validate_authored(&self) -> Result<(), (&'static str, String)> {
         if self.seed.is_some() && self.subspace == SubspaceSource::Supervised {
             return Err((
                 "seed",
                 "seeds a data-free subspace: a supervised one starts from the autoencoder, whose seed is [latent] seed"
                     .into(),
-            ));
-        }
-        if self.vanilla == VanillaNetwork::PlainMlp && self.subspace != SubspaceSource::Supervised {
-            return Err((
-                "vanilla",
-                "\"plain-mlp\" is an autoencoder trained on the dataset: it needs subspace = \"supervised\"".into(),
             ));
         }
         Ok(())
@@ -450,8 +458,10 @@ mod tests {
         let spec: ReducedSpec = toml::from_str("subspace = \"data-free\"\nseed = 3").unwrap();
         assert_eq!((spec.subspace, spec.seed), (SubspaceSource::DataFree, Some(3)));
         assert!(spec.validate().is_ok());
+        assert!(spec.validate_authored().is_ok());
         let supervised: ReducedSpec = toml::from_str("subspace = \"supervised\"\nseed = 3").unwrap();
-        assert_eq!(supervised.validate().unwrap_err().0, "seed");
+        assert!(supervised.validate().is_ok());
+        assert_eq!(supervised.validate_authored().unwrap_err().0, "seed");
         assert!(toml::from_str::<ReducedSpec>("seed = -1").is_err());
     }
 }
