@@ -279,6 +279,7 @@ pub fn evaluate(
             LabelledPoint {
                 group: "adaptive solver".into(),
                 label: String::new(),
+                emphasis: false,
                 x: 1e3 * rows.iter().map(|(_, m)| m.step_seconds).sum::<f64>() / n,
                 y: 100.0 * rows.iter().map(|(_, m)| m.mean_error).sum::<f64>() / n,
             }
@@ -411,6 +412,7 @@ fn write_charts(
             LabelledPoint {
                 group: r.method.label().into(),
                 label: format!("k={}{note}", r.latent),
+                emphasis: false,
                 x: 1e3 * r.mean_of(|m| m.step_seconds + m.decode_seconds),
                 y: 100.0 * r.mean_of(|m| m.error_curve.iter().sum::<f64>() / m.error_curve.len().max(1) as f64),
             }
@@ -419,6 +421,7 @@ fn write_charts(
     points.extend(reduced.iter().map(|r| LabelledPoint {
         group: format!("reduced, {}", r.name),
         label: format!("r={}", r.latent),
+        emphasis: false,
         x: 1e3 * r.mean_of(|m| m.step_seconds),
         y: 100.0 * r.mean_of(|m| m.error_curve.iter().sum::<f64>() / m.error_curve.len().max(1) as f64),
     }));
@@ -426,6 +429,7 @@ fn write_charts(
     points.push(LabelledPoint {
         group: "full space".into(),
         label: "reference".into(),
+        emphasis: false,
         x: 1e3 * reference_seconds,
         y: 0.0,
     });

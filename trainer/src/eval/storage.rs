@@ -192,6 +192,7 @@ pub(crate) fn write_chart(dir: &Path, scene: &str, reports: &[StorageReport]) ->
         .map(|r| LabelledPoint {
             group: storage_name(&r.storage),
             label: format!("{:.0} KiB", r.weight_bytes as f64 / 1024.0),
+            emphasis: false,
             x: r.weight_bytes as f64 / 1024.0,
             y: 100.0 * r.mean_error,
         })

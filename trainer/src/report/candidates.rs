@@ -75,6 +75,7 @@ pub fn pareto_charts(dir: &Path, scene: &str, rows: &[CandidateRow]) -> TrainerR
             let point = |x: f64| LabelledPoint {
                 group: storage.clone(),
                 label: label.clone(),
+                emphasis: r.kept,
                 x,
                 y: 100.0 * r.validation_error,
             };

@@ -5,12 +5,12 @@
 //! drawn (non-finite values, or non-positive values on a logarithmic axis, e.g. the error
 //! of a diverged rollout) are left out of the chart.
 
-use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::OnceLock;
 
 use crate::error::{Context, TrainerError, TrainerResult};
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
 /// Size of chart images in pixels (width, height).
@@ -30,8 +30,12 @@ pub struct Series {
 pub struct LabelledPoint {
     /// Group the point belongs to: one colour and legend entry per group (e.g. the method).
     pub group: String,
-    /// Text written beside the point (e.g. the latent size); may be empty.
+    /// Text written beside the point (e.g. the latent size); may be empty. Where labels
+    /// would overlap, the later one is left out (the point is still drawn).
     pub label: String,
+    /// Labelled before every point without it (e.g. the Pareto front), so that its label is
+    /// the one kept where two would overlap.
+    pub emphasis: bool,
     /// Horizontal coordinate.
     pub x: f64,
     /// Vertical coordinate.
@@ -69,8 +73,9 @@ pub fn line_chart(
     render(path, &labels, all, false, log_y, &body).with_context(|| format!("writing chart {}", path.display()))
 }
 
-/// Writes a scatter chart of labelled points, coloured by group, as a PNG of [`CHART_SIZE`]
-/// (e.g. speed against accuracy, one group per method, labelled with the latent size).
+/// Writes a scatter chart of labelled points, one colour and marker per group, as a PNG of
+/// [`CHART_SIZE`] with a legend column of [`SCATTER_LEGEND_WIDTH`] beside it when the groups
+/// are named (e.g. speed against accuracy, one group per method, labelled with the budget).
 pub fn scatter_chart(
     path: &Path,
     title: &str,
@@ -172,11 +177,10 @@ fn tick_text(v: f64) -> String {
     }
 }
 
-/// Height of one legend row, the legend's padding and the plotting area's height, in pixels
-/// (for the headroom a scatter chart leaves its legend).
-const LEGEND_ROW_PX: f64 = 24.0;
-const LEGEND_PAD_PX: f64 = 24.0;
-const PLOT_HEIGHT_PX: f64 = 500.0;
+/// A scatter chart's legend: a column right of the plot, so that it hides no point and takes
+/// no room from the axes (pixels: the column's width beside [`CHART_SIZE`], one row's height).
+pub const SCATTER_LEGEND_WIDTH: u32 = 340;
+const LEGEND_ROW_PX: i32 = 24;
 
 /// Draws the chart with linear or logarithmic axes as asked.
 fn render(
@@ -201,24 +205,6 @@ fn render(
         (Body::Scatter(_), false) => x1 + 0.06 * (x1 - x0),
         _ => x1,
     };
-    // The legend sits in the upper right: above the points, so it hides none of them.
-    let y1 = match body {
-        Body::Scatter(points) => {
-            let groups: std::collections::BTreeSet<&str> = points
-                .iter()
-                .map(|p| p.group.as_str())
-                .filter(|g| !g.is_empty())
-                .collect();
-            let share = (LEGEND_ROW_PX * groups.len() as f64 + LEGEND_PAD_PX) / PLOT_HEIGHT_PX;
-            let grow = share.min(0.7) / (1.0 - share.min(0.7));
-            match (groups.is_empty(), log_y) {
-                (true, _) => y1,
-                (false, true) => y1 * (y1 / y0).powf(grow),
-                (false, false) => y1 + grow * (y1 - y0),
-            }
-        }
-        _ => y1,
-    };
     match (log_x, log_y) {
         (false, false) => draw(path, labels, x0..x1, y0..y1, body),
         (false, true) => draw(path, labels, x0..x1, (y0..y1).log_scale(), body),
@@ -234,10 +220,21 @@ where
     X::CoordDescType: ValueFormatter<f64>,
     Y::CoordDescType: ValueFormatter<f64>,
 {
-    let root = BitMapBackend::new(path, CHART_SIZE).into_drawing_area();
+    let groups = match body {
+        Body::Scatter(points) => scatter_groups(points),
+        Body::Lines(_) => Vec::new(),
+    };
+    let legend_width = if groups.iter().any(|g| !g.is_empty()) {
+        SCATTER_LEGEND_WIDTH
+    } else {
+        0
+    };
+    let root = BitMapBackend::new(path, (CHART_SIZE.0 + legend_width, CHART_SIZE.1)).into_drawing_area();
     root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(labels.title, ("sans-serif", 26))
+    // The title over the whole width, the legend column (if any) beside the plot below it.
+    let titled = root.titled(labels.title, ("sans-serif", 26))?;
+    let (plot, side) = titled.split_horizontally(CHART_SIZE.0);
+    let mut chart = ChartBuilder::on(&plot)
         .margin(16)
         .x_label_area_size(56)
         .y_label_area_size(84)
@@ -254,9 +251,9 @@ where
         .bold_line_style(RGBColor(210, 210, 210))
         .draw()?;
 
-    let mut legend = false;
     match body {
         Body::Lines(series) => {
+            let mut legend = false;
             for (i, s) in series.iter().enumerate() {
                 let color = palette(i);
                 let markers = if s.points.len() <= 40 { 3 } else { 0 };
@@ -269,43 +266,119 @@ where
                         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(3)));
                 }
             }
+            if legend {
+                chart
+                    .configure_series_labels()
+                    .position(SeriesLabelPosition::UpperRight)
+                    .label_font(("sans-serif", 16))
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(RGBColor(160, 160, 160))
+                    .draw()?;
+            }
         }
         Body::Scatter(points) => {
-            let mut groups: BTreeMap<&str, Vec<&LabelledPoint>> = BTreeMap::new();
-            let mut order: Vec<&str> = Vec::new();
+            let group_of = |p: &LabelledPoint| groups.iter().position(|g| *g == p.group).unwrap_or(0);
+            let shaped = |shape: usize| {
+                points
+                    .iter()
+                    .map(move |p| (p, group_of(p)))
+                    .filter(move |(_, i)| marker_shape(*i) == shape)
+            };
+            chart.draw_series(shaped(0).map(|(p, i)| Circle::new((p.x, p.y), 5, palette(i).filled())))?;
+            chart.draw_series(shaped(1).map(|(p, i)| TriangleMarker::new((p.x, p.y), 7, palette(i).filled())))?;
+            chart.draw_series(shaped(2).map(|(p, i)| {
+                EmptyElement::at((p.x, p.y)) + Rectangle::new([(-5, -5), (5, 5)], palette(i).filled())
+            }))?;
+            // Labels beside their points, as many as fit without overlapping.
+            let area = chart.plotting_area().get_pixel_range();
+            let bounds = (area.0.start, area.1.start, area.0.end, area.1.end);
+            let mut boxes = Vec::new();
             for p in points.iter() {
-                if !groups.contains_key(p.group.as_str()) {
-                    order.push(&p.group);
-                }
-                groups.entry(&p.group).or_default().push(p);
+                let (w, h) = plot.estimate_text_size(&p.label, &label_font(group_of(p)))?;
+                let (px, py) = chart.backend_coord(&(p.x, p.y));
+                let y = py + LABEL_RISE;
+                let right = (px + LABEL_GAP, y, px + LABEL_GAP + w as i32, y + h as i32);
+                let left = (px - LABEL_GAP - w as i32, y, px - LABEL_GAP, y + h as i32);
+                boxes.push(([right, left], p.emphasis && !p.label.is_empty()));
             }
-            for (i, group) in order.iter().enumerate() {
-                let color = palette(i);
-                let font = ("sans-serif", 15).into_font().color(&color.mix(0.95));
-                let drawn = chart.draw_series(groups[group].iter().map(|p| {
-                    EmptyElement::at((p.x, p.y))
-                        + Circle::new((0, 0), 5, color.filled())
-                        + Text::new(p.label.clone(), (8, -16), font.clone())
-                }))?;
-                if !group.is_empty() {
-                    legend = true;
-                    drawn
-                        .label(*group)
-                        .legend(move |(x, y)| Circle::new((x + 12, y), 5, color.filled()));
-                }
-            }
+            let sides = place_labels(&boxes, bounds);
+            let texts = points.iter().zip(&boxes).zip(sides).filter_map(|((p, (b, _)), side)| {
+                let offset = (b[side?].0 - b[0].0 + LABEL_GAP, LABEL_RISE);
+                let text = Text::new(p.label.clone(), offset, label_font(group_of(p)));
+                (!p.label.is_empty()).then(|| EmptyElement::at((p.x, p.y)) + text)
+            });
+            chart.draw_series(texts)?;
+            draw_scatter_legend(&side, &groups)?;
         }
     }
-    if legend {
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font(("sans-serif", 16))
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(160, 160, 160))
-            .draw()?;
-    }
     root.present()?;
+    Ok(())
+}
+
+/// The scatter chart's groups in order of first appearance (one colour and marker each).
+fn scatter_groups(points: &[LabelledPoint]) -> Vec<&str> {
+    let mut order: Vec<&str> = Vec::new();
+    for p in points {
+        if !order.contains(&p.group.as_str()) {
+            order.push(&p.group);
+        }
+    }
+    order
+}
+
+/// A scatter label's gap from its point and its top's rise above it, in pixels.
+const LABEL_GAP: i32 = 8;
+const LABEL_RISE: i32 = -16;
+
+/// The font of the `i`-th group's labels.
+fn label_font(i: usize) -> TextStyle<'static> {
+    ("sans-serif", 15).into_font().color(&palette(i).mix(0.95))
+}
+
+/// A label's box in pixels: left, top, right, bottom.
+type LabelBox = (i32, i32, i32, i32);
+
+/// Where to draw each label, given its two possible boxes (right of its point, left of it)
+/// and whether it is emphasised: emphasised labels first, then in order, each on the first
+/// side where it stays inside `bounds` without overlapping a label already placed, or not
+/// at all (`None`).
+fn place_labels(boxes: &[([LabelBox; 2], bool)], bounds: LabelBox) -> Vec<Option<usize>> {
+    let mut order: Vec<usize> = (0..boxes.len()).collect();
+    order.sort_by_key(|&i| !boxes[i].1);
+    let mut sides = vec![None; boxes.len()];
+    let mut placed: Vec<LabelBox> = Vec::new();
+    for i in order {
+        let fits = |b: &LabelBox| {
+            let inside = b.0 >= bounds.0 && b.1 >= bounds.1 && b.2 <= bounds.2 && b.3 <= bounds.3;
+            inside && !placed.iter().any(|k| b.0 < k.2 && k.0 < b.2 && b.1 < k.3 && k.1 < b.3)
+        };
+        if let Some(side) = boxes[i].0.iter().position(fits) {
+            placed.push(boxes[i].0[side]);
+            sides[i] = Some(side);
+        }
+    }
+    sides
+}
+
+/// The marker shape of the `i`-th group: a circle in each of the palette's ten colours, then a
+/// triangle, then a square, so that no two groups look alike.
+fn marker_shape(i: usize) -> usize {
+    (i / PALETTE.len()) % 3
+}
+
+/// Draws the groups' markers and names down the legend column `side`.
+fn draw_scatter_legend(side: &DrawingArea<BitMapBackend, Shift>, groups: &[&str]) -> TrainerResult<()> {
+    let font = ("sans-serif", 16).into_font().color(&BLACK);
+    for (i, group) in groups.iter().enumerate().filter(|(_, g)| !g.is_empty()) {
+        let (x, y) = (14, 40 + LEGEND_ROW_PX * i as i32);
+        let color = palette(i).filled();
+        match marker_shape(i) {
+            0 => side.draw(&Circle::new((x, y), 5, color))?,
+            1 => side.draw(&TriangleMarker::new((x, y), 7, color))?,
+            _ => side.draw(&Rectangle::new([(x - 5, y - 5), (x + 5, y + 5)], color))?,
+        }
+        side.draw(&Text::new(group.to_string(), (x + 16, y - 9), font.clone()))?;
+    }
     Ok(())
 }
 
@@ -373,6 +446,7 @@ mod tests {
                 points.push(LabelledPoint {
                     group: method.to_string(),
                     label: format!("r={latent}"),
+                    emphasis: k == 0,
                     x: 10f64.powi(g as i32 - 1) * (k + 1) as f64,
                     y: 0.05 / (k + 1) as f64 / (g + 1) as f64,
                 });
@@ -384,9 +458,56 @@ mod tests {
             let c = palette(g);
             assert!(count_color(&path, [c.0, c.1, c.2]) > 60, "group {g}");
         }
+        // The legend is a column beside the plot.
+        assert_eq!(decode_png(&path).0, CHART_SIZE.0 + SCATTER_LEGEND_WIDTH);
         // A single point and linear axes still give a valid chart.
         scatter_chart(&path, "one", "x", "y", &points[..1], false, false).unwrap();
-        assert_eq!(decode_png(&path).0, CHART_SIZE.0);
+        assert_eq!(decode_png(&path).1, CHART_SIZE.1);
+    }
+
+    #[test]
+    fn chart_groups_past_the_palette_get_other_markers() {
+        assert_eq!((marker_shape(0), marker_shape(9)), (0, 0));
+        assert_eq!((marker_shape(10), marker_shape(19), marker_shape(20)), (1, 1, 2));
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("many.png");
+        let points: Vec<LabelledPoint> = (0..13)
+            .map(|g| LabelledPoint {
+                group: format!("method {g}"),
+                label: String::new(),
+                emphasis: false,
+                x: 1.0 + g as f64,
+                y: 1.0,
+            })
+            .collect();
+        scatter_chart(&path, "thirteen", "x", "y", &points, true, true).unwrap();
+        keep(&path);
+        // Group 10 shares group 0's colour: its triangle and legend entry add to the circles'.
+        let c = palette(0);
+        let alone = {
+            scatter_chart(&path, "ten", "x", "y", &points[..10], true, true).unwrap();
+            count_color(&path, [c.0, c.1, c.2])
+        };
+        scatter_chart(&path, "thirteen", "x", "y", &points, true, true).unwrap();
+        assert!(count_color(&path, [c.0, c.1, c.2]) > alone + 40);
+    }
+
+    #[test]
+    fn chart_labels_that_would_overlap_are_left_out_emphasised_first() {
+        let bounds = (0, 0, 100, 100);
+        let off = (-50, 0, -40, 0); // a left box that never fits
+        let boxes = [
+            ([(10, 10, 40, 20), off], false),
+            ([(30, 15, 60, 25), off], true), // overlaps the first: emphasised, so it is kept
+            ([(70, 10, 99, 20), off], false), // clear of both
+            ([(10, 50, 40, 60), off], false),
+            ([(20, 55, 50, 65), off], false), // overlaps the one before it: the first stays
+            ([(80, 90, 120, 99), (40, 90, 72, 99)], false), // past the right edge: drawn left
+        ];
+        assert_eq!(
+            place_labels(&boxes, bounds),
+            [None, Some(0), Some(0), Some(0), None, Some(1)]
+        );
     }
 
     #[test]

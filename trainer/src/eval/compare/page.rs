@@ -37,6 +37,7 @@ pub fn write(dir: &Path, c: &Comparison, command: &str) -> TrainerResult<()> {
             .map(|(i, p)| LabelledPoint {
                 group: p.family.clone(),
                 label: format!("{}{}", p.setting, if front.contains(&i) { " *" } else { "" }),
+                emphasis: front.contains(&i),
                 x: 1e3 * p.seconds(),
                 y: 100.0 * p.error(r),
             })
