@@ -299,14 +299,19 @@ where
                 let y = py + LABEL_RISE;
                 let right = (px + LABEL_GAP, y, px + LABEL_GAP + w as i32, y + h as i32);
                 let left = (px - LABEL_GAP - w as i32, y, px - LABEL_GAP, y + h as i32);
-                boxes.push(([right, left], p.emphasis && !p.label.is_empty()));
+                boxes.push((!p.label.is_empty()).then_some(([right, left], p.emphasis)));
             }
             let sides = place_labels(&boxes, bounds);
-            let texts = points.iter().zip(&boxes).zip(sides).filter_map(|((p, (b, _)), side)| {
-                let offset = (b[side?].0 - b[0].0 + LABEL_GAP, LABEL_RISE);
-                let text = Text::new(p.label.clone(), offset, label_font(group_of(p)));
-                (!p.label.is_empty()).then(|| EmptyElement::at((p.x, p.y)) + text)
-            });
+            let texts = points
+                .iter()
+                .zip(&boxes)
+                .zip(sides)
+                .filter_map(|((p, candidates), side)| {
+                    let (b, _) = candidates.as_ref()?;
+                    let offset = (b[side?].0 - b[0].0 + LABEL_GAP, LABEL_RISE);
+                    let text = Text::new(p.label.clone(), offset, label_font(group_of(p)));
+                    Some(EmptyElement::at((p.x, p.y)) + text)
+                });
             chart.draw_series(texts)?;
             draw_scatter_legend(&side, &groups)?;
         }
@@ -339,21 +344,22 @@ fn label_font(i: usize) -> TextStyle<'static> {
 type LabelBox = (i32, i32, i32, i32);
 
 /// Where to draw each label, given its two possible boxes (right of its point, left of it)
-/// and whether it is emphasised: emphasised labels first, then in order, each on the first
-/// side where it stays inside `bounds` without overlapping a label already placed, or not
-/// at all (`None`).
-fn place_labels(boxes: &[([LabelBox; 2], bool)], bounds: LabelBox) -> Vec<Option<usize>> {
+/// and whether it is emphasised (`None`: the point has no label): emphasised labels first,
+/// then in order, each on the first side where it stays inside `bounds` without overlapping a
+/// label already placed, or not at all (`None`).
+fn place_labels(boxes: &[Option<([LabelBox; 2], bool)>], bounds: LabelBox) -> Vec<Option<usize>> {
     let mut order: Vec<usize> = (0..boxes.len()).collect();
-    order.sort_by_key(|&i| !boxes[i].1);
+    order.sort_by_key(|&i| !boxes[i].is_some_and(|(_, emphasis)| emphasis));
     let mut sides = vec![None; boxes.len()];
     let mut placed: Vec<LabelBox> = Vec::new();
     for i in order {
+        let Some((candidates, _)) = &boxes[i] else { continue };
         let fits = |b: &LabelBox| {
             let inside = b.0 >= bounds.0 && b.1 >= bounds.1 && b.2 <= bounds.2 && b.3 <= bounds.3;
             inside && !placed.iter().any(|k| b.0 < k.2 && k.0 < b.2 && b.1 < k.3 && k.1 < b.3)
         };
-        if let Some(side) = boxes[i].0.iter().position(fits) {
-            placed.push(boxes[i].0[side]);
+        if let Some(side) = candidates.iter().position(fits) {
+            placed.push(candidates[side]);
             sides[i] = Some(side);
         }
     }
@@ -497,17 +503,17 @@ mod tests {
         let bounds = (0, 0, 100, 100);
         let off = (-50, 0, -40, 0); // a left box that never fits
         let boxes = [
-            ([(10, 10, 40, 20), off], false),
-            ([(30, 15, 60, 25), off], true), // overlaps the first: emphasised, so it is kept
-            ([(70, 10, 99, 20), off], false), // clear of both
-            ([(10, 50, 40, 60), off], false),
-            ([(20, 55, 50, 65), off], false), // overlaps the one before it: the first stays
-            ([(80, 90, 120, 99), (40, 90, 72, 99)], false), // past the right edge: drawn left
+            Some(([(10, 10, 40, 20), off], false)),
+            Some(([(30, 15, 60, 25), off], true)), // overlaps the first: emphasised, so it is kept
+            Some(([(70, 10, 99, 20), off], false)), // clear of both
+            Some(([(10, 50, 40, 60), off], false)),
+            Some(([(20, 55, 50, 65), off], false)), // overlaps the one before it: the first stays
+            Some(([(80, 90, 120, 99), (40, 90, 72, 99)], false)), // past the right edge: drawn left
+            None,                                   // no label: blocks nothing
+            Some(([(5, 30, 95, 40), off], false)),
         ];
-        assert_eq!(
-            place_labels(&boxes, bounds),
-            [None, Some(0), Some(0), Some(0), None, Some(1)]
-        );
+        let sides = place_labels(&boxes, bounds);
+        assert_eq!(sides, [None, Some(0), Some(0), Some(0), None, Some(1), None, Some(0)]);
     }
 
     #[test]
