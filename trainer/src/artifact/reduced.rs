@@ -6,13 +6,16 @@
 //! ```text
 //! envelope(MOCHIRED, REDUCED_VERSION, postcard(ReducedArtifact))
 //! ```
+//!
+//! Files of version 2 (before a decoder's style was stored; every decoder a residual Swish
+//! MLP) still load ([`super::reduced_v2`]).
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
 use super::ArtifactError;
-use crate::learn::network::{DenseLayer, ExportedMlp};
+use crate::learn::network::{DenseLayer, ExportedMlp, MlpStyle};
 use crate::learn::pca::Pca;
 use mochi_runtime::envelope;
 use mochi_sim::error::InputError;
@@ -20,7 +23,7 @@ use mochi_sim::error::InputError;
 /// Magic of a reduced-method file.
 pub const REDUCED_MAGIC: &[u8; 8] = b"MOCHIRED";
 /// Its format version.
-pub const REDUCED_VERSION: u32 = 2;
+pub const REDUCED_VERSION: u32 = 3;
 
 /// One cubature rule of an energy term: the term's name, its selected stencils and weights.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -40,6 +43,8 @@ pub struct CubatureData {
 pub struct SubspaceData {
     /// The decoder's layers (input, blocks' inner and outer, output).
     pub decoder: Vec<DenseLayer>,
+    /// The decoder's activation and how its hidden layers are joined.
+    pub style: MlpStyle,
     /// The latent of the scene's start (the encoder's image of the start state, or the
     /// reduced static solve from zero for a data-free subspace).
     pub initial_latent: Vec<f64>,
@@ -54,7 +59,7 @@ pub struct SubspaceData {
 impl SubspaceData {
     /// The runnable decoder.
     pub fn decoder(&self) -> Result<ExportedMlp, ArtifactError> {
-        Ok(ExportedMlp::from_layers(self.decoder.clone())?)
+        Ok(ExportedMlp::from_styled_layers(self.decoder.clone(), self.style)?)
     }
 }
 
@@ -137,10 +142,14 @@ impl ReducedArtifact {
     /// Reads a file written by [`ReducedArtifact::save`].
     pub fn load(path: &Path) -> Result<Self, InputError> {
         let bytes = std::fs::read(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
-        let payload = envelope::open(&bytes, REDUCED_MAGIC, REDUCED_VERSION)
-            .map_err(|e| InputError::file(path, format!("reduced-method file {e}")))?;
-        let artifact: ReducedArtifact = postcard::from_bytes(payload)
-            .map_err(|e| InputError::file(path, format!("reduced-method file is unreadable: {e}")))?;
+        let unreadable = |e: postcard::Error| InputError::file(path, format!("reduced-method file is unreadable: {e}"));
+        let artifact: ReducedArtifact = match envelope::open(&bytes, REDUCED_MAGIC, REDUCED_VERSION) {
+            Ok(payload) => postcard::from_bytes(payload).map_err(unreadable)?,
+            Err(e) => match envelope::open(&bytes, REDUCED_MAGIC, super::reduced_v2::VERSION) {
+                Ok(payload) => super::reduced_v2::read(payload).map_err(unreadable)?,
+                Err(_) => return Err(InputError::file(path, format!("reduced-method file {e}"))),
+            },
+        };
         for (name, s) in [("vanilla", &artifact.vanilla), ("lipschitz", &artifact.lipschitz)] {
             let decoder = s
                 .decoder()
@@ -187,6 +196,7 @@ mod tests {
         };
         SubspaceData {
             decoder: vec![layer(3, 2), layer(6, 3)],
+            style: MlpStyle::default(),
             initial_latent: vec![0.5, -0.5],
             training_seconds: 1.5,
             lipschitz_estimate: 2.5,
@@ -231,6 +241,16 @@ mod tests {
         wrong.save(&path).unwrap();
         let err = ReducedArtifact::load(&path).unwrap_err().to_string();
         assert!(err.contains("lipschitz subspace"), "{err}");
+        // A decoder of plain ELU layers keeps its style (its three layers would not read as a
+        // residual MLP).
+        let mut paper = artifact.clone();
+        paper.lipschitz.style = MlpStyle::PAPER;
+        paper.lipschitz.decoder.insert(1, paper.lipschitz.decoder[0].clone());
+        paper.lipschitz.decoder[1].cols = 3;
+        paper.lipschitz.decoder[1].weights = vec![0.5; 9];
+        paper.save(&path).unwrap();
+        let loaded = ReducedArtifact::load(&path).unwrap();
+        assert_eq!(loaded.lipschitz.decoder().unwrap().style(), MlpStyle::PAPER);
         let mut short = artifact.clone();
         short.pca.as_mut().unwrap().basis[1].pop();
         short.save(&path).unwrap();

@@ -2,6 +2,7 @@
 //! `[reduced]`; Lyu et al. 2024): which subspace, how it is Lipschitz-optimised, and how the
 //! solver steps in it. A scene without the table does not use the reduced method.
 
+use crate::learn::network::Activation;
 use serde::{Deserialize, Serialize};
 
 /// Where the vanilla subspace comes from.
@@ -98,9 +99,14 @@ pub struct ReducedSpec {
     pub vanilla: VanillaNetwork,
     /// Hidden width of the plain MLPs of `vanilla = "plain-mlp"` (default 128).
     pub plain_hidden: usize,
-    /// Residual blocks of those MLPs (default 0: one hidden layer; 1 gives two hidden
-    /// layers of `plain_hidden`, the paper's depth).
+    /// Blocks of those MLPs (default 0: one hidden layer; 1 gives two hidden layers of
+    /// `plain_hidden`, the paper's depth).
     pub plain_blocks: usize,
+    /// Activation of those MLPs (default `"swish"`; `"elu"`, the paper code's).
+    pub plain_activation: Activation,
+    /// Their blocks are residual (default true); `false`: plain hidden layers
+    /// `h = W a(h)`, as the paper code's MLPs.
+    pub plain_residual: bool,
     /// Learning-rate schedule of `vanilla = "plain-mlp"` (default `"cosine"`; `"paper"`).
     pub plain_schedule: PlainSchedule,
     /// Training epochs of `vanilla = "plain-mlp"` (default 2000).
@@ -174,6 +180,8 @@ impl Default for ReducedSpec {
             vanilla: VanillaNetwork::Autoencoder,
             plain_hidden: 128,
             plain_blocks: 0,
+            plain_activation: Activation::Swish,
+            plain_residual: true,
             plain_schedule: PlainSchedule::Cosine,
             plain_epochs: 2000,
             plain_learning_rate: 1e-3,

@@ -5,9 +5,9 @@
 use std::path::{Path, PathBuf};
 
 use crate::artifact::{Artifact, ArtifactError, CandidateRow, EncodingData, HandleData, Method, TrainingSummary};
-use crate::error::TrainerResult;
+use crate::error::{TrainerError, TrainerResult};
 use crate::learn::encoding::Encoding;
-use crate::learn::network::{Autoencoder, LatentIntegrator};
+use crate::learn::network::{Autoencoder, LatentIntegrator, MlpStyle};
 use crate::learn::pca::Pca;
 use crate::learn::recipe::Recipe;
 use crate::learn::samples::IntegratorData;
@@ -30,6 +30,17 @@ pub fn build_artifact(
     summary: TrainingSummary,
 ) -> TrainerResult<Artifact> {
     let exported = ae.export()?;
+    let exported_integrator = integrator.export()?;
+    let styles = [
+        exported.encoder.style(),
+        exported.decoder.style(),
+        exported_integrator.mlp().style(),
+    ];
+    if let Some(style) = styles.iter().find(|s| **s != MlpStyle::default()) {
+        return Err(TrainerError::invalid(format!(
+            "the runtime runs residual Swish MLPs, not {style:?}"
+        )));
+    }
     let k = data.latent;
     let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
     let u32s = |v: &[usize]| v.iter().map(|&x| x as u32).collect::<Vec<u32>>();
@@ -52,7 +63,6 @@ pub fn build_artifact(
             pivot: h.pivot.map(|v| v as f32),
         })
         .collect();
-    let exported_integrator = integrator.export()?;
     let artifact = Artifact {
         scene: problem.scene.name.clone(),
         scene_path: problem.scene.source.display().to_string(),

@@ -3,14 +3,15 @@
 //! more), randomly initialised and trained on the reconstruction loss alone, independent of
 //! the latent model's PCA-initialised autoencoder (whose latent size it takes). With
 //! `plain_schedule = "paper"` it trains as the paper's configs say (minibatches of 256, a
-//! warm-up of 2,000 iterations, a factor 0.8 every 30,000).
+//! warm-up of 2,000 iterations, a factor 0.8 every 30,000); with `plain_activation = "elu"` and
+//! `plain_residual = false` its MLPs are the paper code's (plain hidden layers, ELU).
 
 use crate::learn::frame_rows::Rows;
 use std::time::Instant;
 
 use super::stages::Workspace;
 use crate::error::TrainerResult;
-use crate::learn::network::{Autoencoder, AutoencoderSpec, DecoderShape};
+use crate::learn::network::{Autoencoder, AutoencoderSpec, DecoderShape, MlpStyle};
 use crate::learn::reduced_spec::{PlainSchedule, ReducedSpec};
 use crate::learn::train::{self, AdamWConfig, CheckpointConfig, TrainConfig, WarmupStep};
 
@@ -44,6 +45,14 @@ pub(crate) fn plain_spec(spec: &ReducedSpec, input: usize, k: usize) -> Autoenco
     }
 }
 
+/// The style of the plain autoencoder's MLPs.
+pub(crate) fn plain_style(spec: &ReducedSpec) -> MlpStyle {
+    MlpStyle {
+        activation: spec.plain_activation,
+        residual: spec.plain_residual,
+    }
+}
+
 /// What tells plain autoencoders of other settings apart (in checkpoint names).
 pub(crate) fn plain_tag(spec: &ReducedSpec) -> String {
     let mut tag = format!(
@@ -55,6 +64,13 @@ pub(crate) fn plain_tag(spec: &ReducedSpec) -> String {
     }
     if spec.plain_schedule == PlainSchedule::Paper {
         tag += "-paper";
+    }
+    let style = plain_style(spec);
+    if style != MlpStyle::default() {
+        tag += &format!("-{:?}", style.activation).to_lowercase();
+        if !style.residual {
+            tag += "-layers";
+        }
     }
     tag
 }
@@ -110,7 +126,7 @@ pub(crate) fn train_plain_vanilla(
     work: &Workspace,
 ) -> TrainerResult<PlainVanilla> {
     let input = data.width();
-    let autoencoder = Autoencoder::new(plain_spec(spec, input, k), seed)?;
+    let autoencoder = Autoencoder::new_styled(plain_spec(spec, input, k), plain_style(spec), seed)?;
     let clock = Instant::now();
     let config = plain_config(spec, k, data.count(), batch, seed, work);
     let report = train::train_autoencoder(&autoencoder, data, &config, work.resume, None)?;
@@ -127,22 +143,34 @@ mod tests {
     use crate::learn::samples::fixtures::tiny_beam;
 
     /// The plain autoencoder learns the tiny beam's frames from a random start: its
-    /// reconstruction error falls far below the start's, and its decoder has no residual
-    /// block.
+    /// reconstruction error falls far below the start's, with one hidden layer (no block) and
+    /// with the paper code's two plain ELU layers.
     #[test]
     fn the_plain_autoencoder_learns_the_frames() {
+        let one_layer = ReducedSpec {
+            plain_hidden: 16,
+            plain_epochs: 150,
+            plain_learning_rate: 3e-3,
+            ..ReducedSpec::default()
+        };
+        let paper_layers = ReducedSpec {
+            plain_blocks: 1,
+            plain_activation: crate::learn::network::Activation::Elu,
+            plain_residual: false,
+            ..one_layer.clone()
+        };
+        for spec in [one_layer, paper_layers] {
+            learns_the_frames(spec);
+        }
+    }
+
+    fn learns_the_frames(spec: ReducedSpec) {
         let beam = tiny_beam();
         let data: Vec<Vec<f32>> = beam.sequences[0]
             .encoded
             .iter()
             .map(|q| q.iter().map(|&v| v as f32).collect())
             .collect();
-        let spec = ReducedSpec {
-            plain_hidden: 16,
-            plain_epochs: 150,
-            plain_learning_rate: 3e-3,
-            ..ReducedSpec::default()
-        };
         let dir = tempfile::tempdir().unwrap();
         let work = Workspace {
             dataset: dir.path().to_path_buf(),
@@ -152,14 +180,16 @@ mod tests {
             resume: false,
             bars: false,
         };
-        let start = Autoencoder::new(plain_spec(&spec, data[0].len(), 3), 1).unwrap();
+        let start = Autoencoder::new_styled(plain_spec(&spec, data[0].len(), 3), plain_style(&spec), 1).unwrap();
         let before = train::mean_reconstruction_error(&start, &data, 64).unwrap();
         let trained = train_plain_vanilla(&spec, &data, 3, 4, 1, &work).unwrap();
         let after = train::mean_reconstruction_error(&trained.autoencoder, &data, 64).unwrap();
         assert_eq!(trained.losses.len(), 150);
         assert!(after < 1e-2 * before, "reconstruction {before:.3e} -> {after:.3e}");
         let exported = trained.autoencoder.export().unwrap();
-        assert_eq!(exported.decoder.as_mlp().unwrap().spec().blocks, 0);
+        let decoder = exported.decoder.as_mlp().unwrap();
+        assert_eq!(decoder.spec().blocks, spec.plain_blocks);
+        assert_eq!(decoder.style(), plain_style(&spec));
     }
 
     #[test]
@@ -198,6 +228,13 @@ mod tests {
         assert_eq!(config.lr_at(7499), 1e-3);
         assert!((config.lr_at(7500) - 8e-4).abs() < 1e-15);
         assert!(plain_tag(&spec).ends_with("-b1-paper"));
+        let paper_layers = ReducedSpec {
+            plain_activation: crate::learn::network::Activation::Elu,
+            plain_residual: false,
+            ..spec.clone()
+        };
+        assert!(plain_tag(&paper_layers).ends_with("-b1-paper-elu-layers"));
+        assert_eq!(plain_style(&paper_layers), MlpStyle::PAPER);
         assert_eq!(plain_spec(&spec, 30, 10).blocks, 1);
         // The default keeps the cosine schedule and the names of earlier checkpoints.
         let plain = ReducedSpec::default();

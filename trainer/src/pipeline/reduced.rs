@@ -324,6 +324,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         source: "supervised".into(),
         vanilla: SubspaceData {
             decoder: vanilla_ae.decoder.layers().into_iter().cloned().collect(),
+            style: vanilla_decoder.style(),
             initial_latent: initial(&vanilla_ae.encoder)?,
             training_seconds: vanilla_seconds,
             lipschitz_estimate: lip(vanilla_decoder, &vanilla_samples)?,
@@ -331,6 +332,7 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         },
         lipschitz: SubspaceData {
             decoder: ours.decoder.layers().into_iter().cloned().collect(),
+            style: ours.decoder.as_mlp()?.style(),
             initial_latent: initial(&ours.encoder)?,
             training_seconds: vanilla_seconds + lipschitz_seconds,
             lipschitz_estimate: lip(ours.decoder.as_mlp()?, &our_samples)?,
@@ -422,6 +424,7 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
         source: "data-free".into(),
         vanilla: SubspaceData {
             decoder: vanilla.decoder.layers().into_iter().cloned().collect(),
+            style: vanilla.decoder.style(),
             initial_latent: vec![0.0; spec.latent],
             training_seconds: vanilla.seconds,
             lipschitz_estimate: lip(&vanilla.decoder)?,
@@ -429,6 +432,7 @@ fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult
         },
         lipschitz: SubspaceData {
             decoder: ours.layers().into_iter().cloned().collect(),
+            style: ours.style(),
             initial_latent: vec![0.0; spec.latent],
             training_seconds: vanilla.seconds + lipschitz_seconds,
             lipschitz_estimate: lip(&ours)?,

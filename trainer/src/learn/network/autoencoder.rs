@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use super::decoder::{Decoder, DecoderShape, FrozenDecoder};
 use super::error::{invalid, ModelResult};
 use super::exported::ExportedMlp;
-use super::layout::MlpSpec;
+use super::layout::{MlpSpec, MlpStyle};
 use super::mlp::{random_values, Dense, ResMlp};
 
 /// Sizes of an autoencoder: the encoder is a [`ResMlp`] `input -> latent`; the decoder one
@@ -71,10 +71,20 @@ pub(crate) struct ExportedAutoencoder {
 
 impl Autoencoder {
     /// A randomly initialised autoencoder (encoder drawn first, then decoder, from `seed`).
+    #[cfg(test)]
     pub(crate) fn new(spec: AutoencoderSpec, seed: u64) -> ModelResult<Self> {
+        Self::new_styled(spec, MlpStyle::default(), seed)
+    }
+
+    /// A randomly initialised autoencoder whose two MLPs have `style` (a [`DecoderShape::Mlp`]
+    /// decoder only).
+    pub(crate) fn new_styled(spec: AutoencoderSpec, style: MlpStyle, seed: u64) -> ModelResult<Self> {
+        if spec.shape != DecoderShape::Mlp {
+            return invalid(format!("a random autoencoder has an MLP decoder, not {:?}", spec.shape));
+        }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let encoder = ResMlp::new(spec.encoder(), &mut rng)?;
-        let decoder = Decoder::Mlp(ResMlp::new(spec.decoder(), &mut rng)?);
+        let encoder = ResMlp::new_styled(spec.encoder(), style, &mut rng)?;
+        let decoder = Decoder::Mlp(ResMlp::new_styled(spec.decoder(), style, &mut rng)?);
         Ok(Autoencoder { spec, encoder, decoder })
     }
 
@@ -147,7 +157,7 @@ impl Autoencoder {
             b[r] = (b[r] as f64 - centre) as f32;
         }
         let enc_input = Dense::from_values(hidden, n, w, b)?;
-        let encoder = ResMlp::with_ends(spec.encoder(), enc_input, &mut rng, |_| {
+        let encoder = ResMlp::with_ends(spec.encoder(), MlpStyle::default(), enc_input, &mut rng, |_| {
             let mut w = vec![0.0f32; k * hidden];
             for i in 0..k {
                 w[i * hidden + i] = 1.0;
@@ -169,7 +179,7 @@ impl Autoencoder {
             b[r] = 0.0;
         }
         let dec_input = Dense::from_values(hidden, k, w, b)?;
-        let decoder = ResMlp::with_ends(spec.decoder(), dec_input, &mut rng, |_| {
+        let decoder = ResMlp::with_ends(spec.decoder(), MlpStyle::default(), dec_input, &mut rng, |_| {
             let mut w = vec![0.0f32; n * hidden];
             for (r, row) in w.chunks_exact_mut(hidden).enumerate() {
                 for i in 0..k {

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::error::{invalid, ModelResult};
 use super::exported::{forward_exported, DenseLayer, ExportedMlp};
-use super::layout::{MlpSpec, Real};
+use super::layout::{MlpSpec, MlpStyle, Real};
 use super::mlp::{Dense, ResMlp};
 
 /// The shape of a decoder.
@@ -80,6 +80,14 @@ pub enum FrozenDecoder {
 }
 
 impl FrozenDecoder {
+    /// The style of its MLP (the default where it has none).
+    pub fn style(&self) -> MlpStyle {
+        match self {
+            FrozenDecoder::Mlp(m) => m.style(),
+            FrozenDecoder::Basis { mlp, .. } => mlp.as_ref().map_or_else(MlpStyle::default, |m| m.style()),
+        }
+    }
+
     /// Builds from the artifact's flat layer list and its `decoder_basis` flag, checking every
     /// shape.
     pub fn from_layers(mut layers: Vec<DenseLayer>, basis: bool) -> ModelResult<Self> {
@@ -229,7 +237,9 @@ impl Decoder {
                 blocks,
             };
             let input = Dense::random(hidden, latent, rng)?;
-            Some(ResMlp::with_ends(spec, input, rng, |_| Dense::zeros(modes, hidden))?)
+            Some(ResMlp::with_ends(spec, MlpStyle::default(), input, rng, |_| {
+                Dense::zeros(modes, hidden)
+            })?)
         };
         Ok(Decoder::Basis { mlp, basis, latent })
     }

@@ -1,14 +1,19 @@
-//! A frozen residual MLP in `f64` with exact derivatives, for solvers that minimise energies of
-//! a decoder's output over its latent input.
+//! A frozen MLP in `f64` with exact derivatives, for solvers that minimise energies of a
+//! decoder's output over its latent input.
 //!
 //! # Maths
 //!
-//! With the layout of [`super`], `σ(u) = 1 / (1 + e^-u)` and Swish `s(u) = u σ(u)`:
+//! With the layout of [`super`] and its activation `s` (Swish or ELU; `s'` and `s''` from
+//! [`Activation::parts`]). For Swish, with `σ(u) = 1 / (1 + e^-u)` and `s(u) = u σ(u)`:
 //!
 //! ```text
 //! s'(u)  = σ + u σ (1 - σ)
 //! s''(u) = σ (1 - σ) (2 + u (1 - 2σ))
 //! ```
+//!
+//! The sweeps below are written for residual blocks; a plain hidden layer `h = W a(h)` is the
+//! same block with the identity as its inner layer (`u = h`) and the residual addition
+//! replaced by an assignment, forward (`h`, its tangents) and backward (`h̄`, `∂h̄`).
 //!
 //! **Jacobian.** Every hidden vector `a` carries its tangents `∂a/∂x` (a `hidden × input`
 //! array, one row per unit). A dense layer `a ↦ W a + b` maps tangents by `W` alone, Swish by
@@ -37,7 +42,7 @@
 
 use super::error::{invalid, ModelResult};
 use super::exported::{DenseLayer, ExportedMlp};
-use super::layout::swish;
+use super::layout::{Activation, MlpStyle};
 
 /// A dense layer `a ↦ W a + b` in `f64`, `W` row-major.
 #[derive(Debug, Clone, PartialEq)]
@@ -160,15 +165,6 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
-/// `(s(u), s'(u), s''(u))` for Swish `s`.
-#[inline]
-fn swish_parts(u: f64) -> (f64, f64, f64) {
-    let sig = 1.0 / (1.0 + (-u).exp());
-    let first = sig + u * sig * (1.0 - sig);
-    let second = sig * (1.0 - sig) * (2.0 + u * (1.0 - 2.0 * sig));
-    (swish(u), first, second)
-}
-
 /// An error naming `what` unless it has `expected` values.
 pub(crate) fn check_len(what: &str, got: usize, expected: usize) -> ModelResult<()> {
     if got != expected {
@@ -177,13 +173,16 @@ pub(crate) fn check_len(what: &str, got: usize, expected: usize) -> ModelResult<
     Ok(())
 }
 
-/// A frozen residual MLP (layout in [`super`]) with its weights in `f64`, evaluating its
-/// value, Jacobian, contracted Hessian and second directional derivatives exactly.
+/// A frozen MLP (layout in [`super`]) with its weights in `f64`, evaluating its value,
+/// Jacobian, contracted Hessian and second directional derivatives exactly.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mlp64 {
     input: Dense64,
-    blocks: Vec<(Dense64, Dense64)>,
+    /// `(inner, outer)` of each block; no inner layer in a plain one.
+    blocks: Vec<(Option<Dense64>, Dense64)>,
     output: Dense64,
+    activation: Activation,
+    residual: bool,
 }
 
 /// Scratch space of [`Mlp64`]'s calls. Any workspace fits any network: a call first resizes it
@@ -235,14 +234,17 @@ impl Mlp64Workspace {
 impl Mlp64 {
     /// Converts the weights of `mlp` to `f64`.
     pub fn new(mlp: &ExportedMlp) -> Self {
+        let MlpStyle { activation, residual } = mlp.style();
         Mlp64 {
             input: Dense64::new(mlp.input()),
             blocks: mlp
                 .blocks()
                 .iter()
-                .map(|b| (Dense64::new(&b.inner), Dense64::new(&b.outer)))
+                .map(|b| (b.inner.as_ref().map(Dense64::new), Dense64::new(&b.outer)))
                 .collect(),
             output: Dense64::new(mlp.output()),
+            activation,
+            residual,
         }
     }
 
@@ -263,6 +265,7 @@ impl Mlp64 {
             input: self.input.clone(),
             blocks: self.blocks.clone(),
             output,
+            ..*self
         })
     }
 
@@ -287,7 +290,11 @@ impl Mlp64 {
         check_len("output", y.len(), self.output_len())?;
         ws.fit(self);
         self.hidden_pass(x, false, ws);
-        ws.act.iter_mut().zip(&ws.h).for_each(|(a, &h)| *a = swish(h));
+        let activation = self.activation;
+        ws.act
+            .iter_mut()
+            .zip(&ws.h)
+            .for_each(|(a, &h)| *a = activation.apply(h));
         self.output.matvec(&ws.act, |o, v| y[o] = self.output.bias[o] + v);
         Ok(())
     }
@@ -302,7 +309,7 @@ impl Mlp64 {
         self.hidden_pass(x, true, ws);
         let Mlp64Workspace { h, act, tan, .. } = ws;
         for i in 0..n {
-            let (s, first, _) = swish_parts(h[i]);
+            let (s, first, _) = self.activation.parts(h[i]);
             act[i] = s;
             tan[i * r..(i + 1) * r].iter_mut().for_each(|t| *t *= first);
         }
@@ -333,15 +340,15 @@ impl Mlp64 {
         abar.fill(0.0);
         self.output.add_transposed(w, abar);
         for i in 0..n {
-            bar[i] = swish_parts(h[i]).1 * abar[i];
+            bar[i] = self.activation.parts(h[i]).1 * abar[i];
         }
         for (j, (inner, outer)) in self.blocks.iter().enumerate().rev() {
             abar.fill(0.0);
             outer.add_transposed(bar, abar);
             for (a, &u) in abar.iter_mut().zip(&pre[j * n..(j + 1) * n]) {
-                *a *= swish_parts(u).1;
+                *a *= self.activation.parts(u).1;
             }
-            inner.add_transposed(abar, bar);
+            self.block_adjoint(inner.as_ref(), abar, bar);
         }
         out.fill(0.0);
         self.input.add_transposed(bar, out);
@@ -377,7 +384,7 @@ impl Mlp64 {
         abar.fill(0.0);
         self.output.add_transposed(w, abar);
         for i in 0..n {
-            let (_, first, second) = swish_parts(h[i]);
+            let (_, first, second) = self.activation.parts(h[i]);
             bar[i] = first * abar[i];
             (0..r).for_each(|k| dbar[i * r + k] = second * tan[i * r + k] * abar[i]);
         }
@@ -388,14 +395,14 @@ impl Mlp64 {
             outer.add_transposed(dbar, dabar);
             let (u, du) = (&pre[j * n..(j + 1) * n], &dpre[j * r * n..(j + 1) * r * n]);
             for i in 0..n {
-                let (_, first, second) = swish_parts(u[i]);
+                let (_, first, second) = self.activation.parts(u[i]);
                 for k in 0..r {
                     dabar[i * r + k] = second * du[i * r + k] * abar[i] + first * dabar[i * r + k];
                 }
                 abar[i] *= first;
             }
-            inner.add_transposed(abar, bar);
-            inner.add_transposed(dabar, dbar);
+            self.block_adjoint(inner.as_ref(), abar, bar);
+            self.block_adjoint(inner.as_ref(), dabar, dbar);
         }
         out.fill(0.0);
         self.input.add_transposed(dbar, out);
@@ -435,22 +442,33 @@ impl Mlp64 {
         self.input.matvec(x, |i, s| h[i] = self.input.bias[i] + s);
         self.input.matvec(v, |i, s| d[i] = s);
         dd.fill(0.0);
+        let residual = self.residual;
+        let join = move |old: f64, new: f64| if residual { old + new } else { new };
         for (inner, outer) in &self.blocks {
-            inner.matvec(h, |i, s| act[i] = inner.bias[i] + s);
-            inner.matvec(d, |i, s| du[i] = s);
-            inner.matvec(dd, |i, s| ddu[i] = s);
+            match inner {
+                Some(inner) => {
+                    inner.matvec(h, |i, s| act[i] = inner.bias[i] + s);
+                    inner.matvec(d, |i, s| du[i] = s);
+                    inner.matvec(dd, |i, s| ddu[i] = s);
+                }
+                None => {
+                    act.copy_from_slice(h);
+                    du.copy_from_slice(d);
+                    ddu.copy_from_slice(dd);
+                }
+            }
             for i in 0..n {
-                let (s, first, second) = swish_parts(act[i]);
+                let (s, first, second) = self.activation.parts(act[i]);
                 act[i] = s;
                 ddu[i] = second * du[i] * du[i] + first * ddu[i];
                 du[i] *= first;
             }
-            outer.matvec(act, |i, s| h[i] += outer.bias[i] + s);
-            outer.matvec(du, |i, s| d[i] += s);
-            outer.matvec(ddu, |i, s| dd[i] += s);
+            outer.matvec(act, |i, s| h[i] = join(h[i], outer.bias[i] + s));
+            outer.matvec(du, |i, s| d[i] = join(d[i], s));
+            outer.matvec(ddu, |i, s| dd[i] = join(dd[i], s));
         }
         for i in 0..n {
-            let (_, first, second) = swish_parts(h[i]);
+            let (_, first, second) = self.activation.parts(h[i]);
             ddu[i] = second * d[i] * d[i] + first * dd[i];
         }
         self.output.matvec(ddu, |o, s| out[o] = s);
@@ -478,23 +496,45 @@ impl Mlp64 {
         for (j, (inner, outer)) in self.blocks.iter().enumerate() {
             let u = &mut pre[j * n..(j + 1) * n];
             let du = &mut dpre[j * r * n..(j + 1) * r * n];
-            if tangents {
-                inner.with_tangents(h, tan, u, du, false);
-            } else {
-                inner.matvec(h, |i, v| u[i] = inner.bias[i] + v);
+            match (inner, tangents) {
+                (Some(inner), true) => inner.with_tangents(h, tan, u, du, false),
+                (Some(inner), false) => inner.matvec(h, |i, v| u[i] = inner.bias[i] + v),
+                (None, _) => {
+                    u.copy_from_slice(h);
+                    if tangents {
+                        du.copy_from_slice(tan);
+                    }
+                }
             }
             for i in 0..n {
-                let (s, first, _) = swish_parts(u[i]);
+                let (s, first, _) = self.activation.parts(u[i]);
                 act[i] = s;
                 if tangents {
                     (0..r).for_each(|k| dact[i * r + k] = first * du[i * r + k]);
                 }
             }
             if tangents {
-                outer.with_tangents(act, dact, h, tan, true);
+                outer.with_tangents(act, dact, h, tan, self.residual);
             } else {
-                outer.matvec(act, |i, v| h[i] += outer.bias[i] + v);
+                let residual = self.residual;
+                outer.matvec(act, |i, v| {
+                    let new = outer.bias[i] + v;
+                    h[i] = if residual { h[i] + new } else { new };
+                });
             }
+        }
+    }
+
+    /// The adjoint of a block's input from `abar`, the adjoint of its activation's input:
+    /// `bar (+)= inner^T abar`, `bar (+)= abar` without an inner layer (`+=` in a residual
+    /// block, where the input also reaches the output directly).
+    fn block_adjoint(&self, inner: Option<&Dense64>, abar: &[f64], bar: &mut [f64]) {
+        if !self.residual {
+            bar.fill(0.0);
+        }
+        match inner {
+            Some(inner) => inner.add_transposed(abar, bar),
+            None => bar.iter_mut().zip(abar).for_each(|(b, &a)| *b += a),
         }
     }
 }

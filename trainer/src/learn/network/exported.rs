@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::error::{invalid, ModelResult};
-use super::layout::{swish, MlpSpec, Real};
+use super::layout::{MlpSpec, MlpStyle, Real};
 
 /// One frozen dense layer `y = W x + b`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -44,30 +44,44 @@ impl DenseLayer {
     }
 }
 
-/// One frozen residual block: `h + outer(swish(inner(h)))`.
+/// One frozen block: residual, `h + outer(a(inner(h)))`, or a plain hidden layer,
+/// `outer(a(h))` (no `inner`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExportedBlock {
-    /// First layer of the block (hidden × hidden).
-    pub inner: DenseLayer,
-    /// Second layer of the block (hidden × hidden).
+    /// First layer of a residual block (hidden × hidden); `None` in a plain one.
+    pub inner: Option<DenseLayer>,
+    /// Second layer of a residual block, the layer of a plain one (hidden × hidden).
     pub outer: DenseLayer,
 }
 
-/// A frozen residual MLP with the layout of the module documentation; shapes are checked when
-/// it is built, so its forward pass cannot index out of bounds.
+/// A frozen MLP with the layout of the module documentation; shapes are checked when it is
+/// built, so its forward pass cannot index out of bounds.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExportedMlp {
     input: DenseLayer,
     blocks: Vec<ExportedBlock>,
     output: DenseLayer,
+    style: MlpStyle,
 }
 
 impl ExportedMlp {
-    /// Builds from the flat layer list `[input, inner_0, outer_0, ..., inner_{B-1},
-    /// outer_{B-1}, output]` (the order of [`ExportedMlp::layers`]), checking every shape.
+    /// Builds a residual Swish MLP from the flat layer list `[input, inner_0, outer_0, ...,
+    /// inner_{B-1}, outer_{B-1}, output]` (the order of [`ExportedMlp::layers`]), checking
+    /// every shape.
     pub(crate) fn from_layers(layers: Vec<DenseLayer>) -> ModelResult<Self> {
-        if layers.len() < 2 || !layers.len().is_multiple_of(2) {
-            return invalid(format!("a residual MLP has 2 + 2*blocks layers, got {}", layers.len()));
+        Self::from_styled_layers(layers, MlpStyle::default())
+    }
+
+    /// Builds a network of `style` from its flat layer list: as [`ExportedMlp::from_layers`]
+    /// for residual blocks, `[input, layer_0, ..., layer_{B-1}, output]` for plain ones.
+    pub(crate) fn from_styled_layers(layers: Vec<DenseLayer>, style: MlpStyle) -> ModelResult<Self> {
+        let per_block = style.layers_per_block();
+        if layers.len() < 2 || !(layers.len() - 2).is_multiple_of(per_block) {
+            return invalid(format!(
+                "{} MLP has 2 + {per_block}*blocks layers, got {}",
+                if style.residual { "a residual" } else { "a plain" },
+                layers.len()
+            ));
         }
         for (i, layer) in layers.iter().enumerate() {
             layer.check(&format!("layer {i}"))?;
@@ -87,12 +101,32 @@ impl ExportedMlp {
         let input = iter.next().expect("length checked above");
         let mut rest: Vec<DenseLayer> = iter.collect();
         let output = rest.pop().expect("length checked above");
-        let mut blocks = Vec::with_capacity(rest.len() / 2);
-        let mut pairs = rest.into_iter();
-        while let (Some(inner), Some(outer)) = (pairs.next(), pairs.next()) {
-            blocks.push(ExportedBlock { inner, outer });
+        let mut blocks = Vec::with_capacity(rest.len() / per_block);
+        let mut layers = rest.into_iter();
+        while let Some(first) = layers.next() {
+            let block = match style.residual {
+                true => ExportedBlock {
+                    inner: Some(first),
+                    outer: layers.next().expect("length checked above"),
+                },
+                false => ExportedBlock {
+                    inner: None,
+                    outer: first,
+                },
+            };
+            blocks.push(block);
         }
-        Ok(ExportedMlp { input, blocks, output })
+        Ok(ExportedMlp {
+            input,
+            blocks,
+            output,
+            style,
+        })
+    }
+
+    /// The activation and how the hidden layers are joined.
+    pub fn style(&self) -> MlpStyle {
+        self.style
     }
 
     /// The sizes of this network.
@@ -110,7 +144,7 @@ impl ExportedMlp {
         &self.input
     }
 
-    /// The residual blocks, in order.
+    /// The blocks, in order.
     pub fn blocks(&self) -> &[ExportedBlock] {
         &self.blocks
     }
@@ -120,11 +154,12 @@ impl ExportedMlp {
         &self.output
     }
 
-    /// All layers in evaluation order: input, then inner and outer of each block, then output.
+    /// All layers in evaluation order: input, then inner (if any) and outer of each block,
+    /// then output.
     pub fn layers(&self) -> Vec<&DenseLayer> {
         let mut out = vec![&self.input];
         for block in &self.blocks {
-            out.push(&block.inner);
+            out.extend(&block.inner);
             out.push(&block.outer);
         }
         out.push(&self.output);
@@ -132,8 +167,8 @@ impl ExportedMlp {
     }
 }
 
-/// The plain-Rust forward pass of a frozen residual MLP (the layout of the module
-/// documentation); in `f32`, the reference for the runtime's kernels.
+/// The plain-Rust forward pass of a frozen MLP (the layout of the module documentation); in
+/// `f32`, the reference for the runtime's kernels.
 pub fn forward_exported<T: Real>(mlp: &ExportedMlp, x: &[T]) -> ModelResult<Vec<T>> {
     if x.len() != mlp.input.cols {
         return invalid(format!(
@@ -145,15 +180,22 @@ pub fn forward_exported<T: Real>(mlp: &ExportedMlp, x: &[T]) -> ModelResult<Vec<
     let hidden = mlp.input.rows;
     let mut h = vec![T::default(); hidden];
     mlp.input.apply(x, &mut h);
+    let activation = mlp.style.activation;
     let mut a = vec![T::default(); hidden];
     let mut r = vec![T::default(); hidden];
     for block in &mlp.blocks {
-        block.inner.apply(&h, &mut a);
-        a.iter_mut().for_each(|v| *v = swish(*v));
+        match &block.inner {
+            Some(inner) => inner.apply(&h, &mut a),
+            None => a.copy_from_slice(&h),
+        }
+        a.iter_mut().for_each(|v| *v = activation.apply(*v));
         block.outer.apply(&a, &mut r);
-        h.iter_mut().zip(&r).for_each(|(h, r)| *h += *r);
+        match mlp.style.residual {
+            true => h.iter_mut().zip(&r).for_each(|(h, r)| *h += *r),
+            false => h.copy_from_slice(&r),
+        }
     }
-    h.iter_mut().for_each(|v| *v = swish(*v));
+    h.iter_mut().for_each(|v| *v = activation.apply(*v));
     let mut y = vec![T::default(); mlp.output.rows];
     mlp.output.apply(&h, &mut y);
     Ok(y)

@@ -1,6 +1,6 @@
 //! Forward-mode jets of a [`ResMlp`] in candle: the value of the network and its first and
 //! second derivatives along given input directions, built from ordinary differentiable candle
-//! operations (matrix products, broadcast arithmetic, `tanh`, `silu`), so that any loss of them
+//! operations (matrix products, broadcast arithmetic, `tanh`, `silu`, `elu`, `exp`), so that any loss of them
 //! backpropagates to the weights. candle differentiates in reverse mode to first order only; a
 //! loss on the decoder's derivatives (a Lipschitz regulariser) needs them inside the graph.
 //!
@@ -17,14 +17,18 @@
 //! s''(u) = σ (1 - σ) (2 + u (1 - 2σ))
 //! ```
 //!
-//! with `σ(u) = (1 + tanh(u / 2)) / 2`, a form whose gradient stays finite for any `u`. The
+//! with `σ(u) = (1 + tanh(u / 2)) / 2`, a form whose gradient stays finite for any `u`. ELU
+//! (`α = 1`) has `s'(u) = e^min(u, 0)` and `s''(u) = s'(u) - [u > 0]`, written as
+//! `exp(-relu(-u))` so that the gradient of `s'` is `s''`. A plain hidden layer `h = W a(h)`
+//! applies the activation to `h` itself and replaces the residual addition. The
 //! input starts as `(x, v, 0)`; the curvature stays zero (and is not computed) until the first
 //! Swish. For a batch, values are `(B, n)` and the `K` tangents and curvatures of each row are
 //! `(B, K, n)`; a layer maps them with one matrix product of the `(B·K, n)` reshaping.
 
 use candle_core::{bail, Tensor};
 
-use super::mlp::{Dense, ResMlp};
+use super::layout::Activation;
+use super::mlp::{activate, Dense, ResMlp};
 
 /// The value and derivatives of a network along directions: for inputs `x: (B, in)` and
 /// directions `v: (B, K, in)`, the value `f(x)`, the tangents `J v` and the curvatures
@@ -64,12 +68,17 @@ pub(crate) fn jet(mlp: &ResMlp, x: &Tensor, v: &Tensor) -> candle_core::Result<J
         tangent: v.clone(),
         curvature: None,
     };
+    let style = mlp.style();
     let mut h = dense(mlp.input_layer(), &start)?;
     for (inner, outer) in mlp.block_layers() {
-        let r = dense(outer, &swish(&dense(inner, &h)?)?)?;
-        h = add(&h, &r)?;
+        let u = match inner {
+            Some(inner) => activation(style.activation, &dense(inner, &h)?)?,
+            None => activation(style.activation, &h)?,
+        };
+        let r = dense(outer, &u)?;
+        h = if style.residual { add(&h, &r)? } else { r };
     }
-    let y = dense(mlp.output_layer(), &swish(&h)?)?;
+    let y = dense(mlp.output_layer(), &activation(style.activation, &h)?)?;
     let curvature = match y.curvature {
         Some(c) => c,
         None => y.tangent.zeros_like()?,
@@ -99,22 +108,33 @@ fn along(t: &Tensor, w: &Tensor) -> candle_core::Result<Tensor> {
         .reshape((batch, dirs, w.dim(0)?))
 }
 
-/// Swish on the value, with the chain rule to second order on the derivatives.
-fn swish(s: &Stream) -> candle_core::Result<Stream> {
+/// The activation on the value, with the chain rule to second order on the derivatives.
+fn activation(activation: Activation, s: &Stream) -> candle_core::Result<Stream> {
     let u = &s.value;
-    let sig = u.affine(0.5, 0.0)?.tanh()?.affine(0.5, 0.5)?;
-    let one_minus = sig.affine(-1.0, 1.0)?;
-    let first = sig.mul(&u.mul(&one_minus)?.affine(1.0, 1.0)?)?;
-    let second = sig
-        .mul(&one_minus)?
-        .mul(&u.mul(&sig.affine(-2.0, 1.0)?)?.affine(1.0, 2.0)?)?;
+    let (first, second) = match activation {
+        Activation::Swish => {
+            let sig = u.affine(0.5, 0.0)?.tanh()?.affine(0.5, 0.5)?;
+            let one_minus = sig.affine(-1.0, 1.0)?;
+            let first = sig.mul(&u.mul(&one_minus)?.affine(1.0, 1.0)?)?;
+            let second = sig
+                .mul(&one_minus)?
+                .mul(&u.mul(&sig.affine(-2.0, 1.0)?)?.affine(1.0, 2.0)?)?;
+            (first, second)
+        }
+        Activation::Elu => {
+            let first = u.neg()?.relu()?.neg()?.exp()?;
+            let positive = u.gt(0.0)?.to_dtype(u.dtype())?;
+            let second = first.sub(&positive)?;
+            (first, second)
+        }
+    };
     let (first, second) = (first.unsqueeze(1)?, second.unsqueeze(1)?);
     let mut curvature = s.tangent.sqr()?.broadcast_mul(&second)?;
     if let Some(c) = &s.curvature {
         curvature = curvature.add(&c.broadcast_mul(&first)?)?;
     }
     Ok(Stream {
-        value: u.silu()?,
+        value: activate(activation, u)?,
         tangent: s.tangent.broadcast_mul(&first)?,
         curvature: Some(curvature),
     })
@@ -143,7 +163,16 @@ mod tests {
     use super::*;
     use crate::learn::network::derivatives::{Mlp64, Mlp64Workspace};
     use crate::learn::network::exported::ExportedMlp;
-    use crate::learn::network::layout::MlpSpec;
+    use crate::learn::network::layout::{MlpSpec, MlpStyle};
+
+    /// The residual Swish networks and the plain ELU ones.
+    const STYLES: [MlpStyle; 2] = [
+        MlpStyle {
+            activation: Activation::Swish,
+            residual: true,
+        },
+        MlpStyle::PAPER,
+    ];
     use crate::learn::network::tensor::tensor_to_rows;
     use crate::learn::network::test_support::{as_tensor, max_relative_difference, random_rows, randomise};
 
@@ -162,7 +191,7 @@ mod tests {
     }
 
     impl Case {
-        fn new(seed: u64) -> Self {
+        fn new(seed: u64, style: MlpStyle) -> Self {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let spec = MlpSpec {
                 input: IN,
@@ -170,7 +199,7 @@ mod tests {
                 hidden: 16,
                 blocks: 2,
             };
-            let mlp = ResMlp::new(spec, &mut rng).unwrap();
+            let mlp = ResMlp::new_styled(spec, style, &mut rng).unwrap();
             randomise(&mlp.parameters("m"), 0.5, &mut rng);
             let x = random_rows(B, IN, 1.5, &mut rng);
             let v = random_rows(B * K, IN, 1.0, &mut rng);
@@ -234,7 +263,13 @@ mod tests {
 
     #[test]
     fn jet_value_matches_forward() {
-        let case = Case::new(1);
+        for style in STYLES {
+            jet_value_matches_forward_for(style);
+        }
+    }
+
+    fn jet_value_matches_forward_for(style: MlpStyle) {
+        let case = Case::new(1, style);
         let forward = tensor_to_rows(&case.mlp.forward(&as_tensor(&case.x)).unwrap()).unwrap();
         let diff = max_relative_difference(&tensor_to_rows(&case.jet().value).unwrap(), &forward);
         assert!(diff < 1e-6, "jet value differs from forward by {diff}");
@@ -242,7 +277,13 @@ mod tests {
 
     #[test]
     fn jet_derivatives_match_the_f64_network() {
-        let case = Case::new(2);
+        for style in STYLES {
+            jet_derivatives_match_for(style);
+        }
+    }
+
+    fn jet_derivatives_match_for(style: MlpStyle) {
+        let case = Case::new(2, style);
         let jet = case.jet();
         let (tangents, curvatures) = case.derivatives64(&Mlp64::new(&case.mlp.export().unwrap()));
         let diff = max_relative_difference(&flat_rows(&jet.tangent), &narrow(&tangents));
@@ -258,7 +299,13 @@ mod tests {
     /// the candle gradient of the loss matches central differences of the f64 loss.
     #[test]
     fn jet_gradient_matches_differences_in_each_weight() {
-        let case = Case::new(3);
+        for style in STYLES {
+            jet_gradient_matches_differences_for(style);
+        }
+    }
+
+    fn jet_gradient_matches_differences_for(style: MlpStyle) {
+        let case = Case::new(3, style);
         let grads = case.loss(&case.jet()).backward().unwrap();
         let exported = case.mlp.export().unwrap();
         let layers: Vec<_> = exported.layers().into_iter().cloned().collect();
@@ -284,7 +331,10 @@ mod tests {
                     };
                     values[entry] += delta;
                     let weight = values[entry] as f64;
-                    (weight, case.loss64(&ExportedMlp::from_layers(layers).unwrap()))
+                    (
+                        weight,
+                        case.loss64(&ExportedMlp::from_styled_layers(layers, style).unwrap()),
+                    )
                 };
                 let ((w_plus, l_plus), (w_minus, l_minus)) = (perturbed(1e-3), perturbed(-1e-3));
                 let (fd, g) = ((l_plus - l_minus) / (w_plus - w_minus), gradient[entry] as f64);
@@ -300,7 +350,7 @@ mod tests {
 
     #[test]
     fn mismatched_shapes_are_errors() {
-        let case = Case::new(4);
+        let case = Case::new(4, MlpStyle::default());
         let x = as_tensor(&case.x);
         let v = as_tensor(&case.v);
         assert!(jet(&case.mlp, &x, &v).is_err());

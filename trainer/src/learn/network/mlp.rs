@@ -1,5 +1,5 @@
-//! The trainable residual MLP in candle (layout and initialisation in the documentation of
-//! [`super`]).
+//! The trainable MLP in candle, residual or plain (layout and initialisation in the
+//! documentation of [`super`]).
 
 use candle_core::{Device, Tensor, Var};
 use rand::Rng;
@@ -7,7 +7,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::error::ModelResult;
 use super::exported::{DenseLayer, ExportedMlp};
-use super::layout::MlpSpec;
+use super::layout::{Activation, MlpSpec, MlpStyle};
 
 /// A trainable dense layer `y = x W^T + b` on row-major batches `x: (batch, cols)`.
 #[derive(Debug, Clone)]
@@ -79,46 +79,68 @@ pub(super) fn random_values(rows: usize, cols: usize, rng: &mut ChaCha8Rng) -> (
     (weights, bias)
 }
 
+/// A residual block (`inner` and `outer`) or a plain hidden layer (`outer` alone).
 #[derive(Debug, Clone)]
 struct Block {
-    inner: Dense,
+    inner: Option<Dense>,
     outer: Dense,
 }
 
-/// A trainable residual MLP (layout and initialisation in the module documentation).
+/// A trainable MLP, residual or plain (layout and initialisation in the module documentation).
 #[derive(Debug, Clone)]
 pub(crate) struct ResMlp {
     input: Dense,
     blocks: Vec<Block>,
     output: Dense,
+    style: MlpStyle,
 }
 
 impl ResMlp {
-    /// A randomly initialised network (identity blocks), drawn from `rng`.
+    /// A randomly initialised residual Swish network (identity blocks), drawn from `rng`.
     pub fn new(spec: MlpSpec, rng: &mut ChaCha8Rng) -> ModelResult<Self> {
-        spec.check()?;
-        let input = Dense::random(spec.hidden, spec.input, rng)?;
-        Self::with_ends(spec, input, rng, |rng| Dense::random(spec.output, spec.hidden, rng))
+        Self::new_styled(spec, MlpStyle::default(), rng)
     }
 
-    /// Builds a network from given input and output layers, with fresh identity blocks drawn
-    /// from `rng` between them (`output` gets the same generator after the blocks).
+    /// A randomly initialised network of `style`, drawn from `rng`: residual blocks start as the
+    /// identity, plain hidden layers with the law of every other layer.
+    pub fn new_styled(spec: MlpSpec, style: MlpStyle, rng: &mut ChaCha8Rng) -> ModelResult<Self> {
+        spec.check()?;
+        let input = Dense::random(spec.hidden, spec.input, rng)?;
+        Self::with_ends(spec, style, input, rng, |rng| {
+            Dense::random(spec.output, spec.hidden, rng)
+        })
+    }
+
+    /// Builds a network from given input and output layers, with fresh blocks drawn from `rng`
+    /// between them (`output` gets the same generator after the blocks).
     pub(super) fn with_ends(
         spec: MlpSpec,
+        style: MlpStyle,
         input: Dense,
         rng: &mut ChaCha8Rng,
         output: impl FnOnce(&mut ChaCha8Rng) -> ModelResult<Dense>,
     ) -> ModelResult<Self> {
         let blocks = (0..spec.blocks)
             .map(|_| {
-                Ok(Block {
-                    inner: Dense::random(spec.hidden, spec.hidden, rng)?,
-                    outer: Dense::zeros(spec.hidden, spec.hidden)?,
+                Ok(match style.residual {
+                    true => Block {
+                        inner: Some(Dense::random(spec.hidden, spec.hidden, rng)?),
+                        outer: Dense::zeros(spec.hidden, spec.hidden)?,
+                    },
+                    false => Block {
+                        inner: None,
+                        outer: Dense::random(spec.hidden, spec.hidden, rng)?,
+                    },
                 })
             })
             .collect::<ModelResult<Vec<_>>>()?;
         let output = output(rng)?;
-        Ok(ResMlp { input, blocks, output })
+        Ok(ResMlp {
+            input,
+            blocks,
+            output,
+            style,
+        })
     }
 
     /// The candle network with the weights of a frozen one (for comparisons with the runtime).
@@ -129,7 +151,7 @@ impl ResMlp {
             .iter()
             .map(|b| {
                 Ok(Block {
-                    inner: dense(&b.inner)?,
+                    inner: b.inner.as_ref().map(dense).transpose()?,
                     outer: dense(&b.outer)?,
                 })
             })
@@ -138,7 +160,13 @@ impl ResMlp {
             input: dense(mlp.input())?,
             blocks,
             output: dense(mlp.output())?,
+            style: mlp.style(),
         })
+    }
+
+    /// The activation and how the hidden layers are joined.
+    pub(crate) fn style(&self) -> MlpStyle {
+        self.style
     }
 
     /// The input layer.
@@ -146,9 +174,9 @@ impl ResMlp {
         &self.input
     }
 
-    /// The `(inner, outer)` layers of each residual block, in order.
-    pub(super) fn block_layers(&self) -> impl Iterator<Item = (&Dense, &Dense)> {
-        self.blocks.iter().map(|b| (&b.inner, &b.outer))
+    /// The `(inner, outer)` layers of each block, in order (`inner` only in residual ones).
+    pub(super) fn block_layers(&self) -> impl Iterator<Item = (Option<&Dense>, &Dense)> {
+        self.blocks.iter().map(|b| (b.inner.as_ref(), &b.outer))
     }
 
     /// The output layer.
@@ -158,24 +186,32 @@ impl ResMlp {
 
     /// Runs the network on a batch `x: (batch, input)`, giving `(batch, output)`.
     pub fn forward(&self, x: &Tensor) -> candle_core::Result<Tensor> {
-        let mut h = self.input.forward(x)?;
-        for block in &self.blocks {
-            let r = block.outer.forward(&block.inner.forward(&h)?.silu()?)?;
-            h = (h + r)?;
-        }
-        self.output.forward(&h.silu()?)
+        self.run(x, Dense::forward)
     }
 
     /// Runs the network with its weights held constant: backpropagation reaches `x` (and what
     /// produced it) without computing weight gradients. Used to push the physics gradient
     /// through the trained decoder into the integrator.
     pub(crate) fn forward_frozen(&self, x: &Tensor) -> candle_core::Result<Tensor> {
-        let mut h = self.input.forward_frozen(x)?;
+        self.run(x, Dense::forward_frozen)
+    }
+
+    /// The forward pass with `dense` applying each layer.
+    fn run(
+        &self,
+        x: &Tensor,
+        dense: fn(&Dense, &Tensor) -> candle_core::Result<Tensor>,
+    ) -> candle_core::Result<Tensor> {
+        let mut h = dense(&self.input, x)?;
         for block in &self.blocks {
-            let r = block.outer.forward_frozen(&block.inner.forward_frozen(&h)?.silu()?)?;
-            h = (h + r)?;
+            let u = match &block.inner {
+                Some(inner) => dense(inner, &h)?,
+                None => h.clone(),
+            };
+            let r = dense(&block.outer, &activate(self.style.activation, &u)?)?;
+            h = if self.style.residual { (h + r)? } else { r };
         }
-        self.output.forward_frozen(&h.silu()?)
+        dense(&self.output, &activate(self.style.activation, &h)?)
     }
 
     /// The trainable variables, named `{prefix}.input.weight`, `{prefix}.block{j}.inner.bias`,
@@ -184,7 +220,9 @@ impl ResMlp {
         let mut out = Vec::with_capacity(4 + 4 * self.blocks.len());
         self.input.parameters(&format!("{prefix}.input"), &mut out);
         for (j, block) in self.blocks.iter().enumerate() {
-            block.inner.parameters(&format!("{prefix}.block{j}.inner"), &mut out);
+            if let Some(inner) = &block.inner {
+                inner.parameters(&format!("{prefix}.block{j}.inner"), &mut out);
+            }
             block.outer.parameters(&format!("{prefix}.block{j}.outer"), &mut out);
         }
         self.output.parameters(&format!("{prefix}.output"), &mut out);
@@ -195,11 +233,21 @@ impl ResMlp {
     pub fn export(&self) -> ModelResult<ExportedMlp> {
         let mut layers = vec![self.input.export()?];
         for block in &self.blocks {
-            layers.push(block.inner.export()?);
+            if let Some(inner) = &block.inner {
+                layers.push(inner.export()?);
+            }
             layers.push(block.outer.export()?);
         }
         layers.push(self.output.export()?);
-        ExportedMlp::from_layers(layers)
+        ExportedMlp::from_styled_layers(layers, self.style)
+    }
+}
+
+/// `activation` elementwise on `t`.
+pub(super) fn activate(activation: Activation, t: &Tensor) -> candle_core::Result<Tensor> {
+    match activation {
+        Activation::Swish => t.silu(),
+        Activation::Elu => t.elu(1.0),
     }
 }
 
@@ -214,6 +262,12 @@ mod tests {
 
     #[test]
     fn exported_mlp_matches_candle_forward() {
+        for style in [MlpStyle::default(), MlpStyle::PAPER] {
+            exported_matches_candle(style);
+        }
+    }
+
+    fn exported_matches_candle(style: MlpStyle) {
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let spec = MlpSpec {
             input: 30,
@@ -221,13 +275,15 @@ mod tests {
             hidden: 24,
             blocks: 3,
         };
-        let mlp = ResMlp::new(spec, &mut rng).unwrap();
+        let mlp = ResMlp::new_styled(spec, style, &mut rng).unwrap();
         randomise(&mlp.parameters("m"), 0.4, &mut rng);
         let x = random_rows(16, 30, 2.0, &mut rng);
         let candle = tensor_to_rows(&mlp.forward(&as_tensor(&x)).unwrap()).unwrap();
         let exported = mlp.export().unwrap();
-        assert_eq!(exported.spec(), spec);
-        assert_eq!(exported.layers().len(), 2 + 2 * spec.blocks);
+        assert_eq!((exported.spec(), exported.style()), (spec, style));
+        assert_eq!(exported.layers().len(), 2 + style.layers_per_block() * spec.blocks);
+        let layers = exported.layers().into_iter().cloned().collect();
+        assert_eq!(ExportedMlp::from_styled_layers(layers, style).unwrap(), exported);
         let plain: Vec<Vec<f32>> = x.iter().map(|x| forward_exported(&exported, x).unwrap()).collect();
         let diff = max_relative_difference(&plain, &candle);
         assert!(diff < 1e-5, "exported forward differs from candle by {diff}");

@@ -58,6 +58,6 @@ pub use error::{ModelResult, NetworkError};
 pub use exported::{forward_exported, DenseLayer, ExportedBlock, ExportedMlp};
 pub use integrator::{network_inputs, rate_row, ExportedIntegrator};
 pub(crate) use integrator::{IntegratorSpec, LatentIntegrator, Normalisation};
-pub use layout::{MlpSpec, Real};
+pub use layout::{Activation, MlpSpec, MlpStyle, Real};
 pub(crate) use mlp::ResMlp;
 pub(crate) use tensor::{rows_to_tensor, tensor_to_rows};

@@ -6,15 +6,25 @@ use rand_chacha::ChaCha8Rng;
 
 use super::*;
 use crate::learn::network::exported::forward_exported;
-use crate::learn::network::layout::MlpSpec;
+use crate::learn::network::layout::{MlpSpec, MlpStyle};
 use crate::learn::network::mlp::ResMlp;
 use crate::learn::network::test_support::randomise;
 
 const R: usize = 4;
 const OUT: usize = 30;
 
-/// A random network (2 blocks, 4 inputs, 30 outputs, 16 hidden units) and a random point.
-fn setup(seed: u64) -> (ExportedMlp, Mlp64, Vec<f64>, ChaCha8Rng) {
+/// The residual Swish networks and the plain ELU ones: every check runs on both.
+const STYLES: [MlpStyle; 2] = [
+    MlpStyle {
+        activation: Activation::Swish,
+        residual: true,
+    },
+    MlpStyle::PAPER,
+];
+
+/// A random network of `style` (2 blocks, 4 inputs, 30 outputs, 16 hidden units) and a random
+/// point.
+fn setup(seed: u64, style: MlpStyle) -> (ExportedMlp, Mlp64, Vec<f64>, ChaCha8Rng) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let spec = MlpSpec {
         input: R,
@@ -22,7 +32,7 @@ fn setup(seed: u64) -> (ExportedMlp, Mlp64, Vec<f64>, ChaCha8Rng) {
         hidden: 16,
         blocks: 2,
     };
-    let mlp = ResMlp::new(spec, &mut rng).unwrap();
+    let mlp = ResMlp::new_styled(spec, style, &mut rng).unwrap();
     randomise(&mlp.parameters("m"), 0.5, &mut rng);
     let exported = mlp.export().unwrap();
     let x = random_vec(R, &mut rng);
@@ -68,7 +78,13 @@ fn central_differences(x: &[f64], m: usize, step: f64, g: impl Fn(&[f64]) -> Vec
 
 #[test]
 fn value_matches_forward_exported() {
-    let (exported, net, _, mut rng) = setup(1);
+    for style in STYLES {
+        value_matches_forward_exported_for(style);
+    }
+}
+
+fn value_matches_forward_exported_for(style: MlpStyle) {
+    let (exported, net, _, mut rng) = setup(1, style);
     for _ in 0..5 {
         let x = random_vec(R, &mut rng);
         let err = relative_error(&value(&net, &x), &forward_exported::<f64>(&exported, &x).unwrap());
@@ -78,7 +94,13 @@ fn value_matches_forward_exported() {
 
 #[test]
 fn jacobian_matches_central_differences() {
-    let (_, net, x, _) = setup(2);
+    for style in STYLES {
+        jacobian_matches_central_differences_for(style);
+    }
+}
+
+fn jacobian_matches_central_differences_for(style: MlpStyle) {
+    let (_, net, x, _) = setup(2, style);
     let mut ws = Mlp64Workspace::new(&net);
     let (y, jac) = jacobian(&net, &x, &mut ws);
     assert_eq!(y, value(&net, &x));
@@ -90,7 +112,13 @@ fn jacobian_matches_central_differences() {
 
 #[test]
 fn pulled_back_gradient_matches_the_jacobian_and_differences() {
-    let (_, net, x, mut rng) = setup(7);
+    for style in STYLES {
+        pulled_back_gradient_matches_the_jacobian_and_differences_for(style);
+    }
+}
+
+fn pulled_back_gradient_matches_the_jacobian_and_differences_for(style: MlpStyle) {
+    let (_, net, x, mut rng) = setup(7, style);
     let w = random_vec(OUT, &mut rng);
     let mut ws = Mlp64Workspace::default();
     let mut gradient = vec![0.0; R];
@@ -117,7 +145,13 @@ fn pulled_back_gradient_matches_the_jacobian_and_differences() {
 
 #[test]
 fn contracted_hessian_matches_differences_of_the_gradient() {
-    let (_, net, x, mut rng) = setup(3);
+    for style in STYLES {
+        contracted_hessian_matches_differences_of_the_gradient_for(style);
+    }
+}
+
+fn contracted_hessian_matches_differences_of_the_gradient_for(style: MlpStyle) {
+    let (_, net, x, mut rng) = setup(3, style);
     let w = random_vec(OUT, &mut rng);
     let mut hess = vec![0.0; R * R];
     net.contracted_hessian(&x, &w, &mut hess, &mut Mlp64Workspace::default())
@@ -140,7 +174,13 @@ fn contracted_hessian_matches_differences_of_the_gradient() {
 
 #[test]
 fn second_directional_matches_hessian_and_differences() {
-    let (_, net, x, mut rng) = setup(4);
+    for style in STYLES {
+        second_directional_matches_hessian_and_differences_for(style);
+    }
+}
+
+fn second_directional_matches_hessian_and_differences_for(style: MlpStyle) {
+    let (_, net, x, mut rng) = setup(4, style);
     let v = random_vec(R, &mut rng);
     let mut ws = Mlp64Workspace::default();
     let mut second = vec![0.0; OUT];
@@ -172,7 +212,13 @@ fn second_directional_matches_hessian_and_differences() {
 
 #[test]
 fn selected_rows_give_the_same_rows() {
-    let (_, net, x, _) = setup(5);
+    for style in STYLES {
+        selected_rows_give_the_same_rows_for(style);
+    }
+}
+
+fn selected_rows_give_the_same_rows_for(style: MlpStyle) {
+    let (_, net, x, _) = setup(5, style);
     let rows = [3, 0, 29, 3];
     let sub = net.rows(&rows).unwrap();
     let mut ws = Mlp64Workspace::new(&net);
@@ -187,7 +233,13 @@ fn selected_rows_give_the_same_rows() {
 
 #[test]
 fn wrong_sizes_are_errors() {
-    let (_, net, x, _) = setup(6);
+    for style in STYLES {
+        wrong_sizes_are_errors_for(style);
+    }
+}
+
+fn wrong_sizes_are_errors_for(style: MlpStyle) {
+    let (_, net, x, _) = setup(6, style);
     let mut ws = Mlp64Workspace::default();
     let (mut y, mut jac, mut hess) = (vec![0.0; OUT], vec![0.0; OUT * R], vec![0.0; R * R]);
     let short = &x[..R - 1];
