@@ -11,7 +11,7 @@ use mochi_sim::StencilEnergy;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::plain_vanilla::{plain_tag, train_plain_vanilla};
+use super::plain_vanilla::{plain_style, plain_tag, train_plain_vanilla};
 use super::stages::{SelectedAutoencoder, StageTimes, TrainingFrames, Workspace, BLOCK};
 use crate::artifact::reduced::{reduced_path, CubatureData, LinearSubspaceData, ReducedArtifact, SubspaceData};
 use crate::error::{TrainerError, TrainerResult};
@@ -358,12 +358,17 @@ fn linear_subspace(inputs: &ReducedInputs<'_>, k: usize) -> TrainerResult<Linear
 fn data_free(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResult<ReducedArtifact> {
     let (problem, spec) = (inputs.problem, inputs.spec);
     let encoding = &inputs.frames.encoding;
-    let settings = DataFreeSettings {
+    let mut settings = DataFreeSettings {
         latent: spec.latent,
         iterations: spec.data_free_iterations,
         seed: spec.seed.unwrap_or(0),
         ..DataFreeSettings::default()
     };
+    if spec.vanilla == VanillaNetwork::PlainMlp {
+        settings.hidden = spec.plain_hidden;
+        settings.blocks = spec.plain_blocks;
+        settings.style = plain_style(spec);
+    }
     let objective = DataFreeObjective::new(problem, encoding, settings.sigma)?;
     let (model, vanilla) = train_data_free_model(&objective, &settings, report)?;
 

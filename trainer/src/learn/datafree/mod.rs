@@ -42,7 +42,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use crate::learn::encoding::{Encoding, EncodingError, Frame};
-use crate::learn::network::{tensor_to_rows, ExportedMlp, MlpSpec, NetworkError, ResMlp};
+use crate::learn::network::{tensor_to_rows, ExportedMlp, MlpSpec, MlpStyle, NetworkError, ResMlp};
 use crate::learn::train::{AdamW, AdamWConfig, TrainError};
 use crate::progress::{EpochsBar, Reporter};
 use mochi_sim::bc::Pose;
@@ -88,8 +88,10 @@ pub struct DataFreeSettings {
     pub latent: usize,
     /// Width of the decoder's residual stream (default 128).
     pub hidden: usize,
-    /// Residual blocks of the decoder (default 2).
+    /// Blocks of the decoder (default 2).
     pub blocks: usize,
+    /// Its activation and how its hidden layers are joined (default: residual Swish blocks).
+    pub style: MlpStyle,
     /// Latent samples per iteration, at least 2: the repulsion uses all their pairs (default 32).
     pub batch: usize,
     /// Optimiser steps (default 2000).
@@ -115,6 +117,7 @@ impl Default for DataFreeSettings {
             latent: 8,
             hidden: 128,
             blocks: 2,
+            style: MlpStyle::default(),
             batch: 32,
             iterations: 2000,
             learning_rate: 1e-3,
@@ -192,23 +195,17 @@ pub(crate) struct DataFreeModel {
 }
 
 impl DataFreeModel {
-    /// A decoder with `latent` inputs around `offset`, its output layer scaled by
-    /// `output_scale` (see the module documentation), drawn from `seed`.
-    pub(crate) fn new(
-        latent: usize,
-        hidden: usize,
-        blocks: usize,
-        offset: Vec<f32>,
-        output_scale: f64,
-        seed: u64,
-    ) -> DataFreeResult<Self> {
+    /// A decoder with the `latent` inputs and network of `settings` around `offset`, its
+    /// output layer scaled by `output_scale` (see the module documentation), drawn from
+    /// `settings.seed`.
+    pub(crate) fn new(settings: &DataFreeSettings, offset: Vec<f32>, output_scale: f64) -> DataFreeResult<Self> {
         let spec = MlpSpec {
-            input: latent,
+            input: settings.latent,
             output: offset.len(),
-            hidden,
-            blocks,
+            hidden: settings.hidden,
+            blocks: settings.blocks,
         };
-        let mlp = ResMlp::new(spec, &mut ChaCha8Rng::seed_from_u64(seed))?;
+        let mlp = ResMlp::new_styled(spec, settings.style, &mut ChaCha8Rng::seed_from_u64(settings.seed))?;
         for (name, var) in mlp.parameters("decoder") {
             if name.starts_with("decoder.output.") {
                 var.set(&(var.as_tensor() * output_scale)?)?;
@@ -244,7 +241,7 @@ impl DataFreeModel {
         if let Some(output) = layers.last_mut() {
             output.bias.iter_mut().zip(&self.offset).for_each(|(b, o)| *b += o);
         }
-        Ok(ExportedMlp::from_layers(layers)?)
+        Ok(ExportedMlp::from_styled_layers(layers, plain.style())?)
     }
 }
 
@@ -344,14 +341,7 @@ impl<'a> DataFreeObjective<'a> {
     /// The untrained decoder of `settings` around the rest shape.
     pub(crate) fn initial_model(&self, settings: &DataFreeSettings) -> DataFreeResult<DataFreeModel> {
         let offset = self.rest.iter().map(|&v| v as f32).collect();
-        DataFreeModel::new(
-            settings.latent,
-            settings.hidden,
-            settings.blocks,
-            offset,
-            self.length,
-            settings.seed,
-        )
+        DataFreeModel::new(settings, offset, self.length)
     }
 
     /// `P(x(q)) / E_ref` and its gradient with respect to `q`, in f64.

@@ -77,10 +77,20 @@ pub(crate) fn small_settings() -> DataFreeSettings {
 
 #[test]
 fn the_loss_falls_and_the_export_reproduces_the_candle_decoder() {
+    let paper = DataFreeSettings {
+        blocks: 3,
+        style: MlpStyle::PAPER,
+        ..small_settings()
+    };
+    for settings in [small_settings(), paper] {
+        loss_falls_and_export_reproduces(settings);
+    }
+}
+
+fn loss_falls_and_export_reproduces(settings: DataFreeSettings) {
     let dir = tempfile::tempdir().unwrap();
     let problem = tiny_bar(dir.path());
     let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
-    let settings = small_settings();
     let objective = DataFreeObjective::new(&problem, &encoding, settings.sigma).unwrap();
     let model = objective.initial_model(&settings).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(5);
@@ -93,6 +103,10 @@ fn the_loss_falls_and_the_export_reproduces_the_candle_decoder() {
     // The exported decoder, start state folded into its output bias, is the candle decoder.
     let exported = model.export().unwrap();
     assert_eq!(exported.spec().input, settings.latent);
+    assert_eq!(
+        (exported.spec().blocks, exported.style()),
+        (settings.blocks, settings.style)
+    );
     assert_eq!(exported.spec().output, encoding.encoded_len());
     let z = normal_latents(6, settings.latent, &mut rng).unwrap();
     let z = Tensor::cat(
