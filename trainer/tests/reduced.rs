@@ -252,3 +252,70 @@ fn a_scene_file_that_seeds_a_supervised_subspace_is_refused_but_a_stored_recipe_
     let stored = Recipe::parse(&text, &path).unwrap();
     assert_eq!(stored.reduced.unwrap().seed, Some(3));
 }
+
+/// The paper code's vanilla: plain ELU layers between the fixed maps of a PCA. Both subspaces
+/// keep the PCA's maps exactly (the Lipschitz optimisation trains the layers between them), the
+/// file reads back what was trained, and the solver converges in the projected subspace.
+#[test]
+fn the_paper_shaped_vanilla_keeps_its_pca_through_the_lipschitz_optimisation() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tiny.toml");
+    let paper = "vanilla = \"plain-mlp\"\nplain_hidden = 24\nplain_blocks = 1\nplain_activation = \"elu\"\n\
+                 plain_residual = false\nplain_epochs = 20\nplain_pca = 1e-3\n";
+    let mlp_only = "\n[latent.selection]\ndecoders = [\"mlp\"]\n";
+    std::fs::write(&path, format!("{TINY}{REDUCED}{paper}{mlp_only}")).unwrap();
+    let recipe = Recipe::load(path.to_str().unwrap()).unwrap();
+    let out = dir.path().join("out");
+    let options = TrainOptions {
+        out_dir: out.clone(),
+        resume: false,
+        latent: None,
+        frame_memory: mochi_trainer::FRAME_MEMORY,
+    };
+    let reduced = train_scene(&recipe, &options, &Quiet).unwrap().reduced.unwrap();
+    assert_eq!(ReducedArtifact::load(&reduced_path(&out, "tiny")).unwrap(), reduced);
+    let (vanilla, ours) = (reduced.vanilla.decoder().unwrap(), reduced.lipschitz.decoder().unwrap());
+    for decoder in [&vanilla, &ours] {
+        let style = decoder.style();
+        assert!(style.output_projection && !style.residual, "{style:?}");
+        assert_eq!(decoder.spec().blocks, 1);
+    }
+    let basis = vanilla.output_projection().unwrap();
+    assert!(
+        basis.cols < basis.rows,
+        "{} components of {} values",
+        basis.cols,
+        basis.rows
+    );
+    assert_eq!(ours.output_projection().unwrap(), basis);
+    assert_ne!(ours.output(), vanilla.output(), "the optimisation trains the layers");
+
+    let problem = recipe.build().unwrap();
+    let bc = problem.sequence(&SpeedPlan::constant(1.0), 10, 5);
+    let encoding = Encoding::new(&problem, RodEncoding::Positions).unwrap();
+    let settings = stepper_settings(&recipe.reduced.clone().unwrap(), problem.scene.integrator);
+    let potentials: Vec<&dyn StencilEnergy> = problem.simulator.potentials().iter().map(|p| p.as_ref()).collect();
+    let targets = |t: usize| bc.targets(&problem.handles, t, problem.mesh.dim);
+    let subspace = DecoderSubspace::new(&ours, &encoding, &targets(0)).unwrap();
+    let masses = problem.simulator.masses().to_vec();
+    let diagonal = problem.mesh.rest_diagonal();
+    let mut stepper =
+        ReducedStepper::new(subspace, encoding.clone(), masses, diagonal, problem.scene.dt, settings).unwrap();
+    stepper.reset(&reduced.lipschitz.initial_latent, &targets(0)).unwrap();
+    for t in 1..=10 {
+        assert_eq!(
+            stepper.step(&potentials, &targets(t)).unwrap().exit,
+            Exit::Converged,
+            "frame {t}"
+        );
+    }
+
+    // A PCA for a vanilla that is not the plain autoencoder would be ignored: refused.
+    let ignored = dir.path().join("ignored.toml");
+    std::fs::write(&ignored, format!("{TINY}{REDUCED}plain_pca = 1e-3\n")).unwrap();
+    let err = Recipe::load(ignored.to_str().unwrap()).unwrap_err().to_string();
+    assert!(
+        err.contains("reduced.plain_pca") && err.contains("ignored.toml"),
+        "{err}"
+    );
+}

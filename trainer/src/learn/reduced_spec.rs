@@ -110,6 +110,12 @@ pub struct ReducedSpec {
     /// Their blocks are residual (default true); `false`: plain hidden layers
     /// `h = W a(h)`, as the paper code's MLPs.
     pub plain_residual: bool,
+    /// Supervised: when set, the plain autoencoder works between the fixed maps of a PCA of
+    /// the training frames (the encoder reads `B^T (q - mean)`, the decoder writes
+    /// `mean + B y`, as the paper code's with a PCA basis), with the fewest components whose
+    /// RMS vertex error / diagonal is at most this (default none: no PCA).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plain_pca: Option<f64>,
     /// Learning-rate schedule of `vanilla = "plain-mlp"` (default `"cosine"`; `"paper"`).
     pub plain_schedule: PlainSchedule,
     /// Training epochs of `vanilla = "plain-mlp"` (default 2000).
@@ -185,6 +191,7 @@ impl Default for ReducedSpec {
             plain_blocks: 0,
             plain_activation: Activation::Swish,
             plain_residual: true,
+            plain_pca: None,
             plain_schedule: PlainSchedule::Cosine,
             plain_epochs: 2000,
             plain_learning_rate: 1e-3,
@@ -271,6 +278,14 @@ impl ReducedSpec {
                 "refits renew the cubature of the Lipschitz loss: they need lipschitz_energy = \"cubature\"".into(),
             ));
         }
+        if let Some(tolerance) = self.plain_pca {
+            if !(tolerance.is_finite() && tolerance > 0.0) {
+                return Err((
+                    "plain_pca",
+                    format!("a PCA's tolerance must be positive and finite, got {tolerance}"),
+                ));
+            }
+        }
         if self.cubature_refits >= self.lipschitz_epochs {
             return Err((
                 "cubature_refits",
@@ -289,6 +304,14 @@ impl ReducedSpec {
     /// setting that would be ignored. Not applied to the recipes stored in artifacts, which
     /// the trainer wrote (those of some earlier builds carry `seed = 0` on every scene).
     pub fn validate_authored(&self) -> Result<(), (&'static str, String)> {
+        let plain_supervised = self.vanilla == VanillaNetwork::PlainMlp && self.subspace == SubspaceSource::Supervised;
+        if self.plain_pca.is_some() && !plain_supervised {
+            return Err((
+                "plain_pca",
+                "projects the plain autoencoder of a supervised subspace: it needs vanilla = \"plain-mlp\" and subspace = \"supervised\""
+                    .into(),
+            ));
+        }
         if self.seed.is_some() && self.subspace == SubspaceSource::Supervised {
             return Err((
                 "seed",

@@ -4,7 +4,9 @@
 //! the latent model's PCA-initialised autoencoder (whose latent size it takes). With
 //! `plain_schedule = "paper"` it trains as the paper's configs say (minibatches of 256, a
 //! warm-up of 2,000 iterations, a factor 0.8 every 30,000); with `plain_activation = "elu"` and
-//! `plain_residual = false` its MLPs are the paper code's (plain hidden layers, ELU).
+//! `plain_residual = false` its MLPs are the paper code's (plain hidden layers, ELU), and with
+//! `plain_pca` they work between the fixed maps of a PCA of the frames, as the paper code's
+//! with a PCA basis.
 
 use crate::learn::frame_rows::Rows;
 use std::time::Instant;
@@ -12,6 +14,7 @@ use std::time::Instant;
 use super::stages::Workspace;
 use crate::error::TrainerResult;
 use crate::learn::network::{Autoencoder, AutoencoderSpec, DecoderShape, MlpStyle};
+use crate::learn::pca;
 use crate::learn::reduced_spec::{PlainSchedule, ReducedSpec};
 use crate::learn::train::{self, AdamWConfig, CheckpointConfig, TrainConfig, WarmupStep};
 
@@ -32,6 +35,8 @@ pub(crate) struct PlainVanilla {
     pub(crate) losses: Vec<f64>,
     /// Training seconds (including those before a resumed checkpoint).
     pub(crate) seconds: f64,
+    /// With `plain_pca`: the PCA's components and its RMS vertex error / diagonal.
+    pub(crate) projection: Option<(usize, f64)>,
 }
 
 /// The sizes of the plain autoencoder of `spec` for states of `input` values and latent `k`.
@@ -50,6 +55,7 @@ pub(crate) fn plain_style(spec: &ReducedSpec) -> MlpStyle {
     MlpStyle {
         activation: spec.plain_activation,
         residual: spec.plain_residual,
+        ..MlpStyle::default()
     }
 }
 
@@ -66,6 +72,9 @@ pub(crate) fn plain_tag(spec: &ReducedSpec) -> String {
         tag += "-paper";
     }
     let style = plain_style(spec);
+    if let Some(tolerance) = spec.plain_pca {
+        tag += &format!("-pca{tolerance:?}");
+    }
     if style != MlpStyle::default() {
         tag += &format!("-{:?}", style.activation).to_lowercase();
         if !style.residual {
@@ -116,7 +125,9 @@ pub(crate) fn plain_config(
     }
 }
 
-/// Trains the plain autoencoder of `spec` (latent `k`) on the encoded frames `data`.
+/// Trains the plain autoencoder of `spec` (latent `k`) on the encoded frames `data`, whose
+/// vertices have `scale.0` values and whose rest diagonal is `scale.1` (the units of
+/// `plain_pca`).
 pub(crate) fn train_plain_vanilla(
     spec: &ReducedSpec,
     data: &(impl Rows + ?Sized),
@@ -124,9 +135,26 @@ pub(crate) fn train_plain_vanilla(
     batch: usize,
     seed: u64,
     work: &Workspace,
+    scale: (usize, f64),
 ) -> TrainerResult<PlainVanilla> {
     let input = data.width();
-    let autoencoder = Autoencoder::new_styled(plain_spec(spec, input, k), plain_style(spec), seed)?;
+    let sizes = plain_spec(spec, input, k);
+    let mut projection = None;
+    let autoencoder = match spec.plain_pca {
+        None => Autoencoder::new_styled(sizes, plain_style(spec), seed)?,
+        Some(tolerance) => {
+            let mut frames = Vec::with_capacity(data.count());
+            for i in 0..data.count() {
+                let mut row = Vec::with_capacity(input);
+                data.gather_f64(&[i], &mut row)?;
+                frames.push(row);
+            }
+            let sized = pca::smallest_k_for(tolerance, &frames, scale.0, scale.1)?;
+            let modes = sized.pca.num_components();
+            projection = Some((modes, sized.errors.get(modes).copied().unwrap_or(0.0)));
+            Autoencoder::new_projected(sizes, plain_style(spec), &sized.pca.mean, &sized.pca.basis, seed)?
+        }
+    };
     let clock = Instant::now();
     let config = plain_config(spec, k, data.count(), batch, seed, work);
     let report = train::train_autoencoder(&autoencoder, data, &config, work.resume, None)?;
@@ -134,6 +162,7 @@ pub(crate) fn train_plain_vanilla(
         autoencoder,
         losses: report.losses,
         seconds: clock.elapsed().as_secs_f64() + report.earlier_seconds,
+        projection,
     })
 }
 
@@ -159,7 +188,11 @@ mod tests {
             plain_residual: false,
             ..one_layer.clone()
         };
-        for spec in [one_layer, paper_layers] {
+        let projected = ReducedSpec {
+            plain_pca: Some(1e-3),
+            ..paper_layers.clone()
+        };
+        for spec in [one_layer, paper_layers, projected] {
             learns_the_frames(spec);
         }
     }
@@ -182,14 +215,24 @@ mod tests {
         };
         let start = Autoencoder::new_styled(plain_spec(&spec, data[0].len(), 3), plain_style(&spec), 1).unwrap();
         let before = train::mean_reconstruction_error(&start, &data, 64).unwrap();
-        let trained = train_plain_vanilla(&spec, &data, 3, 4, 1, &work).unwrap();
+        let trained = train_plain_vanilla(&spec, &data, 3, 4, 1, &work, (3, 1.0)).unwrap();
         let after = train::mean_reconstruction_error(&trained.autoencoder, &data, 64).unwrap();
         assert_eq!(trained.losses.len(), 150);
         assert!(after < 1e-2 * before, "reconstruction {before:.3e} -> {after:.3e}");
         let exported = trained.autoencoder.export().unwrap();
         let decoder = exported.decoder.as_mlp().unwrap();
         assert_eq!(decoder.spec().blocks, spec.plain_blocks);
-        assert_eq!(decoder.style(), plain_style(&spec));
+        assert_eq!(decoder.spec().output, data[0].len());
+        match trained.projection {
+            // The PCA meets its tolerance with fewer components than values, and the decoder
+            // writes through its basis.
+            Some((modes, error)) => {
+                assert!(modes < data[0].len() && error <= 1e-3, "{modes} components, {error:e}");
+                assert_eq!(decoder.output_projection().unwrap().cols, modes);
+                assert_eq!(exported.encoder.input_projection().unwrap().rows, modes);
+            }
+            None => assert_eq!(decoder.style(), plain_style(&spec)),
+        }
     }
 
     #[test]

@@ -162,7 +162,13 @@ fn supervised(inputs: &ReducedInputs<'_>, report: &dyn Reporter) -> TrainerResul
         VanillaNetwork::PlainMlp => {
             report.stage(&format!("reduced: plain vanilla k={k}"));
             let seed = inputs.recipe.latent.seed;
-            let trained = train_plain_vanilla(spec, &frames.rows, k, net.batch, seed, inputs.work)?;
+            let scale = (encoding.values_per_vertex(), problem.mesh.rest_diagonal());
+            let trained = train_plain_vanilla(spec, &frames.rows, k, net.batch, seed, inputs.work, scale)?;
+            if let Some((modes, error)) = trained.projection {
+                report.message(&format!(
+                    "plain vanilla: between a PCA of {modes} components (RMS vertex error / diagonal {error:.2e})"
+                ));
+            }
             let error = train::mean_reconstruction_error(&trained.autoencoder, &frames.rows, BLOCK)?;
             report.message(&format!(
                 "plain vanilla: RMS vertex error / diagonal {:.2e} after {} epochs ({:.0} s)",

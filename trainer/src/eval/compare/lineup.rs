@@ -85,7 +85,7 @@ pub struct LearnedModel<'m> {
 /// A reduced subspace's decoder, owned.
 pub enum SubspaceMap {
     /// A trained decoder (vanilla, Lipschitz-optimised).
-    Network(ExportedMlp),
+    Network(Box<ExportedMlp>),
     /// A PCA.
     Linear(Pca),
 }
@@ -94,7 +94,7 @@ impl SubspaceMap {
     /// The decoder as the reduced solver takes it.
     pub fn decoder(&self) -> SubspaceDecoder<'_> {
         match self {
-            SubspaceMap::Network(mlp) => mlp.into(),
+            SubspaceMap::Network(mlp) => mlp.as_ref().into(),
             SubspaceMap::Linear(pca) => pca.into(),
         }
     }

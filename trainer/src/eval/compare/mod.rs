@@ -267,7 +267,7 @@ fn compare_on_this_thread(scene: &str, options: &CompareOptions, report: &dyn Re
         ] {
             reduced.push(ReducedSubspace {
                 name: name.into(),
-                decoder: SubspaceMap::Network(data.decoder()?),
+                decoder: SubspaceMap::Network(Box::new(data.decoder()?)),
                 initial_latent: data.initial_latent.clone(),
                 energies: cubature.then(|| with_cubature.clone()),
             });

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use super::decoder::{Decoder, DecoderShape, FrozenDecoder};
 use super::error::{invalid, ModelResult};
-use super::exported::ExportedMlp;
+use super::exported::{DenseLayer, ExportedMlp};
 use super::layout::{MlpSpec, MlpStyle};
 use super::mlp::{random_values, Dense, ResMlp};
 
@@ -86,6 +86,52 @@ impl Autoencoder {
         let encoder = ResMlp::new_styled(spec.encoder(), style, &mut rng)?;
         let decoder = Decoder::Mlp(ResMlp::new_styled(spec.decoder(), style, &mut rng)?);
         Ok(Autoencoder { spec, encoder, decoder })
+    }
+
+    /// A randomly initialised autoencoder of `style` between the fixed maps of a PCA (`mean`
+    /// and the components `basis`, each of `spec.input` values): the encoder's MLP reads
+    /// `B^T (x - mean)`, the decoder's writes `y` to `mean + B y` (Lyu et al.'s code with a PCA
+    /// basis). Training changes the MLPs, never the maps.
+    pub(crate) fn new_projected(
+        spec: AutoencoderSpec,
+        style: MlpStyle,
+        mean: &[f64],
+        basis: &[Vec<f64>],
+        seed: u64,
+    ) -> ModelResult<Self> {
+        let (n, modes) = (spec.input, basis.len());
+        if modes == 0 || mean.len() != n || basis.iter().any(|b| b.len() != n) {
+            return invalid(format!(
+                "a projection needs a mean and components of {n} values, got {} and {modes} components",
+                mean.len()
+            ));
+        }
+        let inner = AutoencoderSpec { input: modes, ..spec };
+        let Autoencoder { encoder, decoder, .. } = Self::new_styled(inner, style, seed)?;
+        // B^T x - B^T mean (modes x n) and B y + mean (n x modes).
+        let down = DenseLayer {
+            rows: modes,
+            cols: n,
+            weights: basis.iter().flatten().map(|&v| v as f32).collect(),
+            bias: basis
+                .iter()
+                .map(|b| -b.iter().zip(mean).map(|(b, m)| b * m).sum::<f64>() as f32)
+                .collect(),
+        };
+        let up = DenseLayer {
+            rows: n,
+            cols: modes,
+            weights: (0..n).flat_map(|i| basis.iter().map(move |b| b[i] as f32)).collect(),
+            bias: mean.iter().map(|&m| m as f32).collect(),
+        };
+        let Decoder::Mlp(decoder) = decoder else {
+            return invalid("a projected autoencoder has an MLP decoder");
+        };
+        Ok(Autoencoder {
+            spec,
+            encoder: encoder.with_projections(Some(down), None)?,
+            decoder: Decoder::Mlp(decoder.with_projections(None, Some(up))?),
+        })
     }
 
     /// An autoencoder that, at initialisation, is exactly the PCA of the data (Fulton et al.

@@ -41,129 +41,9 @@
 //! the network's sizes.
 
 use super::error::{invalid, ModelResult};
-use super::exported::{DenseLayer, ExportedMlp};
+use super::exported::ExportedMlp;
 use super::layout::{Activation, MlpStyle};
-
-/// A dense layer `a ↦ W a + b` in `f64`, `W` row-major.
-#[derive(Debug, Clone, PartialEq)]
-struct Dense64 {
-    rows: usize,
-    cols: usize,
-    weights: Vec<f64>,
-    bias: Vec<f64>,
-}
-
-impl Dense64 {
-    fn new(layer: &DenseLayer) -> Self {
-        Dense64 {
-            rows: layer.rows,
-            cols: layer.cols,
-            weights: layer.weights.iter().map(|&w| w as f64).collect(),
-            bias: layer.bias.iter().map(|&b| b as f64).collect(),
-        }
-    }
-
-    fn row(&self, i: usize) -> &[f64] {
-        &self.weights[i * self.cols..(i + 1) * self.cols]
-    }
-
-    /// Calls `sink(i, W_i · x)` for every row `i`.
-    #[inline]
-    fn matvec(&self, x: &[f64], sink: impl FnMut(usize, f64)) {
-        wide::matvec(self, x, sink)
-    }
-
-    /// [`Dense64::matvec`] as built, for whichever CPU runs it.
-    #[inline(always)]
-    fn matvec_portable(&self, x: &[f64], mut sink: impl FnMut(usize, f64)) {
-        for i in 0..self.rows {
-            sink(i, dot(self.row(i), x));
-        }
-    }
-
-    /// The layer with tangents: `value = W a + b` and `out = W t` for tangents `t` (`cols ×
-    /// count`, row-major; `out`: `rows × count`), or with `add` (a residual addition) `value +=
-    /// W a + b` and `out += W t`. `W` is read once, row by row: each row gives its value, then
-    /// accumulates `W_ij t_j` over `j` in blocks of up to 8 directions held in registers.
-    fn with_tangents(&self, a: &[f64], t: &[f64], value: &mut [f64], out: &mut [f64], add: bool) {
-        wide::with_tangents(self, a, t, value, out, add)
-    }
-
-    /// [`Dense64::with_tangents`] as built.
-    #[inline(always)]
-    fn with_tangents_portable(&self, a: &[f64], t: &[f64], value: &mut [f64], out: &mut [f64], add: bool) {
-        let count = t.len() / self.cols;
-        for (i, o) in out.chunks_exact_mut(count).enumerate() {
-            let row = self.row(i);
-            let v = self.bias[i] + dot(row, a);
-            if add {
-                value[i] += v;
-            } else {
-                value[i] = v;
-                o.fill(0.0);
-            }
-            let mut k = 0;
-            while k + 8 <= count {
-                accumulate::<8>(row, t, k, o);
-                k += 8;
-            }
-            if k + 4 <= count {
-                accumulate::<4>(row, t, k, o);
-                k += 4;
-            }
-            for k in k..count {
-                accumulate::<1>(row, t, k, o);
-            }
-        }
-    }
-
-    /// `out += Wᵀ v` for `v`: `rows × count` and `out`: `cols × count` (row-major).
-    fn add_transposed(&self, v: &[f64], out: &mut [f64]) {
-        wide::add_transposed(self, v, out)
-    }
-
-    /// [`Dense64::add_transposed`] as built.
-    #[inline(always)]
-    fn add_transposed_portable(&self, v: &[f64], out: &mut [f64]) {
-        let count = v.len() / self.rows;
-        for (row, vi) in self.weights.chunks_exact(self.cols).zip(v.chunks_exact(count)) {
-            if count == 1 {
-                out.iter_mut().zip(row).for_each(|(o, &w)| *o += w * vi[0]);
-                continue;
-            }
-            for (&w, oj) in row.iter().zip(out.chunks_exact_mut(count)) {
-                oj.iter_mut().zip(vi).for_each(|(o, &v)| *o += w * v);
-            }
-        }
-    }
-}
-
-/// `o[k..k + L] += Σ_j row_j t_j[k..k + L]` for the rows `t_j` of `t` (`row.len() × o.len()`).
-#[inline(always)]
-fn accumulate<const L: usize>(row: &[f64], t: &[f64], k: usize, o: &mut [f64]) {
-    let mut acc = [0.0; L];
-    for (&w, tj) in row.iter().zip(t.chunks_exact(o.len())) {
-        let tj = &tj[k..k + L];
-        for l in 0..L {
-            acc[l] += w * tj[l];
-        }
-    }
-    o[k..k + L].iter_mut().zip(acc).for_each(|(o, a)| *o += a);
-}
-
-/// `a · b`, in four interleaved sums so that it vectorises.
-#[inline(always)]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
-    let mut acc = [0.0; 4];
-    for (x, y) in ca.zip(cb) {
-        for l in 0..4 {
-            acc[l] += x[l] * y[l];
-        }
-    }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
-}
+use dense64::{dot, Dense64};
 
 /// An error naming `what` unless it has `expected` values.
 pub(crate) fn check_len(what: &str, got: usize, expected: usize) -> ModelResult<()> {
@@ -181,6 +61,9 @@ pub struct Mlp64 {
     /// `(inner, outer)` of each block; no inner layer in a plain one.
     blocks: Vec<(Option<Dense64>, Dense64)>,
     output: Dense64,
+    /// A fixed map after the output layer (a PCA basis), kept apart: `outputs x modes` costs
+    /// less than the product with the output layer folded in.
+    projection: Option<Dense64>,
     activation: Activation,
     residual: bool,
 }
@@ -200,6 +83,10 @@ pub struct Mlp64Workspace {
     abar: Vec<f64>,
     dabar: Vec<f64>,
     curv: Vec<f64>,
+    /// The output layer's values, tangents and weights before the projection.
+    py: Vec<f64>,
+    pjac: Vec<f64>,
+    pw: Vec<f64>,
 }
 
 impl Mlp64Workspace {
@@ -212,6 +99,7 @@ impl Mlp64Workspace {
 
     fn fit(&mut self, mlp: &Mlp64) {
         let (n, r, b) = (mlp.hidden(), mlp.input_len(), mlp.blocks.len());
+        let p = mlp.projection.as_ref().map_or(0, |_| mlp.output.rows);
         let sizes = [
             (&mut self.h, n),
             (&mut self.act, n),
@@ -224,6 +112,9 @@ impl Mlp64Workspace {
             (&mut self.abar, n),
             (&mut self.dabar, r * n),
             (&mut self.curv, 2 * n),
+            (&mut self.py, p),
+            (&mut self.pjac, p * r),
+            (&mut self.pw, p),
         ];
         for (buffer, len) in sizes {
             buffer.resize(len, 0.0);
@@ -232,17 +123,37 @@ impl Mlp64Workspace {
 }
 
 impl Mlp64 {
-    /// Converts the weights of `mlp` to `f64`.
+    /// Converts the weights of `mlp` to `f64`, an input projection folded into the input
+    /// layer (`W_in (P x + c) + b_in`).
     pub fn new(mlp: &ExportedMlp) -> Self {
-        let MlpStyle { activation, residual } = mlp.style();
+        let MlpStyle {
+            activation, residual, ..
+        } = mlp.style();
+        let mut input = Dense64::new(mlp.input());
+        if let Some(projection) = mlp.input_projection() {
+            let p = Dense64::new(projection);
+            let mut weights = vec![0.0; input.rows * p.cols];
+            for (i, row) in weights.chunks_exact_mut(p.cols).enumerate() {
+                for (k, &w) in input.row(i).iter().enumerate() {
+                    row.iter_mut().zip(p.row(k)).for_each(|(o, &v)| *o += w * v);
+                }
+                input.bias[i] += dot(input.row(i), &p.bias);
+            }
+            input = Dense64 {
+                cols: p.cols,
+                weights,
+                ..input
+            };
+        }
         Mlp64 {
-            input: Dense64::new(mlp.input()),
+            input,
             blocks: mlp
                 .blocks()
                 .iter()
                 .map(|b| (b.inner.as_ref().map(Dense64::new), Dense64::new(&b.outer)))
                 .collect(),
             output: Dense64::new(mlp.output()),
+            projection: mlp.output_projection().map(Dense64::new),
             activation,
             residual,
         }
@@ -251,20 +162,25 @@ impl Mlp64 {
     /// The same network with only the given output rows (in the given order), for callers that
     /// need a few outputs of a large one.
     pub fn rows(&self, rows: &[usize]) -> ModelResult<Mlp64> {
-        let out = &self.output;
+        let out = self.projection.as_ref().unwrap_or(&self.output);
         if let Some(&bad) = rows.iter().find(|&&r| r >= out.rows) {
             return invalid(format!("output row {bad} of a network with {} outputs", out.rows));
         }
-        let output = Dense64 {
+        let selected = Dense64 {
             rows: rows.len(),
             cols: out.cols,
             weights: rows.iter().flat_map(|&r| out.row(r).iter().copied()).collect(),
             bias: rows.iter().map(|&r| out.bias[r]).collect(),
         };
+        let (output, projection) = match self.projection {
+            Some(_) => (self.output.clone(), Some(selected)),
+            None => (selected, None),
+        };
         Ok(Mlp64 {
             input: self.input.clone(),
             blocks: self.blocks.clone(),
             output,
+            projection,
             ..*self
         })
     }
@@ -276,7 +192,7 @@ impl Mlp64 {
 
     /// Number of outputs.
     pub fn output_len(&self) -> usize {
-        self.output.rows
+        self.projection.as_ref().unwrap_or(&self.output).rows
     }
 
     /// Width of the hidden layers.
@@ -295,7 +211,14 @@ impl Mlp64 {
             .iter_mut()
             .zip(&ws.h)
             .for_each(|(a, &h)| *a = activation.apply(h));
-        self.output.matvec(&ws.act, |o, v| y[o] = self.output.bias[o] + v);
+        match &self.projection {
+            Some(p) => {
+                let py = &mut ws.py;
+                self.output.matvec(&ws.act, |o, v| py[o] = self.output.bias[o] + v);
+                p.matvec(py, |o, v| y[o] = p.bias[o] + v);
+            }
+            None => self.output.matvec(&ws.act, |o, v| y[o] = self.output.bias[o] + v),
+        }
         Ok(())
     }
 
@@ -307,13 +230,21 @@ impl Mlp64 {
         check_len("Jacobian", jac.len(), self.output_len() * r)?;
         ws.fit(self);
         self.hidden_pass(x, true, ws);
-        let Mlp64Workspace { h, act, tan, .. } = ws;
+        let Mlp64Workspace {
+            h, act, tan, py, pjac, ..
+        } = ws;
         for i in 0..n {
             let (s, first, _) = self.activation.parts(h[i]);
             act[i] = s;
             tan[i * r..(i + 1) * r].iter_mut().for_each(|t| *t *= first);
         }
-        self.output.with_tangents(act, tan, y, jac, false);
+        match &self.projection {
+            Some(p) => {
+                self.output.with_tangents(act, tan, py, pjac, false);
+                p.with_tangents(py, pjac, y, jac, false);
+            }
+            None => self.output.with_tangents(act, tan, y, jac, false),
+        }
         Ok(())
     }
 
@@ -336,7 +267,10 @@ impl Mlp64 {
         check_len("output weights", w.len(), self.output_len())?;
         check_len("gradient", out.len(), self.input_len())?;
         ws.fit(self);
-        let Mlp64Workspace { h, pre, bar, abar, .. } = ws;
+        let Mlp64Workspace {
+            h, pre, bar, abar, pw, ..
+        } = ws;
+        let w = self.before_projection(w, pw);
         abar.fill(0.0);
         self.output.add_transposed(w, abar);
         for i in 0..n {
@@ -379,8 +313,10 @@ impl Mlp64 {
             dbar,
             abar,
             dabar,
+            pw,
             ..
         } = ws;
+        let w = self.before_projection(w, pw);
         abar.fill(0.0);
         self.output.add_transposed(w, abar);
         for i in 0..n {
@@ -471,7 +407,14 @@ impl Mlp64 {
             let (_, first, second) = self.activation.parts(h[i]);
             ddu[i] = second * d[i] * d[i] + first * dd[i];
         }
-        self.output.matvec(ddu, |o, s| out[o] = s);
+        match &self.projection {
+            Some(p) => {
+                let py = &mut ws.py;
+                self.output.matvec(ddu, |o, s| py[o] = s);
+                p.matvec(py, |o, s| out[o] = s);
+            }
+            None => self.output.matvec(ddu, |o, s| out[o] = s),
+        }
         Ok(())
     }
 
@@ -525,6 +468,19 @@ impl Mlp64 {
         }
     }
 
+    /// The output weights `w` pulled back through the projection (`P^T w`, in `scratch`), or
+    /// `w` itself without one.
+    fn before_projection<'w>(&self, w: &'w [f64], scratch: &'w mut [f64]) -> &'w [f64] {
+        match &self.projection {
+            Some(p) => {
+                scratch.fill(0.0);
+                p.add_transposed(w, scratch);
+                scratch
+            }
+            None => w,
+        }
+    }
+
     /// The adjoint of a block's input from `abar`, the adjoint of its activation's input:
     /// `bar (+)= inner^T abar`, `bar (+)= abar` without an inner layer (`+=` in a residual
     /// block, where the input also reaches the output directly).
@@ -539,6 +495,7 @@ impl Mlp64 {
     }
 }
 
+mod dense64;
 #[cfg(test)]
 mod tests;
 #[allow(unsafe_code)]

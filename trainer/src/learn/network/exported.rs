@@ -58,9 +58,13 @@ pub struct ExportedBlock {
 /// built, so its forward pass cannot index out of bounds.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExportedMlp {
+    /// The fixed map before the input layer, if any (`style.input_projection`).
+    input_projection: Option<DenseLayer>,
     input: DenseLayer,
     blocks: Vec<ExportedBlock>,
     output: DenseLayer,
+    /// The fixed map after the output layer, if any (`style.output_projection`).
+    output_projection: Option<DenseLayer>,
     style: MlpStyle,
 }
 
@@ -73,15 +77,45 @@ impl ExportedMlp {
     }
 
     /// Builds a network of `style` from its flat layer list: as [`ExportedMlp::from_layers`]
-    /// for residual blocks, `[input, layer_0, ..., layer_{B-1}, output]` for plain ones.
-    pub(crate) fn from_styled_layers(layers: Vec<DenseLayer>, style: MlpStyle) -> ModelResult<Self> {
+    /// for residual blocks, `[input, layer_0, ..., layer_{B-1}, output]` for plain ones, with
+    /// the fixed projections first and last where the style has them.
+    pub(crate) fn from_styled_layers(mut layers: Vec<DenseLayer>, style: MlpStyle) -> ModelResult<Self> {
         let per_block = style.layers_per_block();
-        if layers.len() < 2 || !(layers.len() - 2).is_multiple_of(per_block) {
+        let fixed = style.projections();
+        if layers.len() < 2 + fixed || !(layers.len() - 2 - fixed).is_multiple_of(per_block) {
             return invalid(format!(
-                "{} MLP has 2 + {per_block}*blocks layers, got {}",
+                "{} MLP has {} + {per_block}*blocks layers, got {}",
                 if style.residual { "a residual" } else { "a plain" },
+                2 + fixed,
                 layers.len()
             ));
+        }
+        let output_projection = match style.output_projection {
+            true => Some(layers.pop().expect("length checked above")),
+            false => None,
+        };
+        let input_projection = match style.input_projection {
+            true => Some(layers.remove(0)),
+            false => None,
+        };
+        for (i, layer) in input_projection.iter().chain(&output_projection).enumerate() {
+            layer.check(&format!("projection {i}"))?;
+        }
+        if let Some(p) = &input_projection {
+            if p.rows != layers[0].cols {
+                return invalid(format!(
+                    "the input projection gives {} values, the input layer takes {}",
+                    p.rows, layers[0].cols
+                ));
+            }
+        }
+        if let (Some(p), Some(last)) = (&output_projection, layers.last()) {
+            if p.cols != last.rows {
+                return invalid(format!(
+                    "the output projection takes {} values, the output layer gives {}",
+                    p.cols, last.rows
+                ));
+            }
         }
         for (i, layer) in layers.iter().enumerate() {
             layer.check(&format!("layer {i}"))?;
@@ -117,9 +151,11 @@ impl ExportedMlp {
             blocks.push(block);
         }
         Ok(ExportedMlp {
+            input_projection,
             input,
             blocks,
             output,
+            output_projection,
             style,
         })
     }
@@ -130,13 +166,25 @@ impl ExportedMlp {
     }
 
     /// The sizes of this network.
+    /// The sizes of this network, its inputs and outputs those of the projections where it
+    /// has them.
     pub fn spec(&self) -> MlpSpec {
         MlpSpec {
-            input: self.input.cols,
-            output: self.output.rows,
+            input: self.input_projection.as_ref().unwrap_or(&self.input).cols,
+            output: self.output_projection.as_ref().unwrap_or(&self.output).rows,
             hidden: self.input.rows,
             blocks: self.blocks.len(),
         }
+    }
+
+    /// The fixed map before the input layer, if any.
+    pub fn input_projection(&self) -> Option<&DenseLayer> {
+        self.input_projection.as_ref()
+    }
+
+    /// The fixed map after the output layer, if any.
+    pub fn output_projection(&self) -> Option<&DenseLayer> {
+        self.output_projection.as_ref()
     }
 
     /// The input layer.
@@ -154,15 +202,17 @@ impl ExportedMlp {
         &self.output
     }
 
-    /// All layers in evaluation order: input, then inner (if any) and outer of each block,
-    /// then output.
+    /// All layers in evaluation order: the input projection (if any), input, then inner (if
+    /// any) and outer of each block, then output and the output projection (if any).
     pub fn layers(&self) -> Vec<&DenseLayer> {
-        let mut out = vec![&self.input];
+        let mut out: Vec<&DenseLayer> = self.input_projection.iter().collect();
+        out.push(&self.input);
         for block in &self.blocks {
             out.extend(&block.inner);
             out.push(&block.outer);
         }
         out.push(&self.output);
+        out.extend(&self.output_projection);
         out
     }
 }
@@ -170,16 +220,21 @@ impl ExportedMlp {
 /// The plain-Rust forward pass of a frozen MLP (the layout of the module documentation); in
 /// `f32`, the reference for the runtime's kernels.
 pub fn forward_exported<T: Real>(mlp: &ExportedMlp, x: &[T]) -> ModelResult<Vec<T>> {
-    if x.len() != mlp.input.cols {
+    if x.len() != mlp.spec().input {
         return invalid(format!(
             "input has {} values, the network takes {}",
             x.len(),
-            mlp.input.cols
+            mlp.spec().input
         ));
     }
+    let projected = mlp.input_projection.as_ref().map(|p| {
+        let mut c = vec![T::default(); p.rows];
+        p.apply(x, &mut c);
+        c
+    });
     let hidden = mlp.input.rows;
     let mut h = vec![T::default(); hidden];
-    mlp.input.apply(x, &mut h);
+    mlp.input.apply(projected.as_deref().unwrap_or(x), &mut h);
     let activation = mlp.style.activation;
     let mut a = vec![T::default(); hidden];
     let mut r = vec![T::default(); hidden];
@@ -198,5 +253,10 @@ pub fn forward_exported<T: Real>(mlp: &ExportedMlp, x: &[T]) -> ModelResult<Vec<
     h.iter_mut().for_each(|v| *v = activation.apply(*v));
     let mut y = vec![T::default(); mlp.output.rows];
     mlp.output.apply(&h, &mut y);
+    if let Some(p) = &mlp.output_projection {
+        let mut full = vec![T::default(); p.rows];
+        p.apply(&y, &mut full);
+        return Ok(full);
+    }
     Ok(y)
 }

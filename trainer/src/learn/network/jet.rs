@@ -69,6 +69,11 @@ pub(crate) fn jet(mlp: &ResMlp, x: &Tensor, v: &Tensor) -> candle_core::Result<J
         curvature: None,
     };
     let style = mlp.style();
+    let (input_projection, output_projection) = mlp.projections();
+    let start = match input_projection {
+        Some(p) => dense(p, &start)?,
+        None => start,
+    };
     let mut h = dense(mlp.input_layer(), &start)?;
     for (inner, outer) in mlp.block_layers() {
         let u = match inner {
@@ -78,7 +83,10 @@ pub(crate) fn jet(mlp: &ResMlp, x: &Tensor, v: &Tensor) -> candle_core::Result<J
         let r = dense(outer, &u)?;
         h = if style.residual { add(&h, &r)? } else { r };
     }
-    let y = dense(mlp.output_layer(), &activation(style.activation, &h)?)?;
+    let mut y = dense(mlp.output_layer(), &activation(style.activation, &h)?)?;
+    if let Some(p) = output_projection {
+        y = dense(p, &y)?;
+    }
     let curvature = match y.curvature {
         Some(c) => c,
         None => y.tangent.zeros_like()?,
@@ -165,16 +173,21 @@ mod tests {
     use crate::learn::network::exported::ExportedMlp;
     use crate::learn::network::layout::{MlpSpec, MlpStyle};
 
-    /// The residual Swish networks and the plain ELU ones.
-    const STYLES: [MlpStyle; 2] = [
+    /// The residual Swish networks, the plain ELU ones and those between projections.
+    const STYLES: [MlpStyle; 3] = [
         MlpStyle {
             activation: Activation::Swish,
             residual: true,
+            input_projection: false,
+            output_projection: false,
         },
         MlpStyle::PAPER,
+        PROJECTED,
     ];
     use crate::learn::network::tensor::tensor_to_rows;
-    use crate::learn::network::test_support::{as_tensor, max_relative_difference, random_rows, randomise};
+    use crate::learn::network::test_support::{
+        as_tensor, max_relative_difference, random_rows, randomise, styled_network, PROJECTED,
+    };
 
     const B: usize = 3;
     const K: usize = 2;
@@ -199,7 +212,7 @@ mod tests {
                 hidden: 16,
                 blocks: 2,
             };
-            let mlp = ResMlp::new_styled(spec, style, &mut rng).unwrap();
+            let mlp = styled_network(spec, style, &mut rng);
             randomise(&mlp.parameters("m"), 0.5, &mut rng);
             let x = random_rows(B, IN, 1.5, &mut rng);
             let v = random_rows(B * K, IN, 1.0, &mut rng);
@@ -323,7 +336,8 @@ mod tests {
             for entry in [top, gradient.len() / 3] {
                 let perturbed = |delta: f32| {
                     let mut layers = layers.clone();
-                    let layer = &mut layers[p / 2];
+                    // The projections are fixed: no variable of theirs.
+                    let layer = &mut layers[p / 2 + usize::from(style.input_projection)];
                     let values = if p % 2 == 0 {
                         &mut layer.weights
                     } else {

@@ -77,6 +77,14 @@ pub struct MlpStyle {
     /// `h = W a(h)`, one layer a block.
     #[serde(default = "residual_default")]
     pub residual: bool,
+    /// A fixed linear map before the input layer (default false): an encoder's PCA
+    /// projection `B^T (x - mean)`, never trained.
+    #[serde(default)]
+    pub input_projection: bool,
+    /// A fixed linear map after the output layer (default false): a decoder's PCA basis
+    /// `mean + B y`, never trained.
+    #[serde(default)]
+    pub output_projection: bool,
 }
 
 fn residual_default() -> bool {
@@ -88,6 +96,8 @@ impl Default for MlpStyle {
         MlpStyle {
             activation: Activation::Swish,
             residual: true,
+            input_projection: false,
+            output_projection: false,
         }
     }
 }
@@ -97,7 +107,14 @@ impl MlpStyle {
     pub const PAPER: MlpStyle = MlpStyle {
         activation: Activation::Elu,
         residual: false,
+        input_projection: false,
+        output_projection: false,
     };
+
+    /// Fixed projection layers around the trained ones (0, 1 or 2).
+    pub fn projections(&self) -> usize {
+        usize::from(self.input_projection) + usize::from(self.output_projection)
+    }
 
     /// Dense layers per block: two in a residual block, one in a plain one.
     pub fn layers_per_block(&self) -> usize {

@@ -89,9 +89,13 @@ struct Block {
 /// A trainable MLP, residual or plain (layout and initialisation in the module documentation).
 #[derive(Debug, Clone)]
 pub(crate) struct ResMlp {
+    /// A fixed map before the input layer (never trained; `style.input_projection`).
+    input_projection: Option<Dense>,
     input: Dense,
     blocks: Vec<Block>,
     output: Dense,
+    /// A fixed map after the output layer (never trained; `style.output_projection`).
+    output_projection: Option<Dense>,
     style: MlpStyle,
 }
 
@@ -136,11 +140,34 @@ impl ResMlp {
             .collect::<ModelResult<Vec<_>>>()?;
         let output = output(rng)?;
         Ok(ResMlp {
+            input_projection: None,
             input,
             blocks,
             output,
-            style,
+            output_projection: None,
+            style: MlpStyle {
+                input_projection: false,
+                output_projection: false,
+                ..style
+            },
         })
+    }
+
+    /// This network between fixed linear maps `y = W x + b` (a PCA's projection before it, its
+    /// basis after it), which training leaves unchanged.
+    pub(crate) fn with_projections(
+        mut self,
+        input: Option<DenseLayer>,
+        output: Option<DenseLayer>,
+    ) -> ModelResult<Self> {
+        let dense = |l: DenseLayer| Dense::from_values(l.rows, l.cols, l.weights, l.bias);
+        self.input_projection = input.map(dense).transpose()?;
+        self.output_projection = output.map(dense).transpose()?;
+        self.style.input_projection = self.input_projection.is_some();
+        self.style.output_projection = self.output_projection.is_some();
+        // Checks the shapes as the frozen network would.
+        self.export()?;
+        Ok(self)
     }
 
     /// The candle network with the weights of a frozen one (for comparisons with the runtime).
@@ -157,11 +184,18 @@ impl ResMlp {
             })
             .collect::<ModelResult<Vec<_>>>()?;
         Ok(ResMlp {
+            input_projection: mlp.input_projection().map(dense).transpose()?,
             input: dense(mlp.input())?,
             blocks,
             output: dense(mlp.output())?,
+            output_projection: mlp.output_projection().map(dense).transpose()?,
             style: mlp.style(),
         })
+    }
+
+    /// The fixed maps before the input layer and after the output layer, if any.
+    pub(super) fn projections(&self) -> (Option<&Dense>, Option<&Dense>) {
+        (self.input_projection.as_ref(), self.output_projection.as_ref())
     }
 
     /// The activation and how the hidden layers are joined.
@@ -202,7 +236,10 @@ impl ResMlp {
         x: &Tensor,
         dense: fn(&Dense, &Tensor) -> candle_core::Result<Tensor>,
     ) -> candle_core::Result<Tensor> {
-        let mut h = dense(&self.input, x)?;
+        let mut h = match &self.input_projection {
+            Some(p) => dense(&self.input, &p.forward_frozen(x)?)?,
+            None => dense(&self.input, x)?,
+        };
         for block in &self.blocks {
             let u = match &block.inner {
                 Some(inner) => dense(inner, &h)?,
@@ -211,7 +248,11 @@ impl ResMlp {
             let r = dense(&block.outer, &activate(self.style.activation, &u)?)?;
             h = if self.style.residual { (h + r)? } else { r };
         }
-        dense(&self.output, &activate(self.style.activation, &h)?)
+        let y = dense(&self.output, &activate(self.style.activation, &h)?)?;
+        match &self.output_projection {
+            Some(p) => p.forward_frozen(&y),
+            None => Ok(y),
+        }
     }
 
     /// The trainable variables, named `{prefix}.input.weight`, `{prefix}.block{j}.inner.bias`,
@@ -231,7 +272,11 @@ impl ResMlp {
 
     /// Freezes the current weights.
     pub fn export(&self) -> ModelResult<ExportedMlp> {
-        let mut layers = vec![self.input.export()?];
+        let mut layers = Vec::new();
+        if let Some(p) = &self.input_projection {
+            layers.push(p.export()?);
+        }
+        layers.push(self.input.export()?);
         for block in &self.blocks {
             if let Some(inner) = &block.inner {
                 layers.push(inner.export()?);
@@ -239,6 +284,9 @@ impl ResMlp {
             layers.push(block.outer.export()?);
         }
         layers.push(self.output.export()?);
+        if let Some(p) = &self.output_projection {
+            layers.push(p.export()?);
+        }
         ExportedMlp::from_styled_layers(layers, self.style)
     }
 }
@@ -259,10 +307,11 @@ mod tests {
     use crate::learn::network::exported::forward_exported;
     use crate::learn::network::tensor::tensor_to_rows;
     use crate::learn::network::test_support::*;
+    use crate::learn::network::MlpStyle;
 
     #[test]
     fn exported_mlp_matches_candle_forward() {
-        for style in [MlpStyle::default(), MlpStyle::PAPER] {
+        for style in [MlpStyle::default(), MlpStyle::PAPER, PROJECTED] {
             exported_matches_candle(style);
         }
     }
@@ -275,13 +324,22 @@ mod tests {
             hidden: 24,
             blocks: 3,
         };
-        let mlp = ResMlp::new_styled(spec, style, &mut rng).unwrap();
+        let mlp = styled_network(spec, style, &mut rng);
         randomise(&mlp.parameters("m"), 0.4, &mut rng);
         let x = random_rows(16, 30, 2.0, &mut rng);
         let candle = tensor_to_rows(&mlp.forward(&as_tensor(&x)).unwrap()).unwrap();
         let exported = mlp.export().unwrap();
         assert_eq!((exported.spec(), exported.style()), (spec, style));
-        assert_eq!(exported.layers().len(), 2 + style.layers_per_block() * spec.blocks);
+        let fixed = style.projections();
+        assert_eq!(
+            exported.layers().len(),
+            2 + fixed + style.layers_per_block() * spec.blocks
+        );
+        // The candle copy of the frozen network is the same network.
+        let copy = ResMlp::from_exported(&exported).unwrap().export().unwrap();
+        assert_eq!(copy, exported);
+        // Training leaves the projections fixed: they are not among the variables.
+        assert_eq!(mlp.parameters("m").len(), 2 * (exported.layers().len() - fixed));
         let layers = exported.layers().into_iter().cloned().collect();
         assert_eq!(ExportedMlp::from_styled_layers(layers, style).unwrap(), exported);
         let plain: Vec<Vec<f32>> = x.iter().map(|x| forward_exported(&exported, x).unwrap()).collect();

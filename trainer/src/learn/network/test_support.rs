@@ -106,3 +106,33 @@ pub(crate) fn pca_reconstruction_error(data: &[Vec<f32>], mean: &[f64], basis: &
     }
     total / (data.len() * data[0].len()) as f64
 }
+
+/// The paper code's plain ELU layers between fixed random projections, as a PCA-projected
+/// autoencoder network has them.
+pub(crate) const PROJECTED: super::MlpStyle = super::MlpStyle {
+    input_projection: true,
+    output_projection: true,
+    ..super::MlpStyle::PAPER
+};
+
+/// A random network of `spec`'s outer sizes and `style`: the trainable layers between random
+/// projections where the style has them (`spec.input` to 3 values before, 6 values to
+/// `spec.output` after), the trainable weights drawn from `rng` as [`super::ResMlp::new_styled`]
+/// draws them.
+pub(crate) fn styled_network(spec: super::MlpSpec, style: super::MlpStyle, rng: &mut ChaCha8Rng) -> super::ResMlp {
+    let core = super::MlpSpec {
+        input: if style.input_projection { 3 } else { spec.input },
+        output: if style.output_projection { 6 } else { spec.output },
+        ..spec
+    };
+    let mlp = super::ResMlp::new_styled(core, style, rng).unwrap();
+    let mut layer = |rows: usize, cols: usize| super::DenseLayer {
+        rows,
+        cols,
+        weights: (0..rows * cols).map(|_| rng.random_range(-0.6..0.6)).collect(),
+        bias: (0..rows).map(|_| rng.random_range(-0.3..0.3)).collect(),
+    };
+    let input = style.input_projection.then(|| layer(3, spec.input));
+    let output = style.output_projection.then(|| layer(spec.output, 6));
+    mlp.with_projections(input, output).unwrap()
+}

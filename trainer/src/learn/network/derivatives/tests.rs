@@ -5,21 +5,24 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::*;
-use crate::learn::network::exported::forward_exported;
+use crate::learn::network::exported::{forward_exported, DenseLayer};
 use crate::learn::network::layout::{MlpSpec, MlpStyle};
-use crate::learn::network::mlp::ResMlp;
-use crate::learn::network::test_support::randomise;
+use crate::learn::network::test_support::{randomise, styled_network, PROJECTED};
 
 const R: usize = 4;
 const OUT: usize = 30;
 
-/// The residual Swish networks and the plain ELU ones: every check runs on both.
-const STYLES: [MlpStyle; 2] = [
+/// The residual Swish networks, the plain ELU ones, and those between projections: every
+/// check runs on each.
+const STYLES: [MlpStyle; 3] = [
     MlpStyle {
         activation: Activation::Swish,
         residual: true,
+        input_projection: false,
+        output_projection: false,
     },
     MlpStyle::PAPER,
+    PROJECTED,
 ];
 
 /// A random network of `style` (2 blocks, 4 inputs, 30 outputs, 16 hidden units) and a random
@@ -32,7 +35,7 @@ fn setup(seed: u64, style: MlpStyle) -> (ExportedMlp, Mlp64, Vec<f64>, ChaCha8Rn
         hidden: 16,
         blocks: 2,
     };
-    let mlp = ResMlp::new_styled(spec, style, &mut rng).unwrap();
+    let mlp = styled_network(spec, style, &mut rng);
     randomise(&mlp.parameters("m"), 0.5, &mut rng);
     let exported = mlp.export().unwrap();
     let x = random_vec(R, &mut rng);
