@@ -277,11 +277,15 @@ where
             }
         }
         Body::Scatter(points) => {
-            let group_of = |p: &LabelledPoint| groups.iter().position(|g| *g == p.group).unwrap_or(0);
+            // Each point's group (its colour and marker), found once.
+            let group: Vec<usize> = points
+                .iter()
+                .map(|p| groups.iter().position(|g| *g == p.group).unwrap_or(0))
+                .collect();
             let shaped = |shape: usize| {
                 points
                     .iter()
-                    .map(move |p| (p, group_of(p)))
+                    .zip(group.iter().copied())
                     .filter(move |(_, i)| marker_shape(*i) == shape)
             };
             chart.draw_series(shaped(0).map(|(p, i)| Circle::new((p.x, p.y), 5, palette(i).filled())))?;
@@ -293,8 +297,8 @@ where
             let area = chart.plotting_area().get_pixel_range();
             let bounds = (area.0.start, area.1.start, area.0.end, area.1.end);
             let mut boxes = Vec::new();
-            for p in points.iter() {
-                let (w, h) = plot.estimate_text_size(&p.label, &label_font(group_of(p)))?;
+            for (p, &i) in points.iter().zip(&group) {
+                let (w, h) = plot.estimate_text_size(&p.label, &label_font(i))?;
                 let (px, py) = chart.backend_coord(&(p.x, p.y));
                 let y = py + LABEL_RISE;
                 let right = (px + LABEL_GAP, y, px + LABEL_GAP + w as i32, y + h as i32);
@@ -304,12 +308,13 @@ where
             let sides = place_labels(&boxes, bounds);
             let texts = points
                 .iter()
+                .zip(&group)
                 .zip(&boxes)
                 .zip(sides)
-                .filter_map(|((p, candidates), side)| {
+                .filter_map(|(((p, &i), candidates), side)| {
                     let (b, _) = candidates.as_ref()?;
                     let offset = (b[side?].0 - b[0].0 + LABEL_GAP, LABEL_RISE);
-                    let text = Text::new(p.label.clone(), offset, label_font(group_of(p)));
+                    let text = Text::new(p.label.clone(), offset, label_font(i));
                     Some(EmptyElement::at((p.x, p.y)) + text)
                 });
             chart.draw_series(texts)?;

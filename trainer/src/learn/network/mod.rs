@@ -22,6 +22,16 @@
 //! not needed, and leaving it out keeps the PCA initialisation exact (see
 //! [`Autoencoder::new_pca_init`]) and the export free of train/eval modes.
 //!
+//! # Styles
+//!
+//! That layout is the default [`MlpStyle`], the only one the runtime runs. The reduced
+//! method's baseline subspace can reproduce the networks of Lyu et al.'s code instead: ELU
+//! (`v` for `v > 0`, `e^v - 1` otherwise) for Swish, plain hidden layers `h = W_j a(h) + b_j`
+//! (one layer a block, no residual addition: `blocks = 1` gives two hidden layers), and fixed
+//! linear maps around the trained layers (a PCA's projection `B^T (x - mean)` before the input
+//! layer, its basis `mean + B y` after the output layer), which are part of the network but not
+//! of its variables. A frozen network keeps its style; its flat layer list is read with it.
+//!
 //! # Initialisation
 //!
 //! Dense layers start with PyTorch's default uniform law `U(-1/sqrt(cols), 1/sqrt(cols))` for
@@ -31,7 +41,7 @@
 //!
 //! # Files
 //!
-//! `error`: what can go wrong; `layout`: the sizes of a residual MLP and its activation;
+//! `error`: what can go wrong; `layout`: the sizes of an MLP, its style and activations;
 //! `exported`: frozen networks and their plain-Rust forward pass; `mlp`: the trainable
 //! residual MLP in candle; `autoencoder` and `integrator`: the two networks built from it;
 //! `decoder`: a residual MLP or a linear basis after a small one, frozen and trainable;
