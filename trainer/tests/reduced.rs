@@ -21,15 +21,14 @@ use mochi_trainer::{artifact_paths, evaluate, train_scene, EvalOptions, Quiet, R
 const TINY: &str = include_str!("../sim/tests/fixtures/tiny-train.toml");
 const REDUCED: &str = "\n[reduced]\nsubspace = \"supervised\"\nlipschitz_epochs = 3\nsamples = 4\ncubature = 40\n";
 
-#[test]
-fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("tiny.toml");
+/// Trains the tiny scene with `extra` appended to its `[reduced]` table into `dir/out`.
+fn train_tiny(dir: &std::path::Path, extra: &str) -> (Recipe, std::path::PathBuf, mochi_trainer::TrainOutcome) {
+    let path = dir.join("tiny.toml");
     // The reduced method's vanilla subspace is the MLP decoder; the selection tries only it here.
     let mlp_only = "\n[latent.selection]\ndecoders = [\"mlp\"]\n";
-    std::fs::write(&path, format!("{TINY}{REDUCED}{mlp_only}")).unwrap();
+    std::fs::write(&path, format!("{TINY}{REDUCED}{extra}{mlp_only}")).unwrap();
     let recipe = Recipe::load(path.to_str().unwrap()).unwrap();
-    let out = dir.path().join("out");
+    let out = dir.join("out");
     let options = TrainOptions {
         out_dir: out.clone(),
         resume: false,
@@ -37,6 +36,13 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         frame_memory: mochi_trainer::FRAME_MEMORY,
     };
     let outcome = train_scene(&recipe, &options, &Quiet).unwrap();
+    (recipe, out, outcome)
+}
+
+#[test]
+fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
+    let dir = tempfile::tempdir().unwrap();
+    let (recipe, out, outcome) = train_tiny(dir.path(), "");
 
     // Both subspaces share the kept autoencoder's latent size, the Lipschitz one differs
     // from the vanilla one, and the file on disk is what the stage returned.
@@ -259,20 +265,10 @@ fn a_scene_file_that_seeds_a_supervised_subspace_is_refused_but_a_stored_recipe_
 #[test]
 fn the_paper_shaped_vanilla_keeps_its_pca_through_the_lipschitz_optimisation() {
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("tiny.toml");
     let paper = "vanilla = \"plain-mlp\"\nplain_hidden = 24\nplain_blocks = 1\nplain_activation = \"elu\"\n\
                  plain_residual = false\nplain_epochs = 20\nplain_pca = 1e-3\n";
-    let mlp_only = "\n[latent.selection]\ndecoders = [\"mlp\"]\n";
-    std::fs::write(&path, format!("{TINY}{REDUCED}{paper}{mlp_only}")).unwrap();
-    let recipe = Recipe::load(path.to_str().unwrap()).unwrap();
-    let out = dir.path().join("out");
-    let options = TrainOptions {
-        out_dir: out.clone(),
-        resume: false,
-        latent: None,
-        frame_memory: mochi_trainer::FRAME_MEMORY,
-    };
-    let reduced = train_scene(&recipe, &options, &Quiet).unwrap().reduced.unwrap();
+    let (recipe, out, outcome) = train_tiny(dir.path(), paper);
+    let reduced = outcome.reduced.unwrap();
     assert_eq!(ReducedArtifact::load(&reduced_path(&out, "tiny")).unwrap(), reduced);
     let (vanilla, ours) = (reduced.vanilla.decoder().unwrap(), reduced.lipschitz.decoder().unwrap());
     for decoder in [&vanilla, &ours] {

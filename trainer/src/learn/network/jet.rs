@@ -173,20 +173,9 @@ mod tests {
     use crate::learn::network::exported::ExportedMlp;
     use crate::learn::network::layout::{MlpSpec, MlpStyle};
 
-    /// The residual Swish networks, the plain ELU ones and those between projections.
-    const STYLES: [MlpStyle; 3] = [
-        MlpStyle {
-            activation: Activation::Swish,
-            residual: true,
-            input_projection: false,
-            output_projection: false,
-        },
-        MlpStyle::PAPER,
-        PROJECTED,
-    ];
     use crate::learn::network::tensor::tensor_to_rows;
     use crate::learn::network::test_support::{
-        as_tensor, max_relative_difference, random_rows, randomise, styled_network, PROJECTED,
+        as_tensor, max_relative_difference, random_rows, randomise, styled_network, STYLES,
     };
 
     const B: usize = 3;

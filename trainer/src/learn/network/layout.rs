@@ -93,16 +93,19 @@ fn residual_default() -> bool {
 
 impl Default for MlpStyle {
     fn default() -> Self {
-        MlpStyle {
-            activation: Activation::Swish,
-            residual: true,
-            input_projection: false,
-            output_projection: false,
-        }
+        MlpStyle::DEFAULT
     }
 }
 
 impl MlpStyle {
+    /// Residual Swish blocks, no projection: every network the runtime runs.
+    pub const DEFAULT: MlpStyle = MlpStyle {
+        activation: Activation::Swish,
+        residual: true,
+        input_projection: false,
+        output_projection: false,
+    };
+
     /// Plain hidden layers with ELU: the networks of Lyu et al.'s code.
     pub const PAPER: MlpStyle = MlpStyle {
         activation: Activation::Elu,

@@ -107,6 +107,10 @@ pub(crate) fn pca_reconstruction_error(data: &[Vec<f32>], mean: &[f64], basis: &
     total / (data.len() * data[0].len()) as f64
 }
 
+/// The residual Swish networks, the paper code's plain ELU ones, and those between fixed
+/// projections: the checks of every network's derivatives run on each.
+pub(crate) const STYLES: [super::MlpStyle; 3] = [super::MlpStyle::DEFAULT, super::MlpStyle::PAPER, PROJECTED];
+
 /// The paper code's plain ELU layers between fixed random projections, as a PCA-projected
 /// autoencoder network has them.
 pub(crate) const PROJECTED: super::MlpStyle = super::MlpStyle {

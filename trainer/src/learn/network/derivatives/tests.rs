@@ -7,23 +7,10 @@ use rand_chacha::ChaCha8Rng;
 use super::*;
 use crate::learn::network::exported::{forward_exported, DenseLayer};
 use crate::learn::network::layout::{MlpSpec, MlpStyle};
-use crate::learn::network::test_support::{randomise, styled_network, PROJECTED};
+use crate::learn::network::test_support::{randomise, styled_network, STYLES};
 
 const R: usize = 4;
 const OUT: usize = 30;
-
-/// The residual Swish networks, the plain ELU ones, and those between projections: every
-/// check runs on each.
-const STYLES: [MlpStyle; 3] = [
-    MlpStyle {
-        activation: Activation::Swish,
-        residual: true,
-        input_projection: false,
-        output_projection: false,
-    },
-    MlpStyle::PAPER,
-    PROJECTED,
-];
 
 /// A random network of `style` (2 blocks, 4 inputs, 30 outputs, 16 hidden units) and a random
 /// point.
