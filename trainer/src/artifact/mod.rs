@@ -13,7 +13,6 @@
 pub mod file;
 mod format3;
 pub mod reduced;
-mod reduced_v2;
 pub mod render;
 pub mod section;
 
