@@ -20,6 +20,12 @@ pub trait Rows: Sync {
     fn gather_f32(&self, indices: &[usize], out: &mut Vec<f32>) -> std::io::Result<()>;
     /// Appends rows `indices`, in that order, to `out` as `f64`.
     fn gather_f64(&self, indices: &[usize], out: &mut Vec<f64>) -> std::io::Result<()>;
+    /// Row `i` as `f64`.
+    fn row_f64(&self, i: usize) -> std::io::Result<Vec<f64>> {
+        let mut out = Vec::with_capacity(self.width());
+        self.gather_f64(&[i], &mut out)?;
+        Ok(out)
+    }
     /// The first row whose width differs from row 0's (rows of a file all have one width).
     fn ragged_row(&self) -> Option<usize> {
         None
@@ -106,13 +112,6 @@ impl FrameRows {
             first += indices.len();
         }
         Ok(())
-    }
-
-    /// Row `i` as `f64`.
-    pub fn row_f64(&self, i: usize) -> std::io::Result<Vec<f64>> {
-        let mut out = Vec::with_capacity(self.width());
-        self.gather_f64(&[i], &mut out)?;
-        Ok(out)
     }
 
     /// Whether the rows are read from a file.

@@ -143,12 +143,9 @@ pub(crate) fn train_plain_vanilla(
     let autoencoder = match spec.plain_pca {
         None => Autoencoder::new_styled(sizes, plain_style(spec), seed)?,
         Some(tolerance) => {
-            let mut frames = Vec::with_capacity(data.count());
-            for i in 0..data.count() {
-                let mut row = Vec::with_capacity(input);
-                data.gather_f64(&[i], &mut row)?;
-                frames.push(row);
-            }
+            let frames = (0..data.count())
+                .map(|i| data.row_f64(i))
+                .collect::<std::io::Result<Vec<_>>>()?;
             let sized = pca::smallest_k_for(tolerance, &frames, scale.0, scale.1)?;
             let modes = sized.pca.num_components();
             projection = Some((modes, sized.errors.get(modes).copied().unwrap_or(0.0)));

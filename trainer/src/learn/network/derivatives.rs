@@ -378,8 +378,6 @@ impl Mlp64 {
         self.input.matvec(x, |i, s| h[i] = self.input.bias[i] + s);
         self.input.matvec(v, |i, s| d[i] = s);
         dd.fill(0.0);
-        let residual = self.residual;
-        let join = move |old: f64, new: f64| if residual { old + new } else { new };
         for (inner, outer) in &self.blocks {
             match inner {
                 Some(inner) => {
@@ -399,9 +397,9 @@ impl Mlp64 {
                 ddu[i] = second * du[i] * du[i] + first * ddu[i];
                 du[i] *= first;
             }
-            outer.matvec(act, |i, s| h[i] = join(h[i], outer.bias[i] + s));
-            outer.matvec(du, |i, s| d[i] = join(d[i], s));
-            outer.matvec(ddu, |i, s| dd[i] = join(dd[i], s));
+            outer.matvec(act, |i, s| h[i] = self.join(h[i], outer.bias[i] + s));
+            outer.matvec(du, |i, s| d[i] = self.join(d[i], s));
+            outer.matvec(ddu, |i, s| dd[i] = self.join(dd[i], s));
         }
         for i in 0..n {
             let (_, first, second) = self.activation.parts(h[i]);
@@ -459,12 +457,19 @@ impl Mlp64 {
             if tangents {
                 outer.with_tangents(act, dact, h, tan, self.residual);
             } else {
-                let residual = self.residual;
-                outer.matvec(act, |i, v| {
-                    let new = outer.bias[i] + v;
-                    h[i] = if residual { h[i] + new } else { new };
-                });
+                outer.matvec(act, |i, v| h[i] = self.join(h[i], outer.bias[i] + v));
             }
+        }
+    }
+
+    /// A block's output from its input `old` and its layers' `new`: their sum in a residual
+    /// block, `new` in a plain one.
+    #[inline(always)]
+    fn join(&self, old: f64, new: f64) -> f64 {
+        if self.residual {
+            old + new
+        } else {
+            new
         }
     }
 

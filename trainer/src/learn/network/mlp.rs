@@ -89,13 +89,15 @@ struct Block {
 /// A trainable MLP, residual or plain (layout and initialisation in the module documentation).
 #[derive(Debug, Clone)]
 pub(crate) struct ResMlp {
-    /// A fixed map before the input layer (never trained; `style.input_projection`).
+    /// A fixed map before the input layer (never trained).
     input_projection: Option<Dense>,
     input: Dense,
     blocks: Vec<Block>,
     output: Dense,
-    /// A fixed map after the output layer (never trained; `style.output_projection`).
+    /// A fixed map after the output layer (never trained).
     output_projection: Option<Dense>,
+    /// The activation and how the hidden layers are joined (the projections are the fields
+    /// above).
     style: MlpStyle,
 }
 
@@ -145,11 +147,7 @@ impl ResMlp {
             blocks,
             output,
             output_projection: None,
-            style: MlpStyle {
-                input_projection: false,
-                output_projection: false,
-                ..style
-            },
+            style,
         })
     }
 
@@ -163,8 +161,6 @@ impl ResMlp {
         let dense = |l: DenseLayer| Dense::from_values(l.rows, l.cols, l.weights, l.bias);
         self.input_projection = input.map(dense).transpose()?;
         self.output_projection = output.map(dense).transpose()?;
-        self.style.input_projection = self.input_projection.is_some();
-        self.style.output_projection = self.output_projection.is_some();
         // Checks the shapes as the frozen network would.
         self.export()?;
         Ok(self)
@@ -200,7 +196,11 @@ impl ResMlp {
 
     /// The activation and how the hidden layers are joined.
     pub(crate) fn style(&self) -> MlpStyle {
-        self.style
+        MlpStyle {
+            input_projection: self.input_projection.is_some(),
+            output_projection: self.output_projection.is_some(),
+            ..self.style
+        }
     }
 
     /// The input layer.
@@ -287,7 +287,7 @@ impl ResMlp {
         if let Some(p) = &self.output_projection {
             layers.push(p.export()?);
         }
-        ExportedMlp::from_styled_layers(layers, self.style)
+        ExportedMlp::from_styled_layers(layers, self.style())
     }
 }
 
