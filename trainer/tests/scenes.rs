@@ -66,6 +66,10 @@ fn every_shipped_scene_builds_at_its_documented_size() {
                 assert_eq!(problem.simulator.scheme(), mochi_sim::TimeScheme::QuasiStatic);
                 assert_eq!(problem.handles.len(), 2, "both ends held");
             }
+            "twist-bar-paper-size" => {
+                assert_eq!(3 * n, 4704, "the paper's twist bar: 4.7K degrees of freedom");
+                assert_eq!(problem.simulator.scheme(), mochi_sim::TimeScheme::QuasiStatic);
+            }
             "two-cubes" => {
                 assert_eq!(n, 2 * 125, "two 4 x 4 x 4 cubes");
                 assert!(scene.contact.as_ref().is_some_and(|c| c.self_contact));
