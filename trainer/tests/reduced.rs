@@ -194,6 +194,12 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         assert!(t.evaluations >= t.iterations, "{t:?}");
         assert_eq!(t.converged(), 1.0, "{t:?}");
         assert_eq!(t.exit_shares, [1.0, 0.0, 0.0, 0.0], "{t:?}");
+        // Every step converged: a converged step's evaluations are all of them.
+        assert!(
+            (t.exit_evaluations[0] - t.evaluations).abs() <= 1e-9 * t.evaluations,
+            "{t:?}"
+        );
+        assert!(t.exit_evaluations[1..].iter().all(|e| e.is_nan()), "{t:?}");
         // Converged steps stop at the tolerance or below it.
         assert!(t.exit_gradient >= 0.0 && t.exit_gradient <= 1e-5, "{t:?}");
         assert!(t.lipschitz.is_finite() && t.lipschitz > 0.0, "{t:?}");
@@ -234,6 +240,12 @@ fn tiny_scene_trains_evaluates_and_benches_the_reduced_method() {
         assert!(t.ms_per_step > 0.0 && t.evaluations >= t.iterations, "{t:?}");
         assert!((0.0..=1.0).contains(&t.converged()), "{t:?}");
         assert!((t.exit_shares.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{t:?}");
+        // The evaluations of each exit's steps, weighed by its share, are all of them.
+        let by_exit: f64 = (0..4)
+            .filter(|&k| t.exit_shares[k] > 0.0)
+            .map(|k| t.exit_shares[k] * t.exit_evaluations[k])
+            .sum();
+        assert!((by_exit - t.evaluations).abs() <= 1e-9 * t.evaluations, "{t:?}");
     }
     let table = reduced_bench::table("tiny", &single, &single_timings);
     assert!(table.contains("in single precision (emulated)"), "{table}");

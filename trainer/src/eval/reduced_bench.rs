@@ -25,7 +25,7 @@ use crate::methods::lipschitz::cubature::{cubature_energies, elastic_terms};
 use crate::methods::lipschitz::loss::{
     latent_spread, lipschitz_estimate, median_condition, LatentSample, LipschitzTerm,
 };
-use crate::methods::reduced::optimize::Exit;
+use crate::methods::reduced::optimize::{Exit, ExitCounts};
 use crate::methods::reduced::rounding::Rounding;
 use crate::methods::reduced::stepper::{scene_objective_scale, ReducedSolver};
 use crate::progress::Reporter;
@@ -43,6 +43,9 @@ pub struct ReducedTiming {
     pub evaluations: f64,
     /// Share of steps that ended in each exit, in [`Exit::ALL`]'s order (the paper's I-IV).
     pub exit_shares: [f64; 4],
+    /// Mean objective evaluations of a step that ended in each exit, over every sequence's
+    /// steps, in the same order (NaN where no step did).
+    pub exit_evaluations: [f64; 4],
     /// Mean gradient infinity norm where the steps stopped (of the objective the solver
     /// minimises: unscaled for the paper's solver).
     pub exit_gradient: f64,
@@ -182,6 +185,11 @@ pub fn bench(path: &Path, options: &ReducedBenchOptions, report: &dyn Reporter) 
             iterations: mean(&|m| m.iterations),
             evaluations: mean(&|m| m.evaluations),
             exit_shares: Exit::ALL.map(|exit| mean(&|m| m.exits.fraction(exit))),
+            exit_evaluations: {
+                let mut all = ExitCounts::default();
+                runs.iter().for_each(|m| all.merge(&m.exits));
+                Exit::ALL.map(|exit| all.mean_evaluations(exit))
+            },
             exit_gradient: mean(&|m| m.exit_gradient),
             mean_error: match &references {
                 Some(_) => mean(&|m| m.mean_error),
@@ -228,8 +236,9 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
     };
     let mut s = format!(
         "{scene}: reduced-order solver in {}, {steps}, {how}\n\n| subspace | ms/step | speedup vs vanilla \
-         | iterations/step | evaluations/step | converged % | exits I / II / III / IV % | mean exit gradient | mean error % | Lip \
-         | latent spread | Lip x spread^3 | condition |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         | iterations/step | evaluations/step | converged % | exits I / II / III / IV % | evaluations per step by exit \
+         | mean exit gradient | mean error % | Lip | latent spread | Lip x spread^3 | condition |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         rounding.name()
     );
     for (k, t) in timings.iter().enumerate() {
@@ -247,7 +256,7 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
             "- | - | - | -".to_string()
         };
         s += &format!(
-            "| {} | {:.3} | {:.2}x | {:.2} | {:.2} | {:.1} | {} | {:.1e} | {:.3} | {landscape} |\n",
+            "| {} | {:.3} | {:.2}x | {:.2} | {:.2} | {:.1} | {} | {} | {:.1e} | {:.3} | {landscape} |\n",
             t.name,
             t.ms_per_step,
             baseline.ms_per_step / t.ms_per_step.max(1e-12),
@@ -255,6 +264,9 @@ pub fn table(scene: &str, options: &ReducedBenchOptions, timings: &[ReducedTimin
             t.evaluations,
             100.0 * t.converged(),
             t.exit_shares.map(|f| format!("{:.1}", 100.0 * f)).join(" / "),
+            t.exit_evaluations
+                .map(|e| if e.is_nan() { "-".to_string() } else { format!("{e:.1}") })
+                .join(" / "),
             t.exit_gradient,
             100.0 * t.mean_error,
         );

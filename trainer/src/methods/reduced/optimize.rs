@@ -112,12 +112,32 @@ impl SolveReport {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ExitCounts {
     counts: [usize; 4],
+    /// Objective evaluations of the solves that ended in each exit, summed.
+    evaluations: [usize; 4],
 }
 
 impl ExitCounts {
-    /// Counts the exit of one solve.
+    /// Counts the exit of one solve and its evaluations.
     pub fn add(&mut self, report: &SolveReport) {
         self.counts[report.exit as usize] += 1;
+        self.evaluations[report.exit as usize] += report.evaluations;
+    }
+
+    /// Adds another tally's solves to this one.
+    pub fn merge(&mut self, other: &ExitCounts) {
+        for k in 0..4 {
+            self.counts[k] += other.counts[k];
+            self.evaluations[k] += other.evaluations[k];
+        }
+    }
+
+    /// Mean objective evaluations of a solve that ended in `exit` (line-search trials
+    /// included); NaN when none did.
+    pub fn mean_evaluations(&self, exit: Exit) -> f64 {
+        match self.count(exit) {
+            0 => f64::NAN,
+            n => self.evaluations[exit as usize] as f64 / n as f64,
+        }
     }
 
     /// Solves that ended in `exit`.
@@ -391,6 +411,24 @@ mod tests {
         assert_eq!(counts.fraction(Exit::Converged), 0.5);
         let sum: f64 = Exit::ALL.iter().map(|&e| counts.fraction(e)).sum();
         assert_eq!(sum, 1.0);
+    }
+
+    #[test]
+    fn exit_counts_keep_each_exits_evaluations() {
+        let with = |exit, evaluations| report(exit, 1, evaluations, 0.0, &[], Vec::new());
+        let mut counts = ExitCounts::default();
+        counts.add(&with(Exit::Converged, 3));
+        counts.add(&with(Exit::Converged, 5));
+        counts.add(&with(Exit::LineSearchCap, 258));
+        assert_eq!(counts.mean_evaluations(Exit::Converged), 4.0);
+        assert_eq!(counts.mean_evaluations(Exit::LineSearchCap), 258.0);
+        assert!(counts.mean_evaluations(Exit::Saddle).is_nan());
+        let mut merged = ExitCounts::default();
+        merged.merge(&counts);
+        merged.add(&with(Exit::Converged, 1));
+        assert_eq!(merged.count(Exit::Converged), 3);
+        assert_eq!(merged.mean_evaluations(Exit::Converged), 3.0);
+        assert_eq!(merged.count(Exit::LineSearchCap), 1);
     }
 
     #[test]
